@@ -1,0 +1,22 @@
+"""User-facing errors: one clear sentence, exit code 2, nothing half-written."""
+from __future__ import annotations
+
+
+class CrowdError(Exception):
+    """Bad input from the user (scene file, asset, parameter). Exit code 2.
+
+    The message is one sentence naming the file, the key (or line) and what
+    would be accepted.
+    """
+
+    exit_code = 2
+
+
+class SceneError(CrowdError):
+    def __init__(self, path, key: str, message: str):
+        self.path, self.key = str(path), key
+        super().__init__(f"{path}: {key}: {message}" if key else f"{path}: {message}")
+
+
+class AssetError(CrowdError):
+    pass

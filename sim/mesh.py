@@ -1,0 +1,84 @@
+"""Triangle meshes with optional skin attributes.
+
+Conventions (shared by every layer): metres, right-handed, Y up; colours are
+linear RGBA in [0, 1].
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Mesh:
+    """An indexed triangle mesh.
+
+    Attributes
+    ----------
+    positions : (V, 3) float32
+    indices : (T, 3) uint32
+    normals : (V, 3) float32 or None
+        Unit normals; computed by :meth:`ensure_normals` when missing.
+    colors : (V, 4) float32 or None
+        Per-vertex linear RGBA. When None, ``base_color`` applies.
+    joints : (V, 4) uint16 or None
+        Indices into the skeleton's joints (skinned meshes only).
+    weights : (V, 4) float32 or None
+        Skin weights, rows summing to 1 (skinned meshes only).
+    base_color : (4,) float32
+    """
+
+    positions: np.ndarray
+    indices: np.ndarray
+    normals: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    joints: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    base_color: np.ndarray = field(default_factory=lambda: np.array([0.8, 0.8, 0.8, 1.0], np.float32))
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.indices.shape[0])
+
+    @property
+    def is_skinned(self) -> bool:
+        return self.joints is not None and self.weights is not None
+
+    def vertex_colors(self) -> np.ndarray:
+        """(V, 4) float32 colours, filled from ``base_color`` when absent."""
+        if self.colors is not None:
+            return np.asarray(self.colors, np.float32)
+        return np.broadcast_to(np.asarray(self.base_color, np.float32), (self.n_vertices, 4)).copy()
+
+    def ensure_normals(self) -> np.ndarray:
+        """Return (V, 3) float32 normals, computing area-weighted ones if absent."""
+        if self.normals is None:
+            self.normals = vertex_normals(self.positions, self.indices)
+        return self.normals
+
+
+def vertex_normals(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals, (V, 3) float32.
+
+    Degenerate triangles contribute nothing; isolated or fully degenerate
+    vertices get +Y (never NaN).
+    """
+    p = np.asarray(positions, np.float64)
+    idx = np.asarray(indices, np.int64)
+    n = np.zeros_like(p)
+    if idx.size:
+        a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
+        fn = np.cross(b - a, c - a)
+        for k in range(3):
+            np.add.at(n, idx[:, k], fn)
+    ln = np.linalg.norm(n, axis=1)
+    ok = ln > 1e-30
+    out = np.zeros_like(p)
+    out[ok] = n[ok] / ln[ok, None]
+    out[~ok] = (0.0, 1.0, 0.0)
+    return out.astype(np.float32)

@@ -1,0 +1,69 @@
+"""CrowdState: the per-agent structure of arrays shared by all systems."""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+
+@dataclass
+class CrowdState:
+    """One array per attribute, agent index on the first axis; dtypes fixed.
+
+    position : (n, 3) float64, world metres (float64: crowds far from the origin)
+    velocity : (n, 3) float64, m/s
+    heading : (n,) float64, yaw in radians about +Y; 0 faces +Z
+    scale : (n,) float32, uniform scale of the character
+    character : (n,) int32, index into the engine's character list
+    clip : (n,) int16, clip index within that character
+    anim_time : (n,) float64, seconds into the clip (wrapped by the animation system)
+    anim_rate : (n,) float32, playback rate multiplier (1 = authored speed)
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    heading: np.ndarray
+    scale: np.ndarray
+    character: np.ndarray
+    clip: np.ndarray
+    anim_time: np.ndarray
+    anim_rate: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> "CrowdState":
+        return cls(
+            position=np.zeros((n, 3), np.float64),
+            velocity=np.zeros((n, 3), np.float64),
+            heading=np.zeros(n, np.float64),
+            scale=np.ones(n, np.float32),
+            character=np.zeros(n, np.int32),
+            clip=np.zeros(n, np.int16),
+            anim_time=np.zeros(n, np.float64),
+            anim_rate=np.ones(n, np.float32),
+        )
+
+    @property
+    def n(self) -> int:
+        return int(self.position.shape[0])
+
+    def arrays(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in self.arrays().values())
+
+    def digest(self) -> str:
+        """sha256 over all arrays' bytes (determinism checks)."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for name, a in self.arrays().items():
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()
+
+    def check_finite(self) -> None:
+        """Raise FloatingPointError naming the first array holding NaN/Inf."""
+        for name, a in self.arrays().items():
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                raise FloatingPointError(f"CrowdState.{name} holds NaN or Inf")
