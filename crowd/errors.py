@@ -20,3 +20,9 @@ class SceneError(CrowdError):
 
 class AssetError(CrowdError):
     pass
+
+
+class SimulationError(CrowdError):
+    """The simulation produced NaN or Inf (named array, frame); nothing is written."""
+
+    exit_code = 3

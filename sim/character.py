@@ -29,6 +29,22 @@ class SkinnedCharacter:
     def clip_names(self) -> list[str]:
         return list(self.clips)
 
+    def clip(self, which):
+        """The clip with index or name ``which`` (KeyError/IndexError name the choices)."""
+        return self.clips[_clip_key(self.name, list(self.clips), which)]
+
+    def clip_index(self, name: str) -> int:
+        """Index (CrowdState.clip) of the clip called ``name``."""
+        return list(self.clips).index(_clip_key(self.name, list(self.clips), name))
+
+    def duration(self, which) -> float:
+        """Duration in seconds of clip ``which`` (index or name)."""
+        return float(self.clip(which).duration)
+
+    def rest_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds (lo (3,), hi (3,)) float64 of the rest-pose mesh."""
+        return _bounds(self.mesh.positions)
+
 
 @dataclass
 class KeyframedCharacter:
@@ -43,6 +59,38 @@ class KeyframedCharacter:
 
     def clip_names(self) -> list[str]:
         return list(self.animations)
+
+    def clip(self, which):
+        """The KeyframeAnimation with index or name ``which``."""
+        return self.animations[_clip_key(self.name, list(self.animations), which)]
+
+    def clip_index(self, name: str) -> int:
+        return list(self.animations).index(_clip_key(self.name, list(self.animations), name))
+
+    def duration(self, which) -> float:
+        return float(self.clip(which).duration)
+
+    def rest_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds (lo (3,), hi (3,)) float64 of the first keyframe of the first animation."""
+        anim = next(iter(self.animations.values()))
+        return _bounds(anim.keyframes[0].positions)
+
+
+def _clip_key(char_name: str, names: list, which) -> str:
+    if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
+        if not 0 <= int(which) < len(names):
+            raise IndexError(f"character {char_name!r}: clip index {int(which)} outside 0..{len(names) - 1}")
+        return names[int(which)]
+    if which not in names:
+        raise KeyError(f"character {char_name!r} has no clip {which!r}; clips: {', '.join(map(str, names)) or 'none'}")
+    return which
+
+
+def _bounds(positions) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    if p.shape[0] == 0:
+        return np.zeros(3), np.zeros(3)
+    return p.min(0), p.max(0)
 
 
 Character = SkinnedCharacter | KeyframedCharacter

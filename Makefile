@@ -1,0 +1,66 @@
+# Crowd sandbox: set-up, demo, tests, benchmarks.
+#   make demo    set up, then render scenes/quickstart.toml headless into out/quickstart/
+#   make test    set up, then run the test suite (fails when no test is collected)
+#   make bench   set up, then run the benchmark scenes (short default runs)
+#   make setup   .venv + the package with test extras + system GL libraries (idempotent)
+
+PYTHON   ?= python3
+VENV     ?= .venv
+VPY      := $(VENV)/bin/python
+SENTINEL := $(VENV)/.crowd-setup-done
+# Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL) and a virtual X server
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri xvfb
+BENCH_SCENES ?= $(sort $(wildcard scenes/bench*.toml scenes/bench/*.toml benchmarks/*.toml))
+BENCH_FRAMES ?= 60
+PYTEST_ARGS  ?=
+
+.PHONY: setup system-packages demo test bench clean
+
+setup: $(SENTINEL)
+
+# Re-runs only when pyproject.toml changes; a second `make setup` is instant.
+$(SENTINEL): pyproject.toml
+	@$(MAKE) --no-print-directory system-packages
+	@test -x $(VPY) || $(PYTHON) -m venv $(VENV)
+	$(VPY) -m pip install --quiet -e '.[test]'
+	@touch $(SENTINEL)
+
+system-packages:
+	@missing=""; \
+	if command -v dpkg-query >/dev/null 2>&1; then \
+	  for p in $(SYSTEM_PACKAGES); do \
+	    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	  done; \
+	else \
+	  echo "note: not a Debian/Ubuntu system; make sure EGL and Mesa (llvmpipe) are installed: $(SYSTEM_PACKAGES)"; \
+	fi; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing system packages:$$missing"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
+	  else \
+	    echo "error: missing system packages:$$missing; install them with: sudo apt-get install -y$$missing" >&2; \
+	    exit 1; \
+	  fi; \
+	fi
+
+demo: setup
+	$(VPY) -m crowd run scenes/quickstart.toml --out out/quickstart
+	@echo "frames, frames.csv, summary.json and trace.json are in out/quickstart/"
+
+# pytest exit code 5 (no tests collected) is a failure here.
+test: setup
+	@$(VPY) -m pytest $(PYTEST_ARGS); rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "error: pytest collected no tests" >&2; exit 1; fi; exit $$rc
+
+bench: setup
+	@test -n "$(BENCH_SCENES)" || { echo "error: no benchmark scenes found (scenes/bench*.toml)" >&2; exit 1; }
+	@for s in $(BENCH_SCENES); do \
+	  n=$$(basename $$s .toml); \
+	  echo "== $$s"; \
+	  $(VPY) -m crowd run $$s --frames $(BENCH_FRAMES) --out out/bench/$$n --quiet || exit $$?; \
+	  $(VPY) -c "import json,sys; s=json.load(open(sys.argv[1])); st=s['stages']; print('  %d frames, mean frame %.1f ms (simulate %.1f, select %.1f, draw %.1f), %d triangles/frame' % (s['frames'], 1e3*st['total']['mean'], 1e3*st['simulate']['mean'], 1e3*st['select']['mean'], 1e3*st['draw']['mean'], s['counts']['triangles']['mean']))" out/bench/$$n/summary.json; \
+	done
+
+clean:
+	rm -rf out .pytest_cache

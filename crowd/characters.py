@@ -1,0 +1,84 @@
+"""Building the characters a scene or ``crowd info`` names.
+
+A character comes from a procedural generator (``sim.procedural``) or a glTF
+file (``sim.gltf_io``). The generator modules and the glTF importer are
+imported only when a character needs them.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from crowd.errors import AssetError
+from crowd.scene import DEFAULT_TRIANGLES, GENERATORS, GLTF_SUFFIXES, CharacterSpec
+
+_GEN_SPEC = re.compile(r"^generator:(?P<gen>[A-Za-z_]+)(?::(?P<tri>[^:]*))?(?::(?P<seed>[^:]*))?$")
+
+
+def build_character(spec: CharacterSpec):
+    """Build the :class:`sim.character.Character` of ``spec``.
+
+    Generators get ``triangles`` and ``seed``; glTF files are loaded as they
+    are (``scale`` is applied per agent through ``CrowdState.scale``, not to
+    the mesh). Errors in a glTF file are ``sim.errors.AssetError`` naming it.
+    """
+    if spec.generator is not None:
+        import sim.procedural
+
+        gen = getattr(sim.procedural, spec.generator)
+        ch = gen(triangles=spec.triangles, seed=spec.seed)
+    else:
+        from sim.gltf_io import load_gltf
+
+        ch = load_gltf(spec.file)
+    ch.name = spec.name
+    return ch
+
+
+def clip_names(character) -> list:
+    """Clip names of a character in clip-index order."""
+    return list(character.clip_names())
+
+
+def clip_duration(character, index: int) -> float:
+    """Duration in seconds of clip ``index`` of ``character``."""
+    name = clip_names(character)[index]
+    clips = character.clips if character.kind == "skinned" else character.animations
+    return float(clips[name].duration)
+
+
+def parse_asset(arg: str) -> CharacterSpec:
+    """Turn a ``crowd info`` argument into a CharacterSpec.
+
+    Accepts ``generator:NAME[:TRIANGLES[:SEED]]`` (e.g. ``generator:humanoid:5000``)
+    or a path to a ``.glb`` / ``.gltf`` file.
+
+    Raises
+    ------
+    crowd.errors.AssetError
+        Unknown generator, bad numbers, missing file or unsupported suffix.
+    """
+    m = _GEN_SPEC.match(arg)
+    if arg.startswith("generator:"):
+        if not m or m["gen"] not in GENERATORS:
+            raise AssetError(f"{arg}: expected generator:NAME[:TRIANGLES[:SEED]] with NAME one of "
+                             + ", ".join(GENERATORS))
+        tri, seed = DEFAULT_TRIANGLES, 0
+        if m["tri"]:
+            if not m["tri"].isdigit() or not 500 <= int(m["tri"]) <= 200000:
+                raise AssetError(f"{arg}: triangles: expected an integer in 500 ..= 200000, got {m['tri']!r}")
+            tri = int(m["tri"])
+        if m["seed"]:
+            if not m["seed"].isdigit():
+                raise AssetError(f"{arg}: seed: expected an integer >= 0, got {m['seed']!r}")
+            seed = int(m["seed"])
+        return CharacterSpec(name=m["gen"], generator=m["gen"], file=None, triangles=tri, seed=seed, scale=1.0,
+                             fps=30)
+    path = Path(arg)
+    if path.suffix.lower() not in GLTF_SUFFIXES:
+        raise AssetError(f"{arg}: expected a glTF file ({', '.join(GLTF_SUFFIXES)}) or generator:NAME[:TRIANGLES], "
+                         f"e.g. generator:humanoid:5000")
+    if not path.is_file():
+        raise AssetError(f"{arg}: file not found")
+    return CharacterSpec(name=path.stem, generator=None, file=path.resolve(), triangles=None, seed=0, scale=1.0,
+                         fps=30)

@@ -1,0 +1,174 @@
+"""The ``crowd`` command line.
+
+    crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--quiet]
+    crowd validate SCENE
+    crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
+
+Bad input (scene, asset, parameter) is reported as one line on stderr with exit
+code 2 and no traceback; nothing is written. Unexpected exceptions keep their
+traceback: they are bugs and must be visible.
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from crowd.errors import CrowdError
+
+#: exit code for bad user input (also argparse's)
+EXIT_USAGE = 2
+#: exit code after an interrupt (Ctrl-C / SIGTERM), as shells report it
+EXIT_INTERRUPTED = 130
+
+
+def _user_errors() -> tuple:
+    from render.context import ContextError
+    from sim.errors import AssetError as SimAssetError
+    from sim.params import ParamError
+
+    return CrowdError, SimAssetError, ParamError, ContextError
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return v
+
+
+def _nonneg_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return v
+
+
+def _size(text: str) -> tuple:
+    from crowd.scene import SIZE_RANGE, parse_size
+
+    s = parse_size(text)
+    if s is None:
+        raise argparse.ArgumentTypeError(f"expected WxH with integers in {SIZE_RANGE[0]} ..= {SIZE_RANGE[1]} "
+                                         f"(e.g. 1280x720), got {text!r}")
+    return s
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="crowd", description="Crowd simulation and LOD rendering sandbox.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    r = sub.add_parser("run", help="simulate and render a scene headless, writing frames and telemetry")
+    r.add_argument("scene", metavar="SCENE", help="scene file (.toml), see docs/scenes.md")
+    r.add_argument("--frames", type=_positive_int, help="frames to run (overrides the scene's `frames`)")
+    r.add_argument("--size", type=_size, help="image size WxH (overrides [render] size)")
+    r.add_argument("--out", metavar="DIR", help="output directory (overrides [output] dir); replaced atomically")
+    r.add_argument("--png-every", type=_nonneg_int, metavar="K",
+                   help="write every K-th frame as PNG, 0 = none (overrides [render] png_every)")
+    r.add_argument("--quiet", "-q", action="store_true", help="no progress bars or summary")
+
+    v = sub.add_parser("validate", help="check a scene file in full and print a short summary")
+    v.add_argument("scene", metavar="SCENE")
+
+    i = sub.add_parser("info", help="describe a character: joints, clips, vertices, triangles, bounds")
+    i.add_argument("asset", metavar="ASSET", help="a .glb/.gltf file or generator:NAME[:TRIANGLES[:SEED]]")
+    return p
+
+
+def cmd_run(args) -> int:
+    from crowd.engine import Engine
+    from crowd.scene import load_scene
+
+    scene = load_scene(args.scene).with_overrides(frames=args.frames, size=args.size, out=args.out,
+                                                  png_every=args.png_every)
+    with Engine(scene, quiet=args.quiet) as engine:
+        result = engine.run()
+    if not args.quiet:
+        print(result.report())
+    return 0
+
+
+def cmd_validate(args) -> int:
+    from crowd.engine import plan
+    from crowd.scene import load_scene
+
+    scene = load_scene(args.scene)
+    p = plan(scene)
+    print(f"OK {args.scene}: scene {scene.name!r}")
+    for line in p.summary_lines():
+        print("  " + line)
+    return 0
+
+
+def cmd_info(args) -> int:
+    from crowd.characters import build_character, parse_asset
+
+    spec = parse_asset(args.asset)
+    ch = build_character(spec)
+    from sim.describe import describe
+
+    print(format_description(args.asset, describe(ch)))
+    return 0
+
+
+def format_description(title: str, d: dict, indent: int = 0) -> str:
+    """Render a ``sim.describe.describe`` dict as indented ``key: value`` lines."""
+    lines = [title] if indent == 0 else []
+    pad = "  " * (indent + 1)
+    for k, v in d.items():
+        if isinstance(v, dict):
+            lines.append(f"{pad}{k}:")
+            lines.append(format_description("", v, indent + 1))
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            lines.append(f"{pad}{k}: {len(v)}")
+            for x in v:
+                lines.append(f"{pad}  - " + ", ".join(f"{a}={_fmt(b)}" for a, b in x.items()))
+        else:
+            lines.append(f"{pad}{k}: {_fmt(v)}")
+    return "\n".join(x for x in lines if x)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, list) and len(v) > 8 and all(isinstance(x, str) for x in v):
+        return ", ".join(v[:8]) + f", ... ({len(v)} in all)"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, (list, tuple)) and v and all(isinstance(x, float) for x in v):
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    if isinstance(v, (list, tuple)) and v and all(isinstance(x, (list, tuple)) for x in v):
+        return "[" + ", ".join(_fmt(list(x)) for x in v) + "]"
+    return str(v)
+
+
+COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info}
+
+
+def _sigterm(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``crowd`` console script and ``python -m crowd``; returns the exit code."""
+    args = build_parser().parse_args(argv)  # argparse errors exit 2
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _sigterm)  # so temporary outputs are cleaned up
+    try:
+        return COMMANDS[args.command](args)
+    except _user_errors() as e:
+        code = getattr(e, "exit_code", EXIT_USAGE)
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        print(f"crowd {args.command}: error: {msg}", file=sys.stderr)
+        return code
+    except KeyboardInterrupt:
+        print(f"crowd {args.command}: interrupted; nothing was written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

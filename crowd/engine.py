@@ -1,0 +1,320 @@
+"""The engine: builds a scene's world and renderer and runs the frame loop.
+
+One frame is: simulate (``World.step``, wall time per system) -> camera at
+the simulated time -> LOD select (a DrawList) -> upload / draw / finish on the
+renderer (GPU time when the driver has timer queries) -> optional PNG ->
+telemetry. The state is checked for NaN/Inf after every step.
+
+Only the effects a scene lists are installed (in the listed order); modules of
+other effects are never imported. Everything random derives from the scene
+seed, so a run is deterministic for a seed (``CrowdState.digest``).
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from crowd.characters import build_character, clip_duration, clip_names
+from crowd.errors import SceneError, SimulationError
+from crowd.scene import Scene
+from sim.params import ParamError
+
+#: show a progress bar for character building when the scene has at least this many characters
+#: or this many triangles in all
+PROGRESS_MIN_CHARACTERS = 3
+PROGRESS_MIN_TRIANGLES = 200_000
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# plan: characters + agents, no systems, no GL
+# ---------------------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Plan:
+    """Characters and the initial CrowdState of a scene (built, nothing installed).
+
+    characters : list of sim.character.Character, index = CrowdState.character
+    state : sim.state.CrowdState of all placements concatenated
+    agents_per_placement : list of int
+    """
+
+    scene: Scene
+    characters: list
+    state: object
+    agents_per_placement: list = field(default_factory=list)
+
+    def triangles(self, character_index: int) -> int:
+        ch = self.characters[character_index]
+        if ch.kind == "skinned":
+            return int(ch.mesh.n_triangles)
+        anims = list(ch.animations.values())
+        return int(max((max(s.indices.shape[0] for s in a.segments) for a in anims if a.segments), default=0))
+
+    def triangles_per_frame(self) -> int:
+        """Triangles drawn per frame at full detail (lod mode "none", nothing culled)."""
+        counts = np.bincount(self.state.character, minlength=len(self.characters))
+        return int(sum(int(counts[i]) * self.triangles(i) for i in range(len(self.characters))))
+
+    def summary_lines(self) -> list:
+        s = self.scene
+        lines = [f"characters: {len(self.characters)} ("
+                 + ", ".join(f"{c.name}: {self.triangles(i)} triangles, clips {', '.join(clip_names(c)) or '-'}"
+                             for i, c in enumerate(self.characters)) + ")",
+                 f"agents: {self.state.n} in {len(self.agents_per_placement)} placement group(s) "
+                 f"({', '.join(map(str, self.agents_per_placement))})",
+                 f"effects: {', '.join(s.effect_names) or 'none'}",
+                 f"triangles per frame (full detail, before culling): {self.triangles_per_frame():,}",
+                 f"frames: {s.frames} at dt {s.dt:g} s x {s.substeps} substep(s); "
+                 f"{s.render.size[0]}x{s.render.size[1]}; lod {s.lod_mode!r}; output {s.output_dir}"]
+        return lines
+
+
+def plan(scene: Scene, quiet: bool = True) -> Plan:
+    """Build a scene's characters and agents; check clip names.
+
+    Raises
+    ------
+    crowd.errors.SceneError
+        An unknown clip (``placement[i].clip``) or a placement its builder rejects.
+    sim.errors.AssetError
+        A broken glTF file.
+    """
+    from sim.placement import PLACEMENTS, concat_states
+
+    specs = scene.characters
+    big = len(specs) >= PROGRESS_MIN_CHARACTERS or sum(c.triangles or 0 for c in specs) >= PROGRESS_MIN_TRIANGLES
+    chars = []
+    for spec in _progress(specs, "characters", disable=quiet or not big):
+        chars.append(build_character(spec))
+    seeds = np.random.SeedSequence(scene.seed).spawn(len(scene.placements))
+    states, counts = [], []
+    for p, ss in zip(scene.placements, seeds):
+        where = f"placement[{p.index}]"
+        ch = chars[p.character]
+        names = clip_names(ch)
+        if not names:
+            raise SceneError(scene.path, f"{where}.character",
+                             f"character {scene.characters[p.character].name!r} has no animation clip")
+        if p.clip is None:
+            ci = 0
+        elif p.clip in names:
+            ci = names.index(p.clip)
+        else:
+            raise SceneError(scene.path, f"{where}.clip", f"unknown clip {p.clip!r} of character "
+                             f"{scene.characters[p.character].name!r}; accepted: {', '.join(map(repr, names))}")
+        build = PLACEMENTS[p.kind][1]
+        try:
+            st = build(p.params, p.character, ci, np.random.default_rng(ss), clip_duration(ch, ci))
+        except ParamError as e:
+            raise SceneError(scene.path, f"{where}.{e.key}", e.message) from None
+        st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
+        states.append(st)
+        counts.append(st.n)
+    return Plan(scene, chars, concat_states(states), counts)
+
+
+def _progress(it, desc: str, disable: bool, total: int | None = None):
+    from tqdm import tqdm
+
+    return tqdm(it, desc=desc, total=total, disable=disable or not sys.stderr.isatty(), leave=False,
+                file=sys.stderr, dynamic_ncols=True)
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# engine
+# ---------------------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class RunResult:
+    """What a finished run wrote: ``out_dir`` and the summary dict (as in summary.json)."""
+
+    out_dir: Path
+    summary: dict
+    pngs: list
+    digest: str
+
+    def report(self) -> str:
+        s = self.summary
+        st = s["stages"]
+        ms = lambda k: f"{st[k]['mean'] * 1e3:.1f}" if st.get(k) else "-"
+        return (f"wrote {self.out_dir}: {s['frames']} frames in {s['wall_seconds']:.2f} s; mean ms per frame: "
+                f"total {ms('total')}, simulate {ms('simulate')}, select {ms('select')}, upload {ms('upload')}, "
+                f"draw {ms('draw')}, finish {ms('finish')}, gpu {ms('gpu')}; "
+                f"{s['counts']['triangles']['mean']:,.0f} triangles/frame; {len(self.pngs)} PNG(s)")
+
+
+class Engine:
+    """A scene made runnable: world, LOD representations, renderer.
+
+    Parameters
+    ----------
+    scene : crowd.scene.Scene (validated)
+    overrides : dict, optional
+        ``frames``, ``size``, ``out``, ``png_every`` (as ``Scene.with_overrides``).
+    quiet : bool
+        No progress bars.
+
+    Use as a context manager (or call :meth:`close`) so GL objects are released.
+    """
+
+    def __init__(self, scene: Scene, overrides: dict | None = None, quiet: bool = False):
+        if overrides:
+            scene = scene.with_overrides(**overrides)
+        self.scene = scene
+        self.quiet = quiet
+        self.renderer = None
+        self.plan = plan(scene, quiet=quiet)
+        self.world = self._build_world()
+        self.camera_path = self._build_camera()
+        self.reps, self.statics = self._build_reps()
+        self.selector = self._build_selector()
+
+    # -- building -----------------------------------------------------------------------------------------------------
+    def _build_world(self):
+        from sim.world import World
+
+        sc = self.scene
+        world = World(state=self.plan.state, characters=self.plan.characters, seed=sc.seed)
+        if sc.terrain is not None:
+            import sim.terrain
+
+            world.resources["terrain"] = sim.terrain.Terrain.from_config(sc.terrain, base_dir=str(sc.path.parent))
+        for e in sc.effects:
+            try:
+                world.install(e.name, e.params)
+            except ParamError as err:
+                raise SceneError(sc.path, f"effects[{e.index}]", err.message if err.key.startswith("effects")
+                                 else str(err)) from None
+        return world
+
+    def _build_camera(self):
+        from lod.camera_path import CameraPath
+
+        c = self.scene.camera
+        if c.keys:
+            return CameraPath([(k.time, k.position, k.target) for k in c.keys])
+        return CameraPath([(0.0, c.position, c.target)])
+
+    def camera_at(self, t: float):
+        c = self.scene.camera
+        return self.camera_path.camera_at(t, fov_y=c.fov, near=c.near, far=c.far)
+
+    def _build_reps(self):
+        from lod.nolod import build_rep
+
+        reps = []
+        for spec, ch in zip(self.scene.characters, self.plan.characters):
+            reps.append(build_rep(ch, fps=spec.fps, key=f"none:{spec.name}"))
+        statics = []
+        terrain = self.world.resources.get("terrain")
+        if terrain is not None:
+            from lod.nolod import build_static_rep
+
+            statics.append(build_static_rep(terrain.mesh(), key="static:terrain"))
+        return reps, statics
+
+    def _build_selector(self):
+        if self.scene.lod_mode == "none":
+            from lod.nolod import NoLodSelector
+
+            return NoLodSelector(self.reps, static_reps=self.statics)
+        raise AssertionError(f"lod mode {self.scene.lod_mode!r} passed validation but has no selector")
+
+    def _open_renderer(self):
+        if self.renderer is None:
+            from render.renderer import Renderer
+
+            self.renderer = Renderer(self.scene.render.size)
+            for rep in [*self.reps, *self.statics]:
+                self.renderer.upload(rep)
+        return self.renderer
+
+    def close(self) -> None:
+        if self.renderer is not None:
+            self.renderer.release()
+            self.renderer = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # -- running ------------------------------------------------------------------------------------------------------
+    def step(self, timings: dict | None = None) -> None:
+        """One simulation frame; raises SimulationError when the state stops being finite."""
+        sc = self.scene
+        self.world.step(sc.dt, sc.substeps, timings)
+        try:
+            self.world.state.check_finite()
+        except FloatingPointError as e:
+            raise SimulationError(f"{sc.path}: frame {self.world.frame}: {e} after the step "
+                                  f"(effects: {', '.join(sc.effect_names) or 'none'}); nothing was written") from None
+
+    def run(self, frames: int | None = None, out_dir: str | Path | None = None,
+            png_every: int | None = None) -> RunResult:
+        """Run ``frames`` frames, writing telemetry (and PNGs) atomically to ``out_dir``.
+
+        Defaults come from the scene. The output directory appears only when
+        the run has finished; on error or interrupt nothing is left behind.
+        """
+        from crowd.output import atomic_dir
+        from crowd.telemetry import FrameRecord, Telemetry, machine_info
+
+        sc = self.scene
+        frames = sc.frames if frames is None else int(frames)
+        out_dir = Path(out_dir).absolute() if out_dir is not None else sc.output_dir
+        png_every = sc.render.png_every if png_every is None else int(png_every)
+        size = sc.render.size
+        bg = sc.render.background
+        renderer = self._open_renderer()
+        tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
+        pngs = []
+        static_draws = [(r.key, np.eye(4)) for r in self.statics]
+        with atomic_dir(out_dir) as tmp:
+            if png_every:
+                (tmp / "frames").mkdir()
+            run_start = time.perf_counter()
+            for f in _progress(range(frames), sc.name, disable=self.quiet, total=frames):
+                t_frame = time.perf_counter()
+                stages, systems = {}, {}
+                self.step(systems)
+                t1 = time.perf_counter()
+                stages["simulate"] = (0.0, t1 - t_frame)
+                camera = self.camera_at(self.world.time)
+                dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+                t2 = time.perf_counter()
+                stages["select"] = (t1 - t_frame, t2 - t1)
+                r = renderer.draw(dl, bg)
+                off = t2 - t_frame
+                for s in ("upload", "draw", "finish"):
+                    d = float(r.get(s) or 0.0)
+                    stages[s] = (off, d)
+                    off += d
+                if png_every and f % png_every == 0:
+                    p = tmp / "frames" / f"frame_{f:05d}.png"
+                    renderer.save_png(p)
+                    pngs.append(out_dir / "frames" / p.name)
+                t_end = time.perf_counter()
+                counts = {"instances": dl.stats.get("instances", dl.n_instances),
+                          "culled": dl.stats.get("culled", 0),
+                          "triangles": dl.stats.get("triangles", dl.triangles),
+                          "points": dl.stats.get("points", dl.points),
+                          "batches": len(dl.batches)}
+                tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
+                                    total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
+                                    counts=counts, samples_passed=r.get("samples_passed")))
+            digest = self.world.state.digest()
+            extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
+                     "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
+                     "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs)}
+            from render.context import gl_info
+
+            summary = tel.write(tmp, sc.name, extra, machine_info(gl_info(renderer.ctx)))
+        return RunResult(out_dir=out_dir, summary=summary, pngs=pngs, digest=digest)

@@ -1,0 +1,94 @@
+"""Atomic outputs: a run's directory appears complete or not at all.
+
+A run writes into a temporary sibling directory ``.<name>.tmp-<pid>`` next to
+the final one and renames it into place only when the run has finished,
+replacing a previous run's directory. On an error or an interrupt the temporary
+directory is removed, so no half-written output is ever left behind. Single
+files are written to a temporary file in the same folder and ``os.replace``-d.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+def temp_sibling(final: Path) -> Path:
+    """``.<name>.tmp-<pid>`` beside ``final``."""
+    return final.parent / f".{final.name}.tmp-{os.getpid()}"
+
+
+@contextmanager
+def atomic_dir(final: str | os.PathLike):
+    """Yield a fresh temporary directory that becomes ``final`` on success.
+
+    On normal exit the temporary directory replaces ``final`` (a previous
+    directory of that name is removed first; the swap goes through a second
+    temporary name so ``final`` is never a mix of two runs). On any exception,
+    KeyboardInterrupt included, the temporary directory is deleted and the
+    exception propagates; ``final`` is untouched.
+
+    Parameters
+    ----------
+    final : path of the directory to produce
+
+    Yields
+    ------
+    Path of the temporary directory to write into
+    """
+    final = Path(final).absolute()
+    if final.exists() and not final.is_dir():
+        raise FileExistsError(f"{final} exists and is not a directory")
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temp_sibling(final)
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir()
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = final.parent / f".{final.name}.old-{os.getpid()}"
+    try:
+        if final.exists():
+            os.replace(final, old)
+        os.replace(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if old.exists() and not final.exists():
+            os.replace(old, final)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def write_atomic(path: str | os.PathLike, data: bytes | str) -> None:
+    """Write ``data`` to ``path`` via a temporary file in the same folder + ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def write_json(path: str | os.PathLike, obj) -> None:
+    """``write_atomic`` of ``obj`` as indented JSON (NaN/Inf are refused: they are not JSON)."""
+    write_atomic(path, json.dumps(obj, indent=1, allow_nan=False) + "\n")

@@ -1,0 +1,47 @@
+"""OpenGL context creation (headless EGL by default).
+
+A window library (glfw, for the fly-through) creates its own context and hands
+it to :class:`render.renderer.Renderer`; this module only makes the headless
+one used by the engine, the tests and the benchmarks.
+"""
+from __future__ import annotations
+
+#: minimum GL version required by the shaders (GLSL 330 core)
+REQUIRED_GL = 330
+#: Debian packages that provide a headless EGL + Mesa llvmpipe stack
+EGL_PACKAGES = "libegl1 libgl1-mesa-dri"
+
+
+class ContextError(RuntimeError):
+    """No usable OpenGL context could be created."""
+
+
+def create_context(backend: str = "egl"):
+    """A standalone (headless) moderngl context.
+
+    Parameters
+    ----------
+    backend : "egl" (headless, default) or None for the platform default.
+
+    Raises
+    ------
+    ContextError : one sentence naming what is missing and how to install it.
+    """
+    import moderngl
+
+    kwargs = {"require": REQUIRED_GL}
+    if backend:
+        kwargs["backend"] = backend
+    try:
+        return moderngl.create_standalone_context(**kwargs)
+    except Exception as exc:  # moderngl/glcontext raise plain Exceptions
+        raise ContextError(
+            f"could not create a headless OpenGL {REQUIRED_GL // 100}.{REQUIRED_GL // 10 % 10} context with backend "
+            f"{backend!r} ({exc}); install EGL and Mesa (Debian packages: {EGL_PACKAGES})"
+        ) from exc
+
+
+def gl_info(ctx) -> dict:
+    """Renderer, vendor and version strings of a context."""
+    info = ctx.info
+    return {k: info.get(k) for k in ("GL_RENDERER", "GL_VENDOR", "GL_VERSION")}

@@ -1,0 +1,426 @@
+"""The renderer: GPU resources for representations and instanced draws of DrawLists.
+
+Draw paths (one program each, shaders in ``render/shaders/``):
+
+- skinned: linear blend skinning in the vertex shader. The skinning matrices of
+  all baked frames of all clips live in ONE RGBA32F texture (one row per frame,
+  three texels per joint, read with ``texelFetch``); the shader blends the
+  matrices of the two frames around the instance's fractional frame coordinate.
+- keyframed: per segment vertex start/end attributes mixed by the instance's u
+  (Wand & Straßer 2002, §3).
+- static: the same instancing path without animation.
+
+Instance data: every frame, the instance data of all batches are written into
+one per-frame buffer (orphaned first, so a draw still reading last frame's
+data never stalls the write); each batch then re-binds the four instanced
+attributes (divisor 1) of its representation's VAO at the batch's byte offset
+and issues one instanced draw. moderngl exposes no base-instance draw, and an
+offset re-bind is four cheap GL calls, whereas uploading per batch costs one
+buffer write per batch; on llvmpipe both are dwarfed by vertex work, so the
+single write was kept (it is also the layout a real GPU prefers).
+
+Back faces are not culled: imported meshes (glTF) can have inconsistent
+winding and characters are closed anyway, so culling would save little on
+llvmpipe (rasterisation of back faces is rejected by the depth test); the
+fragment shader lights both sides.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from lod.drawlist import INSTANCE_FLOATS
+from render.context import create_context
+from render.shaders import program_sources
+
+#: bytes per instance in the instance buffer
+INSTANCE_BYTES = INSTANCE_FLOATS * 4
+#: initial capacity of the per-frame instance buffer (instances)
+INITIAL_INSTANCES = 1024
+#: the value some drivers (Mesa llvmpipe) return from an unusable time query
+GL_TIMER_INVALID = 4294967295
+#: direction towards the sun (world), normalised at use
+SUN_DIRECTION = (0.35, 0.85, 0.4)
+#: ambient light factor
+AMBIENT = 0.3
+#: environment variable that turns on debug checks (finite instance data)
+DEBUG_ENV = "CROWD_GL_DEBUG"
+
+_INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
+
+
+def gpu_seconds(elapsed_ns, wall: float | None = None) -> float | None:
+    """Seconds from a timer query's ``elapsed`` (ns), or None if implausible.
+
+    Mesa llvmpipe's timer queries are unreliable: moderngl reads results as
+    32 bits, so anything above 4.29 s (and, on llvmpipe, often the first query
+    of a context) reads 4294967295; a time query combined with a samples query
+    in one ``ctx.query(samples=True, time=True)`` reads a constant ~20 ns; and
+    even a lone time query sometimes returns tens of nanoseconds for
+    millisecond-long draws. So a reading is accepted only when it is positive,
+    not the 32-bit sentinel, and -- when ``wall`` (seconds from the first
+    submit to the end of ``ctx.finish``) is given -- neither larger than
+    ``1.5 * wall + 1 ms`` nor smaller than 1 % of a wall time above 1 ms.
+    """
+    if elapsed_ns is None:
+        return None
+    e = int(elapsed_ns)
+    if e <= 0 or e >= GL_TIMER_INVALID:
+        return None
+    s = e * 1e-9
+    if wall is not None:
+        if s > 1.5 * wall + 1e-3:
+            return None
+        if wall > 1e-3 and s < 0.01 * wall:
+            return None
+    return s
+
+
+@dataclass
+class _GpuRep:
+    key: str
+    kind: str
+    vao: object
+    locations: dict
+    n_indices: int
+    objects: list = field(default_factory=list)  # creation order
+    joints: object = None  # texture (skinned)
+    capture_vao: object = None
+    seg_first: np.ndarray | None = None
+    seg_count: np.ndarray | None = None
+    n_vertices: int = 0
+
+
+class Renderer:
+    """Owns every GL object it creates; draws DrawLists into an offscreen FBO.
+
+    Parameters
+    ----------
+    size : (width, height) pixels
+    ctx : moderngl context to use (e.g. a glfw window's); a headless EGL
+        context is created (and later released) when None.
+    samples : MSAA samples of the colour/depth buffers (0 = none)
+    debug : check instance data for NaN/Inf before upload (default: the
+        ``CROWD_GL_DEBUG`` environment variable is set and not "0")
+    """
+
+    def __init__(self, size=(1280, 720), ctx=None, samples: int = 0, debug: bool | None = None):
+        self.size = (int(size[0]), int(size[1]))
+        if self.size[0] < 1 or self.size[1] < 1:
+            raise ValueError(f"Renderer size: expected positive (width, height), got {size}")
+        self._own_ctx = ctx is None
+        self.ctx = create_context() if ctx is None else ctx
+        self.samples = int(samples)
+        self.debug = (os.environ.get(DEBUG_ENV, "0") not in ("", "0")) if debug is None else bool(debug)
+        self._objects: list = []
+        self._reps: dict[str, _GpuRep] = {}
+        self._programs: dict = {}
+        self._released = False
+        w, h = self.size
+        ctx = self.ctx
+        self._color = self._track(ctx.renderbuffer((w, h), 4, samples=self.samples), "render.color")
+        self._depth = self._track(ctx.depth_renderbuffer((w, h), samples=self.samples), "render.depth")
+        self.fbo = self._track(ctx.framebuffer([self._color], self._depth), "render.fbo")
+        if self.samples:
+            self._resolve_color = self._track(ctx.renderbuffer((w, h), 4), "render.resolve_color")
+            self._resolve = self._track(ctx.framebuffer([self._resolve_color]), "render.resolve_fbo")
+        else:
+            self._resolve = None
+        self._instance_capacity = 0
+        self._instances = None
+        self._grow_instances(INITIAL_INSTANCES)
+        # separate queries, nested: a combined samples+time query reads a
+        # constant ~20 ns on llvmpipe (see gpu_seconds)
+        self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
+        self._q_time = self._track(ctx.query(time=True), "render.query.time")
+        self.last_timings: dict = {}
+
+    # ------------------------------------------------------------------ resources
+    def _track(self, obj, label: str):
+        try:
+            obj.label = label
+        except Exception:  # pragma: no cover - labels are best effort
+            pass
+        if hasattr(obj, "release"):  # moderngl queries have no release()
+            self._objects.append(obj)
+        return obj
+
+    def _grow_instances(self, n: int) -> None:
+        cap = max(INITIAL_INSTANCES, self._instance_capacity)
+        while cap < n:
+            cap *= 2
+        if cap == self._instance_capacity and self._instances is not None:
+            return
+        if self._instances is not None:
+            self._instances.release()
+            self._objects.remove(self._instances)
+        self._instances = self._track(self.ctx.buffer(reserve=cap * INSTANCE_BYTES, dynamic=True), "crowd.instances")
+        self._instance_capacity = cap
+
+    def program(self, name: str, capture: bool = False):
+        """Compiled program ``name`` (cached); ``capture`` gives the vertex-only
+        transform-feedback variant that records ``v_world`` and ``v_normal``."""
+        key = (name, capture)
+        if key not in self._programs:
+            src = program_sources(name, fragment=not capture)
+            if capture:
+                prog = self.ctx.program(**src, varyings=["v_world", "v_normal"])
+            else:
+                prog = self.ctx.program(**src)
+            self._programs[key] = self._track(prog, f"render.program.{name}{'.capture' if capture else ''}")
+        return self._programs[key]
+
+    def upload(self, rep) -> None:
+        """Create the GPU resources of a representation (``lod.nolod`` rep);
+        re-uploading a key replaces the old resources."""
+        if rep.key in self._reps:
+            self._release_rep(self._reps.pop(rep.key))
+        kind = rep.kind
+        ctx = self.ctx
+        objs: list = []
+
+        def buf(a, label):
+            b = ctx.buffer(np.ascontiguousarray(a).tobytes())
+            b.label = f"{rep.key}.{label}"
+            objs.append(b)
+            return b
+
+        if kind == "skinned":
+            prog = self.program("skinned")
+            joints = np.ascontiguousarray(rep.joint_table, np.float32)
+            F, J = joints.shape[0], joints.shape[1]
+            maxs = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+            if 3 * J > maxs or F > maxs:
+                raise ValueError(f"representation {rep.key!r}: joint table of {F} frames x {J} joints exceeds the "
+                                 f"GL texture limit {maxs} (at most {maxs} baked frames and {maxs // 3} joints)")
+            tex = ctx.texture((3 * J, F), 4, joints.tobytes(), dtype="f4")
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            tex.repeat_x = tex.repeat_y = False
+            tex.label = f"{rep.key}.joints"
+            objs.append(tex)
+            content = [
+                (buf(rep.positions, "positions"), "3f", "in_position"),
+                (buf(rep.normals, "normals"), "3f", "in_normal"),
+                (buf(rep.colors, "colors"), "4f", "in_color"),
+                (buf(np.asarray(rep.joints, np.uint32), "joints"), "4u4", "in_joints"),
+                (buf(rep.weights, "weights"), "4f", "in_weights"),
+            ]
+            n_vertices = rep.positions.shape[0]
+        elif kind == "keyframed":
+            prog = self.program("keyframed")
+            tex = None
+            content = [
+                (buf(rep.positions0, "positions0"), "3f", "in_position0"),
+                (buf(rep.positions1, "positions1"), "3f", "in_position1"),
+                (buf(rep.normals0, "normals0"), "3f", "in_normal0"),
+                (buf(rep.normals1, "normals1"), "3f", "in_normal1"),
+                (buf(rep.colors0, "colors0"), "4f", "in_color0"),
+                (buf(rep.colors1, "colors1"), "4f", "in_color1"),
+            ]
+            n_vertices = rep.positions0.shape[0]
+        elif kind == "static":
+            prog = self.program("static")
+            tex = None
+            content = [
+                (buf(rep.positions, "positions"), "3f", "in_position"),
+                (buf(rep.normals, "normals"), "3f", "in_normal"),
+                (buf(rep.colors, "colors"), "4f", "in_color"),
+            ]
+            n_vertices = rep.positions.shape[0]
+        else:
+            raise TypeError(f"Renderer.upload: representation {rep.key!r} has unknown kind {kind!r}; "
+                            "expected 'skinned', 'keyframed' or 'static'")
+        content = [c for c in content if c[2] in prog]
+        ibo = buf(np.asarray(rep.indices, np.uint32), "indices")
+        vao = ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4)
+        vao.label = f"{rep.key}.vao"
+        objs.append(vao)
+        locs = {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}
+        # capture VAO (transform feedback; no index buffer: one output per vertex)
+        cprog = self.program(kind, capture=True)
+        cvao = ctx.vertex_array(cprog, [c for c in content if c[2] in cprog])
+        cvao.label = f"{rep.key}.capture_vao"
+        objs.append(cvao)
+        g = _GpuRep(rep.key, kind, vao, locs, int(np.asarray(rep.indices).size), objs, tex, cvao,
+                    n_vertices=int(n_vertices))
+        g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
+        if kind == "keyframed":
+            g.seg_first = np.asarray(rep.seg_first, np.int64)
+            g.seg_count = np.asarray(rep.seg_count, np.int64)
+        self._objects.extend(objs)
+        self._reps[rep.key] = g
+
+    def _release_rep(self, g: _GpuRep) -> None:
+        for o in reversed(g.objects):
+            o.release()
+            if o in self._objects:
+                self._objects.remove(o)
+
+    @property
+    def reps(self) -> list:
+        """Keys of the uploaded representations."""
+        return list(self._reps)
+
+    # ------------------------------------------------------------------ drawing
+    def _bind_instances(self, vao, locs: dict, buffer, offset: int) -> None:
+        for i, name in enumerate(_INSTANCE_ATTRS):
+            loc = locs.get(name)
+            if loc is not None:
+                vao.bind(loc, "f", buffer, "4f", offset=offset + 16 * i, stride=INSTANCE_BYTES, divisor=1)
+
+    def _set_uniforms(self, prog, view_proj: np.ndarray) -> None:
+        prog["u_view_proj"].write(np.ascontiguousarray(view_proj.T, np.float32).tobytes())
+        if "u_sun" in prog:
+            s = np.asarray(SUN_DIRECTION, np.float64)
+            prog["u_sun"].value = tuple((s / np.linalg.norm(s)).tolist())
+        if "u_ambient" in prog:
+            prog["u_ambient"].value = AMBIENT
+        if "u_joints" in prog:
+            prog["u_joints"].value = 0
+
+    def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
+        """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
+
+        Returns
+        -------
+        dict of seconds: ``upload`` (instance data to the GPU), ``draw`` (CPU
+        submission), ``finish`` (waiting in ``ctx.finish``), ``gpu`` (timer
+        query, or None where the driver gives nothing usable), and
+        ``samples_passed`` (int, fragments that passed the depth test).
+        """
+        ctx = self.ctx
+        batches = [b for b in drawlist.batches if b.n_instances]
+        for b in batches:
+            if b.rep not in self._reps:
+                raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
+                               f"uploaded: {sorted(self._reps)}")
+        t0 = time.perf_counter()
+        total = sum(b.n_instances for b in batches)
+        if batches:
+            data = np.concatenate([np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
+                                   for b in batches]) if len(batches) > 1 else \
+                np.ascontiguousarray(batches[0].instance_data, np.float32)
+            if self.debug and not np.isfinite(data).all():
+                bad = next(b for b in batches if not np.isfinite(b.instance_data).all())
+                raise FloatingPointError(f"DrawBatch {bad.rep!r} part {bad.part}: instance data hold NaN or Inf")
+            self._grow_instances(total)
+            self._instances.orphan(self._instance_capacity * INSTANCE_BYTES)
+            self._instances.write(data)
+        t1 = time.perf_counter()
+        view_proj = np.asarray(drawlist.proj, np.float64) @ np.asarray(drawlist.view, np.float64)
+        self.fbo.use()
+        ctx.viewport = (0, 0) + self.size
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
+        bg = tuple(float(c) for c in background)[:3]
+        self.fbo.clear(*bg, 1.0, depth=1.0)
+        used = set()
+        offset = 0
+        with self._q_samples, self._q_time:
+            for b in batches:
+                g = self._reps[b.rep]
+                prog = g.vao.program
+                if id(prog) not in used:
+                    self._set_uniforms(prog, view_proj)
+                    used.add(id(prog))
+                if g.joints is not None:
+                    g.joints.use(0)
+                self._bind_instances(g.vao, g.locations, self._instances, offset)
+                k = b.n_instances
+                if g.kind == "keyframed":
+                    g.vao.render(ctx.TRIANGLES, vertices=int(g.seg_count[b.part]), first=int(g.seg_first[b.part]),
+                                 instances=k)
+                else:
+                    g.vao.render(ctx.TRIANGLES, vertices=g.n_indices, instances=k)
+                offset += k * INSTANCE_BYTES
+        t2 = time.perf_counter()
+        ctx.finish()
+        t3 = time.perf_counter()
+        timings = {
+            "upload": t1 - t0,
+            "draw": t2 - t1,
+            "finish": t3 - t2,
+            "gpu": gpu_seconds(self._q_time.elapsed, t3 - t1),
+            "samples_passed": int(self._q_samples.samples),
+        }
+        self.last_timings = timings
+        return timings
+
+    def capture(self, key: str, instance_data: np.ndarray, part: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Vertex positions and normals as the draw shader computes them.
+
+        Runs the representation's vertex shader (the same GLSL, via transform
+        feedback) for each instance and returns camera-relative world
+        positions (k, V, 3) float32 and un-normalised normals (k, V, 3) float32,
+        V = vertices of the representation (all segments for keyframed reps;
+        ``part`` is unused and kept for symmetry with draws).
+        """
+        g = self._reps[key]
+        data = np.ascontiguousarray(instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
+        k = data.shape[0]
+        V = g.n_vertices
+        ctx = self.ctx
+        inst = ctx.buffer(data.tobytes())
+        out = ctx.buffer(reserve=max(1, k * V * 24))
+        try:
+            # a draw needs a complete framebuffer even with rasterisation
+            # discarded, and a headless context's default one is not
+            self.fbo.use()
+            prog = g.capture_vao.program
+            if "u_view_proj" in prog:
+                prog["u_view_proj"].write(np.eye(4, dtype=np.float32).tobytes())
+            if "u_joints" in prog:
+                prog["u_joints"].value = 0
+            if g.joints is not None:
+                g.joints.use(0)
+            self._bind_instances(g.capture_vao, g.capture_locs, inst, 0)
+            g.capture_vao.transform(out, ctx.POINTS, vertices=V, instances=k)
+            res = np.frombuffer(out.read(), np.float32).reshape(k, V, 6)
+        finally:
+            out.release()
+            inst.release()
+        return res[:, :, :3].copy(), res[:, :, 3:].copy()
+
+    # ------------------------------------------------------------------ output
+    def read_pixels(self) -> np.ndarray:
+        """(h, w, 3) uint8 colour of the last frame, top row first."""
+        w, h = self.size
+        fbo = self.fbo
+        if self._resolve is not None:
+            self.ctx.copy_framebuffer(self._resolve, self.fbo)
+            fbo = self._resolve
+        raw = fbo.read(viewport=(0, 0, w, h), components=3, alignment=1)
+        return np.frombuffer(raw, np.uint8).reshape(h, w, 3)[::-1].copy()
+
+    def save_png(self, path):
+        """Write the last frame as a PNG (atomically); returns the path."""
+        from render.image import write_png
+
+        return write_png(path, self.read_pixels())
+
+    def release(self) -> None:
+        """Release every GL object in the reverse order of creation (safe twice);
+        the context too if this renderer created it."""
+        if self._released:
+            return
+        self._released = True
+        for o in reversed(self._objects):
+            try:
+                o.release()
+            except Exception:  # pragma: no cover - already released by the context owner
+                pass
+        self._objects.clear()
+        self._reps.clear()
+        self._programs.clear()
+        if self._own_ctx:
+            self.ctx.release()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()

@@ -1,0 +1,90 @@
+"""GLSL sources under ``render/shaders/``, loaded by name with a cache.
+
+A program named ``"skinned"`` is made of the stage files ``skinned.vert``
+(required), ``skinned.frag`` or the shared ``lit.frag`` (fragment), and an
+optional ``skinned.geom``. Sources may pull shared code in with a line
+``#include "file.glsl"`` (resolved relative to the shader folder, each file at
+most once per program), which lets the draw and the transform-feedback capture
+programs use the very same skinning code.
+"""
+from __future__ import annotations
+
+import re
+from functools import lru_cache
+from pathlib import Path
+
+#: folder holding the GLSL files
+SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+#: file-name suffix of each stage, in moderngl's keyword names
+STAGE_SUFFIX = {"vertex_shader": ".vert", "fragment_shader": ".frag", "geometry_shader": ".geom"}
+#: fragment stage used when a program has no fragment file of its own
+DEFAULT_FRAGMENT = "lit"
+
+_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$')
+
+
+class ShaderNotFound(FileNotFoundError):
+    """A shader stage or include file is missing."""
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        raise ShaderNotFound(f"shader file {path} is missing") from None
+
+
+def _expand(text: str, origin: str, seen: set) -> str:
+    out = []
+    for no, line in enumerate(text.splitlines(), 1):
+        m = _INCLUDE.match(line)
+        if not m:
+            out.append(line)
+            continue
+        name = m.group(1)
+        if name in seen:
+            continue
+        seen.add(name)
+        path = SHADER_DIR / name
+        if not path.is_file():
+            raise ShaderNotFound(f"{origin}:{no}: included shader file {path} is missing")
+        out.append(f"// begin {name}")
+        out.append(_expand(_read(path), name, seen))
+        out.append(f"// end {name}")
+    return "\n".join(out) + "\n"
+
+
+@lru_cache(maxsize=None)
+def load_source(filename: str) -> str:
+    """Source text of one shader file with its includes expanded (cached)."""
+    path = SHADER_DIR / filename
+    if not path.is_file():
+        raise ShaderNotFound(f"shader file {path} is missing")
+    return _expand(_read(path), filename, {filename})
+
+
+@lru_cache(maxsize=None)
+def _program_sources(name: str, fragment: bool) -> tuple:
+    vert = SHADER_DIR / f"{name}.vert"
+    if not vert.is_file():
+        raise ShaderNotFound(f"shader program {name!r}: missing vertex stage file {vert}")
+    src = {"vertex_shader": load_source(vert.name)}
+    if fragment:
+        frag = SHADER_DIR / f"{name}.frag"
+        if not frag.is_file():
+            frag = SHADER_DIR / f"{DEFAULT_FRAGMENT}.frag"
+        if not frag.is_file():
+            raise ShaderNotFound(f"shader program {name!r}: missing fragment stage file {frag}")
+        src["fragment_shader"] = load_source(frag.name)
+    geom = SHADER_DIR / f"{name}.geom"
+    if geom.is_file():
+        src["geometry_shader"] = load_source(geom.name)
+    return tuple(src.items())
+
+
+def program_sources(name: str, fragment: bool = True) -> dict:
+    """Stage sources of program ``name`` as moderngl ``ctx.program`` keywords.
+
+    ``fragment=False`` gives a vertex-only program (transform feedback).
+    """
+    return dict(_program_sources(name, bool(fragment)))

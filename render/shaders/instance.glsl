@@ -1,0 +1,15 @@
+// Per-instance data (instanced attributes, divisor 1): rows 0..2 of the
+// camera-relative model matrix and four animation floats (lod/drawlist.py).
+in vec4 i_m0;
+in vec4 i_m1;
+in vec4 i_m2;
+in vec4 i_anim;
+
+vec3 instance_point(vec3 p) {
+    vec4 h = vec4(p, 1.0);
+    return vec3(dot(i_m0, h), dot(i_m1, h), dot(i_m2, h));
+}
+
+vec3 instance_dir(vec3 d) {
+    return vec3(dot(i_m0.xyz, d), dot(i_m1.xyz, d), dot(i_m2.xyz, d));
+}

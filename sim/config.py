@@ -1,0 +1,40 @@
+"""Tunable constants of the simulation layer (upper-case, prefixed by module).
+
+Tests import them; scene files set the per-effect parameters (``PARAMS``) instead.
+"""
+from __future__ import annotations
+
+# --- sim.grid -----------------------------------------------------------------
+#: A dense grid is used while (cells of the bounding box) <= GRID_DENSE_FACTOR * n;
+#: beyond that, cell keys are hashed into 2^k >= 2 n buckets.
+GRID_DENSE_FACTOR = 4
+#: Hash multipliers of cell coordinates (Teschner et al. 2003).
+GRID_HASH_X = 73856093
+GRID_HASH_Z = 19349663
+
+# --- sim.boids ----------------------------------------------------------------
+#: Speeds below this (m/s) count as standing still: heading is kept, the turn
+#: limit does not apply, the forward direction falls back to the heading.
+BOIDS_SPEED_EPS = 1e-6
+#: Candidates examined per agent are capped at this multiple of max_neighbors
+#: (bounds the cost of pathological crowds, e.g. 10,000 agents in one cell).
+BOIDS_CANDIDATE_FACTOR = 8
+#: Time constants (s) turning velocity differences and offsets into accelerations.
+BOIDS_ALIGN_TAU = 1.0
+BOIDS_COHESION_TAU = 2.0
+BOIDS_CRUISE_TAU = 1.0
+#: Golden-ratio constants for the deterministic push direction of coincident agents.
+BOIDS_COINCIDENT_A = 0.6180339887498949
+BOIDS_COINCIDENT_B = 0.7548776662466927
+
+# --- sim.goals ----------------------------------------------------------------
+#: Time constant (s) turning a velocity error into an acceleration.
+GOALS_TAU = 0.5
+
+# --- sim.obstacles ------------------------------------------------------------
+#: Distance (m) from an obstacle below which the hard constraint projects agents out.
+OBSTACLES_EPS = 1e-9
+
+# --- sim.terrain --------------------------------------------------------------
+#: Largest heightfield resolution (samples per side).
+TERRAIN_MAX_RESOLUTION = 8192

@@ -1,0 +1,187 @@
+"""Goal seeking: waypoint paths and attractors (effect ``goals``).
+
+Wand & Straßer 2002, §5.2 drive their herd by force fields; goals are one more
+field. Each agent follows one of ``paths`` (a list of [x, z] waypoints):
+``assign = "cycle"`` gives agent i path ``i mod len(paths)``, ``"character"``
+gives path ``character mod len(paths)``. An agent starts at the nearest
+waypoint of its path and moves to the next one when within
+``arrive_radius``; at the end it loops (``loop = true``) or stops there.
+``attractors`` pull every agent within their radius towards their centre.
+
+Steering: ``a = weight * (v_desired - v) / GOALS_TAU`` with ``v_desired`` of
+magnitude ``speed`` towards the current waypoint (slowing down inside
+``arrive_radius`` at the final waypoint of an open path) plus, per attractor,
+``strength * (1 - dist / radius)`` towards its centre. The sum is added to
+``world.resources["boids.accel"]`` before the ``boids`` step, which applies the
+speed, acceleration and turn limits.
+
+Without the boids effect, the goals step moves agents kinematically: velocity
+``v_desired`` (attractors ignored), position += v dt, heading = direction of v.
+
+All geometry uses float64 differences (robust far from the origin); the step
+is vectorised numpy (O(n) per step, per-agent independent).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sim.config import GOALS_TAU
+from sim.params import Param, ParamError, validate
+
+_ATTRACTOR = {"center": Param("vec2", doc="[x, z], metres"),
+              "radius": Param("float", min=1e-6, doc="reach, metres"),
+              "strength": Param("float", 1.0, min=0.0, doc="acceleration at the centre, m/s^2")}
+
+
+class _Paths(Param):
+    def check(self, key, value):
+        if not isinstance(value, list):
+            raise ParamError(key, f"expected a list of paths [[[x, z], ...], ...], got {value!r}")
+        out = []
+        for i, p in enumerate(value):
+            if not isinstance(p, list) or not p:
+                raise ParamError(f"{key}[{i}]", f"expected a non-empty list of [x, z] waypoints, got {p!r}")
+            out.append([Param("vec2").check(f"{key}[{i}][{j}]", q) for j, q in enumerate(p)])
+        return out
+
+
+class _Attractors(Param):
+    def check(self, key, value):
+        if not isinstance(value, list):
+            raise ParamError(key, f"expected a list of tables, got {value!r}")
+        out = []
+        for i, t in enumerate(value):
+            if not isinstance(t, dict):
+                raise ParamError(f"{key}[{i}]", f"expected a table, got {t!r}")
+            out.append(validate(_ATTRACTOR, t, f"{key}[{i}]"))
+        return out
+
+
+PARAMS: dict[str, Param] = {
+    "paths": _Paths("list", [], doc="waypoint paths, each [[x, z], ...], metres"),
+    "assign": Param("str", "cycle", choices=("cycle", "character"), doc="which path an agent follows"),
+    "loop": Param("bool", True, doc="loop back to the first waypoint at the end of a path"),
+    "arrive_radius": Param("float", 2.0, min=1e-3, doc="waypoint reached within this distance, metres"),
+    "speed": Param("float", 1.4, min=0.0, max=100.0, doc="desired speed towards the waypoint, m/s"),
+    "weight": Param("float", 1.0, min=0.0, max=100.0, doc="weight of the path steering"),
+    "attractors": _Attractors("list", [], doc="[{center = [x, z], radius = r, strength = a}, ...]"),
+}
+
+
+class Goals:
+    """Per-agent waypoint progress (``world.resources["goals"]``).
+
+    paths : (W, 2) float64 waypoints back to back; pstart : (P + 1,) int64
+    path : (n,) int64, path of every agent (-1 = none)
+    target : (n,) int64, index into ``paths`` of the current waypoint
+    """
+
+    def __init__(self, cfg: dict, state):
+        self.cfg = cfg
+        paths = cfg.get("paths", [])
+        self.waypoints = np.array([q for p in paths for q in p], np.float64).reshape(-1, 2)
+        self.pstart = np.zeros(len(paths) + 1, np.int64)
+        if paths:
+            self.pstart[1:] = np.cumsum([len(p) for p in paths])
+        self.att = np.array([[a["center"][0], a["center"][1], a["radius"], a["strength"]]
+                             for a in cfg.get("attractors", [])], np.float64).reshape(-1, 4)
+        self._assign(state)
+
+    def _assign(self, st):
+        n, npaths = st.n, self.pstart.shape[0] - 1
+        self.n = n
+        if npaths == 0:
+            self.path = -np.ones(n, np.int64)
+            self.target = np.zeros(n, np.int64)
+            return
+        base = np.arange(n) if self.cfg.get("assign", "cycle") == "cycle" else st.character.astype(np.int64)
+        self.path = base % npaths
+        self.target = np.zeros(n, np.int64)
+        for k in range(npaths):  # nearest waypoint of the agent's path
+            sel = np.nonzero(self.path == k)[0]
+            w = self.waypoints[self.pstart[k]:self.pstart[k + 1]]
+            if sel.size == 0:
+                continue
+            d2 = (st.position[sel, 0, None] - w[None, :, 0]) ** 2 + (st.position[sel, 2, None] - w[None, :, 1]) ** 2
+            self.target[sel] = self.pstart[k] + np.argmin(d2, 1)
+
+    def desired_velocity(self, st) -> np.ndarray:
+        """Advance reached waypoints; return (n, 2) desired (vx, vz)."""
+        if st.n != self.n:
+            self._assign(st)
+        out = np.zeros((st.n, 2))
+        has = self.path >= 0
+        if not has.any():
+            return out
+        cfg = self.cfg
+        ar, speed, loop = float(cfg.get("arrive_radius", 2.0)), float(cfg.get("speed", 1.4)), cfg.get("loop", True)
+        idx = np.nonzero(has)[0]
+        t = self.target[idx]
+        end = self.pstart[self.path[idx] + 1]
+        first = self.pstart[self.path[idx]]
+        dx = self.waypoints[t, 0] - st.position[idx, 0]
+        dz = self.waypoints[t, 1] - st.position[idx, 2]
+        reached = dx * dx + dz * dz < ar * ar
+        nxt = t + 1
+        nxt = np.where(nxt >= end, first if loop else end - 1, nxt)
+        t = np.where(reached, nxt, t)
+        self.target[idx] = t
+        dx = self.waypoints[t, 0] - st.position[idx, 0]
+        dz = self.waypoints[t, 1] - st.position[idx, 2]
+        dist = np.hypot(dx, dz)
+        s = np.full(idx.size, speed)
+        if not loop:  # arrive: slow down at the last waypoint
+            last = t == end - 1
+            s = np.where(last, speed * np.minimum(1.0, dist / ar), s)
+        ok = dist > 1e-9
+        f = np.where(ok, s / np.where(ok, dist, 1.0), 0.0)
+        out[idx, 0] = dx * f
+        out[idx, 1] = dz * f
+        return out
+
+    def attraction(self, st) -> np.ndarray:
+        """(n, 2) attractor accelerations."""
+        acc = np.zeros((st.n, 2))
+        for cx, cz, r, s in self.att:
+            dx, dz = cx - st.position[:, 0], cz - st.position[:, 2]
+            d = np.hypot(dx, dz)
+            on = (d < r) & (d > 1e-9)
+            f = np.where(on, s * (1.0 - d / r) / np.where(on, d, 1.0), 0.0)
+            acc[:, 0] += dx * f
+            acc[:, 1] += dz * f
+        return acc
+
+
+def install(world, cfg: dict) -> None:
+    """Effect ``goals``: ``world.resources["goals"]`` and step ``goals`` (before boids)."""
+    goals = Goals(cfg, world.state)
+    world.resources["goals"] = goals
+    weight = float(cfg.get("weight", 1.0))
+
+    def step(w, dt):
+        st = w.state
+        if st.n == 0:
+            return
+        vd = goals.desired_velocity(st)
+        if "boids" in w.effects:
+            from sim.boids import external_accel
+
+            acc = external_accel(w)
+            has = goals.path >= 0
+            acc[:, 0] += np.where(has, weight * (vd[:, 0] - st.velocity[:, 0]) / GOALS_TAU, 0.0)
+            acc[:, 2] += np.where(has, weight * (vd[:, 1] - st.velocity[:, 2]) / GOALS_TAU, 0.0)
+            if goals.att.size:
+                a = goals.attraction(st)
+                acc[:, 0] += a[:, 0]
+                acc[:, 2] += a[:, 1]
+        else:
+            has = goals.path >= 0
+            st.velocity[has, 0] = vd[has, 0]
+            st.velocity[has, 1] = 0.0
+            st.velocity[has, 2] = vd[has, 1]
+            st.position[has, 0] += vd[has, 0] * dt
+            st.position[has, 2] += vd[has, 1] * dt
+            mv = has & (np.hypot(vd[:, 0], vd[:, 1]) > 1e-9)
+            st.heading[mv] = np.arctan2(vd[mv, 0], vd[mv, 1])
+
+    world.schedule.add_step("goals", step, before=("boids", "animation"))

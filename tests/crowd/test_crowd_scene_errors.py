@@ -1,0 +1,93 @@
+"""Malformed scenes: one-line error naming file and key, exit code 2, nothing written.
+
+Every case runs ``python -m crowd run FILE --out OUT`` as a subprocess.
+"""
+import pytest
+
+from crowd_testutil import run_cli, tiny_scene
+
+CASES = [
+    # id, scene text, key the message must name, words it must contain
+    ("unknown-top-level-key", tiny_scene(replace={'name = "tiny"': 'name = "tiny"\ncolour = "red"'}),
+     "colour", ["unknown key", "accepted", "effects"]),
+    ("wrong-type", tiny_scene(replace={"seed = 1": 'seed = "one"'}), "seed", ["expected a number"]),
+    ("negative-dt", tiny_scene(replace={"dt = 0.05": "dt = -0.1"}), "dt", ["0 < dt <= 1"]),
+    ("dt-above-one", tiny_scene(replace={"dt = 0.05": "dt = 2.0"}), "dt", ["0 < dt <= 1"]),
+    ("unknown-effect", tiny_scene(effects='["animation", "flocking"]'), "effects[1]",
+     ["unknown effect 'flocking'", "'boids'"]),
+    ("duplicate-effect", tiny_scene(effects='["animation", { name = "animation" }]'), "effects[1]",
+     ["'animation'", "listed twice"]),
+    ("effect-param-out-of-range", tiny_scene(effects='["animation", { name = "boids", radius = -1.0 }]'),
+     "effects[1].radius", ["expected >="]),
+    ("effect-unknown-param", tiny_scene(effects='[{ name = "animation", sped = 2 }]'), "effects[0].sped",
+     ["unknown key"]),
+    ("placement-unknown-character", tiny_scene(replace={'character = "walker"': 'character = "runner"'}),
+     "placement[0].character", ["'runner'", "'walker'"]),
+    ("unknown-clip", tiny_scene(replace={"rows = 2": 'rows = 2\nclip = "moonwalk"'}), "placement[0].clip",
+     ["'moonwalk'", "accepted"]),
+    ("missing-character-file", tiny_scene(replace={'generator = "humanoid"\ntriangles = 600': 'file = "nope.glb"'}),
+     "characters[0].file", ["not found", "nope.glb"]),
+    ("toml-syntax-error", tiny_scene(replace={"rows = 2": "rows = = 2"}), "line 15, column 8", ["TOML syntax"]),
+    ("lod-mode-unknown", tiny_scene(replace={'mode = "none"': 'mode = "clusters"'}), "lod.mode",
+     ["'none'", "'clusters'"]),
+    ("size-one-int", tiny_scene(replace={"size = [64, 48]": "size = [64]"}), "render.size", ["two integers"]),
+    ("size-floats", tiny_scene(replace={"size = [64, 48]": "size = [64.5, 48]"}), "render.size", ["two integers"]),
+    ("triangles-out-of-range", tiny_scene(replace={"triangles = 600": "triangles = 100"}),
+     "characters[0].triangles", [">= 500"]),
+    ("placement-unknown-key", tiny_scene(replace={"rows = 2": "rows = 2\nrowz = 3"}), "placement[0].rowz",
+     ["unknown key", "rows"]),
+    ("no-characters", tiny_scene(replace={"[[characters]]": "[[actors]]"}), "actors", ["unknown key"]),
+    ("camera-keys-and-position", tiny_scene(replace={"[camera]": "[camera]\nkeys = [{time = 0.0, position = [0.0, 1.0, 2.0], target = [0.0, 0.0, 0.0]}]"}),
+     "camera.keys", ["position"]),
+    ("camera-key-times-decrease", tiny_scene(replace={
+        "position = [1.0, 2.0, 7.0]\ntarget = [1.0, 0.8, 1.0]":
+        "keys = [{time = 1.0, position = [0.0, 1.0, 2.0], target = [0.0, 0.0, 0.0]},"
+        " {time = 0.5, position = [0.0, 1.0, 3.0], target = [0.0, 0.0, 0.0]}]"}),
+     "camera.keys[1].time", ["strictly increasing"]),
+    ("terrain-follow-without-terrain", tiny_scene(effects='["animation", "terrain_follow"]'), "effects[1]",
+     ["'terrain_follow'", "[terrain]"]),
+    ("terrain-file-missing", tiny_scene(append='\n[terrain]\nfile = "heights.png"\n'), "terrain.file",
+     ["not found", "heights.png"]),
+    ("terrain-unknown-key", tiny_scene(append="\n[terrain]\nroughness = 1.0\n"), "terrain.roughness",
+     ["unknown key", "height_scale"]),
+    ("instancing-without-hierarchy", tiny_scene(effects='["instancing"]'), "effects[0]", ["'hierarchy'"]),
+    ("scale-zero", tiny_scene(replace={"triangles = 600": "triangles = 600\nscale = 0.0"}), "characters[0].scale",
+     ["> 0"]),
+]
+
+
+@pytest.mark.parametrize("text, key, words", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_malformed_scene_is_one_line_exit_2_nothing_written(tmp_path, write_scene, text, key, words):
+    scene = write_scene(text)
+    out = tmp_path / "out"
+    r = run_cli("run", scene, "--out", out, "--quiet")
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr  # one line, no traceback
+    msg = lines[0]
+    assert f"{scene}: {key}" in msg, msg
+    for w in words:
+        assert w in msg, msg
+    assert "Traceback" not in r.stderr and r.stdout == ""
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]  # no temp dirs
+
+
+def test_validate_reports_the_same_error(tmp_path, write_scene):
+    scene = write_scene(tiny_scene(replace={"dt = 0.05": "dt = 0"}))
+    r = run_cli("validate", scene)
+    assert r.returncode == 2 and f"{scene}: dt:" in r.stderr
+
+
+def test_missing_scene_file(tmp_path):
+    r = run_cli("run", tmp_path / "nope.toml", "--out", tmp_path / "out")
+    assert r.returncode == 2 and "scene file not found" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args", [["--size", "64"], ["--size", "0x10"], ["--frames", "0"], ["--png-every", "-1"]])
+def test_bad_command_line_exits_2(tmp_path, write_scene, args):
+    scene = write_scene(tiny_scene())
+    r = run_cli("run", scene, "--out", tmp_path / "out", *args)
+    assert r.returncode == 2 and "error:" in r.stderr
+    assert not (tmp_path / "out").exists()
