@@ -47,6 +47,7 @@ class Plan:
     characters: list
     state: object
     agents_per_placement: list = field(default_factory=list)
+    big: bool = False  # long builds: show progress bars
 
     def triangles(self, character_index: int) -> int:
         ch = self.characters[character_index]
@@ -115,7 +116,7 @@ def plan(scene: Scene, quiet: bool = True) -> Plan:
         st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
         states.append(st)
         counts.append(st.n)
-    return Plan(scene, chars, concat_states(states), counts)
+    return Plan(scene, chars, concat_states(states), counts, big)
 
 
 def _progress(it, desc: str, disable: bool, total: int | None = None):
@@ -209,7 +210,8 @@ class Engine:
         from lod.nolod import build_rep
 
         reps = []
-        for spec, ch in zip(self.scene.characters, self.plan.characters):
+        pairs = list(zip(self.scene.characters, self.plan.characters))
+        for spec, ch in _progress(pairs, "representations", disable=self.quiet or not self.plan.big):
             reps.append(build_rep(ch, fps=spec.fps, key=f"none:{spec.name}"))
         statics = []
         terrain = self.world.resources.get("terrain")

@@ -89,6 +89,7 @@ def _umask() -> int:
     return mask
 
 
-def write_json(path: str | os.PathLike, obj) -> None:
-    """``write_atomic`` of ``obj`` as indented JSON (NaN/Inf are refused: they are not JSON)."""
-    write_atomic(path, json.dumps(obj, indent=1, allow_nan=False) + "\n")
+def write_json(path: str | os.PathLike, obj, indent: int | None = 1) -> None:
+    """``write_atomic`` of ``obj`` as JSON (indented unless ``indent`` is None; NaN/Inf are refused: not JSON)."""
+    text = json.dumps(obj, indent=indent, allow_nan=False, separators=None if indent is not None else (",", ":"))
+    write_atomic(path, text + "\n")

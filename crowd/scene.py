@@ -302,9 +302,9 @@ class _Parser:
         render = self.render()
         lod = validate(LOD_SCHEMA, self.table("lod"), "lod")
         out = validate(OUTPUT_SCHEMA, self.table("output"), "output")
-        out_dir = Path(out["dir"] if out["dir"] is not None else Path("out") / name)
-        if str(out["dir"]) == "":
+        if out["dir"] is not None and not out["dir"].strip():
             self.fail("output.dir", "expected a non-empty directory path")
+        out_dir = Path(out["dir"] if out["dir"] is not None else Path("out") / name)
         return Scene(path=self.path.absolute(), name=name, seed=top["seed"], dt=top["dt"],
                      substeps=top["substeps"], frames=top["frames"], characters=tuple(characters),
                      placements=tuple(placements), effects=tuple(effects), camera=camera, render=render,

@@ -167,7 +167,7 @@ class Telemetry:
         write_atomic(os.path.join(out_dir, "frames.csv"), self.csv_text())
         summ = self.summary(scene_name, extra, machine)
         write_json(os.path.join(out_dir, "summary.json"), summ)
-        write_json(os.path.join(out_dir, "trace.json"), self.trace(scene_name))
+        write_json(os.path.join(out_dir, "trace.json"), self.trace(scene_name), indent=None)
         return summ
 
 

@@ -8,12 +8,13 @@ either kind back as a binary glTF.
 
 Notes
 -----
-Follows the Khronos glTF 2.0 specification (2.0.1): §3.6 binary data storage
-and accessors (byteStride, sparse accessors, normalized integers, §3.11
-Appendix "accessor data types"), §3.7.2 meshes and morph targets, §3.7.3
-skins (joint matrices ``globalJointTransform * inverseBindMatrix``; the
-skinned mesh node's own transform is ignored), §3.11 animations (LINEAR,
-STEP, CUBICSPLINE samplers), §4.4 GLB container.
+Follows the Khronos glTF 2.0 specification (version 2.0.1): §3.6 binary data
+storage (buffers, buffer views with ``byteStride``; §3.6.2 accessors,
+normalized integers and sparse storage), §3.7.2 meshes and morph targets,
+§3.7.3 skins (joint matrix = global joint transform x inverse bind matrix;
+the skinned mesh node's own transform is ignored), §3.11 animations with
+Appendix C (LINEAR, STEP, CUBICSPLINE interpolation) and chapter 4 (the GLB
+container).
 
 Where it departs from a full viewer:
 
@@ -27,6 +28,11 @@ Where it departs from a full viewer:
   vertex and multiplied into the vertex colour, so the model stays readable.
 - Morph targets on a skinned mesh are applied at their default weights; their
   weight animations are ignored (with a warning).
+- More than four influences (``JOINTS_1``/``WEIGHTS_1``) keep the four
+  largest, renormalised. When the skeleton's roots hang below different
+  parent nodes, every ancestor becomes a joint (``root_transform`` = identity).
+- The container and JSON are parsed here rather than by pygltflib so that
+  every defect gets a precise message; pygltflib writes the exported file.
 
 Every problem with the input raises :class:`sim.errors.AssetError` with one
 sentence naming the file and the offending element.
@@ -118,7 +124,7 @@ class _Doc:
         self.name = path.name
         data = self._read_bytes()
         bin_chunk = None
-        if data[:4] == b"glTF" or path.suffix.lower() == ".glb":
+        if data[:4] == b"glTF" or (path.suffix.lower() == ".glb" and data.lstrip()[:1] != b"{"):
             text, bin_chunk = self._parse_glb(data)
         else:
             text = data
@@ -1050,7 +1056,7 @@ def _load_keyframed(doc, g: _Graph, mesh_nodes, prims, morph_nodes):
             duration = None  # from_meshes: the key span (+ one mean interval when looping)
         meshes = [build({ni: w[k] for ni, w in sampled.items()}) for k in range(times.size)]
         name = _unique_name(str(a.get("name") or f"anim{ai}"), used)
-        animations[name] = keyframes.from_meshes(name, times - 0.0, meshes, correspondences=None, loop=loop, duration=duration)
+        animations[name] = keyframes.from_meshes(name, times, meshes, correspondences=None, loop=loop, duration=duration)
     if not animations:
         name = "rest"
         animations[name] = keyframes.from_meshes(name, np.array([0.0]), [build(None)], correspondences=None, loop=True, duration=1.0)

@@ -247,3 +247,46 @@ def test_gltf_characters_run_end_to_end(tmp_path, write_scene, asset, scale):
     assert r.returncode == 0, r.stderr
     rows = list(csv.DictReader((out / "frames.csv").open()))
     assert len(rows) == 2 and all(int(x["triangles"]) > 0 for x in rows)
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_signal_during_run_leaves_nothing(tmp_path, write_scene, sig):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from crowd_testutil import REPO
+
+    scene = write_scene(tiny_scene(replace={"frames = 3": "frames = 100000"}))
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([sys.executable, "-m", "crowd", "run", str(scene), "--out", str(out), "--quiet"],
+                            cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.name.startswith(".out.tmp-") for p in tmp_path.iterdir()):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the run never started"
+            time.sleep(0.05)
+        time.sleep(0.3)  # a few frames in
+        proc.send_signal(getattr(signal, sig))
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted; nothing was written" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
+
+
+def test_engine_overrides(tmp_path, write_scene):
+    from crowd.engine import Engine
+
+    scene = load_scene(write_scene(tiny_scene(effects="[]")))
+    with Engine(scene, overrides={"frames": 2, "size": (32, 24), "out": tmp_path / "o", "png_every": 0},
+                quiet=True) as e:
+        res = e.run()
+    assert res.out_dir == tmp_path / "o" and res.summary["frames"] == 2 and res.summary["size"] == [32, 24]
+    assert res.pngs == [] and not (tmp_path / "o" / "frames").exists()

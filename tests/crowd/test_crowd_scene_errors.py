@@ -51,6 +51,10 @@ CASES = [
     ("terrain-unknown-key", tiny_scene(append="\n[terrain]\nroughness = 1.0\n"), "terrain.roughness",
      ["unknown key", "height_scale"]),
     ("instancing-without-hierarchy", tiny_scene(effects='["instancing"]'), "effects[0]", ["'hierarchy'"]),
+    ("camera-path-file-missing", tiny_scene(replace={
+        "position = [1.0, 2.0, 7.0]\ntarget = [1.0, 0.8, 1.0]": 'path_file = "paths/flyby.json"'}),
+     "camera.path_file", ["not found", "flyby.json"]),
+    ("output-dir-empty", tiny_scene(append='\n[output]\ndir = ""\n'), "output.dir", ["non-empty"]),
     ("scale-zero", tiny_scene(replace={"triangles = 600": "triangles = 600\nscale = 0.0"}), "characters[0].scale",
      ["> 0"]),
 ]
@@ -91,3 +95,46 @@ def test_bad_command_line_exits_2(tmp_path, write_scene, args):
     r = run_cli("run", scene, "--out", tmp_path / "out", *args)
     assert r.returncode == 2 and "error:" in r.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_camera_path_file_is_loaded_relative_to_the_scene(tmp_path, write_scene):
+    from crowd.scene import load_scene
+    from lod.camera_path import CameraPath, save_path
+
+    save_path(tmp_path / "paths" / "flyby.json",
+              CameraPath([(0.0, (0, 2, 8), (0, 1, 0)), (1.0, (4, 2, 8), (0, 1, 0))]))
+    scene = load_scene(write_scene(tiny_scene(replace={
+        "position = [1.0, 2.0, 7.0]\ntarget = [1.0, 0.8, 1.0]": 'path_file = "paths/flyby.json"'})))
+    assert scene.camera.path_file == tmp_path / "paths" / "flyby.json"
+    assert [k.time for k in scene.camera.keys] == [0.0, 1.0]
+    assert scene.camera.keys[1].position == (4.0, 2.0, 8.0)
+
+
+def test_bad_camera_path_file_names_the_key(tmp_path, write_scene):
+    (tmp_path / "p.json").write_text("[{\"time\": 0}]")
+    scene = write_scene(tiny_scene(replace={
+        "position = [1.0, 2.0, 7.0]\ntarget = [1.0, 0.8, 1.0]": 'path_file = "p.json"'}))
+    r = run_cli("validate", scene)
+    assert r.returncode == 2 and f"{scene}: camera.path_file: key 0: missing position, target" in r.stderr
+
+
+def test_effects_as_array_of_tables_are_equivalent(write_scene):
+    from crowd.scene import load_scene
+
+    a = load_scene(write_scene(tiny_scene(effects='["animation", { name = "boids", radius = 3.0 }]'), "a.toml"))
+    text = tiny_scene(effects="[]").replace("effects = []\n", "") + (
+        '\n[[effects]]\nname = "animation"\n\n[[effects]]\nname = "boids"\nradius = 3.0\n')
+    b = load_scene(write_scene(text, "b.toml"))
+    assert a.effects == b.effects and b.effect_names == ["animation", "boids"]
+    assert b.effects[1].params["radius"] == 3.0 and "cruise_speed" in b.effects[1].params  # defaults filled
+
+
+def test_valid_scene_resolves_defaults_and_absolute_paths(tmp_path, write_scene):
+    from crowd.scene import load_scene
+
+    scene = load_scene(write_scene(tiny_scene()))
+    assert scene.path.is_absolute() and scene.output_dir.is_absolute()
+    assert scene.output_dir.name == "tiny"  # default out/<name>
+    assert scene.characters[0].seed == 1  # default: the scene seed
+    assert scene.placements[0].character == 0 and scene.placements[0].clip is None
+    assert scene.render.size == (64, 48) and scene.lod_mode == "none"

@@ -232,7 +232,8 @@ def test_obstacle_never_penetrated_deeper_than_one_step():
             d, _, _ = obs.sdf(w.state.position[:, 0], w.state.position[:, 2])
             assert (r - d).max() <= vmax * dt + 1e-9
             assert d.min() >= r - 1e-6  # in fact pushed out completely
-        assert w.state.position[4, 0] < 10.0  # the centre agent is held in front (slides at most)
+        if "circles" in shape:  # head-on at the centre: held in front (the others slide around)
+            assert w.state.position[4, 0] == pytest.approx(10.0 - 2.0 - r, abs=1e-6)
 
 
 def test_obstacle_force_field_steers_around():

@@ -772,3 +772,55 @@ def test_mutated_files_raise_only_asset_errors(tmp_path):
                 assert "fuzz.glb" in str(e)
             else:
                 assert np.all(np.isfinite(ch.mesh.positions))
+
+
+def test_quantized_positions_and_texture_colours(tmp_path):
+    import io
+
+    from PIL import Image
+
+    b = GltfBuilder()
+    # KHR_mesh_quantization: positions as normalized signed shorts, uvs as normalized ubytes
+    p = np.array([[0, 0, 0], [32767, 0, 0], [32767, 32767, 0], [0, 32767, 0]], np.int16)
+    pa = b.acc(p, "VEC3", ct=5122, normalized=True)
+    uv = np.array([[64, 64], [191, 64], [191, 191], [64, 191]], np.uint8)  # texel centres of a 2x2 texture
+    ua = b.acc(uv, "VEC2", ct=5121, normalized=True)
+    img = Image.new("RGB", (2, 2))
+    img.putpixel((0, 0), (255, 0, 0))      # top-left: red
+    img.putpixel((1, 0), (0, 255, 0))      # top-right: green
+    img.putpixel((1, 1), (0, 0, 255))      # bottom-right: blue
+    img.putpixel((0, 1), (128, 128, 128))  # bottom-left: sRGB grey
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    iv = b.view(buf.getvalue())
+    prim = {"attributes": {"POSITION": pa, "TEXCOORD_0": ua}, "indices": b.acc(np.array([0, 1, 2, 0, 2, 3], np.uint16), "SCALAR"), "material": 0}
+    b.gltf.update({
+        "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+        "nodes": [{"mesh": 0}], "meshes": [{"primitives": [prim]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.5], "baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}], "images": [{"bufferView": iv, "mimeType": "image/png"}],
+    })
+    ch = load_gltf(write_glb(tmp_path / "q.glb", *b.finish()))
+    np.testing.assert_allclose(ch.mesh.positions, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], atol=1e-6)
+    # uv origin is the top-left texel; texels are sRGB, vertex colours linear; alpha from the factor
+    np.testing.assert_allclose(ch.mesh.colors[:, 3], 0.5)
+    grey = ((128 / 255 + 0.055) / 1.055) ** 2.4
+    np.testing.assert_allclose(ch.mesh.colors[:, :3], [[1, 0, 0], [0, 1, 0], [0, 0, 1], [grey] * 3], atol=1e-6)
+
+
+@needs_keyframes
+def test_describe_keyframed(tmp_path):
+    from sim import keyframes
+
+    p, i = box_triangles()
+    meshes = []
+    for k in range(3):
+        m = Mesh(positions=(p + [0, 0, k]).astype(np.float32), indices=i.reshape(-1, 3))
+        m.ensure_normals()
+        meshes.append(m)
+    anim = keyframes.from_meshes("rise", np.array([0.0, 0.5, 1.0]), meshes, loop=False)
+    info = describe(KeyframedCharacter(name="k", animations={"rise": anim}))
+    assert info["kind"] == "keyframed" and info["vertices"] == 4 and info["triangles"] == 2
+    assert info["clips"] == [{"name": "rise", "duration": 1.0, "keys": 3, "loop": False}]
+    np.testing.assert_allclose(info["bounds"]["rest"]["max"], [1, 1, 0])
+    np.testing.assert_allclose(info["bounds"]["animated"]["max"], [1, 1, 2])
