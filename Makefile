@@ -10,8 +10,11 @@ VPY      := $(VENV)/bin/python
 SENTINEL := $(VENV)/.crowd-setup-done
 # Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL) and a virtual X server
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri xvfb
-BENCH_SCENES ?= $(sort $(wildcard scenes/bench*.toml scenes/bench/*.toml benchmarks/*.toml))
-BENCH_FRAMES ?= 60
+# benchmark scenes: every scene but the quick start (override: make bench BENCH_SCENES=scenes/office.toml)
+BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.toml)))
+# short default runs: full-detail (lod "none") frames of the big scenes take seconds each on llvmpipe
+BENCH_FRAMES ?= 3
+BENCH_SIZE   ?= 1280x720
 PYTEST_ARGS  ?=
 
 .PHONY: setup system-packages demo test bench clean
@@ -31,6 +34,7 @@ system-packages:
 	  for p in $(SYSTEM_PACKAGES); do \
 	    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
 	  done; \
+	  if [ ! -x $(VPY) ] && ! $(PYTHON) -c "import ensurepip" >/dev/null 2>&1; then missing="$$missing python3-venv"; fi; \
 	else \
 	  echo "note: not a Debian/Ubuntu system; make sure EGL and Mesa (llvmpipe) are installed: $(SYSTEM_PACKAGES)"; \
 	fi; \
@@ -54,11 +58,11 @@ test: setup
 	if [ $$rc -eq 5 ]; then echo "error: pytest collected no tests" >&2; exit 1; fi; exit $$rc
 
 bench: setup
-	@test -n "$(BENCH_SCENES)" || { echo "error: no benchmark scenes found (scenes/bench*.toml)" >&2; exit 1; }
+	@test -n "$(BENCH_SCENES)" || { echo "error: no benchmark scenes found (scenes/*.toml)" >&2; exit 1; }
 	@for s in $(BENCH_SCENES); do \
 	  n=$$(basename $$s .toml); \
 	  echo "== $$s"; \
-	  $(VPY) -m crowd run $$s --frames $(BENCH_FRAMES) --out out/bench/$$n --quiet || exit $$?; \
+	  $(VPY) -m crowd run $$s --frames $(BENCH_FRAMES) --size $(BENCH_SIZE) --png-every 0 --out out/bench/$$n --quiet || exit $$?; \
 	  $(VPY) -c "import json,sys; s=json.load(open(sys.argv[1])); st=s['stages']; print('  %d frames, mean frame %.1f ms (simulate %.1f, select %.1f, draw %.1f), %d triangles/frame' % (s['frames'], 1e3*st['total']['mean'], 1e3*st['simulate']['mean'], 1e3*st['select']['mean'], 1e3*st['draw']['mean'], s['counts']['triangles']['mean']))" out/bench/$$n/summary.json; \
 	done
 

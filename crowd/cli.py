@@ -83,10 +83,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_run(args) -> int:
     from crowd.engine import Engine
+    from crowd.output import check_output_dir
     from crowd.scene import load_scene
 
     scene = load_scene(args.scene).with_overrides(frames=args.frames, size=args.size, out=args.out,
                                                   png_every=args.png_every)
+    check_output_dir(scene.output_dir)  # before the (possibly long) build
     with Engine(scene, quiet=args.quiet) as engine:
         result = engine.run()
     if not args.quiet:

@@ -266,12 +266,12 @@ class Engine:
         Defaults come from the scene. The output directory appears only when
         the run has finished; on error or interrupt nothing is left behind.
         """
-        from crowd.output import atomic_dir
+        from crowd.output import atomic_dir, check_output_dir
         from crowd.telemetry import FrameRecord, Telemetry, machine_info
 
         sc = self.scene
         frames = sc.frames if frames is None else int(frames)
-        out_dir = Path(out_dir).absolute() if out_dir is not None else sc.output_dir
+        out_dir = check_output_dir(out_dir if out_dir is not None else sc.output_dir)
         png_every = sc.render.png_every if png_every is None else int(png_every)
         size = sc.render.size
         bg = sc.render.background

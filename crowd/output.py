@@ -21,6 +21,26 @@ def temp_sibling(final: Path) -> Path:
     return final.parent / f".{final.name}.tmp-{os.getpid()}"
 
 
+def check_output_dir(final: str | os.PathLike) -> Path:
+    """Fail early, before any work, when ``final`` cannot become the run's output directory.
+
+    Returns the absolute path. Raises :class:`crowd.errors.CrowdError` when
+    ``final`` is an existing non-directory, or when its nearest existing
+    ancestor is not a writable directory.
+    """
+    from crowd.errors import CrowdError
+
+    final = Path(final).absolute()
+    if final.exists() and not final.is_dir():
+        raise CrowdError(f"{final}: output path exists and is not a directory; give a directory (--out DIR)")
+    parent = final.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise CrowdError(f"{final}: cannot create the output directory ({parent} is not a writable directory)")
+    return final
+
+
 @contextmanager
 def atomic_dir(final: str | os.PathLike):
     """Yield a fresh temporary directory that becomes ``final`` on success.

@@ -2,10 +2,17 @@
 
 Draw paths (one program each, shaders in ``render/shaders/``):
 
-- skinned: linear blend skinning in the vertex shader. The skinning matrices of
-  all baked frames of all clips live in ONE RGBA32F texture (one row per frame,
-  three texels per joint, read with ``texelFetch``); the shader blends the
-  matrices of the two frames around the instance's fractional frame coordinate.
+- skinned: linear blend skinning (LBS) in the vertex shader. The skinning
+  matrices of all baked frames of all clips live in ONE RGBA32F texture (one
+  row per frame, three texels per joint, read with ``texelFetch``). Default
+  "palette" path: once per frame a transform-feedback pre-pass
+  (``palette.vert``, one point per matrix row and instance) blends every drawn
+  instance's matrices between the two baked frames around its fractional
+  frame coordinate and the result is copied (GPU-side) into a palette
+  texture; the vertex shader then reads 3 texels per influence. The "direct"
+  path (``skinned_direct.vert``) blends both frames per vertex (6 texels per
+  influence); it is kept for comparison and as a fallback. Blending matrices
+  is exact for LBS (see ``lod.nolod.SkinnedRep``).
 - keyframed: per segment vertex start/end attributes mixed by the instance's u
   (Wand & Straßer 2002, §3).
 - static: the same instancing path without animation.
@@ -20,9 +27,8 @@ buffer write per batch; on llvmpipe both are dwarfed by vertex work, so the
 single write was kept (it is also the layout a real GPU prefers).
 
 Back faces are not culled: imported meshes (glTF) can have inconsistent
-winding and characters are closed anyway, so culling would save little on
-llvmpipe (rasterisation of back faces is rejected by the depth test); the
-fragment shader lights both sides.
+winding, and on llvmpipe the cost is in vertex processing and triangle setup,
+which culling would not save; the fragment shader lights both sides.
 """
 from __future__ import annotations
 
@@ -47,6 +53,14 @@ GL_TIMER_INVALID = 4294967295
 SUN_DIRECTION = (0.35, 0.85, 0.4)
 #: ambient light factor
 AMBIENT = 0.3
+#: texels per row of the per-frame skinning palette (a multiple of 3, so the
+#: three rows of one matrix never straddle two texture rows)
+PALETTE_WIDTH = 4095
+#: most palette texels per frame: the shader locates an instance's block with a
+#: float division corrected by one row, exact up to 2**25
+PALETTE_MAX_TEXELS = 1 << 25
+#: skinning paths: "palette" (per-frame pre-pass, default) or "direct"
+SKINNING_MODES = ("palette", "direct")
 #: environment variable that turns on debug checks (finite instance data)
 DEBUG_ENV = "CROWD_GL_DEBUG"
 
@@ -80,6 +94,13 @@ def gpu_seconds(elapsed_ns, wall: float | None = None) -> float | None:
     return s
 
 
+def prog_name(kind: str, skinning: str = "palette") -> str:
+    """Shader program drawing a representation kind."""
+    if kind == "skinned" and skinning == "direct":
+        return "skinned_direct"
+    return kind
+
+
 @dataclass
 class _GpuRep:
     key: str
@@ -93,6 +114,8 @@ class _GpuRep:
     seg_first: np.ndarray | None = None
     seg_count: np.ndarray | None = None
     n_vertices: int = 0
+    n_joints: int = 0
+    palette_vao: object = None
 
 
 class Renderer:
@@ -106,9 +129,19 @@ class Renderer:
     samples : MSAA samples of the colour/depth buffers (0 = none)
     debug : check instance data for NaN/Inf before upload (default: the
         ``CROWD_GL_DEBUG`` environment variable is set and not "0")
+    skinning : "palette" (default): a transform-feedback pre-pass blends each
+        instance's joint matrices between the two baked frames once per frame
+        into a palette texture, and the vertex shader reads 3 texels per
+        influence; "direct": every vertex blends both frames itself (6 texels
+        per influence). Both share ``shaders/skinning.glsl``; the palette path
+        is the faster one on llvmpipe (see scripts/bench_baseline.md).
     """
 
-    def __init__(self, size=(1280, 720), ctx=None, samples: int = 0, debug: bool | None = None):
+    def __init__(self, size=(1280, 720), ctx=None, samples: int = 0, debug: bool | None = None,
+                 skinning: str = "palette"):
+        if skinning not in SKINNING_MODES:
+            raise ValueError(f"Renderer skinning: expected one of {SKINNING_MODES}, got {skinning!r}")
+        self.skinning = skinning
         self.size = (int(size[0]), int(size[1]))
         if self.size[0] < 1 or self.size[1] < 1:
             raise ValueError(f"Renderer size: expected positive (width, height), got {size}")
@@ -133,6 +166,10 @@ class Renderer:
         self._instance_capacity = 0
         self._instances = None
         self._grow_instances(INITIAL_INSTANCES)
+        self.palette_width = PALETTE_WIDTH
+        self._palette_buf = None
+        self._palette_tex = None
+        self._palette_rows = 0
         # separate queries, nested: a combined samples+time query reads a
         # constant ~20 ns on llvmpipe (see gpu_seconds)
         self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
@@ -161,18 +198,72 @@ class Renderer:
         self._instances = self._track(self.ctx.buffer(reserve=cap * INSTANCE_BYTES, dynamic=True), "crowd.instances")
         self._instance_capacity = cap
 
-    def program(self, name: str, capture: bool = False):
-        """Compiled program ``name`` (cached); ``capture`` gives the vertex-only
-        transform-feedback variant that records ``v_world`` and ``v_normal``."""
-        key = (name, capture)
+    def program(self, name: str, varyings: tuple = ()):
+        """Compiled program ``name`` (cached). With ``varyings`` it is the
+        vertex-only transform-feedback variant recording those outputs."""
+        key = (name, tuple(varyings))
         if key not in self._programs:
-            src = program_sources(name, fragment=not capture)
-            if capture:
-                prog = self.ctx.program(**src, varyings=["v_world", "v_normal"])
-            else:
-                prog = self.ctx.program(**src)
-            self._programs[key] = self._track(prog, f"render.program.{name}{'.capture' if capture else ''}")
+            src = program_sources(name, fragment=not varyings)
+            prog = self.ctx.program(**src, varyings=list(varyings)) if varyings else self.ctx.program(**src)
+            label = f"render.program.{name}" + (".capture" if varyings else "")
+            self._programs[key] = self._track(prog, label)
         return self._programs[key]
+
+    def _ensure_palette(self, rows: int) -> None:
+        """Palette buffer and texture large enough for ``rows`` texel rows."""
+        if rows <= self._palette_rows:
+            return
+        if self.palette_width % 3 or not 3 <= self.palette_width <= int(self.ctx.info["GL_MAX_TEXTURE_SIZE"]):
+            raise ValueError(f"Renderer.palette_width: expected a multiple of 3 within the GL texture limit, "
+                             f"got {self.palette_width}")
+        cap = max(1, self._palette_rows)
+        while cap < rows:
+            cap *= 2
+        limit = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        if rows > limit:
+            raise ValueError(f"Renderer: the skinning palette needs {rows} texture rows, above the GL limit {limit}; "
+                             "draw fewer skinned instances per frame or use Renderer(skinning='direct')")
+        cap = min(cap, limit)
+        for o in (self._palette_tex, self._palette_buf):
+            if o is not None:
+                o.release()
+                self._objects.remove(o)
+        width = self.palette_width
+        self._palette_buf = self._track(self.ctx.buffer(reserve=cap * width * 16, dynamic=True),
+                                        "render.palette_buffer")
+        self._palette_tex = self._track(self.ctx.texture((width, cap), 4, dtype="f4"), "render.palette")
+        self._palette_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._palette_rows = cap
+
+    def _build_palette(self, items) -> list:
+        """Run the palette pre-pass for skinned draws.
+
+        items : list of (_GpuRep, instance buffer, byte offset of the batch's
+            first instance, instance count). Returns each item's first palette
+            texel; leaves the palette texture bound to texture unit 1.
+        """
+        total = sum(k * 3 * g.n_joints for g, _, _, k in items)
+        if total > PALETTE_MAX_TEXELS:
+            raise ValueError(f"Renderer: {total} skinning-palette texels this frame exceed {PALETTE_MAX_TEXELS} "
+                             "(instances x 3 x joints); draw fewer skinned instances or use skinning='direct'")
+        if self._palette_tex is not None and self._palette_tex.width != self.palette_width:
+            self._palette_rows = 0  # width changed: rebuild
+        rows = max(1, -(-total // self.palette_width))
+        self._ensure_palette(rows)
+        prog = self.program("palette", ("v_row",))
+        prog["u_joints"].value = 0
+        loc = prog["i_anim"].location
+        bases, base = [], 0
+        for g, buf, offset, k in items:
+            g.joints.use(0)
+            g.palette_vao.bind(loc, "f", buf, "4f", offset=offset + 48, stride=INSTANCE_BYTES, divisor=1)
+            g.palette_vao.transform(self._palette_buf, self.ctx.POINTS, vertices=3 * g.n_joints, instances=k,
+                                    buffer_offset=base * 16)
+            bases.append(base)
+            base += k * 3 * g.n_joints
+        self._palette_tex.write(self._palette_buf, viewport=(0, 0, self._palette_tex.width, rows))
+        self._palette_tex.use(1)
+        return bases
 
     def upload(self, rep) -> None:
         """Create the GPU resources of a representation (``lod.nolod`` rep);
@@ -190,7 +281,7 @@ class Renderer:
             return b
 
         if kind == "skinned":
-            prog = self.program("skinned")
+            prog = self.program("skinned" if self.skinning == "palette" else "skinned_direct")
             joints = np.ascontiguousarray(rep.joint_table, np.float32)
             F, J = joints.shape[0], joints.shape[1]
             maxs = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
@@ -241,13 +332,19 @@ class Renderer:
         objs.append(vao)
         locs = {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}
         # capture VAO (transform feedback; no index buffer: one output per vertex)
-        cprog = self.program(kind, capture=True)
+        cprog = self.program(prog_name(kind, self.skinning), ("v_world", "v_normal"))
         cvao = ctx.vertex_array(cprog, [c for c in content if c[2] in cprog])
         cvao.label = f"{rep.key}.capture_vao"
         objs.append(cvao)
         g = _GpuRep(rep.key, kind, vao, locs, int(np.asarray(rep.indices).size), objs, tex, cvao,
                     n_vertices=int(n_vertices))
         g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
+        if kind == "skinned":
+            g.n_joints = int(rep.joint_table.shape[1])
+            pvao = ctx.vertex_array(self.program("palette", ("v_row",)), [])
+            pvao.label = f"{rep.key}.palette_vao"
+            objs.append(pvao)
+            g.palette_vao = pvao
         if kind == "keyframed":
             g.seg_first = np.asarray(rep.seg_first, np.int64)
             g.seg_count = np.asarray(rep.seg_count, np.int64)
@@ -281,6 +378,8 @@ class Renderer:
             prog["u_ambient"].value = AMBIENT
         if "u_joints" in prog:
             prog["u_joints"].value = 0
+        if "u_palette" in prog:
+            prog["u_palette"].value = 1
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
@@ -321,7 +420,19 @@ class Renderer:
         used = set()
         offset = 0
         with self._q_samples, self._q_time:
-            for b in batches:
+            palette = {}
+            if self.skinning == "palette":
+                items, offs, off = [], [], 0
+                for i, b in enumerate(batches):
+                    g = self._reps[b.rep]
+                    if g.kind == "skinned":
+                        items.append((g, self._instances, off, b.n_instances))
+                        offs.append(i)
+                    off += b.n_instances * INSTANCE_BYTES
+                if items:
+                    palette = dict(zip(offs, self._build_palette(items)))
+                    self.fbo.use()
+            for i, b in enumerate(batches):
                 g = self._reps[b.rep]
                 prog = g.vao.program
                 if id(prog) not in used:
@@ -329,6 +440,9 @@ class Renderer:
                     used.add(id(prog))
                 if g.joints is not None:
                     g.joints.use(0)
+                if i in palette:
+                    prog["u_palette_base"].value = palette[i]
+                    prog["u_palette_stride"].value = 3 * g.n_joints
                 self._bind_instances(g.vao, g.locations, self._instances, offset)
                 k = b.n_instances
                 if g.kind == "keyframed":
@@ -375,6 +489,12 @@ class Renderer:
                 prog["u_view_proj"].write(np.eye(4, dtype=np.float32).tobytes())
             if "u_joints" in prog:
                 prog["u_joints"].value = 0
+            if "u_palette" in prog:
+                base = self._build_palette([(g, inst, 0, k)])[0]
+                self.fbo.use()
+                prog["u_palette"].value = 1
+                prog["u_palette_base"].value = base
+                prog["u_palette_stride"].value = 3 * g.n_joints
             if g.joints is not None:
                 g.joints.use(0)
             self._bind_instances(g.capture_vao, g.capture_locs, inst, 0)

@@ -52,33 +52,44 @@ def framing_camera(n: int, aspect: float) -> Camera:
     """Camera looking down at 35 degrees so the grid fills the view."""
     half = 0.5 * np.ceil(np.sqrt(n)) * SPACING + 0.5
     fov = 50.0
-    dist = half / np.tan(np.radians(fov / 2)) * 1.05 + 1.0
+    # fit the grid's width to the horizontal field of view (depth is foreshortened)
+    dist = 1.25 * half / (np.tan(np.radians(fov / 2)) * aspect) + 1.5
     pitch = np.radians(35)
     eye = np.array([0.0, 1.0 + dist * np.sin(pitch), dist * np.cos(pitch)])
     return Camera.look_at(eye, (0.0, 0.5, 0.0), fov_y=fov, near=0.1, far=dist * 4)
 
 
-def time_pair(renderer, sel_a, sel_b, state, cam, size, frames, warmup, advance):
-    """Frame times of two selectors drawn alternately (A B, B A, ...) so that
-    both see the same machine load; returns per-case medians and the median
-    of the per-frame ratios A / B."""
-    ta, tb, sel_t, last = [], [], [], {}
+def time_cases(cases, state, cam, size, frames, warmup, advance):
+    """Median frame time of each case, the cases drawn round-robin (rotating
+    the order every frame) so all see the same machine load.
+
+    cases : list of (name, renderer, selector). Returns {name: median
+    seconds}, {name: per-frame seconds}, the median select time of the first
+    case and the last DrawList of each case.
+    """
+    times = {name: [] for name, _, _ in cases}
+    sel_t, last = [], {}
     for k in range(warmup + frames):
-        order = (("a", sel_a), ("b", sel_b)) if k % 2 == 0 else (("b", sel_b), ("a", sel_a))
-        for name, sel in order:
+        rot = k % len(cases)
+        for name, renderer, sel in cases[rot:] + cases[:rot]:
             t0 = time.perf_counter()
             dl = sel.select(state, cam, size)
             t1 = time.perf_counter()
             renderer.draw(dl)  # ends with ctx.finish()
             t2 = time.perf_counter()
             if k >= warmup:
-                (ta if name == "a" else tb).append(t2 - t1)
-                if name == "a":
+                times[name].append(t2 - t1)
+                if name == cases[0][0]:
                     sel_t.append(t1 - t0)
             last[name] = dl
         state.anim_time += advance
-    ratio = statistics.median(a / b for a, b in zip(ta, tb))
-    return statistics.median(ta), statistics.median(tb), ratio, statistics.median(sel_t), last
+    med = {name: statistics.median(v) for name, v in times.items()}
+    return med, times, statistics.median(sel_t), last
+
+
+def paired_ratio(a, b) -> float:
+    """Median of per-frame ratios a[i] / b[i]."""
+    return statistics.median(x / y for x, y in zip(a, b))
 
 
 def hardware_line(ctx) -> str:
@@ -108,27 +119,34 @@ def main(argv=None) -> int:
     ch = humanoid(args.triangles, seed=0)
     skinned = build_rep(ch, fps=30, key="none:humanoid")
     static = build_rep(ch.mesh, key="static:humanoid")
-    renderer = Renderer(size)
-    renderer.upload(skinned)
-    renderer.upload(static)
+    renderer = Renderer(size, skinning="palette")
+    direct = Renderer(size, ctx=renderer.ctx, skinning="direct")
+    for r in (renderer, direct):
+        r.upload(skinned)
+        r.upload(static)
     hw = hardware_line(renderer.ctx)
     rows = []
     print(f"# {hw}")
     print(f"{'instances':>9} {'drawn':>7} {'triangles':>11} {'skinned ms':>11} {'static ms':>10} "
-          f"{'ratio':>6} {'skinned Mtri/s':>15} {'static Mtri/s':>14} {'select ms':>10}")
+          f"{'ratio':>6} {'direct ms':>10} {'ratio':>6} {'skinned Mtri/s':>15} {'static Mtri/s':>14} {'select ms':>10}")
     for n in args.counts:
-        rng = np.random.default_rng(n)  # same grid, headings and phases for both paths
+        rng = np.random.default_rng(n)  # same grid, headings and phases for every path
         st = grid_state(n, rng)
         cam = framing_camera(n, size[0] / size[1])
-        t_sk, t_st, ratio, sel_ms, last = time_pair(renderer, NoLodSelector([skinned]), NoLodSelector([static]), st,
-                                                    cam, size, args.frames, args.warmup, 1 / 30)
-        dl, dl_st = last["a"], last["b"]
+        cases = [("skinned", renderer, NoLodSelector([skinned])), ("static", renderer, NoLodSelector([static])),
+                 ("direct", direct, NoLodSelector([skinned]))]
+        med, per, sel_ms, last = time_cases(cases, st, cam, size, args.frames, args.warmup, 1 / 30)
+        dl, dl_st = last["skinned"], last["static"]
         tri = dl.triangles
-        row = dict(n=n, drawn=dl.n_instances, tri=tri, sk=t_sk, st=t_st, ratio=ratio,
-                   sk_rate=tri / t_sk / 1e6, st_rate=dl_st.triangles / t_st / 1e6, sel=sel_ms)
+        row = dict(n=n, drawn=dl.n_instances, tri=tri, sk=med["skinned"], st=med["static"], di=med["direct"],
+                   ratio=paired_ratio(per["skinned"], per["static"]),
+                   ratio_di=paired_ratio(per["direct"], per["static"]),
+                   sk_rate=tri / med["skinned"] / 1e6, st_rate=dl_st.triangles / med["static"] / 1e6, sel=sel_ms)
         rows.append(row)
-        print(f"{n:>9} {row['drawn']:>7} {tri:>11,} {t_sk * 1e3:>11.1f} {t_st * 1e3:>10.1f} {row['ratio']:>6.2f} "
+        print(f"{n:>9} {row['drawn']:>7} {tri:>11,} {row['sk'] * 1e3:>11.1f} {row['st'] * 1e3:>10.1f} "
+              f"{row['ratio']:>6.2f} {row['di'] * 1e3:>10.1f} {row['ratio_di']:>6.2f} "
               f"{row['sk_rate']:>15.2f} {row['st_rate']:>14.2f} {sel_ms * 1e3:>10.2f}")
+    direct.release()
     renderer.release()
 
     lines = [
@@ -141,15 +159,21 @@ def main(argv=None) -> int:
         "filling the view; median of "
         f"{args.frames} frames after {args.warmup} warm-up frame(s), `ctx.finish()` before the clock stops. "
         "*static* draws the same mesh, same instances, through the static instancing path. "
-        "Skinned and static frames alternate (A B, B A, ...) so both see the same load on a shared machine; "
-        "*ratio* is the median of the per-frame skinned / static ratios (the cost of GPU skinning; target <= 1.3).",
+        "*skinned* is the default palette path (a transform-feedback pre-pass blends every instance's joint "
+        "matrices between its two baked frames once per frame; the vertex shader then reads 3 texels per "
+        "influence); *direct* blends both frames in the vertex shader (6 texels per influence). "
+        "The three cases are drawn round-robin, rotating the order every frame, so all see the same load on a "
+        "shared machine; each *ratio* is the median of per-frame ratios to *static* (the cost of GPU skinning; "
+        "target <= 1.3). *select ms* is the CPU time of NoLodSelector.select (culling, instance data, batching).",
         "",
-        "| instances | drawn | triangles | skinned ms | static ms | ratio | skinned Mtri/s | static Mtri/s | select ms |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "| instances | drawn | triangles | skinned ms | static ms | ratio | direct ms | direct ratio "
+        "| skinned Mtri/s | static Mtri/s | select ms |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for r in rows:
         lines.append(f"| {r['n']:,} | {r['drawn']:,} | {r['tri']:,} | {r['sk'] * 1e3:.1f} | {r['st'] * 1e3:.1f} | "
-                     f"{r['ratio']:.2f} | {r['sk_rate']:.2f} | {r['st_rate']:.2f} | {r['sel'] * 1e3:.2f} |")
+                     f"{r['ratio']:.2f} | {r['di'] * 1e3:.1f} | {r['ratio_di']:.2f} | {r['sk_rate']:.2f} | "
+                     f"{r['st_rate']:.2f} | {r['sel'] * 1e3:.2f} |")
     lines.append("")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = args.out.with_suffix(".md.tmp")

@@ -36,8 +36,14 @@ Per agent ``i`` and fixed step ``dt`` (one sub-step of ``World.step``):
    moves towards ``atan2(v'_x, v'_z)`` by ``1 - exp(-dt / heading_smoothing)``
    of the wrapped difference (unchanged while standing still).
 
-Parallel over agents (``prange``); each agent writes only its own outputs, so
-results are bit-identical for any thread count.
+Implementation: the grid is built by a serial counting sort, a serial pass
+copies (x, z, vx, vz) of every agent in grid order (neighbours become
+contiguous in memory), then one parallel loop over agents (``prange``) steers
+each agent from that snapshot and integrates its own row of the state. Each
+agent writes only its own outputs and visits neighbours in a fixed order, so
+results are bit-identical for any thread count. Velocities are planar
+(``velocity.y = 0``). State used per agent: the CrowdState (78 bytes) plus
+the grid (about 20 bytes) and the snapshot (32 bytes).
 
 Animation coupling (documented choice): boids sets ``anim_rate = |v| /
 clip.speed`` for clips with a natural ground speed, so one cycle of the clip
@@ -77,7 +83,10 @@ class _Bounds(Param):
 PARAMS: dict[str, Param] = {
     "radius": Param("float", 2.0, min=1e-3, max=1e4, doc="neighbour radius = grid cell side, metres"),
     "separation_radius": Param("float", 1.0, min=1e-3, max=1e4, doc="separation acts below this distance, metres"),
-    "max_neighbors": Param("int", 32, min=1, max=1024, doc="neighbours used per agent (first found in grid order)"),
+    "max_neighbors": Param("int", 32, min=1, max=1024,
+                           doc="neighbours used per agent (the first found in grid order); at most "
+                               "BOIDS_CANDIDATE_FACTOR (8) x this many candidates are examined, which bounds "
+                               "the cost of very dense crowds (e.g. 10,000 agents in one cell)"),
     "w_separation": Param("float", 1.5, min=0.0, max=100.0, doc="separation weight"),
     "w_alignment": Param("float", 0.5, min=0.0, max=100.0, doc="alignment weight"),
     "w_cohesion": Param("float", 0.3, min=0.0, max=100.0, doc="cohesion weight"),
@@ -136,15 +145,18 @@ def _bounds_axis(x, lo, hi, margin):
 
 
 @njit(cache=True, inline="always")
-def _limit(vx, vz, nvx, nvz, dt, max_speed, max_turn):
-    """Turn-rate then speed limit of the new velocity (nvx, nvz)."""
+def _limit(vx, vz, nvx, nvz, dt, max_speed, max_turn, cos_lim):
+    """Turn-rate then speed limit of the new velocity (nvx, nvz).
+
+    The turn exceeds ``lim = max_turn * dt`` iff ``cos(turn) < cos_lim``
+    (``cos_lim = cos(lim)``, or -2 when lim >= pi): no trigonometry per agent
+    unless the limit applies."""
     s0 = math.sqrt(vx * vx + vz * vz)
     s1 = math.sqrt(nvx * nvx + nvz * nvz)
     if s0 > BOIDS_SPEED_EPS and s1 > BOIDS_SPEED_EPS:
-        ang = math.atan2(vx * nvz - vz * nvx, vx * nvx + vz * nvz)
-        lim = max_turn * dt
-        if abs(ang) > lim:
-            a = lim if ang > 0 else -lim
+        if vx * nvx + vz * nvz < cos_lim * s0 * s1:
+            lim = max_turn * dt
+            a = lim if vx * nvz - vz * nvx > 0 else -lim
             c, s = math.cos(a), math.sin(a)
             ux, uz = vx / s0, vz / s0
             nvx = (c * ux - s * uz) * s1
@@ -156,10 +168,38 @@ def _limit(vx, vz, nvx, nvz, dt, max_speed, max_turn):
     return nvx, nvz
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, inline="always")
+def _wrap_pi(a):
+    """Wrap a in (-3 pi, 3 pi) to [-pi, pi] without trigonometry."""
+    if a > math.pi:
+        a -= 2.0 * math.pi
+    elif a < -math.pi:
+        a += 2.0 * math.pi
+    return a
+
+
+@njit(cache=True, inline="always")
+def _integrate(pos, vel, heading, i, vx, vz, dt, alpha):
+    """p += v' dt (x, z); v = v'; heading follows v' by ``alpha`` of the turn."""
+    vel[i, 0] = vx
+    vel[i, 1] = 0.0
+    vel[i, 2] = vz
+    pos[i, 0] += vx * dt
+    pos[i, 2] += vz * dt
+    if vx * vx + vz * vz > BOIDS_SPEED_EPS * BOIDS_SPEED_EPS:
+        h = heading[i]
+        if h > math.pi or h < -math.pi:
+            h = _wrap(h)
+        heading[i] = _wrap_pi(h + alpha * _wrap_pi(math.atan2(vx, vz) - h))
+
+
+@njit(cache=True)
 def _gather_kernel(pos, vel, order, sxz):
-    """sxz[k] = (x, z, vx, vz) of agent order[k]: neighbours become contiguous."""
-    for k in prange(order.shape[0]):
+    """sxz[k] = (x, z, vx, vz) of agent order[k]: neighbours become contiguous.
+
+    Serial on purpose: it is memory-bound, and every parallel region costs a
+    thread wake-up (milliseconds on a loaded machine)."""
+    for k in range(order.shape[0]):
         i = order[k]
         sxz[k, 0] = pos[i, 0]
         sxz[k, 1] = pos[i, 2]
@@ -168,10 +208,13 @@ def _gather_kernel(pos, vel, order, sxz):
 
 
 @njit(cache=True, parallel=True)
-def _steer_kernel(sxz, heading, ext, has_ext, order, cx, cz, start, gx, gz, dense, mask,
-                  P, max_nb, max_cand, dt, vel_out):
-    """New velocities (n, 3) into vel_out (agent order) from the grid-sorted
-    (x, z, vx, vz) ``sxz``; each agent writes only its own row (see module doc)."""
+def _steer_kernel(sxz, pos, vel, heading, ext, has_ext, order, cx, cz, start, gx, gz, dense, mask,
+                  P, max_nb, max_cand, dt, alpha, cos_lim):
+    """One step of every agent: steering from the grid-sorted snapshot
+    (x, z, vx, vz) ``sxz`` of the previous state, limits, then integration of
+    its own ``pos``, ``vel`` and ``heading`` row (nobody else reads them during
+    the loop: neighbours are read from ``sxz``), so agents are independent and
+    the result does not depend on the thread count (see module doc)."""
     n = sxz.shape[0]
     radius = P[0]
     r2 = radius * radius
@@ -271,44 +314,20 @@ def _steer_kernel(sxz, heading, ext, has_ext, order, cx, cz, start, gx, gz, dens
         if am > max_accel:
             ax *= max_accel / am
             az *= max_accel / am
-        nvx, nvz = _limit(vx, vz, vx + ax * dt, vz + az * dt, dt, P[8], P[10])
-        vel_out[i, 0] = nvx
-        vel_out[i, 1] = 0.0
-        vel_out[i, 2] = nvz
-
-
-@njit(cache=True, inline="always")
-def _wrap_pi(a):
-    """Wrap a in (-3 pi, 3 pi) to [-pi, pi] without trigonometry."""
-    if a > math.pi:
-        a -= 2.0 * math.pi
-    elif a < -math.pi:
-        a += 2.0 * math.pi
-    return a
-
-
-@njit(cache=True, parallel=True)
-def _integrate_kernel(pos, vel, heading, vel_new, dt, alpha):
-    """p += v' dt (x, z); v = v'; heading follows v' by ``alpha`` of the turn."""
-    n = pos.shape[0]
-    for i in prange(n):
-        vx, vz = vel_new[i, 0], vel_new[i, 2]
-        vel[i, 0] = vx
-        vel[i, 1] = 0.0
-        vel[i, 2] = vz
-        pos[i, 0] += vx * dt
-        pos[i, 2] += vz * dt
-        if vx * vx + vz * vz > BOIDS_SPEED_EPS * BOIDS_SPEED_EPS:
-            h = heading[i]
-            if h > math.pi or h < -math.pi:
-                h = _wrap(h)
-            heading[i] = _wrap_pi(h + alpha * _wrap_pi(math.atan2(vx, vz) - h))
+        nvx, nvz = _limit(vx, vz, vx + ax * dt, vz + az * dt, dt, P[8], P[10], cos_lim)
+        _integrate(pos, vel, heading, i, nvx, nvz, dt, alpha)
 
 
 def heading_alpha(P, dt: float) -> float:
     """Fraction of the heading error removed in one step: 1 - exp(-dt / smoothing)."""
     sm = float(P[_P["heading_smoothing"]])
     return 1.0 - math.exp(-dt / sm) if sm > 0 else 1.0
+
+
+def turn_cos(P, dt: float) -> float:
+    """cos of the largest turn in one step, or -2 when it is >= pi (no limit)."""
+    lim = float(P[_P["max_turn"]]) * dt
+    return math.cos(lim) if lim < math.pi else -2.0
 
 
 def _candidate_cap(max_neighbors: int) -> int:
@@ -326,7 +345,7 @@ def step_kernel(position, velocity, heading, P, max_neighbors, dt, ext=None, gri
     dt : float > 0, seconds
     ext : (n, 3) float64 external accelerations or None
     grid : previous Grid to reuse arrays, or None
-    scratch : (n, 3) float64 buffer for new velocities, or None
+    scratch : (n, 4) float64 buffer for the sorted snapshot, or None
 
     Returns
     -------
@@ -334,19 +353,16 @@ def step_kernel(position, velocity, heading, P, max_neighbors, dt, ext=None, gri
     """
     n = position.shape[0]
     grid = build_grid(position, float(P[0]), out=grid)
-    if scratch is None or scratch.shape != (n, 3):
-        scratch = np.empty((n, 3), np.float64)
+    if scratch is None or scratch.shape != (n, 4):
+        scratch = np.empty((n, 4), np.float64)
     if n == 0:
         return grid, scratch
     has_ext = ext is not None
     e = ext if has_ext else np.zeros((1, 3))
-    sxz = np.empty((n, 4), np.float64)
-    _gather_kernel(position, velocity, grid.order, sxz)
-    _steer_kernel(sxz, heading, e, has_ext, grid.order, grid.cx, grid.cz, grid.start,
+    _gather_kernel(position, velocity, grid.order, scratch)
+    _steer_kernel(scratch, position, velocity, heading, e, has_ext, grid.order, grid.cx, grid.cz, grid.start,
                   grid.dims[0], grid.dims[1], grid.dense, grid.mask, P, int(max_neighbors),
-                  _candidate_cap(max_neighbors), float(dt), scratch)
-    del sxz
-    _integrate_kernel(position, velocity, heading, scratch, float(dt), heading_alpha(P, dt))
+                  _candidate_cap(max_neighbors), float(dt), heading_alpha(P, dt), turn_cos(P, dt))
     return grid, scratch
 
 
@@ -449,10 +465,9 @@ def step_numpy(position, velocity, heading, P, max_neighbors, dt, ext=None):
     ax, az = ax * f, az * f
     nvx, nvz = vx + ax * dt, vz + az * dt
     s1 = np.sqrt(nvx * nvx + nvz * nvz)
-    ang = np.arctan2(vx * nvz - vz * nvx, vx * nvx + vz * nvz)
     lim = P[10] * dt
-    turn = (sp > BOIDS_SPEED_EPS) & (s1 > BOIDS_SPEED_EPS) & (np.abs(ang) > lim)
-    a = np.where(ang > 0, lim, -lim)
+    turn = (sp > BOIDS_SPEED_EPS) & (s1 > BOIDS_SPEED_EPS) & (vx * nvx + vz * nvz < turn_cos(P, dt) * sp * s1)
+    a = np.where(vx * nvz - vz * nvx > 0, lim, -lim)
     ca, sa = np.cos(a), np.sin(a)
     ux, uz = vx / np.where(moving, sp, 1.0), vz / np.where(moving, sp, 1.0)
     nvx = np.where(turn, (ca * ux - sa * uz) * s1, nvx)

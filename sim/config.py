@@ -8,6 +8,8 @@ from __future__ import annotations
 #: A dense grid is used while (cells of the bounding box) <= GRID_DENSE_FACTOR * n;
 #: beyond that, cell keys are hashed into 2^k >= 2 n buckets.
 GRID_DENSE_FACTOR = 4
+#: Cells per axis are capped at this (indices stay int32 for any spread of agents).
+GRID_MAX_CELLS = 2 ** 30
 #: Hash multipliers of cell coordinates (Teschner et al. 2003).
 GRID_HASH_X = 73856093
 GRID_HASH_Z = 19349663
@@ -32,8 +34,14 @@ BOIDS_COINCIDENT_B = 0.7548776662466927
 GOALS_TAU = 0.5
 
 # --- sim.obstacles ------------------------------------------------------------
-#: Distance (m) from an obstacle below which the hard constraint projects agents out.
+#: Distances (m) below which a normal is taken from the edge instead of the offset.
 OBSTACLES_EPS = 1e-9
+#: Sphere tracing of a step's move stops at this gap (m) from an obstacle ...
+OBSTACLES_CCD_EPS = 1e-6
+#: ... or after this many iterations (a grazing move; the projection then applies).
+OBSTACLES_CCD_ITERATIONS = 64
+#: Agents within this gap (m) of an obstacle lose their velocity into it.
+OBSTACLES_CONTACT = 1e-4
 
 # --- sim.terrain --------------------------------------------------------------
 #: Largest heightfield resolution (samples per side).

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from sim.config import GRID_DENSE_FACTOR, GRID_HASH_X, GRID_HASH_Z
+from sim.config import GRID_DENSE_FACTOR, GRID_HASH_X, GRID_HASH_Z, GRID_MAX_CELLS
 
 
 @dataclass
@@ -70,8 +70,10 @@ def layout(position: np.ndarray, cell: float):
         return np.zeros(2), 1, 1, True, 0, 1
     x, z = position[:, 0], position[:, 2]
     xmin, zmin = float(x.min()), float(z.min())
-    gx = int((float(x.max()) - xmin) // cell) + 1
-    gz = int((float(z.max()) - zmin) // cell) + 1
+    # capped so cell indices stay int32; agents beyond share the border cells
+    # (still correct: the distance test decides, only the cost grows)
+    gx = int(min((float(x.max()) - xmin) // cell, GRID_MAX_CELLS - 1)) + 1
+    gz = int(min((float(z.max()) - zmin) // cell, GRID_MAX_CELLS - 1)) + 1
     if gx * gz <= max(GRID_DENSE_FACTOR * n, 64):
         return np.array([xmin, zmin]), gx, gz, True, 0, gx * gz
     m = 1
@@ -92,10 +94,10 @@ def cell_key(ix, iz, gx, dense, mask):
 def _build(position, inv_cell, ox, oz, gx, gz, dense, mask, n_buckets, cx, cz, key, start, order):
     n = position.shape[0]
     for i in range(n):
-        ix = int(np.floor((position[i, 0] - ox) * inv_cell))
-        iz = int(np.floor((position[i, 2] - oz) * inv_cell))
-        ix = min(max(ix, 0), gx - 1)
-        iz = min(max(iz, 0), gz - 1)
+        fx = min(max(np.floor((position[i, 0] - ox) * inv_cell), 0.0), gx - 1.0)
+        fz = min(max(np.floor((position[i, 2] - oz) * inv_cell), 0.0), gz - 1.0)
+        ix = int(fx)
+        iz = int(fz)
         cx[i] = ix
         cz[i] = iz
         key[i] = cell_key(np.int64(ix), np.int64(iz), np.int64(gx), dense, np.int64(mask))
@@ -137,8 +139,8 @@ def build_grid_numpy(position: np.ndarray, cell: float) -> Grid:
     """Plain numpy reference of :func:`build_grid` (same arrays)."""
     n = position.shape[0]
     origin, gx, gz, dense, mask, nb = layout(position, cell)
-    cx = np.clip(np.floor((position[:, 0] - origin[0]) * (1.0 / cell)).astype(np.int64), 0, gx - 1)
-    cz = np.clip(np.floor((position[:, 2] - origin[1]) * (1.0 / cell)).astype(np.int64), 0, gz - 1)
+    cx = np.clip(np.floor((position[:, 0] - origin[0]) * (1.0 / cell)), 0, gx - 1).astype(np.int64)
+    cz = np.clip(np.floor((position[:, 2] - origin[1]) * (1.0 / cell)), 0, gz - 1).astype(np.int64)
     key = keys_numpy(cx, cz, gx, dense, mask)
     order = np.argsort(key, kind="stable").astype(np.int32)
     start = np.zeros(nb + 1, np.int64)

@@ -13,13 +13,15 @@ field. For the probes ``p`` and ``p + v * lookahead``, where
 ``w_slide`` along the obstacle tangent that the velocity points to (agents
 slide around obstacles instead of stopping in front of them).
 
-``obstacles.project`` (after ``boids``): the hard constraint. An agent whose
-centre is closer than ``agent_radius`` to an obstacle is moved out along the
-normal and loses its velocity component into the obstacle. An agent driven
-into an obstacle at full speed therefore ends each step outside it: its
-penetration is never deeper than the travel of one step (the projection
-happens after the move). Obstacles thinner than one step's travel can be
-tunnelled through; use sub-steps.
+``obstacles.project`` (after ``boids``): the hard constraint. The move of the
+step (from the position recorded by ``obstacles.record`` before anything moved
+agents) is swept by sphere tracing on the signed distance, and an agent stops
+at its first contact, so even obstacles thinner than one step's travel are
+never tunnelled through. An agent that still overlaps (spawned inside, pushed
+by a neighbour-free corner case) is moved out along the normal; at contact it
+loses its velocity component into the obstacle. An agent driven into an
+obstacle at full speed therefore ends every step outside it: its penetration is
+never deeper than the travel of one step.
 
 Cost: O(agents x obstacles) with a bounding-circle early-out per obstacle;
 both kernels are parallel over agents, each agent writing only its own row.
@@ -34,7 +36,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from sim.config import OBSTACLES_EPS
+from sim.config import OBSTACLES_CCD_EPS, OBSTACLES_CCD_ITERATIONS, OBSTACLES_CONTACT, OBSTACLES_EPS
 from sim.params import Param, ParamError, validate
 
 _CIRCLE = {"center": Param("vec2", doc="centre [x, z], metres"),
@@ -238,9 +240,39 @@ def _steer_kernel(pos, vel, circles, verts, pstart, pbound, radius, margin, look
 
 
 @njit(cache=True, parallel=True)
-def _project_kernel(pos, vel, circles, verts, pstart, pbound, radius):
+def _project_kernel(pos, vel, prev, has_prev, circles, verts, pstart, pbound, radius):
+    """Hard constraint: continuous collision along prev -> pos, then projection.
+
+    Sphere tracing along the step's segment (the SDF is an exact distance, so
+    steps of ``d - radius`` never skip an obstacle) stops an agent at its first
+    contact: no tunnelling through thin obstacles. An agent starting the step in
+    contact slides: the part of its move into the obstacle is dropped. Agents
+    still overlapping (e.g. spawned inside) are projected out along the normal.
+    """
     for i in prange(pos.shape[0]):
         px, pz = pos[i, 0], pos[i, 2]
+        if has_prev:
+            sx, sz = prev[i, 0], prev[i, 1]
+            ux, uz = px - sx, pz - sz
+            ll = math.sqrt(ux * ux + uz * uz)
+            d0, n0x, n0z = _sdf_point(sx, sz, circles, verts, pstart, pbound, _FAR)
+            if ll > 0.0 and d0 - radius > OBSTACLES_CCD_EPS:
+                t = 0.0
+                for it in range(OBSTACLES_CCD_ITERATIONS):
+                    qx, qz = sx + t * ux, sz + t * uz
+                    d, _, _ = _sdf_point(qx, qz, circles, verts, pstart, pbound, _FAR)
+                    gap = d - radius
+                    if gap <= OBSTACLES_CCD_EPS:  # contact: stop here
+                        px, pz = qx, qz
+                        break
+                    t += gap / ll
+                    if t >= 1.0:
+                        break
+            elif ll > 0.0 and d0 - radius <= OBSTACLES_CONTACT:
+                # started in contact: slide, i.e. drop the part of the move into the obstacle
+                un = ux * n0x + uz * n0z
+                if un < 0.0:
+                    px, pz = sx + ux - un * n0x, sz + uz - un * n0z
         for it in range(4):  # a few passes resolve corners between two obstacles
             d, nx, nz = _sdf_point(px, pz, circles, verts, pstart, pbound, radius)
             pen = radius - d
@@ -248,6 +280,13 @@ def _project_kernel(pos, vel, circles, verts, pstart, pbound, radius):
                 break
             px += nx * pen
             pz += nz * pen
+            vn = vel[i, 0] * nx + vel[i, 2] * nz
+            if vn < 0.0:
+                vel[i, 0] -= vn * nx
+                vel[i, 2] -= vn * nz
+        # at contact, drop the velocity component into the obstacle
+        d, nx, nz = _sdf_point(px, pz, circles, verts, pstart, pbound, radius + OBSTACLES_CONTACT)
+        if d - radius <= OBSTACLES_CONTACT:
             vn = vel[i, 0] * nx + vel[i, 2] * nz
             if vn < 0.0:
                 vel[i, 0] -= vn * nx
@@ -297,7 +336,8 @@ def sdf_numpy(obs: ObstacleSet, x, z):
 # ----------------------------------------------------------------- effect
 def install(world, cfg: dict) -> None:
     """Effect ``obstacles``: ``world.resources["obstacles"]`` = ObstacleSet;
-    steps ``obstacles.steer`` (before boids, if boids is installed) and
+    steps ``obstacles.record`` (before goals and boids: positions at the start
+    of the step), ``obstacles.steer`` (before boids, if boids is installed) and
     ``obstacles.project`` (after boids, before terrain_follow and animation)."""
     obs = ObstacleSet.from_config(cfg)
     world.resources["obstacles"] = obs
@@ -313,11 +353,26 @@ def install(world, cfg: dict) -> None:
         _steer_kernel(w.state.position, w.state.velocity, obs.circles, obs.verts, obs.pstart, obs.pbound,
                       r, m, la, s, ws, acc)
 
+    prev = {"xz": None}
+
+    def record(w, dt):
+        if obs.count == 0:
+            return
+        st = w.state
+        if prev["xz"] is None or prev["xz"].shape != (st.n, 2):
+            prev["xz"] = np.empty((st.n, 2), np.float64)
+        prev["xz"][:, 0] = st.position[:, 0]
+        prev["xz"][:, 1] = st.position[:, 2]
+
     def project(w, dt):
         if obs.count == 0 or w.state.n == 0:
             return
-        _project_kernel(w.state.position, w.state.velocity, obs.circles, obs.verts, obs.pstart, obs.pbound, r)
+        p = prev["xz"]
+        ok = p is not None and p.shape == (w.state.n, 2)
+        _project_kernel(w.state.position, w.state.velocity, p if ok else np.zeros((1, 2)), ok,
+                        obs.circles, obs.verts, obs.pstart, obs.pbound, r)
 
+    world.schedule.add_step("obstacles.record", record, before=("goals", "obstacles.steer", "boids"))
     world.schedule.add_step("obstacles.steer", steer, after=("goals",), before=("boids",))
     world.schedule.add_step("obstacles.project", project, after=("boids", "goals"),
                             before=("terrain_follow", "animation"))

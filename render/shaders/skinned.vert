@@ -1,4 +1,6 @@
 #version 330 core
+// Skinned draw, palette path (see skinning.glsl); skinned_direct.vert blends
+// the two baked frames per vertex instead.
 #include "instance.glsl"
 #include "skinning.glsl"
 
@@ -16,7 +18,7 @@ out vec4 v_color;
 
 void main() {
     vec4 r0, r1, r2;
-    skin_rows(in_joints, in_weights, i_anim.x, r0, r1, r2);
+    palette_rows(in_joints, in_weights, gl_InstanceID, r0, r1, r2);
     vec4 h = vec4(in_position, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
     vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));

@@ -4,7 +4,7 @@ Every case runs ``python -m crowd run FILE --out OUT`` as a subprocess.
 """
 import pytest
 
-from crowd_testutil import run_cli, tiny_scene
+from crowd_testutil import REPO, run_cli, tiny_scene
 
 CASES = [
     # id, scene text, key the message must name, words it must contain
@@ -138,3 +138,22 @@ def test_valid_scene_resolves_defaults_and_absolute_paths(tmp_path, write_scene)
     assert scene.characters[0].seed == 1  # default: the scene seed
     assert scene.placements[0].character == 0 and scene.placements[0].clip is None
     assert scene.render.size == (64, 48) and scene.lod_mode == "none"
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "scenes").glob("*.toml")), ids=lambda p: p.name)
+def test_shipped_scenes_validate(path):
+    from crowd.scene import load_scene
+
+    scene = load_scene(path)
+    assert scene.characters and scene.placements and scene.frames >= 1
+
+
+def test_quickstart_is_100_humanoids_walking_on_a_camera_path():
+    from crowd.engine import plan
+    from crowd.scene import load_scene
+
+    scene = load_scene(REPO / "scenes" / "quickstart.toml")
+    p = plan(scene)
+    assert p.state.n == 100 and scene.effect_names == ["animation"]
+    assert abs(p.triangles(0) - 5000) <= 100 and len(scene.camera.keys) >= 2
+    assert scene.render.size == (1280, 720) and scene.frames == 120 and scene.render.png_every == 30

@@ -241,3 +241,31 @@ def test_select_scales_to_100k_instances_vectorised(rep, krep):
     for b in dl.batches:
         assert np.all(np.diff(b.instance_ids) > 0)  # stable: agent order within a batch
         assert np.isfinite(b.instance_data).all()
+
+
+@pytest.mark.parametrize("cull", [True, False])
+def test_selection_kernel_matches_numpy_reference(rep, krep, cull):
+    rng = np.random.default_rng(5)
+    n = 3000
+    st = _state(n)
+    st.position[:, [0, 2]] = rng.uniform(-60, 60, (n, 2))
+    st.position[:5] = st.position[0]  # identical agents
+    st.heading[:] = rng.uniform(-7, 7, n)
+    st.heading[7] = np.nan  # sanitised to 0 by both
+    st.scale[:] = rng.uniform(0.5, 2, n).astype(np.float32)
+    st.character[:] = rng.integers(0, 3, n)
+    st.clip[:] = np.where(st.character == 0, rng.integers(0, 2, n), 0)
+    st.anim_time[:] = rng.uniform(-5, 20, n)
+    st.anim_time[9] = np.inf
+    m = Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]], np.uint32))
+    reps = [rep, krep, build_rep(m, key="tri")]
+    cam = Camera.look_at((0, 10, 50), (0, 0, 0))
+    a = NoLodSelector(reps, cull=cull).select(st, cam, (800, 600))
+    b = NoLodSelector(reps, cull=cull, use_kernel=False).select(st, cam, (800, 600))
+    assert a.stats == b.stats and len(a.batches) == len(b.batches) >= 4
+    for x, y in zip(a.batches, b.batches):
+        assert (x.rep, x.part, x.triangles) == (y.rep, y.part, y.triangles)
+        assert np.array_equal(x.instance_ids, y.instance_ids)
+        assert np.array_equal(x.instance_data[:, :12], y.instance_data[:, :12])
+        assert np.allclose(x.instance_data[:, 12:], y.instance_data[:, 12:], rtol=1e-6, atol=1e-6)
+    assert NoLodSelector(reps).select(_state(0), cam, (8, 8)).stats["instances"] == 0

@@ -12,9 +12,9 @@ from sim.procedural import humanoid, quadruped
 from sim.skinning import skin
 
 
-@pytest.fixture(scope="module")
-def renderer(gl_ctx):
-    r = Renderer((64, 64), ctx=gl_ctx, debug=True)
+@pytest.fixture(scope="module", params=["palette", "direct"])
+def renderer(gl_ctx, request):
+    r = Renderer((64, 64), ctx=gl_ctx, debug=True, skinning=request.param)
     yield r
     r.release()
 
@@ -97,3 +97,21 @@ def test_static_path_applies_the_instance_matrix(renderer):
     d[0, :12] = model_rows(np.array([[1.0, 2.0, 3.0]]), np.array([np.pi / 2]), np.array([2.0]))[0]
     gpu, _ = renderer.capture("tri", d)
     assert np.allclose(gpu[0], [[1, 2, 3], [1, 2, 1], [1, 4, 3]], atol=1e-6)
+
+
+def test_palette_blocks_wrapping_across_texture_rows_match_direct_skinning(gl_ctx):
+    """A narrow palette (12 texels: 9-texel blocks straddle rows) and many
+    instances at fractional frames give the direct path's vertices."""
+    ch = tiny_skinned()
+    rep = build_rep(ch, fps=30)
+    frames = np.linspace(0.0, rep.joint_table.shape[0] - 1.0, 57)
+    out = []
+    for mode in ("palette", "direct"):
+        r = Renderer((8, 8), ctx=gl_ctx, debug=True, skinning=mode)
+        r.palette_width = 12
+        r.upload(rep)
+        out.append(r.capture(rep.key, _identity_instances(frames))[0])
+        if mode == "palette":
+            assert r._palette_tex.width == 12 and r._palette_tex.height >= 57 * 9 // 12
+        r.release()
+    assert np.abs(out[0] - out[1]).max() < 1e-5

@@ -201,3 +201,38 @@ def test_shader_loader_errors_and_includes():
         program_sources("nope")
     with pytest.raises(ShaderNotFound, match="missing"):
         load_source("nope.glsl")
+
+
+def test_palette_and_direct_skinning_draw_the_same_multi_batch_frame(gl_ctx, rep):
+    from sim.procedural import humanoid
+
+    hum = build_rep(humanoid(1200, seed=3), key="none:hum")
+    st = CrowdState.empty(6)
+    st.position[:, 0] = np.linspace(-4, 4, 6)
+    st.character[:] = [0, 1, 0, 1, 0, 1]
+    st.clip[:] = [0, 0, 1, 1, 0, 1]
+    st.anim_time[:] = [0.13, 0.41, 0.2, 0.77, 0.9, 0.05]
+    cam = Camera.look_at((0, 1.5, 9), (0, 1.0, 0))
+    dl = NoLodSelector([rep, hum]).select(st, cam, (W, H))
+    assert len(dl.batches) == 4
+    frames = []
+    for mode in ("palette", "direct"):
+        with Renderer((W, H), ctx=gl_ctx, debug=True, skinning=mode) as r:
+            r.upload(rep)
+            r.upload(hum)
+            r.draw(dl, background=BG)
+            frames.append(r.read_pixels().astype(int))
+    assert _foreground(frames[0].astype(np.uint8)).sum() > 1000
+    assert np.mean(np.abs(frames[0] - frames[1]).max(axis=2) > 2) < 0.002
+
+
+def test_unknown_skinning_mode_is_rejected(gl_ctx):
+    with pytest.raises(ValueError, match="skinning"):
+        Renderer((8, 8), ctx=gl_ctx, skinning="fast")
+
+
+def test_context_error_names_the_debian_packages():
+    from render.context import ContextError, create_context
+
+    with pytest.raises(ContextError, match="libegl1 libgl1-mesa-dri"):
+        create_context(backend="no-such-backend")

@@ -75,6 +75,25 @@ def test_grid_matches_numpy_reference_and_is_stable(far):
         assert np.all(g.key[seg] == b)
 
 
+def test_extreme_spread_and_single_agent():
+    st = flock(50, seed=1)
+    st.position[0, 0] = 1e13  # cells per axis capped; agents still find their neighbours
+    st.position[1] = st.position[0] + [0.5, 0.0, 0.0]
+    g = build_grid(st.position, 2.0)
+    assert not g.dense and g.dims[0] <= 2 ** 30
+    P = param_vector({})
+    a = [st.position.copy(), st.velocity.copy(), st.heading.copy()]
+    b = [st.position.copy(), st.velocity.copy(), st.heading.copy()]
+    step_kernel(*a, P, 32, 0.05)
+    step_numpy(*b, P, 32, 0.05)
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, rtol=1e-15, atol=1e-9)
+    # the far pair repel each other: their relative velocity along x grows
+    assert a[1][1, 0] - a[1][0, 0] > st.velocity[1, 0] - st.velocity[0, 0]
+    w = make_world(flock(1), [("boids", {})])
+    run(w, 10)
+
+
 def test_grid_empty_and_single():
     g = build_grid(np.zeros((0, 3)), 1.0)
     assert g.order.size == 0
@@ -233,7 +252,24 @@ def test_obstacle_never_penetrated_deeper_than_one_step():
             assert (r - d).max() <= vmax * dt + 1e-9
             assert d.min() >= r - 1e-6  # in fact pushed out completely
         if "circles" in shape:  # head-on at the centre: held in front (the others slide around)
-            assert w.state.position[4, 0] == pytest.approx(10.0 - 2.0 - r, abs=1e-6)
+            assert w.state.position[4, 0] == pytest.approx(10.0 - 2.0 - r, abs=1e-5)
+
+
+def test_thin_wall_is_not_tunnelled_at_large_steps():
+    # 5 cm wall, 10 m/s at dt = 0.1 s: 1 m per step, 20 x the wall thickness
+    st = CrowdState.empty(5)
+    st.position[:, 0] = np.linspace(-3.0, -1.0, 5)
+    st.position[:, 2] = np.linspace(-2.0, 2.0, 5)
+    st.velocity[:, 0] = 10.0
+    st.heading[:] = math.pi / 2
+    w = make_world(st, [("boids", {"max_speed": 10.0, "cruise_speed": 10.0, "w_cruise": 10.0, "max_accel": 100.0,
+                                   "w_separation": 0.0, "w_cohesion": 0.0, "w_alignment": 0.0, "w_avoid": 0.0}),
+                        ("obstacles", {"boxes": [{"center": [0.0, 0.0], "size": [0.05, 40.0]}],
+                                       "agent_radius": 0.3, "strength": 0.0})])
+    for _ in range(50):
+        w.step(0.1)
+        w.state.check_finite()
+        assert (w.state.position[:, 0] <= -0.325 + 1e-5).all()
 
 
 def test_obstacle_force_field_steers_around():
