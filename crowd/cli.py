@@ -3,6 +3,7 @@
     crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--quiet]
     crowd validate SCENE
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
+    crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
 
 Bad input (scene, asset, parameter) is reported as one line on stderr with exit
 code 2 and no traceback; nothing is written. Unexpected exceptions keep their
@@ -78,7 +79,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("info", help="describe a character: joints, clips, vertices, triangles, bounds")
     i.add_argument("asset", metavar="ASSET", help="a .glb/.gltf file or generator:NAME[:TRIANGLES[:SEED]]")
+
+    f = sub.add_parser("fly", help="fly through a running scene in a window (glfw; H shows the controls)")
+    f.add_argument("scene", metavar="SCENE", help="scene file (.toml), see docs/scenes.md")
+    f.add_argument("--size", type=_size, help="window size WxH (overrides [render] size)")
+    f.add_argument("--out", metavar="DIR", help="folder for screenshots and camera recordings "
+                   "(default: the scene's output dir + '-fly')")
+    f.add_argument("--record", metavar="PATH", help="camera recording file written by R (default: timestamped)")
+    f.add_argument("--frames", type=_positive_int, help="close after N frames (scripted runs)")
     return p
+
+
+def cmd_fly(args) -> int:
+    from crowd.fly import fly
+
+    return fly(args.scene, size=args.size, out=args.out, record=args.record, frames=args.frames)
 
 
 def cmd_run(args) -> int:
@@ -148,7 +163,7 @@ def _fmt(v) -> str:
     return str(v)
 
 
-COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info}
+COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info, "fly": cmd_fly}
 
 
 def _sigterm(signum, frame):

@@ -130,6 +130,35 @@ def _progress(it, desc: str, disable: bool, total: int | None = None):
 # engine
 # ---------------------------------------------------------------------------------------------------------------------
 
+#: colourings of the live ``LiveSettings.color_by`` setting (VDR-AM Fig. 11 colours by LOD level)
+COLOR_BY = ("none", "representation", "level")
+
+
+@dataclass
+class LiveSettings:
+    """LOD settings that may change while the engine runs (``crowd fly`` live controls).
+
+    Selectors read them as their representations land; the fly-through sets
+    them and shows them in its HUD.
+
+    lod_mode : str, a mode of ``crowd.scene.LOD_MODES`` (the scene's ``[lod] mode`` at start)
+    splat_size : float, point splat diameter in pixels (point representations), > 0
+    poe : float, pixels of error allowed by the LOD cut (VDR-AM §5), > 0
+    keyframe_interval : int >= 1, frames between view-dependent selections (Friedrich et al. §4)
+    occlusion : bool, occlusion culling on/off (VDR-AM §6)
+    freeze : bool, keep the last DrawList's selection while the camera moves (VDR-AM Fig. 9)
+    color_by : one of ``COLOR_BY``
+    """
+
+    lod_mode: str = "none"
+    splat_size: float = 2.0
+    poe: float = 1.0
+    keyframe_interval: int = 1
+    occlusion: bool = False
+    freeze: bool = False
+    color_by: str = "none"
+
+
 
 @dataclass
 class RunResult:
@@ -175,6 +204,7 @@ class Engine:
         self.camera_path = self._build_camera()
         self.reps, self.statics = self._build_reps()
         self.selector = self._build_selector()
+        self.settings = LiveSettings(lod_mode=scene.lod_mode)
 
     # -- building -----------------------------------------------------------------------------------------------------
     def _build_world(self):
@@ -236,6 +266,34 @@ class Engine:
             for rep in [*self.reps, *self.statics]:
                 self.renderer.upload(rep)
         return self.renderer
+
+    @property
+    def lod_modes(self) -> tuple:
+        """LOD modes this engine can select (``crowd.scene.LOD_MODES``)."""
+        from crowd.scene import LOD_MODES
+
+        return tuple(LOD_MODES)
+
+    def open_renderer(self, size=None, ctx=None):
+        """(Re)create the renderer at ``size`` (default: the scene's) on ``ctx``
+        (default: a headless EGL context), uploading every representation.
+
+        Used by the fly-through (a glfw window's context; again after a resize).
+        The previous renderer, if any, is released first.
+        """
+        from render.renderer import Renderer
+
+        self.close()
+        self.renderer = Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx)
+        for rep in [*self.reps, *self.statics]:
+            self.renderer.upload(rep)
+        return self.renderer
+
+    def select(self, camera, size):
+        """The DrawList of the current state seen by ``camera`` at ``size`` (the
+        selection ``run`` makes each frame, statics included)."""
+        static_draws = [(r.key, np.eye(4)) for r in self.statics]
+        return self.selector.select(self.world.state, camera, size, statics=static_draws)
 
     def close(self) -> None:
         if self.renderer is not None:

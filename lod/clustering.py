@@ -136,6 +136,61 @@ def grow_clusters_numpy(ptr, nbr, level, tol, order) -> np.ndarray:
     return label
 
 
+def absorb_small_clusters(label: np.ndarray, ptr: np.ndarray, nbr: np.ndarray, level: np.ndarray,
+                          small: int, s: int) -> np.ndarray:
+    """Merge clusters of fewer than ``small`` triangles into an adjacent cluster.
+
+    Departure from §4.2: region growing leaves many clusters of a few triangles
+    where levels change quickly (around joints). Each one, smallest first, joins
+    the adjacent cluster of nearest level (max triangle level) if the union holds
+    at most ``s`` triangles. Returns relabelled (T,) int64 labels 0..C-1.
+    """
+    label = np.asarray(label, np.int64).copy()
+    C = int(label.max()) + 1 if label.size else 0
+    if C <= 1:
+        return label
+    size = np.bincount(label, minlength=C)
+    clev = np.full(C, -np.inf)
+    np.maximum.at(clev, label, level)
+    src = np.repeat(np.arange(ptr.shape[0] - 1), np.diff(ptr))
+    a, b = label[src], label[nbr]
+    k = a != b
+    adj = [set() for _ in range(C)]
+    for x, y in np.unique(np.stack([a[k], b[k]], 1), axis=0).tolist() if np.any(k) else []:
+        adj[x].add(y)
+    root = np.arange(C)
+    for c in np.argsort(size, kind="stable"):
+        c = int(c)
+        if root[c] != c or size[c] >= small:
+            continue
+        best, key = -1, None
+        for o in adj[c]:
+            if size[c] + size[o] <= s:
+                kk = (abs(clev[o] - clev[c]), size[o], o)
+                if key is None or kk < key:
+                    best, key = o, kk
+        if best < 0:
+            continue
+        root[c] = best
+        size[best] += size[c]
+        clev[best] = max(clev[best], clev[c])
+        adj[best] |= adj[c]
+        adj[best].discard(best)
+        adj[best].discard(c)
+        for o in adj[c]:
+            adj[o].discard(c)
+            if o != best:
+                adj[o].add(best)
+        adj[c] = set()
+    for c in range(C):  # resolve chains
+        r = c
+        while root[r] != r:
+            r = root[r]
+        root[c] = r
+    _, out = np.unique(root[label], return_inverse=True)
+    return out.reshape(-1).astype(np.int64)
+
+
 def _median_split(centroids: np.ndarray, members: np.ndarray, s: int, out: list) -> None:
     """§4.2 partitioning: split at the median of the longest side until <= s."""
     stack = [members]
@@ -199,6 +254,7 @@ def error_aware_clusters(positions: np.ndarray, indices: np.ndarray, vertex_leve
     order = np.argsort(lv, kind="stable")  # seeds from the least deforming triangles
     grow = _grow if use_numba else grow_clusters_numpy
     label = grow(ptr, nbr, lv, tol, order)
+    label = absorb_small_clusters(label, ptr, nbr, lv, max(1, int(s) // 4), int(s))
     centroids = P[t].mean(axis=1)
     groups: list = []
     srt = np.argsort(label, kind="stable")

@@ -11,7 +11,12 @@ Pose space (our choice; the paper only says "joint transforms"): a pose is the
 vector of its model-space joint positions, (J*3,) metres. The global joint
 matrices' translations already carry every rotation above them, distances are in
 metres, and d can therefore be measured, as §6 asks, as a fraction of the model's
-box diagonal: d lives in the MDS space of these vectors (metres).
+box diagonal: d lives in the MDS space of these vectors (metres). What this
+leaves out is the rotation of end joints about themselves (a hand or head
+turning without moving a child joint). Flattened global matrices with the
+rotation part scaled by the mean bone length were tried too: on the procedural
+35-pose walk they keep 12-13 poses at d = 20 % against 11 for joint positions
+and the paper's 8, for no measurable gain in simplification error.
 """
 from __future__ import annotations
 

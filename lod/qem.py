@@ -36,7 +36,7 @@ vertices fixed, closed meshes stay closed, planar meshes simplify at zero error)
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from lod.clusters_config import CLUSTERS_FLIP_DOT
 
@@ -116,7 +116,11 @@ def _plane_quadrics(X, t, Q):  # pragma: no cover - compiled
 def plane_quadrics(positions_per_pose: np.ndarray, indices: np.ndarray) -> np.ndarray:
     """Per-pose vertex quadrics (P, V, 10) float64 (see :func:`plane_quadrics_numpy`)."""
     X = np.ascontiguousarray(positions_per_pose, np.float64)
+    if X.ndim == 2:
+        X = X[None]
     t = np.ascontiguousarray(np.asarray(indices, np.int64).reshape(-1, 3))
+    if t.size and (t.min() < 0 or t.max() >= X.shape[1]):
+        raise ValueError(f"plane_quadrics: indices must lie in 0..{X.shape[1] - 1}, got {t.min()}..{t.max()}")
     Q = np.zeros((X.shape[0], X.shape[1], 10))
     _plane_quadrics(X, t, Q)
     return Q
@@ -404,6 +408,106 @@ def _simplify_kernel(X, tris, locked, Q, target, flip_dot):  # pragma: no cover 
     return alive_t, remap, maxerr, live
 
 
+def simplify_reference(positions_per_pose: np.ndarray, indices: np.ndarray, target_triangles: int,
+                       locked_vertices: np.ndarray, quadrics: np.ndarray, flip_dot: float = CLUSTERS_FLIP_DOT):
+    """Plain-Python reference of the compiled collapse loop (``_simplify_kernel``).
+
+    Same algorithm (lazy-deletion heap of directed collapses, link condition,
+    normal-flip test in every pose, quadrics summed onto the survivor) written
+    with ``heapq``, sets and numpy, for small meshes in tests. ``locked_vertices``
+    must already include the open-edge vertices and ``quadrics`` (P, V, 10) is
+    updated in place. Returns (alive (T,) bool, remap (V,) int64, max error², live).
+    With distinct collapse costs it makes the same choices as the kernel.
+    """
+    import heapq
+
+    X = np.asarray(positions_per_pose, np.float64)
+    tris = np.array(indices, np.int64).reshape(-1, 3)
+    lock = np.asarray(locked_vertices, bool)
+    Q = quadrics
+    V, m = X.shape[1], tris.shape[0]
+    inc = [set() for _ in range(V)]
+    for f in range(m):
+        for v in tris[f]:
+            inc[v].add(f)
+    alive_t = np.ones(m, bool)
+    alive_v = np.ones(V, bool)
+    remap = np.arange(V)
+    ver = np.zeros(V, np.int64)
+    live = m
+
+    def qe(u, v):  # per-pose (Q_u + Q_v)(x_v)
+        return np.maximum(quadric_eval_numpy(Q[:, u] + Q[:, v], X[:, v]), 0.0)
+
+    heap: list = []
+
+    def push(a, b):
+        best, fa = np.inf, -1
+        if not lock[a]:
+            best, fa = float(qe(a, b).sum()), a
+        if not lock[b]:
+            c = float(qe(b, a).sum())
+            if c < best:
+                best, fa = c, b
+        if fa >= 0:
+            fb = b if fa == a else a
+            heapq.heappush(heap, (best, fa, fb, int(ver[fa]), int(ver[fb])))
+
+    def normal(p, a, b, c):
+        return np.cross(X[p, b] - X[p, a], X[p, c] - X[p, a])
+
+    for f in range(m):
+        for k in range(3):
+            a, b = int(tris[f, k]), int(tris[f, (k + 1) % 3])
+            if a != b:
+                push(a, b)
+    maxerr = 0.0
+    while live > target_triangles and heap:
+        _c, u, v, su, sv = heapq.heappop(heap)
+        if not alive_v[u] or not alive_v[v] or ver[u] != su or ver[v] != sv:
+            continue
+        tu = [f for f in inc[u] if alive_t[f]]
+        shared = [f for f in tu if v in tris[f]]
+        nv = {int(w) for f in inc[v] if alive_t[f] for w in tris[f]}
+        nu = {int(w) for f in tu for w in tris[f]} - {u, v}
+        ok = len(shared) > 0 and len(nu & nv) == len(shared)
+        for f in tu:
+            if not ok:
+                break
+            if v in tris[f]:
+                continue
+            new = [v if w == u else int(w) for w in tris[f]]
+            for p in range(X.shape[0]):
+                n0, n1 = normal(p, *tris[f]), normal(p, *new)
+                l0, l1 = np.linalg.norm(n0), np.linalg.norm(n1)
+                if not l1 > 0.0 or (l0 > 0.0 and float(n0 @ n1) <= flip_dot * l0 * l1):
+                    ok = False
+                    break
+        if not ok:
+            continue
+        for f in tu:
+            if v in tris[f]:
+                alive_t[f] = False
+                live -= 1
+            else:
+                tris[f][tris[f] == u] = v
+        inc[v] |= inc[u]
+        inc[u] = set()
+        Q[:, v] += Q[:, u]
+        alive_v[u] = False
+        remap[u] = v
+        ver[v] += 1
+        maxerr = max(maxerr, float((np.maximum(quadric_eval_numpy(2.0 * Q[:, v], X[:, v]), 0.0) * 0.5).max()))
+        for w in sorted({int(w) for f in inc[v] if alive_t[f] for w in tris[f]} - {v}):
+            push(v, w)
+    for i in range(V):
+        r = i
+        while remap[r] != r:
+            r = remap[r]
+        remap[i] = r
+    return alive_t, remap, maxerr, live
+
+
 def open_edge_vertices(indices: np.ndarray, n_vertices: int) -> np.ndarray:
     """(V,) bool: vertices on an edge used by one triangle or by more than two."""
     t = np.asarray(indices, np.int64).reshape(-1, 3)
@@ -535,7 +639,7 @@ def _point_tri_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no
 def _vertex_surface_d2(X, verts, tris, out):  # pragma: no cover - compiled
     P = X.shape[0]
     nv = verts.shape[0]
-    for k in range(P * nv):
+    for k in prange(P * nv):
         p = k // nv
         i = verts[k % nv]
         best = np.inf
@@ -572,7 +676,78 @@ def vertex_surface_distance(positions_per_pose: np.ndarray, original: np.ndarray
         X = X[None]
     verts = np.unique(np.asarray(original, np.int64).reshape(-1))
     tris = np.ascontiguousarray(np.asarray(simplified, np.int64).reshape(-1, 3))
+    for name, a in (("original", verts), ("simplified", tris)):
+        if a.size and (a.min() < 0 or a.max() >= X.shape[1]):
+            raise ValueError(f"vertex_surface_distance: {name} indices must lie in 0..{X.shape[1] - 1}")
     out = np.empty((X.shape[0], verts.shape[0]))
     if verts.size:
         _vertex_surface_d2(X, verts, tris, out)
     return np.sqrt(out)
+
+
+@njit(cache=True)
+def _collapse_distance(X, tris, local, n_local, verts_orig, rep):  # pragma: no cover - compiled
+    """Largest (over poses and original vertices) distance from an original vertex
+    to the triangles around the vertex it collapsed into; see :func:`collapse_distance`."""
+    m = tris.shape[0]
+    cnt = np.zeros(n_local + 1, np.int64)
+    for f in range(m):
+        for k in range(3):
+            cnt[local[tris[f, k]] + 1] += 1
+    for i in range(n_local):
+        cnt[i + 1] += cnt[i]
+    fill = cnt[:-1].copy()
+    lst = np.empty(3 * m, np.int64)
+    for f in range(m):
+        for k in range(3):
+            li = local[tris[f, k]]
+            lst[fill[li]] = f
+            fill[li] += 1
+    worst = 0.0
+    for j in range(verts_orig.shape[0]):
+        v = verts_orig[j]
+        r = rep[v]
+        if r == v:
+            continue
+        li = local[r]
+        for p in range(X.shape[0]):
+            best = (X[p, v, 0] - X[p, r, 0]) ** 2 + (X[p, v, 1] - X[p, r, 1]) ** 2 + (X[p, v, 2] - X[p, r, 2]) ** 2
+            if li >= 0:
+                for q in range(cnt[li], cnt[li + 1]):
+                    f = lst[q]
+                    a, b, c = tris[f, 0], tris[f, 1], tris[f, 2]
+                    d = _point_tri_d2(X[p, v, 0], X[p, v, 1], X[p, v, 2], X[p, a, 0], X[p, a, 1], X[p, a, 2],
+                                      X[p, b, 0], X[p, b, 1], X[p, b, 2], X[p, c, 0], X[p, c, 1], X[p, c, 2])
+                    if d < best:
+                        best = d
+            if best > worst:
+                worst = best
+    return np.sqrt(worst)
+
+
+def collapse_distance(positions_per_pose: np.ndarray, simplified: np.ndarray, original_vertices: np.ndarray,
+                      representative: np.ndarray) -> float:
+    """A measured, conservative one-sided error of a subset-placement simplification.
+
+    For every original vertex v whose representative r = ``representative[v]``
+    is another vertex, the distance from v to the simplified triangles around r
+    (or to r itself when none is left), in every pose; returns the largest, in
+    metres. The true vertex-to-surface distance is never larger, so this bounds
+    the vertex-sampled Hausdorff distance from above while staying local (a few
+    triangles per vertex).
+
+    Parameters
+    ----------
+    positions_per_pose : (P, V, 3) float64
+    simplified : (T', 3) int triangles (global vertex ids)
+    original_vertices : (k,) int vertices of the original region
+    representative : (V,) int vertex each original vertex ended in
+    """
+    X = np.ascontiguousarray(positions_per_pose, np.float64)
+    t = np.ascontiguousarray(np.asarray(simplified, np.int64).reshape(-1, 3))
+    V = X.shape[1]
+    verts = np.unique(t)
+    local = np.full(V, -1, np.int64)
+    local[verts] = np.arange(verts.shape[0])
+    return float(_collapse_distance(X, t, local, verts.shape[0], np.asarray(original_vertices, np.int64),
+                                    np.asarray(representative, np.int64)))

@@ -219,6 +219,8 @@ def _steer_kernel(sxz, pos, vel, heading, ext, has_ext, order, cx, cz, start, gx
     radius = P[0]
     r2 = radius * radius
     rs = P[1]
+    inv_rs = 1.0 / rs
+    inv_r = 1.0 / radius
     max_accel = P[9]
     for k in prange(n):
         i = order[k]
@@ -273,10 +275,11 @@ def _steer_kernel(sxz, pos, vel, heading, ext, has_ext, order, cx, cz, start, gx
                     cox += dx
                     coz += dz
                     if d < rs:
-                        w = 1.0 - d / rs
+                        w = 1.0 - d * inv_rs
                         if d > 0.0:
-                            sepx -= dx / d * w
-                            sepz -= dz / d * w
+                            inv_d = 1.0 / d
+                            sepx -= dx * inv_d * w
+                            sepz -= dz * inv_d * w
                         else:
                             j = order[m]
                             lo, hi = min(i, j), max(i, j)
@@ -285,7 +288,7 @@ def _steer_kernel(sxz, pos, vel, heading, ext, has_ext, order, cx, cz, start, gx
                             sepx -= sg * math.cos(2.0 * math.pi * t) * w
                             sepz -= sg * math.sin(2.0 * math.pi * t) * w
                     if dx * fx + dz * fz > 0.0 and dx * (vx - wvx) + dz * (vz - wvz) > 0.0:
-                        avoid += 1.0 - d / radius
+                        avoid += 1.0 - d * inv_r
                 if cnt >= max_nb or seen >= max_cand:
                     done = True
                     break
@@ -428,16 +431,17 @@ def step_numpy(position, velocity, heading, P, max_neighbors, dt, ext=None):
     bc = lambda w: np.bincount(ii, weights=w, minlength=n)
     cnt = np.bincount(ii, minlength=n)
     sep = d < rs
-    w = np.where(sep, 1.0 - d / rs, 0.0)
+    w = np.where(sep, 1.0 - d * (1.0 / rs), 0.0)
     pos_d = d > 0
     lo, hi = np.minimum(ii, jj), np.maximum(ii, jj)
     t = (lo * BOIDS_COINCIDENT_A + hi * BOIDS_COINCIDENT_B) % 1.0
     sg = np.where(ii < jj, 1.0, -1.0)
-    sdx = np.where(pos_d, dx / np.where(pos_d, d, 1.0), sg * np.cos(2.0 * np.pi * t))
-    sdz = np.where(pos_d, dz / np.where(pos_d, d, 1.0), sg * np.sin(2.0 * np.pi * t))
+    inv_d = 1.0 / np.where(pos_d, d, 1.0)
+    sdx = np.where(pos_d, dx * inv_d, sg * np.cos(2.0 * np.pi * t))
+    sdz = np.where(pos_d, dz * inv_d, sg * np.sin(2.0 * np.pi * t))
     sepx, sepz = -bc(sdx * w), -bc(sdz * w)
     ahead = (dx * fx[ii] + dz * fz[ii] > 0) & (dx * (vx[ii] - vx[jj]) + dz * (vz[ii] - vz[jj]) > 0)
-    avoid = bc(np.where(ahead, 1.0 - d / radius, 0.0))
+    avoid = bc(np.where(ahead, 1.0 - d * (1.0 / radius), 0.0))
     ax = P[2] * max_accel * sepx
     az = P[2] * max_accel * sepz
     has = cnt > 0
@@ -526,30 +530,43 @@ class _ClipTable:
         self.hyst = float(cfg.get("run_hysteresis", 0.3))
 
     def update(self, st, dt: float, advance_time: bool) -> None:
-        """Walk/run switch (keeping phase fraction) and anim_rate = speed / clip.speed."""
+        """Walk/run switch (keeping phase fraction) and anim_rate = speed / clip.speed.
+
+        Only agents playing the walk or run clip switch; agents whose character or
+        clip index is outside the table, or whose clip has no ground speed, keep
+        their clip and rate. Without the animation effect, the time advances here
+        (wrapped modulo the clip duration)."""
         if st.n == 0 or not (self.any_speed or (self.walk >= 0).any()):
             return
+        nc, mc = self.speed.shape
         ch = st.character.astype(np.int64)
+        ok = (ch >= 0) & (ch < nc)
+        ch = np.where(ok, ch, 0)
         sp = np.hypot(st.velocity[:, 0], st.velocity[:, 2])
         walk, run = self.walk[ch], self.run[ch]
-        both = (walk >= 0) & (run >= 0)
+        both = ok & (walk >= 0) & (run >= 0)
         if both.any():
             cur = st.clip.astype(np.int64)
-            to_run = both & (cur != run) & (sp > self.run_speed)
-            to_walk = both & (cur != walk) & (sp < self.run_speed - self.hyst)
-            new = np.where(to_run, run, np.where(to_walk, walk, cur))
-            chg = new != cur
+            to_run = both & (cur == walk) & (sp > self.run_speed)
+            to_walk = both & (cur == run) & (sp < self.run_speed - self.hyst)
+            chg = to_run | to_walk
             if chg.any():
-                d0 = self.duration[ch[chg], cur[chg]]
-                d1 = self.duration[ch[chg], new[chg]]
+                new = np.where(to_run, run, walk)[chg]
+                old = cur[chg]
+                d0 = self.duration[ch[chg], old]
+                d1 = self.duration[ch[chg], new]
                 st.anim_time[chg] = np.mod(st.anim_time[chg], d0) / d0 * d1
-                st.clip[chg] = new[chg]
-        cs = self.speed[ch, st.clip.astype(np.int64)]
+                st.clip[chg] = new
+        cl = st.clip.astype(np.int64)
+        ok &= (cl >= 0) & (cl < mc)
+        cl = np.where(ok, cl, 0)
+        cs = np.where(ok, self.speed[ch, cl], 0.0)
         has = cs > 0
         rate = np.where(has, sp / np.where(has, cs, 1.0), st.anim_rate)
         st.anim_rate[:] = rate.astype(np.float32)
-        if advance_time:
-            st.anim_time[:] = st.anim_time + np.where(has, rate, 0.0) * dt
+        if advance_time and has.any():
+            d = self.duration[ch, cl]
+            st.anim_time[:] = np.where(has, np.mod(st.anim_time + rate * dt, d), st.anim_time)
 
 
 def _clips_of(ch) -> dict:

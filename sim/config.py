@@ -4,6 +4,18 @@ Tests import them; scene files set the per-effect parameters (``PARAMS``) instea
 """
 from __future__ import annotations
 
+# --- sim.placement ------------------------------------------------------------
+#: Span (seconds) of random initial animation times when the clip duration is
+#: unknown: the animation system wraps modulo the duration, so phases are
+#: uniform to within duration / span.
+PLACEMENT_RANDOM_PHASE_SPAN = 3600.0
+#: Dart-throwing tries per agent for ``random`` placement with min_distance.
+PLACEMENT_RANDOM_TRIES = 30
+
+# --- sim.instancing -----------------------------------------------------------
+#: Largest instance count a hierarchy may flatten to.
+INSTANCING_MAX_INSTANCES = 50_000_000
+
 # --- sim.grid -----------------------------------------------------------------
 #: A dense grid is used while (cells of the bounding box) <= GRID_DENSE_FACTOR * n;
 #: beyond that, cell keys are hashed into 2^k >= 2 n buckets.

@@ -2,7 +2,9 @@
 
 Wand & Straßer 2002, §5.2 drive their herd by force fields; goals are one more
 field. Each agent follows one of ``paths`` (a list of [x, z] waypoints):
-``assign = "cycle"`` gives agent i path ``i mod len(paths)``, ``"character"``
+``assign = "cycle"`` gives agent i path ``i mod len(paths)``, ``"group"`` gives
+the agents of placement group g path ``g mod len(paths)`` (groups as recorded by
+:func:`sim.placement.concat_states`; one group if unknown), ``"character"``
 gives path ``character mod len(paths)``. An agent starts at the nearest
 waypoint of its path and moves to the next one when within
 ``arrive_radius``; at the end it loops (``loop = true``) or stops there.
@@ -59,7 +61,9 @@ class _Attractors(Param):
 
 PARAMS: dict[str, Param] = {
     "paths": _Paths("list", [], doc="waypoint paths, each [[x, z], ...], metres"),
-    "assign": Param("str", "cycle", choices=("cycle", "character"), doc="which path an agent follows"),
+    "assign": Param("str", "cycle", choices=("cycle", "group", "character"),
+                    doc="which path an agent follows: agent index, placement group or character, "
+                        "modulo the number of paths"),
     "loop": Param("bool", True, doc="loop back to the first waypoint at the end of a path"),
     "arrive_radius": Param("float", 2.0, min=1e-3, doc="waypoint reached within this distance, metres"),
     "speed": Param("float", 1.4, min=0.0, max=100.0, doc="desired speed towards the waypoint, m/s"),
@@ -94,7 +98,15 @@ class Goals:
             self.path = -np.ones(n, np.int64)
             self.target = np.zeros(n, np.int64)
             return
-        base = np.arange(n) if self.cfg.get("assign", "cycle") == "cycle" else st.character.astype(np.int64)
+        how = self.cfg.get("assign", "cycle")
+        if how == "cycle":
+            base = np.arange(n)
+        elif how == "character":
+            base = st.character.astype(np.int64)
+        else:
+            base = np.zeros(n, np.int64)
+            for g, (first, count) in enumerate(getattr(st, "groups", None) or []):
+                base[first:first + count] = g
         self.path = base % npaths
         self.target = np.zeros(n, np.int64)
         for k in range(npaths):  # nearest waypoint of the agent's path

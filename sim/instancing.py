@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.config import INSTANCING_MAX_INSTANCES
 from sim.params import Param, ParamError, validate
 from sim.state import CrowdState
 
@@ -83,8 +84,6 @@ _CHILD = {
     "scale": Param("float", 1.0, min=1e-6),
 }
 
-#: Largest instance count a hierarchy may flatten to.
-INSTANCING_MAX_INSTANCES = 50_000_000
 
 
 @dataclass
@@ -129,8 +128,10 @@ def parse_levels(value, where: str = "levels") -> list[dict]:
             ch = cfg["children"]
             if not ch:
                 raise ParamError(f"{w}.children", "expected at least one child table")
-            cfg["children"] = [validate(_CHILD, c if isinstance(c, dict) else {"_": c}, f"{w}.children[{j}]")
-                               for j, c in enumerate(ch)]
+            for j, c in enumerate(ch):
+                if not isinstance(c, dict):
+                    raise ParamError(f"{w}.children[{j}]", f"expected a table {{position, yaw, scale}}, got {c!r}")
+            cfg["children"] = [validate(_CHILD, c, f"{w}.children[{j}]") for j, c in enumerate(ch)]
         out.append(cfg)
         total *= _level_count(cfg)
     if total > INSTANCING_MAX_INSTANCES:
@@ -241,6 +242,13 @@ class Hierarchy:
     @property
     def n_instances(self) -> int:
         return int(np.prod(self.counts, dtype=np.int64))
+
+    def instances_per_node(self, depth: int) -> int:
+        """Instances under one node at ``depth`` (= prod(counts[:depth])); node k
+        of that depth owns the contiguous instances ``[k * m, (k + 1) * m)``."""
+        if not 0 <= depth <= self.depth:
+            raise ValueError(f"depth must be in 0..{self.depth}, got {depth}")
+        return int(np.prod(self.counts[:depth], dtype=np.int64))
 
     def node_transforms(self, depth: int):
         """World transforms of every node whose subtree holds ``levels[:depth]``.

@@ -23,8 +23,11 @@ loses its velocity component into the obstacle. An agent driven into an
 obstacle at full speed therefore ends every step outside it: its penetration is
 never deeper than the travel of one step.
 
-Cost: O(agents x obstacles) with a bounding-circle early-out per obstacle;
-both kernels are parallel over agents, each agent writing only its own row.
+Cost: O(agents x obstacles) with a bounding-circle early-out per polygon;
+both kernels are parallel over agents, each agent writing only its own row
+(deterministic for any thread count). :func:`sdf_numpy`, :func:`steer_numpy`
+and :func:`project_numpy` are the plain numpy references the tests compare the
+kernels with.
 
 Departure from the paper: the paper has force fields only; the projection
 guarantees no penetration whatever the weights.
@@ -331,6 +334,62 @@ def sdf_numpy(obs: ObstacleSet, x, z):
         upd = d < best
         best, bnx, bnz = np.where(upd, d, best), np.where(upd, nx, bnx), np.where(upd, nz, bnz)
     return best, bnx, bnz
+
+
+def steer_numpy(obs: ObstacleSet, pos, vel, radius, margin, lookahead, strength, w_slide, acc) -> None:
+    """Plain numpy reference of ``_steer_kernel`` (adds to ``acc`` in place)."""
+    for probe in range(2):
+        qx = pos[:, 0] + (vel[:, 0] * lookahead if probe == 1 else 0.0)
+        qz = pos[:, 2] + (vel[:, 2] * lookahead if probe == 1 else 0.0)
+        d, nx, nz = sdf_numpy(obs, qx, qz)
+        gap = d - radius
+        f = np.where(gap < margin, strength * np.minimum((margin - gap) / margin, 2.0), 0.0)
+        tx, tz = -nz, nx
+        flip = tx * vel[:, 0] + tz * vel[:, 2] < 0.0
+        tx, tz = np.where(flip, -tx, tx), np.where(flip, -tz, tz)
+        acc[:, 0] += f * (nx + w_slide * tx)
+        acc[:, 2] += f * (nz + w_slide * tz)
+
+
+def project_numpy(obs: ObstacleSet, pos, vel, prev, radius) -> None:
+    """Plain numpy reference of ``_project_kernel`` (in place; ``prev`` (n, 2) or None)."""
+    px, pz = pos[:, 0].copy(), pos[:, 2].copy()
+    if prev is not None:
+        sx, sz = prev[:, 0], prev[:, 1]
+        ux, uz = px - sx, pz - sz
+        ll = np.hypot(ux, uz)
+        d0, n0x, n0z = sdf_numpy(obs, sx, sz)
+        trace = (ll > 0) & (d0 - radius > OBSTACLES_CCD_EPS)
+        t = np.zeros_like(px)
+        active = trace.copy()
+        for _ in range(OBSTACLES_CCD_ITERATIONS):
+            qx, qz = sx + t * ux, sz + t * uz
+            d, _, _ = sdf_numpy(obs, qx, qz)
+            gap = d - radius
+            hit = active & (gap <= OBSTACLES_CCD_EPS)
+            px, pz = np.where(hit, qx, px), np.where(hit, qz, pz)
+            active &= ~hit
+            t = np.where(active, t + gap / np.where(ll > 0, ll, 1.0), t)
+            active &= t < 1.0
+        un = ux * n0x + uz * n0z
+        slide = ~trace & (ll > 0) & (d0 - radius <= OBSTACLES_CONTACT) & (un < 0)
+        px = np.where(slide, sx + ux - un * n0x, px)
+        pz = np.where(slide, sz + uz - un * n0z, pz)
+    for _ in range(4):
+        d, nx, nz = sdf_numpy(obs, px, pz)
+        pen = radius - d
+        on = pen > 0
+        px, pz = np.where(on, px + nx * pen, px), np.where(on, pz + nz * pen, pz)
+        vn = vel[:, 0] * nx + vel[:, 2] * nz
+        cut = on & (vn < 0)
+        vel[:, 0] = np.where(cut, vel[:, 0] - vn * nx, vel[:, 0])
+        vel[:, 2] = np.where(cut, vel[:, 2] - vn * nz, vel[:, 2])
+    d, nx, nz = sdf_numpy(obs, px, pz)
+    vn = vel[:, 0] * nx + vel[:, 2] * nz
+    cut = (d - radius <= OBSTACLES_CONTACT) & (vn < 0)
+    vel[:, 0] = np.where(cut, vel[:, 0] - vn * nx, vel[:, 0])
+    vel[:, 2] = np.where(cut, vel[:, 2] - vn * nz, vel[:, 2])
+    pos[:, 0], pos[:, 2] = px, pz
 
 
 # ----------------------------------------------------------------- effect

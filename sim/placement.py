@@ -41,16 +41,11 @@ import math
 from typing import Any, Callable
 
 import numpy as np
+from numba import njit
 
+from sim.config import PLACEMENT_RANDOM_PHASE_SPAN, PLACEMENT_RANDOM_TRIES
 from sim.params import Param, ParamError
 from sim.state import CrowdState
-
-#: Span (seconds) of random initial animation times when the clip duration is
-#: unknown: the animation system wraps modulo the duration, so phases are
-#: uniform to within duration / span.
-PLACEMENT_RANDOM_PHASE_SPAN = 3600.0
-#: Dart-throwing tries per agent for ``random`` placement with min_distance.
-PLACEMENT_RANDOM_TRIES = 30
 
 
 class FloatOrChoice(Param):
@@ -221,33 +216,42 @@ def build_random(cfg: dict, character_index: int, clip_index: int, rng, clip_dur
 
 
 def _dart_throw(fallback: np.ndarray, n: int, sx: float, sz: float, dmin: float, rng) -> np.ndarray:
+    """Dart throwing with a background grid of cell dmin / sqrt(2) (at most one
+    agent per cell); tries are drawn up front so the result depends only on rng."""
     cell = dmin / math.sqrt(2.0)
     gx, gz = max(1, int(sx / cell) + 1), max(1, int(sz / cell) + 1)
     if gx * gz > 50_000_000:
         return fallback
-    occ = -np.ones((gx, gz), np.int64)
-    out = fallback.copy()
-    k = 0
     tries = rng.uniform(0.0, 1.0, (n * PLACEMENT_RANDOM_TRIES, 2)) * np.array([sx, sz])
-    d2 = dmin * dmin
-    for p in tries:
+    out = fallback.copy()
+    _dart_kernel(tries, out, n, cell, gx, gz, dmin * dmin)
+    return out
+
+
+@njit(cache=True)
+def _dart_kernel(tries, out, n, cell, gx, gz, d2):
+    occ = -np.ones((gx, gz), np.int64)
+    k = 0
+    for t in range(tries.shape[0]):
         if k == n:
             break
-        i, j = int(p[0] / cell), int(p[1] / cell)
+        px, pz = tries[t, 0], tries[t, 1]
+        i, j = min(int(px / cell), gx - 1), min(int(pz / cell), gz - 1)
         ok = True
         for a in range(max(0, i - 2), min(gx, i + 3)):
             for b in range(max(0, j - 2), min(gz, j + 3)):
                 q = occ[a, b]
-                if q >= 0 and (out[q, 0] - p[0]) ** 2 + (out[q, 1] - p[1]) ** 2 < d2:
+                if q >= 0 and (out[q, 0] - px) ** 2 + (out[q, 1] - pz) ** 2 < d2:
                     ok = False
                     break
             if not ok:
                 break
         if ok:
-            out[k] = p
+            out[k, 0] = px
+            out[k, 1] = pz
             occ[i, j] = k
             k += 1
-    return out
+    return k
 
 
 # ---------------------------------------------------------------- hierarchy
@@ -308,7 +312,9 @@ def concat_states(states: list) -> CrowdState:
     """Join CrowdStates in order (agent ids of group k follow those of k-1).
 
     Hierarchies attached by kind ``"hierarchy"`` are collected in the result's
-    ``hierarchies`` attribute as ``[(first_agent, Hierarchy), ...]``.
+    ``hierarchies`` attribute as ``[(first_agent, Hierarchy), ...]``, and the
+    groups in ``groups`` as ``[(first_agent, count), ...]`` (the goals effect
+    gives one path per group with ``assign = "group"``).
 
     Parameters
     ----------
@@ -324,12 +330,14 @@ def concat_states(states: list) -> CrowdState:
         arrays = {name: np.concatenate([s.arrays()[name] for s in states], axis=0)
                   for name in out.arrays()}
         out = CrowdState(**arrays)
-    hier, start = [], 0
+    hier, groups, start = [], [], 0
     for s in states:
+        groups.append((start, s.n))
         for off, h in getattr(s, "hierarchies", []):
             hier.append((start + off, h))
         if getattr(s, "hierarchy", None) is not None:
             hier.append((start, s.hierarchy))
         start += s.n
     out.hierarchies = hier
+    out.groups = groups
     return out

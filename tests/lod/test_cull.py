@@ -11,11 +11,12 @@ def planes():
     return Camera.look_at((0, 2, 10), (0, 1, 0), fov_y=50, near=0.1, far=100).frustum_planes(16 / 9)
 
 
-def test_kernel_matches_reference_on_random_spheres(planes):
+@pytest.mark.parametrize("parallel", [False, True, None])
+def test_kernels_match_reference_on_random_spheres(planes, parallel):
     rng = np.random.default_rng(0)
-    c = rng.uniform(-120, 120, (20000, 3))
-    r = rng.uniform(0, 20, 20000)
-    got = cull_spheres(c, r, planes)
+    c = rng.uniform(-120, 120, (30000, 3))
+    r = rng.uniform(0, 20, 30000)
+    got = cull_spheres(c, r, planes, parallel=parallel)
     assert np.array_equal(got, cull_spheres_numpy(c, r, planes))
     assert 0 < got.sum() < got.size
 
@@ -28,9 +29,11 @@ def test_edge_cases(planes):
     c = np.array([[0.0, -1.0, -8.0]] * 3 + [[0.0, 0.0, 5.0]])
     r = np.array([0.0, 0.0, 0.0, 1.0])
     assert cull_spheres(c, r, planes).tolist() == [True, True, True, False]
-    # NaN centres are kept by both (never silently dropped)
+    # NaN centres are kept by all (never silently dropped)
     n = np.array([[np.nan, 0, -5.0]])
-    assert cull_spheres(n, np.array([1.0]), planes)[0] == cull_spheres_numpy(n, np.array([1.0]), planes)[0]
+    for par in (False, True):
+        assert cull_spheres(n, np.array([1.0]), planes, parallel=par)[0]
+    assert cull_spheres_numpy(n, np.array([1.0]), planes)[0]
 
 
 def test_straddling_sphere_is_kept_and_outside_one_culled(planes):

@@ -10,7 +10,7 @@ from tiny_characters import tiny_keyframed, tiny_skinned  # noqa: E402
 
 from lod.drawlist import INSTANCE_FLOATS  # noqa: E402
 from lod.nolod import (  # noqa: E402
-    KeyframedRep, NoLodSelector, SkinnedRep, StaticRep, build_rep, skinned_frame_aabbs,
+    KeyframedRep, NoLodSelector, SkinnedRep, StaticRep, build_rep, frame_aabbs, skinned_frame_aabbs,
 )
 from lod.view import Camera  # noqa: E402
 from sim.mesh import Mesh  # noqa: E402
@@ -71,6 +71,8 @@ def test_frame_aabbs_match_direct_skinning_also_when_chunked(rep, tiny):
     for scratch in (1, 10 ** 9):
         got = skinned_frame_aabbs(rep.positions, rep.joints, rep.weights, mats, scratch_bytes=scratch)
         assert np.allclose(got, ref, atol=1e-9)
+    assert np.allclose(frame_aabbs(rep.positions, rep.joints, rep.weights, mats), ref, atol=1e-9)
+    assert frame_aabbs(rep.positions[:0], rep.joints[:0], rep.weights[:0], mats).shape == (31, 2, 3)
     # and the CPU reference of sim agrees at a baked frame
     s4 = np.tile(np.eye(4), (3, 1, 1))
     s4[:, :3, :] = mats[7]

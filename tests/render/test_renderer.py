@@ -236,3 +236,15 @@ def test_context_error_names_the_debian_packages():
 
     with pytest.raises(ContextError, match="libegl1 libgl1-mesa-dri"):
         create_context(backend="no-such-backend")
+
+
+def test_empty_static_mesh_uploads_and_draws_nothing(gl_ctx):
+    from sim.mesh import Mesh
+
+    empty = build_rep(Mesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32)), key="empty")
+    st = CrowdState.empty(3)
+    with Renderer((32, 32), ctx=gl_ctx) as r:
+        r.upload(empty)
+        dl = NoLodSelector([empty]).select(st, Camera.look_at((0, 0, 5), (0, 0, 0)), (32, 32))
+        t = r.draw(dl, background=BG)
+        assert t["samples_passed"] == 0 and not _foreground(r.read_pixels()).any()

@@ -372,3 +372,63 @@ def test_empty_world_steps():
     w = make_world(CrowdState.empty(0), [("boids", {}), ("obstacles", {"circles": [{"center": [0, 0], "radius": 1}]}),
                                          ("goals", {"paths": [[[1, 1]]]})])
     run(w, 3)
+
+
+def test_goals_assign_per_group_and_character():
+    from sim.placement import concat_states
+
+    a, b = CrowdState.empty(3), CrowdState.empty(2)
+    b.character[:] = 1
+    st = concat_states([a, b])
+    paths = [[[10.0, 0.0]], [[-10.0, 0.0]]]
+    for how, want in (("group", [0, 0, 0, 1, 1]), ("character", [0, 0, 0, 1, 1]), ("cycle", [0, 1, 0, 1, 0])):
+        w = make_world(concat_states([a, b]), [("goals", {"paths": paths, "assign": how})])
+        assert list(w.resources["goals"].path) == want
+    assert st.groups == [(0, 3), (3, 2)]
+
+
+def test_clip_coupling_ignores_other_clips_and_bad_indices():
+    ch = SkinnedCharacter("h", None, None, {"walk": Clip("walk", 1.0, speed=1.25),
+                                            "run": Clip("run", 0.6, speed=3.5), "idle": Clip("idle", 2.0)})
+    st = CrowdState.empty(3)
+    st.position[:, 0] = [0.0, 10.0, 20.0]
+    st.clip[:] = [2, 7, 0]  # idle, invalid clip, walk
+    st.character[:] = [0, 0, 5]  # the third: invalid character
+    st.velocity[:, 2] = 3.0
+    st.anim_rate[:] = 0.5
+    w = make_world(st, [("boids", {"cruise_speed": 3.0, "max_speed": 4.0})], [ch])
+    run(w, 30)
+    assert list(w.state.clip) == [2, 7, 0]
+    np.testing.assert_array_equal(w.state.anim_rate, np.float32(0.5))
+
+
+def test_obstacle_kernels_match_numpy_references():
+    obs = obstacles.ObstacleSet(
+        circles=[{"center": [0.0, 0.0], "radius": 1.0}, {"center": [3.0, 0.5], "radius": 0.6}],
+        boxes=[{"center": [5.0, 5.0], "size": [2.0, 0.05], "yaw": 30.0}],
+        polygons=[{"points": [[-5.0, -5.0], [-2.0, -5.0], [-2.0, -2.0], [-3.5, -4.0], [-5.0, -2.0]]}])
+    rng = np.random.default_rng(3)
+    n = 3000
+    pos = np.zeros((n, 3))
+    pos[:, [0, 2]] = rng.uniform(-7, 7, (n, 2))
+    vel = np.zeros((n, 3))
+    vel[:, [0, 2]] = rng.normal(0, 4, (n, 2))
+    args = (0.4, 1.5, 0.8, 6.0, 0.5)
+    a, b = np.zeros((n, 3)), np.zeros((n, 3))
+    obstacles._steer_kernel(pos, vel, obs.circles, obs.verts, obs.pstart, obs.pbound, *args, a)
+    obstacles.steer_numpy(obs, pos, vel, *args, b)
+    np.testing.assert_allclose(a, b, atol=1e-9)
+    assert np.abs(a).max() > 0
+    prev = pos[:, [0, 2]].copy()
+    moved = pos.copy()
+    moved[:, [0, 2]] += vel[:, [0, 2]] * 0.5  # up to several metres: crosses obstacles
+    pa, va = moved.copy(), vel.copy()
+    pb, vb = moved.copy(), vel.copy()
+    obstacles._project_kernel(pa, va, prev, True, obs.circles, obs.verts, obs.pstart, obs.pbound, 0.4)
+    obstacles.project_numpy(obs, pb, vb, prev, 0.4)
+    np.testing.assert_allclose(pa, pb, atol=1e-9)
+    np.testing.assert_allclose(va, vb, atol=1e-9)
+    assert not np.allclose(pa, moved)
+    d, _, _ = obs.sdf(pa[:, 0], pa[:, 2])
+    start, _, _ = obs.sdf(prev[:, 0], prev[:, 1])
+    assert d[start > 0.4].min() >= 0.4 - 1e-6  # agents that started clear end clear

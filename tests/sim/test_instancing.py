@@ -68,6 +68,18 @@ def test_node_transforms_per_level():
         assert t.shape == (n, 3) and yaw.shape == s.shape == off.shape == (n,)
     with pytest.raises(ValueError):
         h.node_transforms(5)
+    # node k at depth d owns instances [k m, (k + 1) m): its transform composed with the
+    # subtree's local transforms gives theirs
+    assert [h.instances_per_node(d) for d in range(5)] == [1, 2, 12, 240, 480]
+    t2, yaw2, s2, _ = h.node_transforms(2)
+    inner = Hierarchy(h.levels[:2], period=1.0)  # the subtree, at the origin
+    ti, yi, si, _ = inner.node_transforms(0)
+    from sim.instancing import compose
+    k = 17
+    tc, yc, sc = compose(t2[k], yaw2[k], s2[k], ti, yi, si)
+    st = h.flatten()
+    np.testing.assert_allclose(tc, st.position[k * 12:(k + 1) * 12], atol=1e-9)
+    np.testing.assert_allclose(np.exp(1j * yc), np.exp(1j * st.heading[k * 12:(k + 1) * 12]), atol=1e-12)
 
 
 def test_phase_offsets_periodic():

@@ -1,5 +1,6 @@
 """sim.placement: schemas, the four kinds, concat_states."""
 import math
+import os
 
 import numpy as np
 import pytest
@@ -96,3 +97,54 @@ def test_concat_empty():
     st = concat_states([])
     assert st.n == 0 and st.hierarchies == []
     assert isinstance(concat_states([CrowdState.empty(3)]), CrowdState)
+
+
+# ------------------------------------------------------- benchmark scenes
+SCENES = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "scenes")
+# scene -> (agents, triangles in all) from the papers / the brief
+PAPER = {
+    "poser4": (4, 25_584), "horses": (2_500, 58e6), "stadium": (16_416, 105e6), "grid": (90_000, 576e6),
+    "office": (200, 16.4e6), "exhibition": (1_000, 83e6), "stampede": (5_000, 242e6),
+}
+
+
+def _agents(p: dict) -> int:
+    from sim.instancing import Hierarchy, parse_levels
+
+    kind = p["kind"]
+    if kind == "grid":
+        return p["rows"] * p["cols"]
+    if kind == "list":
+        return len(p["positions"])
+    if kind == "random":
+        return p["count"]
+    return Hierarchy(parse_levels(p["levels"])).n_instances
+
+
+@pytest.mark.parametrize("name", sorted(PAPER))
+def test_benchmark_scene_validates_and_matches_the_paper(name):
+    import tomllib
+
+    from sim import terrain
+    from sim.systems import effect_module
+
+    path = os.path.join(SCENES, f"{name}.toml")
+    with open(path, "rb") as f:
+        doc = tomllib.load(f)
+    tris = {c["name"]: c["triangles"] for c in doc["characters"]}
+    agents = total = 0
+    for i, p in enumerate(doc["placement"]):
+        validate(PLACEMENTS[p["kind"]][0], p, f"placement[{i}]")
+        n = _agents(p)
+        agents += n
+        total += n * tris[p["character"]]
+    for i, e in enumerate(doc.get("effects", [])):
+        name_, cfg = (e, {}) if isinstance(e, str) else (e["name"], {k: v for k, v in e.items() if k != "name"})
+        validate(effect_module(name_).PARAMS, cfg, f"effects[{i}]")
+    if "terrain" in doc:
+        validate(terrain.PARAMS, doc["terrain"], "terrain")
+    want_agents, want_tris = PAPER[name]
+    assert agents == want_agents
+    assert abs(total - want_tris) / want_tris < 0.01
+    assert doc["render"]["size"] == [1280, 720] and doc["lod"]["mode"] == "none"
+    assert len(doc["camera"]["keys"]) >= 2 and doc["frames"] <= 240

@@ -1,0 +1,154 @@
+"""Multi-pose quadric error simplification (lod/qem.py, VDR-AM §4.3 after DR05)."""
+import numpy as np
+import pytest
+
+from lod import poses, qem
+from lod.cluster_dag import skin_poses
+from sim.procedural import humanoid
+
+
+def grid(n=8, z=None):
+    """(n+1)^2 vertex planar grid in the XY plane, 2 n^2 triangles (open border)."""
+    xs = np.linspace(0, 1, n + 1)
+    P = np.array([[x, y, 0.0 if z is None else z(x, y)] for y in xs for x in xs])
+    t = []
+    for j in range(n):
+        for i in range(n):
+            a = j * (n + 1) + i
+            t += [[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]
+    return P, np.array(t)
+
+
+def sphere_mesh(n=12):
+    """A closed UV sphere."""
+    th = np.linspace(0, np.pi, n + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, 2 * n, endpoint=False)
+    P = [[0, 1, 0]] + [[np.sin(a) * np.cos(b), np.cos(a), np.sin(a) * np.sin(b)] for a in th for b in ph] + [[0, -1, 0]]
+    m = 2 * n
+    t = [[0, 1 + (k + 1) % m, 1 + k] for k in range(m)]
+    for r in range(len(th) - 1):
+        for k in range(m):
+            a, b = 1 + r * m + k, 1 + r * m + (k + 1) % m
+            t += [[a, b, b + m], [a, b + m, a + m]]
+    last = 1 + (len(th) - 1) * m
+    t += [[last + k, last + (k + 1) % m, len(P) - 1] for k in range(m)]
+    return np.array(P, float), np.array(t)
+
+
+def open_edges(t):
+    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), 1)
+    _, cnt = np.unique(e, axis=0, return_counts=True)
+    return int(np.count_nonzero(cnt != 2))
+
+
+def test_quadrics_kernel_matches_numpy_reference():
+    P, t = sphere_mesh(6)
+    X = np.stack([P, P * 1.5 + 0.3])
+    t = np.vstack([t, [[0, 0, 1]]])  # a degenerate triangle adds nothing
+    np.testing.assert_allclose(qem.plane_quadrics(X, t), qem.plane_quadrics_numpy(X, t), atol=1e-12)
+    Q = qem.plane_quadrics_numpy(X, t)
+    # every vertex lies on its own triangles' planes: zero error at its position, in every pose
+    np.testing.assert_allclose(qem.quadric_eval_numpy(Q, X), 0.0, atol=1e-12)
+
+
+def test_planar_grid_simplifies_at_zero_error_and_keeps_its_border():
+    P, t = grid(8)
+    out, remap, err = qem.simplify(P[None], t, 20)
+    assert out.shape[0] <= 20 or out.shape[0] < t.shape[0]
+    assert err == pytest.approx(0.0, abs=1e-9)
+    border = (P[:, 0] % 1 == 0) | (P[:, 1] % 1 == 0)
+    assert np.all(remap[border] == np.nonzero(border)[0])  # open-border vertices never move
+    assert np.all(np.isin(remap, np.unique(out)) | ~np.isin(np.arange(len(P)), np.unique(t)))
+    # the simplified grid still covers the unit square (area preserved)
+    a = np.cross(P[out[:, 1]] - P[out[:, 0]], P[out[:, 2]] - P[out[:, 0]])[:, 2]
+    assert np.all(a > 0) and a.sum() / 2 == pytest.approx(1.0)
+
+
+def test_locked_vertices_never_move():
+    P, t = sphere_mesh(10)
+    lock = P[:, 1] > 0.3
+    out, remap, _ = qem.simplify(P, t, 30, locked_vertices=lock)
+    assert np.all(remap[lock] == np.nonzero(lock)[0])
+    assert np.all(np.isin(np.nonzero(lock)[0], out))
+    # edges between locked vertices whose triangles were all locked-only stay untouched
+    full = np.all(lock[t], axis=1)
+    kept = {tuple(sorted(x)) for x in out.tolist()}
+    assert all(tuple(sorted(x)) in kept for x in t[full].tolist())
+
+
+def test_closed_mesh_stays_closed_and_meets_target():
+    P, t = sphere_mesh(12)
+    X = np.stack([P, P * [1.3, 0.8, 1.0]])
+    out, remap, err = qem.simplify(X, t, t.shape[0] // 4)
+    assert out.shape[0] <= t.shape[0] // 4
+    assert open_edges(out) == 0
+    assert 0 < err < 0.5
+    assert np.all(remap[remap] == remap)  # remap points at survivors
+    d = qem.vertex_surface_distance(X, t, out)
+    assert d.shape == (2, len(P)) and d.max() < 0.5
+
+
+def test_degenerate_inputs():
+    P, t = grid(2)
+    out, remap, err = qem.simplify(P, t, 100)  # target above T: unchanged
+    assert np.array_equal(out, t) and err == 0.0 and np.array_equal(remap, np.arange(len(P)))
+    out, remap, err = qem.simplify(P, np.zeros((0, 3), int), 0)
+    assert out.shape == (0, 3) and err == 0.0
+    dup = np.array([[0, 0, 1], [0, 1, 2]])
+    out, _, _ = qem.simplify(np.eye(3), dup, 5)
+    assert out.tolist() == [[0, 1, 2]]  # degenerate triangles are dropped
+    with pytest.raises(ValueError, match="NaN"):
+        qem.simplify(np.full((3, 3), np.nan), [[0, 1, 2]], 0)
+    with pytest.raises(ValueError, match="indices"):
+        qem.simplify(np.eye(3), [[0, 1, 5]], 0)
+    with pytest.raises(ValueError, match="locked_vertices"):
+        qem.simplify(np.eye(3), [[0, 1, 2]], 0, locked_vertices=np.zeros(2, bool))
+    with pytest.raises(ValueError, match="target"):
+        qem.simplify(np.eye(3), [[0, 1, 2]], -1)
+
+
+def test_collapse_distance_bounds_the_surface_distance():
+    P, t = sphere_mesh(10)
+    out, remap, _ = qem.simplify(P, t, 60)
+    verts = np.unique(t)
+    cd = qem.collapse_distance(P[None], out, verts, remap)
+    true = qem.vertex_surface_distance(P[None], t, out).max()
+    assert true <= cd + 1e-12 and cd > 0
+
+
+def test_representative_pose_error_within_5_percent_of_all_poses():
+    """VDR-AM §6: simplifying with the selected poses costs <= 5 % RMS distance over the 35-pose walk."""
+    c = humanoid(1500, 0)
+    clip = c.clip("walk")
+    times = poses.sample_times(clip, 35)
+    X = skin_poses(c.mesh, clip.skinning_matrices(c.skeleton, times))
+    reps, _ = poses.select_poses(poses.classical_mds(poses.pose_features(c.skeleton, clip, times)),
+                                 poses.pose_distance(c))
+    assert 5 <= len(reps) <= 12
+    for target in (750, 375):
+        rms = []
+        for sel in (reps, np.arange(35)):
+            out, _, _ = qem.simplify(X[sel], c.mesh.indices, target)
+            d = qem.vertex_surface_distance(X, c.mesh.indices, out)
+            rms.append(np.sqrt(np.mean(d ** 2)))
+        assert rms[0] <= 1.05 * rms[1], (target, rms)
+
+
+def test_collapse_kernel_matches_python_reference():
+    """Same collapses as the plain-Python reference on a noisy two-pose sphere (distinct costs)."""
+    rng = np.random.default_rng(5)
+    P, t = sphere_mesh(8)
+    P = P * (1 + 0.05 * rng.standard_normal((len(P), 1)))
+    X = np.ascontiguousarray(np.stack([P, P * [1.2, 0.9, 1.0] + 0.1 * P[:, [1, 2, 0]] ** 2]))
+    lock = np.zeros(len(P), bool)
+    lock[rng.choice(len(P), 10, replace=False)] = True
+    for target in (150, 60, 20):
+        Qa = qem.plane_quadrics(X, t)
+        Qb = Qa.copy()
+        ta = t.astype(np.int64).copy()
+        alive_a, remap_a, err_a, live_a = qem._simplify_kernel(X, ta, lock, Qa, target, 0.0)
+        alive_b, remap_b, err_b, live_b = qem.simplify_reference(X, t, target, lock, Qb, 0.0)
+        assert live_a == live_b and np.array_equal(alive_a, alive_b)
+        assert np.array_equal(remap_a, remap_b)
+        assert err_a == pytest.approx(err_b, rel=1e-9)
+        np.testing.assert_allclose(Qa, Qb, rtol=1e-9, atol=1e-12)

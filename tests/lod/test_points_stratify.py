@@ -1,0 +1,176 @@
+"""§3.4.2 stratification: kernel vs reference, coverage, oversampling, time intervals."""
+import numpy as np
+import pytest
+
+from lod.points_octree import sample_positions_at
+from lod.points_sampling import sample_candidates, triangle_vertices
+from lod.points_stratify import interval_of, interval_times, stratify, stratify_numpy
+
+
+def plate(n=8, size=1.0):
+    """Flat square plate in the xz plane, (V, 3) positions and (2 n^2, 3) triangles."""
+    x = np.linspace(0.0, size, n + 1)
+    X, Z = np.meshgrid(x, x, indexing="ij")
+    p = np.c_[X.ravel(), np.zeros(X.size), Z.ravel()]
+    i = np.arange(n * n)
+    a = (i // n) * (n + 1) + (i % n)
+    return p, np.r_[np.c_[a, a + 1, a + n + 2], np.c_[a, a + n + 2, a + n + 1]]
+
+
+def sphere(nu=48, nv=24):
+    """UV unit sphere (poles have zero-area triangles)."""
+    th = np.linspace(0, np.pi, nv + 1)
+    ph = np.linspace(0, 2 * np.pi, nu + 1)[:-1]
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    p = np.c_[(np.sin(T) * np.cos(P)).ravel(), np.cos(T).ravel(), (np.sin(T) * np.sin(P)).ravel()]
+    tris = []
+    for i in range(nv):
+        for j in range(nu):
+            a, b = i * nu + j, i * nu + (j + 1) % nu
+            c, d = (i + 1) * nu + j, (i + 1) * nu + (j + 1) % nu
+            tris += [(a, c, b), (b, c, d)]
+    return p, np.array(tris)
+
+
+def _pair_coverage_ok(pos, keep, rad):
+    """Every candidate is kept or has one kept point within rad at both ends of its interval."""
+    for j in range(keep.shape[0]):
+        k = np.flatnonzero(keep[j])
+        da = np.sqrt(((pos[j][:, None] - pos[j][None, k]) ** 2).sum(-1))
+        db = np.sqrt(((pos[j + 1][:, None] - pos[j + 1][None, k]) ** 2).sum(-1))
+        if not np.all(((da <= rad) & (db <= rad)).any(1)):
+            return False
+    return True
+
+
+def _moving_cloud(rng, n, m):
+    p = rng.random((n, 3)) * [1.0, 1.0, 0.05]
+    q = p * rng.uniform(0.4, 1.6) + rng.normal(0.0, 0.05, p.shape) + 0.3
+    t = interval_times(m)
+    return (1 - t)[:, None, None] * p[None] + t[:, None, None] * q[None]
+
+
+@pytest.mark.parametrize("seed,m", [(0, 1), (1, 3), (2, 4)])
+def test_kernel_matches_reference(seed, m):
+    rng = np.random.default_rng(seed)
+    pos = _moving_cloud(rng, 500, m)
+    order = rng.permutation(500)
+    got = stratify(pos, 0.15, order)
+    assert np.array_equal(got, stratify_numpy(pos, 0.15, order))
+    assert _pair_coverage_ok(pos, got, 0.075)
+    assert got.sum() < got.size  # something was deleted
+
+
+def test_kernel_matches_reference_on_coincident_and_collinear_points():
+    rng = np.random.default_rng(7)
+    line = np.c_[np.linspace(0, 1, 60), np.zeros(60), np.zeros(60)]
+    same = np.zeros((40, 3))
+    pts = np.concatenate([line, same, line[:20]])  # duplicates too
+    pos = np.stack([pts, pts * 0.5])
+    order = rng.permutation(pts.shape[0])
+    got = stratify(pos, 0.1, order)
+    assert np.array_equal(got, stratify_numpy(pos, 0.1, order))
+    assert _pair_coverage_ok(pos, got, 0.05)
+    assert got[0, 60:100].sum() <= 1  # forty coincident points collapse to at most one
+
+
+def test_no_cascaded_deletion_on_a_chain():
+    """Fig. 5b: points 0.4 r apart in a row; deleting every covered point would leave one."""
+    r = 1.0
+    x = np.arange(200) * 0.4 * r
+    pts = np.c_[x, np.zeros_like(x), np.zeros_like(x)]
+    pos = np.stack([pts, pts])
+    keep = stratify(pos, r, np.random.default_rng(0).permutation(200))
+    assert _pair_coverage_ok(pos, keep, 0.5 * r)
+    kx = x[keep[0]]
+    # a deleted point has a kept neighbour within r/2, so kept points are at most
+    # three steps (1.2 r) apart; cascaded deletion would have left a single point
+    assert np.diff(kx).max() <= 1.2 * r + 1e-9 and kx[0] <= 0.4 * r + 1e-9 and kx[-1] >= x[-1] - 0.4 * r - 1e-9
+
+
+def test_interval_helpers():
+    assert np.allclose(interval_times(4), [0, 0.25, 0.5, 0.75, 1])
+    assert [interval_of(u, 3) for u in (0.0, 0.33, 0.34, 0.999, 1.0)] == [0, 0, 1, 2, 2]
+
+
+def test_bad_input_is_rejected():
+    with pytest.raises(ValueError, match="spacing"):
+        stratify(np.zeros((2, 3, 3)), 0.0, np.arange(3))
+    with pytest.raises(ValueError, match="order"):
+        stratify(np.zeros((2, 3, 3)), 1.0, np.arange(2))
+    with pytest.raises(ValueError, match="finite"):
+        stratify(np.full((2, 3, 3), np.nan), 1.0, np.arange(3))
+    assert stratify(np.zeros((3, 0, 3)), 1.0, np.arange(0)).shape == (2, 0)
+
+
+def _stratified(p0, p1, tri, r, m, seed):
+    rng = np.random.default_rng(seed)
+    v0, v1 = triangle_vertices(p0, tri), triangle_vertices(p1, tri)
+    ct, cb, _ = sample_candidates(v0, v1, r, rng)
+    pos = sample_positions_at(v0, v1, ct, cb, interval_times(m))
+    return v0, v1, ct, cb, stratify(pos, r, rng.permutation(ct.size))
+
+
+def test_plate_has_no_holes_at_any_tested_time():
+    """Acceptance: every point of a dense reference set lies within r of a kept sample."""
+    p0, tri = plate(8)
+    p1 = p0 * [1.3, 1.0, 0.8] + [0.2, 0.1, 0.0]  # moves and stretches
+    p1[:, 1] += 0.3 * p0[:, 0]  # and tilts
+    r, m = 1.0 / 16.0, 3
+    v0, v1, ct, cb, keep = _stratified(p0, p1, tri, r, m, seed=11)
+    rng = np.random.default_rng(12)
+    from lod.points_sampling import sample_positions, sample_triangles
+
+    dt, db = sample_triangles(np.ones(tri.shape[0]), 20_000, rng)
+    for j in range(m):
+        k = np.flatnonzero(keep[j])
+        for u in np.linspace(j / m, (j + 1) / m, 4):
+            ref = sample_positions(v0, v1, dt, db, float(u))
+            smp = sample_positions(v0, v1, ct[k], cb[k], float(u))
+            from scipy.spatial import cKDTree
+
+            d, _ = cKDTree(smp).query(ref)
+            assert d.max() <= r, f"hole of {d.max() / r:.2f} r at u = {u:.3f}"
+
+
+def test_plate_average_oversampling_at_most_2_6():
+    """Acceptance (paper §3.4.2: 2.6 on a flat thin plate).
+
+    Oversampling = kept samples / area divided by the density 1 / r^2 the
+    splatting renderer must assume (the paper's definition: worst case
+    4 / sin 60 = 4.6), i.e. kept * r^2 / area.
+    """
+    p, tri = plate(8)
+    r = 1.0 / 16.0
+    vals = []
+    for seed in range(3):
+        *_, keep = _stratified(p, p, tri, r, 1, seed)
+        vals.append(keep.sum() * r * r / 1.0)
+    assert np.mean(vals) <= 2.6
+    assert min(vals) > 1.2  # the hexagonal covering bound is 1.54 (sanity: not under-sampled)
+
+
+def test_shrinking_sphere_benefits_from_time_intervals():
+    """A sphere shrinking to 1/100 of its area (paper §5.1, Fig. 10).
+
+    The points drawn, averaged over time, relative to one interval. With equal
+    intervals and counts proportional to the area at each interval's start
+    (uniform scaling makes the start the binding end), the ratio for m
+    intervals is sum_j (1 - 0.9 j / m)^2 / m: 0.502 for 4, 0.434 for 8, 0.37
+    in the limit (the paper's "about 40%" with fine discretization). The
+    issue's "<= 50% with 4 intervals" is therefore out of reach by 0.2%
+    whatever the implementation; we assert the analytic value within 3% and
+    the 8-interval figure below 0.45.
+    """
+    p0, tri = sphere(48, 24)
+    p1 = 0.1 * p0
+    r = 0.25
+    counts = {}
+    for m in (1, 4, 8):
+        counts[m] = np.mean([_stratified(p0, p1, tri, r, m, seed)[-1].sum(1).mean() for seed in (0, 1)])
+    ratio4 = counts[4] / counts[1]
+    ratio8 = counts[8] / counts[1]
+    model4 = sum((1 - 0.9 * j / 4) ** 2 for j in range(4)) / 4
+    assert ratio4 == pytest.approx(model4, rel=0.03)
+    assert ratio8 <= 0.45
+    assert counts[8] < counts[4] < counts[1]
