@@ -448,7 +448,7 @@ class FlyApp:
         flags = ("  PAUSED" if c.paused else "") + (f"  REC {len(c.recorded)}" if c.recording else "")
         dl = self.last.drawlist if self.last is not None else None
         s = dl.stats if dl is not None else {}
-        cam = c.camera()
+        p = c.position
         lines = [
             f"{e.scene.name}  {self.fps:5.1f} fps  frame {e.world.frame}  t {e.world.time:.2f} s  "
             f"{self.size[0]}x{self.size[1]}{flags}",
@@ -457,7 +457,7 @@ class FlyApp:
             f"drawn  {s.get('instances', 0):,} instances ({s.get('culled', 0):,} culled)  "
             f"{s.get('triangles', 0):,} triangles  {s.get('points', 0):,} points  {s.get('batches', 0)} batches",
             c.settings_line(),
-            f"camera  ({cam.position[0]:.1f}, {cam.position[1]:.1f}, {cam.position[2]:.1f})  "
+            f"camera  ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f})  "
             f"yaw {math.degrees(c.yaw):.0f}  pitch {math.degrees(c.pitch):.0f}  speed {c.speed:.2g} m/s   H: help",
         ]
         lines += [m for m, _ in c.messages]

@@ -39,15 +39,29 @@ from numba import njit
 from lod.points_stratify import _grid
 
 
+@njit(cache=True)
+def _bary_kernel(a, tri, bary, out):  # pragma: no cover - compiled
+    for i in range(tri.shape[0]):
+        k = tri[i]
+        b1 = bary[i, 0]
+        b2 = bary[i, 1]
+        b0 = 1.0 - b1 - b2
+        for c in range(a.shape[2]):
+            out[i, c] = b0 * a[k, 0, c] + b1 * a[k, 1, c] + b2 * a[k, 2, c]
+    return out
+
+
 def barycentric_attribute(corner_attr: np.ndarray, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """(N, C) float64 attribute of barycentric samples.
+    """(N, C) float64 attribute of barycentric samples (numba).
 
     corner_attr : (T, 3, C) per-corner attribute; tri : (N,) int; bary : (N, 2).
+    Equals ``(1 - b1 - b2) a[tri, 0] + b1 a[tri, 1] + b2 a[tri, 2]``.
     """
-    a = np.asarray(corner_attr, np.float64)[tri]
-    b1 = bary[:, 0:1]
-    b2 = bary[:, 1:2]
-    return (1.0 - b1 - b2) * a[:, 0] + b1 * a[:, 1] + b2 * a[:, 2]
+    a = np.ascontiguousarray(corner_attr, np.float64)
+    out = np.empty((tri.shape[0], a.shape[2]))
+    if tri.shape[0]:
+        _bary_kernel(a, np.ascontiguousarray(tri, np.int64), np.ascontiguousarray(bary, np.float64), out)
+    return out
 
 
 def _finish(col_sum, nrm_sum, wsum, fb_col, fb_nrm):
@@ -169,17 +183,17 @@ def filter_points(v0, v1, col0, col1, nrm0, nrm1, areas, rep_tri, rep_bary, spac
     (col_start (R, C), col_end (R, C), nrm_start (R, 3), nrm_end (R, 3)),
     float64, normals unit length.
     """
-    from lod.points_sampling import sample_positions, sample_triangles, triangle_area_at
+    from lod.points_sampling import sample_triangles, triangle_area_at
 
     f_tri, f_bary = sample_triangles(areas, int(filter_count), rng)
     sigma = float(sigma_fraction) * float(spacing)
     out = []
     safe = np.where(areas > 0.0, areas, 1.0)
     for u, v, col, nrm in ((0.0, v0, col0, nrm0), (1.0, v1, col1, nrm1)):
-        rp = sample_positions(v0, v1, rep_tri, rep_bary, u)
+        rp = barycentric_attribute(v, rep_tri, rep_bary)
         fb_c = barycentric_attribute(col, rep_tri, rep_bary)
         fb_n = barycentric_attribute(nrm, rep_tri, rep_bary)
-        fp = sample_positions(v0, v1, f_tri, f_bary, u)
+        fp = barycentric_attribute(v, f_tri, f_bary)
         fc = barycentric_attribute(col, f_tri, f_bary)
         fn = barycentric_attribute(nrm, f_tri, f_bary)
         w = (triangle_area_at(v0, v1, u) / safe)[f_tri]

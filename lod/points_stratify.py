@@ -40,7 +40,7 @@ Eurographics 2002, §3.4.2 and Figure 5:
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 def interval_times(intervals: int) -> np.ndarray:
@@ -153,11 +153,11 @@ def _grid(pa, cell):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _find_cover(k, excl, pa, pb, rad2, lo, cell, dims, start, nperm, npres, ids):  # pragma: no cover - compiled
+def _find_cover(k, excl, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids):  # pragma: no cover - compiled
     """A present point other than k and excl within rad at both times, or -1.
 
-    Scans the permanent (processed and kept) points of the 27 cells first,
-    then the unprocessed present ones; the centre cell first in each pass.
+    Cells are scanned centre first; in each cell the permanent points first,
+    then the unprocessed ones latest-in-order first (longest-lived witness).
     """
     ix = min(max(int((pa[k, 0] - lo[0]) / cell), 0), dims[0] - 1)
     iy = min(max(int((pa[k, 1] - lo[1]) / cell), 0), dims[1] - 1)
@@ -168,44 +168,41 @@ def _find_cover(k, excl, pa, pb, rad2, lo, cell, dims, start, nperm, npres, ids)
     qx = pb[k, 0]
     qy = pb[k, 1]
     qz = pb[k, 2]
-    for phase in range(2):
-        for q in range(28):
-            if q == 0:
-                x, y, z = ix, iy, iz
-            else:
-                x = ix + (q - 1) // 9 - 1
-                y = iy + ((q - 1) // 3) % 3 - 1
-                z = iz + (q - 1) % 3 - 1
-                if (x == ix and y == iy and z == iz) or x < 0 or y < 0 or z < 0 \
-                        or x >= dims[0] or y >= dims[1] or z >= dims[2]:
-                    continue
-            cc = (x * dims[1] + y) * dims[2] + z
-            if phase == 0:
-                s0 = start[cc]
-                s1 = start[cc] + nperm[cc]
-            else:
-                s0 = start[cc] + nperm[cc]
-                s1 = start[cc] + npres[cc]
-            for s in range(s0, s1):
-                j = ids[s]
-                if j == k or j == excl:
-                    continue
-                d0 = px - pa[j, 0]
-                d1 = py - pa[j, 1]
-                d2 = pz - pa[j, 2]
-                if d0 * d0 + d1 * d1 + d2 * d2 > rad2:
-                    continue
-                e0 = qx - pb[j, 0]
-                e1 = qy - pb[j, 1]
-                e2 = qz - pb[j, 2]
-                if e0 * e0 + e1 * e1 + e2 * e2 > rad2:
-                    continue
-                return j
+    for q in range(28):
+        if q == 0:
+            x, y, z = ix, iy, iz
+        else:
+            x = ix + (q - 1) // 9 - 1
+            y = iy + ((q - 1) // 3) % 3 - 1
+            z = iz + (q - 1) % 3 - 1
+            if (x == ix and y == iy and z == iz) or x < 0 or y < 0 or z < 0 \
+                    or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+                continue
+        cc = (x * dims[1] + y) * dims[2] + z
+        s0 = start[cc]
+        u1 = s0 + nu[cc]
+        p1 = u1 + npm[cc]
+        for t in range(p1 - s0):
+            s = u1 + t if t < p1 - u1 else s0 + t - (p1 - u1)
+            j = ids[s]
+            if j == k or j == excl:
+                continue
+            d0 = px - pa[j, 0]
+            d1 = py - pa[j, 1]
+            d2 = pz - pa[j, 2]
+            if d0 * d0 + d1 * d1 + d2 * d2 > rad2:
+                continue
+            e0 = qx - pb[j, 0]
+            e1 = qy - pb[j, 1]
+            e2 = qz - pb[j, 2]
+            if e0 * e0 + e1 * e1 + e2 * e2 > rad2:
+                continue
+            return j
     return -1
 
 
 @njit(cache=True)
-def _greedy_witness(pa, pb, rad, order, keep):  # pragma: no cover - compiled
+def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
     """Greedy deletion of §3.4.2 with witnesses instead of neighbour counts.
 
     Every deleted point d keeps a *witness*: a present point covering it
@@ -214,30 +211,51 @@ def _greedy_witness(pa, pb, rad, order, keep):  # pragma: no cover - compiled
     deleted point whose witness is i; deleted points witnessed by someone
     else already have a present coverer besides i. This decides exactly as
     the neighbour-count formulation of ``stratify_numpy`` (same rule, same
-    order) but scans only present points, with early exit. Each cell's ids are
-    kept as [permanent | unprocessed present | deleted]: a point that was
-    tried and kept can never be deleted later, so it is preferred as a witness
-    and its witnessed points never move again.
+    order) but scans only present points, with early exit.
+
+    Each cell's ids are laid out [unprocessed, latest in order first |
+    permanent | deleted]. The point being processed is always the last
+    unprocessed one of its cell, so keeping it (it becomes permanent: tried
+    once, never deleted later) costs nothing and deleting it is one swap.
+    Permanent points and late unprocessed points are preferred as witnesses,
+    so witnessed points rarely have to move.
     """
-    n = pa.shape[0]
+    n = pa0.shape[0]
     rad2 = rad * rad
-    lo, dims, start, ids, cell, cell_of = _grid(pa, rad)
+    lo, dims, start, ids0, cell, cell_of0 = _grid(pa0, rad)
     tot = start.shape[0] - 1
-    npres = np.empty(tot, np.int64)
-    nperm = np.zeros(tot, np.int64)
-    for c in range(tot):
-        npres[c] = start[c + 1] - start[c]
-    slot = np.empty(n, np.int64)
+    rank = np.empty(n, np.int64)
+    for t in range(n):
+        rank[order0[t]] = t
+    key = np.empty(n, np.int64)
+    for i in range(n):
+        key[i] = cell_of0[i] * n + (n - 1 - rank[i])
+    # renumber the points in (cell, latest first) order: the cell scans then
+    # read contiguous memory, which is what bounds the speed of this loop
+    perm = np.argsort(key)
+    pa = np.empty((n, 3))
+    pb = np.empty((n, 3))
+    cell_of = np.empty(n, np.int64)
+    order = np.empty(n, np.int64)
     for s in range(n):
-        slot[ids[s]] = s
+        p = perm[s]
+        for k in range(3):
+            pa[s, k] = pa0[p, k]
+            pb[s, k] = pb0[p, k]
+        cell_of[s] = cell_of0[p]
+        order[rank[p]] = s
+    ids = np.arange(n)
+    keep = np.ones(n, np.bool_)
+    nu = np.empty(tot, np.int64)
+    npm = np.zeros(tot, np.int64)
+    for c in range(tot):
+        nu[c] = start[c + 1] - start[c]
     head = np.full(n, -1, np.int64)
     nxt = np.full(n, -1, np.int64)
-    for i in range(n):
-        keep[i] = True
-    for t in range(order.shape[0]):
+    for t in range(n):
         i = order[t]
         c = cell_of[i]
-        wi = _find_cover(i, -1, pa, pb, rad2, lo, cell, dims, start, nperm, npres, ids)
+        wi = _find_cover(i, -1, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids)
         ok = wi >= 0  # (a) some present point covers i
         if ok:
             cur = head[i]
@@ -246,7 +264,7 @@ def _greedy_witness(pa, pb, rad, order, keep):  # pragma: no cover - compiled
                 nx = nxt[cur]
                 w = -1
                 if ok:
-                    w = _find_cover(cur, i, pa, pb, rad2, lo, cell, dims, start, nperm, npres, ids)
+                    w = _find_cover(cur, i, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids)
                     if w < 0:
                         ok = False  # (b) i is the last coverer of the deleted point cur
                 if w >= 0:
@@ -256,28 +274,28 @@ def _greedy_witness(pa, pb, rad, order, keep):  # pragma: no cover - compiled
                     nxt[cur] = head[i]
                     head[i] = cur
                 cur = nx
-        s = slot[i]
+        # i sits at the end of its cell's unprocessed block
+        s = start[c] + nu[c] - 1
+        nu[c] -= 1
         if not ok:
-            # kept for good: move into the permanent block of its cell
-            f = start[c] + nperm[c]
-            j = ids[f]
-            ids[s] = j
-            slot[j] = s
-            ids[f] = i
-            slot[i] = f
-            nperm[c] += 1
+            npm[c] += 1  # first permanent slot: nothing moves
             continue
-        # delete i: witness wi, leave the present block of its cell
         keep[i] = False
         nxt[i] = head[wi]
         head[wi] = i
-        last = start[c] + npres[c] - 1
-        j = ids[last]
-        ids[s] = j
-        slot[j] = s
+        last = s + npm[c]  # last permanent slot: swap i behind the permanent block
+        ids[s] = ids[last]
         ids[last] = i
-        slot[i] = last
-        npres[c] -= 1
+    for s in range(n):
+        out[perm[s]] = keep[s]
+    return out
+
+
+@njit(cache=True, parallel=True)
+def _stratify_intervals(pos, rad, order, keep):  # pragma: no cover - compiled
+    """The time intervals are independent: one thread each."""
+    for j in prange(pos.shape[0] - 1):
+        _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
     return keep
 
 
@@ -317,8 +335,11 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray) -> np.nda
     if not np.isfinite(pos).all():
         raise ValueError("stratify: candidate positions must be finite, got NaN or Inf")
     rad = 0.5 * float(spacing)
-    for j in range(m):
-        _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
+    if m > 1 and n * m >= 20_000:
+        _stratify_intervals(pos, rad, order, keep)
+    else:
+        for j in range(m):
+            _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
     return keep
 
 

@@ -7,11 +7,11 @@
   ``on_mouse_button``, ``on_mouse_move``, ``on_scroll``, ``on_resize``) and
   copies the renderer's offscreen framebuffer to the window
   (``glBlitFramebuffer`` through ``ctx.copy_framebuffer``).
-- :class:`Hud` draws text lines over the frame with a bitmap font: the atlas
-  is rasterised once at start-up from Pillow's built-in bitmap font (no font
-  file needed) into an R8 texture; each frame the lines are laid out with
-  numpy (one quad per glyph, 6 vertices) into one dynamic buffer and drawn in
-  one call, alpha-blended, together with a translucent panel behind them.
+- :class:`Hud` draws text lines over the frame with a bitmap font: glyph
+  cells are rasterised once at start-up from Pillow's built-in bitmap font (no
+  font file needed); each frame the lines become one coverage image by a numpy
+  gather of those cells, uploaded into an R8 texture and drawn as one
+  alpha-blended quad (text over a translucent panel).
 - :class:`VirtualDisplay` starts an ``Xvfb`` server on a free display number
   (``-displayfd``) for tests and benchmarks on machines without a display.
 
@@ -35,10 +35,8 @@ from render.shaders import program_sources
 GL_VERSIONS = ((4, 5), (3, 3))
 #: first and last character code in the font atlas (printable ASCII); others draw as "?"
 FONT_FIRST, FONT_LAST = 32, 126
-#: atlas cell (index after the printable characters) that is fully covered: panels
-SOLID_CELL = FONT_LAST - FONT_FIRST + 1
-#: floats per HUD vertex: position (2, pixels), uv (2), colour (4)
-HUD_VERTEX_FLOATS = 8
+#: floats per HUD vertex: position (2, pixels), uv (2)
+HUD_VERTEX_FLOATS = 4
 #: default HUD colours (straight RGBA)
 HUD_TEXT_COLOR = (1.0, 1.0, 1.0, 1.0)
 HUD_PANEL_COLOR = (0.0, 0.0, 0.0, 0.55)
@@ -65,26 +63,29 @@ def display_available(environ=None) -> bool:
 
 @dataclass
 class FontAtlas:
-    """A bitmap font rasterised into one single-channel image.
+    """A monospaced bitmap font as an array of glyph cells.
 
-    image : (H, W) uint8 coverage, row 0 at the top
-    cell : (w, h) pixels of one glyph cell (every glyph is drawn as a full cell)
-    advance : (n,) float32 pen advance per glyph, pixels; index = code - FONT_FIRST
-    uv : (n + 1, 4) float32 (u0, v0, u1, v1) of each cell, v0 at the cell's top;
-        the last row is the solid cell (:data:`SOLID_CELL`)
-    line_height : int, pixels between baselines
+    cells : (n, line_height, advance) uint8 coverage (0 or 255) of the printable
+        ASCII characters, index = code - FONT_FIRST; each cell includes the
+        spacing below the glyph, so cells stacked and side by side make text.
     """
 
-    image: np.ndarray
-    cell: tuple
-    advance: np.ndarray
-    uv: np.ndarray
-    line_height: int
+    cells: np.ndarray
+
+    @property
+    def advance(self) -> int:
+        """Pixels from one character to the next."""
+        return int(self.cells.shape[2])
+
+    @property
+    def line_height(self) -> int:
+        """Pixels from one line to the next."""
+        return int(self.cells.shape[1])
 
     @classmethod
     def from_pillow(cls, scale: int = 1) -> "FontAtlas":
-        """Rasterise Pillow's built-in bitmap font (ASCII 32..126), each pixel
-        repeated ``scale`` times (integer >= 1, for high-DPI windows)."""
+        """Rasterise Pillow's built-in bitmap font (ASCII 32..126, 6 pixels wide),
+        each pixel repeated ``scale`` times (integer >= 1, for high-DPI windows)."""
         from PIL import Image, ImageDraw, ImageFont
 
         scale = int(scale)
@@ -92,98 +93,57 @@ class FontAtlas:
             raise ValueError(f"FontAtlas scale: expected an integer >= 1, got {scale}")
         font = ImageFont.load_default_imagefont()
         chars = [chr(c) for c in range(FONT_FIRST, FONT_LAST + 1)]
-        adv = np.array([font.getlength(c) for c in chars], np.float32)
-        boxes = [font.getbbox(c) for c in chars]
-        cw = int(max(adv.max(), max(b[2] for b in boxes)))
-        ch = int(max(b[3] for b in boxes)) + 1
-        n = len(chars) + 1  # + solid cell
-        cols = 16
-        rows = -(-n // cols)
-        img = Image.new("L", (cols * cw, rows * ch), 0)
+        cw = int(max(max(font.getlength(c) for c in chars), max(font.getbbox(c)[2] for c in chars)))
+        ch = int(max(font.getbbox(c)[3] for c in chars)) + 2  # + line spacing
+        img = Image.new("L", (cw * len(chars), ch), 0)
         draw = ImageDraw.Draw(img)
         for i, c in enumerate(chars):
-            draw.text(((i % cols) * cw, (i // cols) * ch), c, font=font, fill=255)
-        s = SOLID_CELL
-        draw.rectangle([(s % cols) * cw, (s // cols) * ch, (s % cols + 1) * cw - 1, (s // cols + 1) * ch - 1], fill=255)
-        a = np.asarray(img, np.uint8)
+            draw.text((i * cw, 0), c, font=font, fill=255)
+        a = np.asarray(img, np.uint8).reshape(ch, len(chars), cw).transpose(1, 0, 2)
+        a = np.where(a > 127, 255, 0).astype(np.uint8)
         if scale > 1:
-            a = np.repeat(np.repeat(a, scale, axis=0), scale, axis=1)
-        H, W = a.shape
-        idx = np.arange(n)
-        x0 = (idx % cols) * cw * scale
-        y0 = (idx // cols) * ch * scale
-        uv = np.stack([x0 / W, y0 / H, (x0 + cw * scale) / W, (y0 + ch * scale) / H], axis=1).astype(np.float32)
-        # the solid cell samples its centre only, so linear/nearest filtering never reaches a neighbour
-        cu, cv = (uv[s, 0] + uv[s, 2]) / 2, (uv[s, 1] + uv[s, 3]) / 2
-        uv[s] = (cu, cv, cu, cv)
-        return cls(np.ascontiguousarray(a), (cw * scale, ch * scale), adv * scale, uv, (ch + 1) * scale)
+            a = np.repeat(np.repeat(a, scale, axis=1), scale, axis=2)
+        return cls(np.ascontiguousarray(a))
 
 
 def glyph_indices(text: str) -> np.ndarray:
-    """(len(text),) int64 atlas indices; characters outside printable ASCII map to "?"."""
+    """(len(text),) int64 cell indices; characters outside printable ASCII map to "?"."""
     codes = np.frombuffer(text.encode("utf-32-le"), np.uint32).astype(np.int64)
     codes = np.where((codes < FONT_FIRST) | (codes > FONT_LAST), ord("?"), codes)
     return codes - FONT_FIRST
 
 
-def layout_text(atlas: FontAtlas, lines, origin=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """Glyph quads of text lines.
+def rasterize_text(atlas: FontAtlas, lines, padding: int = 0) -> np.ndarray:
+    """Text lines as one coverage image, by a single gather of glyph cells.
 
     Parameters
     ----------
     atlas : FontAtlas
-    lines : sequence of str (no newlines; a "\\n" inside a line starts a new line)
-    origin : (x, y) pixels of the first line's top-left corner (y down)
+    lines : sequence of str (characters outside printable ASCII draw as "?")
+    padding : empty pixels around the text
 
     Returns
     -------
-    rects : (n, 4) float32 (x0, y0, x1, y1) pixels of the n non-blank glyphs
-    uvs : (n, 4) float32 (u0, v0, u1, v1)
-    extent : (width, height) pixels covered by the text
+    (len(lines) * line_height + 2 * padding, longest * advance + 2 * padding) uint8,
+    row 0 at the top; (0, 0) when there is no text.
     """
-    split = [part for line in lines for part in str(line).split("\n")]
-    cw, chh = atlas.cell
-    rects, uvs = [], []
-    width = 0.0
-    x, y = float(origin[0]), float(origin[1])
+    lines = [str(x) for x in lines]
+    longest = max((len(x) for x in lines), default=0)
+    if longest == 0:
+        return np.zeros((0, 0), np.uint8)
     space = ord(" ") - FONT_FIRST
-    for li, line in enumerate(split):
-        if not line:
-            continue
-        g = glyph_indices(line)
-        adv = atlas.advance[g]
-        pen = np.cumsum(adv) - adv
-        width = max(width, float(pen[-1] + max(adv[-1], cw)) if len(adv) else 0.0)
-        keep = g != space
-        if not keep.any():
-            continue
-        px = x + pen[keep]
-        py = np.full(px.shape, y + li * atlas.line_height, np.float32)
-        rects.append(np.stack([px, py, px + cw, py + chh], axis=1))
-        uvs.append(atlas.uv[g[keep]])
-    height = float(len(split) * atlas.line_height) if split else 0.0
-    if not rects:
-        return np.zeros((0, 4), np.float32), np.zeros((0, 4), np.float32), (width, height)
-    return (np.concatenate(rects).astype(np.float32), np.concatenate(uvs).astype(np.float32), (width, height))
-
-
-def quad_vertices(rects: np.ndarray, uvs: np.ndarray, color) -> np.ndarray:
-    """(n * 6, HUD_VERTEX_FLOATS) float32 triangle vertices of n quads.
-
-    rects, uvs : (n, 4) float32 as from :func:`layout_text`; color : RGBA (4,) or (n, 4)
-    """
-    n = rects.shape[0]
-    x0, y0, x1, y1 = rects.T
-    u0, v0, u1, v1 = uvs.T
-    # two triangles: (0,0) (1,0) (1,1) | (0,0) (1,1) (0,1)
-    xs = np.stack([x0, x1, x1, x0, x1, x0], axis=1)
-    ys = np.stack([y0, y0, y1, y0, y1, y1], axis=1)
-    us = np.stack([u0, u1, u1, u0, u1, u0], axis=1)
-    vs = np.stack([v0, v0, v1, v0, v1, v1], axis=1)
-    out = np.empty((n, 6, HUD_VERTEX_FLOATS), np.float32)
-    out[..., 0], out[..., 1], out[..., 2], out[..., 3] = xs, ys, us, vs
-    out[..., 4:] = np.broadcast_to(np.asarray(color, np.float32).reshape(-1, 1, 4), (n, 6, 4))
-    return out.reshape(n * 6, HUD_VERTEX_FLOATS)
+    g = np.full((len(lines), longest), space, np.int64)
+    for i, line in enumerate(lines):
+        if line:
+            g[i, :len(line)] = glyph_indices(line)
+    lh, cw = atlas.line_height, atlas.advance
+    L = len(lines)
+    out = np.zeros((L * lh + 2 * padding, longest * cw + 2 * padding), np.uint8)
+    # one broadcast gather straight into (line, cell row, character, cell column) order
+    rows = np.arange(lh)[None, :, None]
+    text = atlas.cells[g[:, None, :], rows]
+    out[padding:padding + L * lh, padding:padding + longest * cw] = text.reshape(L * lh, longest * cw)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -192,34 +152,35 @@ def quad_vertices(rects: np.ndarray, uvs: np.ndarray, color) -> np.ndarray:
 
 
 class Hud:
-    """Text lines drawn over the current framebuffer in one draw call.
+    """Text lines drawn over the current framebuffer as one textured quad.
+
+    Each frame the lines are rasterised on the CPU (:func:`rasterize_text`, one
+    numpy gather of glyph cells), written into a part of one R8 texture and
+    drawn as a single alpha-blended quad whose fragment shader mixes the panel
+    colour (where there is no glyph) with the text colour. On llvmpipe this is
+    far cheaper than a quad per glyph, whose triangle set-up dominated.
 
     Parameters
     ----------
     ctx : moderngl context
-    scale : integer glyph magnification (1 = Pillow's 6x11-pixel bitmap font)
+    scale : integer glyph magnification (1 = Pillow's 6-pixel-wide bitmap font)
 
     ``draw(lines, size)`` draws into whatever framebuffer is bound (the
-    window's), blending over it; it leaves blending and depth testing off.
+    window's); it leaves blending and depth testing off.
     """
 
     def __init__(self, ctx, scale: int = 1):
-        import moderngl
-
         self.ctx = ctx
         self.atlas = FontAtlas.from_pillow(scale)
         self._objects = []
         self.prog = self._track(ctx.program(**program_sources("hud")), "render.program.hud")
-        a = self.atlas.image
-        self.texture = self._track(ctx.texture((a.shape[1], a.shape[0]), 1, a.tobytes(), alignment=1),
-                                   "render.hud.font")
-        self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.texture.repeat_x = self.texture.repeat_y = False
-        self._capacity = 0
-        self.buffer = None
-        self.vao = None
-        self._grow(4096)
-        self.vertices = 0  # vertices of the last draw
+        self.buffer = self._track(ctx.buffer(reserve=6 * HUD_VERTEX_FLOATS * 4, dynamic=True), "render.hud.quad")
+        self.vao = self._track(ctx.vertex_array(self.prog, [(self.buffer, "2f 2f", "in_pos", "in_uv")]),
+                               "render.hud.vao")
+        self.texture = None
+        self._tex_size = (0, 0)
+        self._grow((256, 64))
+        self.extent = (0, 0)  # (w, h) pixels of the last draw
         self._released = False
 
     def _track(self, obj, label):
@@ -230,55 +191,55 @@ class Hud:
         self._objects.append(obj)
         return obj
 
-    def _grow(self, vertices: int) -> None:
-        if vertices <= self._capacity:
+    def _grow(self, size) -> None:
+        import moderngl
+
+        w, h = max(int(size[0]), self._tex_size[0]), max(int(size[1]), self._tex_size[1])
+        if (w, h) == self._tex_size:
             return
-        cap = max(self._capacity, 1024)
-        while cap < vertices:
-            cap *= 2
-        for o in (self.vao, self.buffer):
-            if o is not None:
-                o.release()
-                self._objects.remove(o)
-        self.buffer = self._track(self.ctx.buffer(reserve=cap * HUD_VERTEX_FLOATS * 4, dynamic=True),
-                                  "render.hud.vertices")
-        self.vao = self._track(self.ctx.vertex_array(self.prog, [(self.buffer, "2f 2f 4f", "in_pos", "in_uv",
-                                                                   "in_color")]), "render.hud.vao")
-        self._capacity = cap
+        w, h = 1 << (w - 1).bit_length(), 1 << (h - 1).bit_length()  # powers of two: few re-allocations
+        if self.texture is not None:
+            self.texture.release()
+            self._objects.remove(self.texture)
+        self.texture = self._track(self.ctx.texture((w, h), 1, alignment=1), "render.hud.text")
+        self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.texture.repeat_x = self.texture.repeat_y = False
+        self._tex_size = (w, h)
 
-    def vertices_for(self, lines, origin=(8, 8), color=HUD_TEXT_COLOR, panel=HUD_PANEL_COLOR) -> np.ndarray:
-        """(m, HUD_VERTEX_FLOATS) float32: the panel quad (if ``panel``) then the glyph quads."""
-        rects, uvs, (w, h) = layout_text(self.atlas, lines, origin)
-        parts = []
-        if panel is not None and w > 0 and h > 0:
-            p = HUD_PADDING
-            box = np.array([[origin[0] - p, origin[1] - p, origin[0] + w + p, origin[1] + h + p]], np.float32)
-            parts.append(quad_vertices(box, self.atlas.uv[SOLID_CELL][None], panel))
-        if rects.shape[0]:
-            parts.append(quad_vertices(rects, uvs, color))
-        return np.concatenate(parts) if parts else np.zeros((0, HUD_VERTEX_FLOATS), np.float32)
+    def draw(self, lines, size, origin=(8, 8), color=HUD_TEXT_COLOR, panel=HUD_PANEL_COLOR) -> tuple:
+        """Draw ``lines`` with their top-left corner at ``origin`` (pixels from the
+        window's top-left) into the bound framebuffer of ``size`` (w, h).
 
-    def draw(self, lines, size, origin=(8, 8), color=HUD_TEXT_COLOR, panel=HUD_PANEL_COLOR) -> int:
-        """Draw ``lines`` at ``origin`` (pixels from the top-left) into the
-        bound framebuffer of ``size`` (w, h); returns the glyph quads drawn."""
-        data = self.vertices_for(lines, origin, color, panel)
-        n = data.shape[0]
-        self.vertices = n
-        if n == 0:
-            return 0
-        self._grow(n)
-        self.buffer.write(data.tobytes())
+        ``panel`` : RGBA behind the text (padding :data:`HUD_PADDING` pixels), or None.
+        Returns the (w, h) pixels covered (0, 0 when there is no text).
+        """
+        pad = HUD_PADDING if panel is not None else 0
+        img = rasterize_text(self.atlas, lines, padding=pad)
+        h, w = img.shape
+        self.extent = (w, h)
+        if w == 0 or h == 0:
+            return self.extent
+        self._grow((w, h))
+        self.texture.write(img, viewport=(0, 0, w, h), alignment=1)
+        tw, th = self._tex_size
+        x0, y0 = float(origin[0] - pad), float(origin[1] - pad)
+        quad = np.array([[x0, y0, 0.0, 0.0], [x0 + w, y0, w / tw, 0.0], [x0 + w, y0 + h, w / tw, h / th],
+                         [x0, y0, 0.0, 0.0], [x0 + w, y0 + h, w / tw, h / th], [x0, y0 + h, 0.0, h / th]],
+                        np.float32)
+        self.buffer.write(quad.tobytes())
         ctx = self.ctx
         ctx.viewport = (0, 0, int(size[0]), int(size[1]))
         ctx.disable(ctx.DEPTH_TEST)
         ctx.enable(ctx.BLEND)
         ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
         self.prog["u_screen"].value = (float(size[0]), float(size[1]))
-        self.prog["u_font"].value = 0
+        self.prog["u_text"].value = 0
+        self.prog["u_color"].value = tuple(float(c) for c in color)
+        self.prog["u_panel"].value = tuple(float(c) for c in panel) if panel is not None else (0.0, 0.0, 0.0, 0.0)
         self.texture.use(0)
-        self.vao.render(ctx.TRIANGLES, vertices=n)
+        self.vao.render(ctx.TRIANGLES, vertices=6)
         ctx.disable(ctx.BLEND)
-        return n // 6
+        return self.extent
 
     def release(self) -> None:
         """Release the GL objects in reverse creation order (safe twice)."""
@@ -297,7 +258,8 @@ class Hud:
 # window
 # ---------------------------------------------------------------------------------------------------------------------
 
-_HANDLER_METHODS = ("on_key", "on_mouse_button", "on_mouse_move", "on_scroll", "on_resize")
+#: windows open in this process; glfw is terminated when the last one closes
+_open_windows = 0
 
 
 class Window:
@@ -330,6 +292,7 @@ class Window:
         self._glfw = glfw
         if not display_available():
             raise WindowError("no display: neither DISPLAY nor WAYLAND_DISPLAY is set")
+        global _open_windows
         if not glfw.init():
             raise WindowError(f"glfw could not initialise on display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')!r}")
         w, h = int(size[0]), int(size[1])
@@ -347,7 +310,8 @@ class Window:
                 self.gl_version = (major, minor)
                 break
         if not self.handle:
-            glfw.terminate()
+            if _open_windows == 0:
+                glfw.terminate()
             raise WindowError(f"no OpenGL {REQUIRED_GL // 100}.{REQUIRED_GL // 10 % 10} core context could be created "
                               "for a window on this display")
         glfw.make_context_current(self.handle)
@@ -356,10 +320,12 @@ class Window:
             self.ctx = moderngl.create_context(require=REQUIRED_GL)
         except Exception as exc:  # moderngl raises plain Exceptions
             glfw.destroy_window(self.handle)
-            glfw.terminate()
+            if _open_windows == 0:
+                glfw.terminate()
             raise WindowError(f"the window's OpenGL context is unusable ({exc})") from exc
         self.handler = None
         self._closed = False
+        _open_windows += 1
 
     # -- input ---------------------------------------------------------------------------------------------------------
     def attach(self, handler) -> None:
@@ -444,14 +410,17 @@ class Window:
         return np.frombuffer(raw, np.uint8).reshape(h, w, 3)[::-1].copy()
 
     def close(self) -> None:
-        """Destroy the window and terminate glfw (safe twice). Release GL objects made on
-        ``ctx`` before calling this."""
+        """Destroy the window, and terminate glfw when it was the last one (safe twice).
+        Release GL objects made on ``ctx`` before calling this."""
+        global _open_windows
         if self._closed:
             return
         self._closed = True
         glfw = self._glfw
         glfw.destroy_window(self.handle)
-        glfw.terminate()
+        _open_windows -= 1
+        if _open_windows == 0:
+            glfw.terminate()
 
     def __enter__(self):
         return self
@@ -490,8 +459,9 @@ class VirtualDisplay:
                                     f"(apt-get install {XVFB_PACKAGE}, as the README set-up does)")
         r, w = os.pipe()
         try:
-            self.proc = subprocess.Popen([exe, "-displayfd", str(w), "-screen", "0", self.screen, "-nolisten", "tcp"],
-                                         pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            # -noreset: the server must not reset (and drop connections) when its last client leaves
+            cmd = [exe, "-displayfd", str(w), "-screen", "0", self.screen, "-nolisten", "tcp", "-noreset"]
+            self.proc = subprocess.Popen(cmd, pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         finally:
             os.close(w)
         try:

@@ -169,7 +169,7 @@ def main(argv=None) -> int:
     md += [
         "",
         "(est.) = extrapolated linearly from the largest measured size: the reference is O(n), and on 1 M agents "
-        "its candidate-pair arrays take a few GB, too much for a machine shared by five engineers.",
+        "its candidate-pair arrays take more than 1 GB, too much for a machine shared by five engineers.",
         "",
         "Targets on the 2-core machine: <= 15 ms/step at 100 K, <= 200 ms at 1 M, <= 200 bytes/agent. "
         "The machine was shared with four other engineers' builds and tests while this ran (see the load "

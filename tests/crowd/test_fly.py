@@ -1,0 +1,346 @@
+"""crowd fly: the interactive fly-through, driven by scripted input under Xvfb.
+
+The module starts its own Xvfb server (Debian package ``xvfb``); a missing
+binary fails the tests with a message saying to install it. Input goes
+through the window's glfw callbacks (the functions glfw calls) or the
+controller's methods (what those callbacks call).
+"""
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from crowd_testutil import run_cli, tiny_scene
+
+glfw = pytest.importorskip("glfw")
+
+from crowd.engine import Engine  # noqa: E402
+from crowd.fly import (FLY_SCROLL_FACTOR, FLY_SPEED, HELP_TEXT, FlyApp, no_display_message,  # noqa: E402
+                       reframe)
+from crowd.scene import load_scene  # noqa: E402
+from render.window import VirtualDisplay, Window  # noqa: E402
+
+SIZE = (96, 72)
+BACKGROUND = np.array([0.1, 0.1, 0.12]) * 255
+
+
+@pytest.fixture(scope="module")
+def display():
+    try:
+        vd = VirtualDisplay().start()
+    except FileNotFoundError as e:
+        pytest.fail(f"{e}: the fly-through tests need Xvfb")
+    old = os.environ.get("DISPLAY")
+    os.environ["DISPLAY"] = vd.display
+    yield vd.display
+    if old is None:
+        os.environ.pop("DISPLAY", None)
+    else:
+        os.environ["DISPLAY"] = old
+    vd.stop()
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fly")
+    p = d / "scene.toml"
+    p.write_text(tiny_scene(replace={"size = [64, 48]": f"size = [{SIZE[0]}, {SIZE[1]}]"}))
+    return p
+
+
+@pytest.fixture
+def app(display, scene_file, tmp_path):
+    echoed = []
+    window = Window(SIZE, title="test_fly")
+    engine = Engine(load_scene(scene_file), quiet=True)
+    a = FlyApp(engine, window, tmp_path / "fly-out", echo=echoed.append)
+    a.echoed = echoed
+    yield a
+    a.close()
+    window.close()
+
+
+def press(app, key):
+    w = app.window
+    w.key_callback(w.handle, key, 0, glfw.PRESS, 0)
+    w.key_callback(w.handle, key, 0, glfw.RELEASE, 0)
+
+
+def all_ids(dl):
+    return np.concatenate([b.instance_ids for b in dl.batches if b.instance_ids.size] or [np.zeros(0, np.int32)])
+
+
+# -- window and rendering ----------------------------------------------------------------------------------------------
+
+
+def test_window_opens_and_renders_with_hud(app):
+    f = app.frame(1 / 30)
+    assert f.stepped and f.drawlist.stats["instances"] == 4
+    px = app.window.read_pixels()
+    assert px.shape == (SIZE[1], SIZE[0], 3)
+    diff = np.abs(px.astype(float) - BACKGROUND).max(axis=2)
+    assert (diff > 10).sum() > 100  # characters and HUD drawn
+    assert (px == 255).all(axis=2).sum() > 20  # white HUD glyphs
+    assert set(f.stages) >= {"simulate", "select", "upload", "draw", "finish", "hud", "total"}
+    lines = app.hud_lines()
+    assert "fps" in lines[0] and "simulate" in lines[1] and "triangles" in lines[2] and "lod none" in lines[3]
+    # without HUD the window shows exactly the renderer's frame
+    press(app, glfw.KEY_TAB)
+    app.frame(1 / 30)
+    assert np.array_equal(app.window.read_pixels(), app.renderer.read_pixels())
+
+
+def test_w_moves_along_forward_by_speed_dt(app):
+    c = app.controller
+    p0, fwd = c.position.copy(), c.camera().forward
+    w = app.window
+    w.key_callback(w.handle, glfw.KEY_W, 0, glfw.PRESS, 0)
+    app.frame(0.1)
+    assert np.allclose(c.position - p0, fwd * FLY_SPEED * 0.1, atol=1e-12)
+    w.key_callback(w.handle, glfw.KEY_W, 0, glfw.RELEASE, 0)
+    p1 = c.position.copy()
+    app.frame(0.1)
+    assert np.array_equal(c.position, p1)  # released: no motion
+    # the other axes, through the controller methods the callbacks call
+    _, right, up = c.axes()
+    for key, vec in ((glfw.KEY_D, right), (glfw.KEY_A, -right), (glfw.KEY_E, up), (glfw.KEY_Q, -up),
+                     (glfw.KEY_S, -c.camera().forward)):
+        p = c.position.copy()
+        c.on_key(key, glfw.PRESS, 0)
+        c.update(0.05)
+        c.on_key(key, glfw.RELEASE, 0)
+        assert np.allclose(c.position - p, vec * FLY_SPEED * 0.05, atol=1e-12), key
+    # the drawn view follows the camera
+    f = app.frame(0.0)
+    assert np.allclose(f.drawlist.origin, c.position)
+
+
+def test_mouse_drag_turns_by_sensitivity(app):
+    c = app.controller
+    w = app.window
+    yaw0, pitch0 = c.yaw, c.pitch
+    w.cursor_pos_callback(w.handle, 50, 40)
+    w.cursor_pos_callback(w.handle, 70, 30)
+    assert (c.yaw, c.pitch) == (yaw0, pitch0)  # no button held: no look
+    w.mouse_button_callback(w.handle, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+    w.cursor_pos_callback(w.handle, 100, 100)  # first position after the press only anchors
+    w.cursor_pos_callback(w.handle, 110, 95)
+    assert c.yaw == pytest.approx(yaw0 - c.sensitivity * 10, abs=1e-12)
+    assert c.pitch == pytest.approx(pitch0 + c.sensitivity * 5, abs=1e-12)
+    w.mouse_button_callback(w.handle, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)
+    cam = c.camera()
+    assert cam.yaw == pytest.approx(c.yaw, abs=1e-9) and cam.pitch == pytest.approx(c.pitch, abs=1e-9)
+    # pitch is clamped short of the poles
+    c.look(0, -1e6)
+    assert c.pitch < math.pi / 2 and np.isfinite(c.camera().rotation).all()
+
+
+def test_scroll_changes_speed(app):
+    c = app.controller
+    w = app.window
+    w.scroll_callback(w.handle, 0, 2)
+    assert c.speed == pytest.approx(FLY_SPEED * FLY_SCROLL_FACTOR ** 2)
+    c.on_scroll(0, -1000)
+    assert c.speed > 0
+
+
+def test_freeze_keeps_selection_while_the_camera_moves(app):
+    c = app.controller
+    f0 = app.frame(1 / 30)
+    ids0 = all_ids(f0.drawlist)
+    assert ids0.size == 4
+    press(app, glfw.KEY_F)
+    assert app.engine.settings.freeze
+    f1 = app.frame(1 / 30)  # the last selection, re-expressed for the (same) camera
+    c.look(math.pi / c.sensitivity, 0)  # turn around: nothing of the crowd in view
+    c.position = c.position + np.array([0.5, 0.2, -0.3])
+    f2 = app.frame(1 / 30)
+    assert np.array_equal(all_ids(f2.drawlist), ids0)
+    assert not np.allclose(f2.drawlist.view, f1.drawlist.view)
+    # same world positions, relative to the new origin
+    t1 = f1.drawlist.batches[0].instance_data[:, [3, 7, 11]] + f1.drawlist.origin
+    t2 = f2.drawlist.batches[0].instance_data[:, [3, 7, 11]] + f2.drawlist.origin
+    assert np.allclose(t1, t2, atol=1e-5)
+    press(app, glfw.KEY_F)
+    f3 = app.frame(1 / 30)
+    assert all_ids(f3.drawlist).size == 0  # live selection culls everything behind the camera
+
+
+def test_reframe_is_exact_for_the_same_camera(app):
+    dl = app.frame(0.0).drawlist
+    r = reframe(dl, app.controller.camera(), SIZE)
+    for a, b in zip(dl.batches, r.batches):
+        assert np.array_equal(a.instance_data, b.instance_data) and a.rep == b.rep and a.part == b.part
+    assert np.array_equal(r.view, dl.view) and np.allclose(r.proj, dl.proj)
+
+
+def test_pause_keeps_the_state(app):
+    e = app.engine
+    app.frame(1 / 30)
+    press(app, glfw.KEY_SPACE)
+    d0, frame0 = e.world.state.digest(), e.world.frame
+    app.controller.on_key(glfw.KEY_W, glfw.PRESS, 0)
+    for _ in range(3):
+        f = app.frame(1 / 30)
+        assert not f.stepped
+    assert e.world.state.digest() == d0 and e.world.frame == frame0
+    assert "PAUSED" in app.hud_lines()[0]
+    press(app, glfw.KEY_N)  # one step
+    assert app.frame(1 / 30).stepped and e.world.frame == frame0 + 1
+    assert not app.frame(1 / 30).stepped
+    press(app, glfw.KEY_SPACE)
+    app.frame(1 / 30)
+    assert e.world.state.digest() != d0
+
+
+def test_live_settings_keys(app):
+    s = app.engine.settings
+    press(app, glfw.KEY_M)
+    assert s.lod_mode == "none" and "mode points not available yet" in app.echoed
+    for _ in range(4):
+        press(app, glfw.KEY_M)
+    assert s.lod_mode == "none" and app.echoed[-1] == "lod mode none"
+    splat, poe, kf = s.splat_size, s.poe, s.keyframe_interval
+    press(app, glfw.KEY_RIGHT_BRACKET)
+    press(app, glfw.KEY_EQUAL)
+    press(app, glfw.KEY_PERIOD)
+    assert (s.splat_size, s.poe, s.keyframe_interval) == (splat + 0.5, poe * 2, kf + 1)
+    press(app, glfw.KEY_LEFT_BRACKET)
+    press(app, glfw.KEY_MINUS)
+    press(app, glfw.KEY_COMMA)
+    press(app, glfw.KEY_COMMA)
+    assert (s.splat_size, s.poe, s.keyframe_interval) == (splat, poe, 1)  # clamped at 1
+    press(app, glfw.KEY_O)
+    press(app, glfw.KEY_C)
+    assert s.occlusion and s.color_by == "representation"
+    app.frame(1 / 30)
+    line = app.hud_lines()[3]
+    assert "occlusion on" in line and "colour representation" in line
+    press(app, glfw.KEY_H)
+    assert HELP_TEXT in app.echoed
+    assert HELP_TEXT.splitlines()[0] in app.hud_lines()
+    press(app, glfw.KEY_ESCAPE)
+    assert app.run() == 0  # quit requested: the loop ends at once
+
+
+def test_resize_recreates_the_renderer(app):
+    import time
+
+    app.frame(1 / 30)
+    app.window.set_size((128, 80))
+    deadline = time.monotonic() + 5
+    while app.controller.pending_size is None and time.monotonic() < deadline:
+        app.window.poll()
+        time.sleep(0.01)
+    assert app.controller.pending_size == (128, 80)
+    app.window.swap()
+    f = app.frame(1 / 30)
+    assert app.renderer.size == (128, 80) and f.drawlist.size == (128, 80)
+    proj = f.drawlist.proj
+    assert proj[1, 1] / proj[0, 0] == pytest.approx(128 / 80, rel=1e-5)
+    assert app.window.read_pixels().shape == (80, 128, 3)
+    assert f.drawlist.stats["instances"] == 4
+    # a minimised window (0 x 0) is ignored
+    app.controller.on_resize(0, 0)
+    assert app.controller.pending_size is None
+
+
+def test_recorded_path_replays_the_poses(app, tmp_path):
+    from lod.camera_path import load_path
+
+    c = app.controller
+    c.record_path = tmp_path / "rec.json"
+    press(app, glfw.KEY_R)
+    assert c.recording
+    w = app.window
+    w.key_callback(w.handle, glfw.KEY_W, 0, glfw.PRESS, 0)
+    w.mouse_button_callback(w.handle, glfw.MOUSE_BUTTON_RIGHT, glfw.PRESS, 0)
+    poses = []
+    for k in range(8):
+        w.cursor_pos_callback(w.handle, 40 + 7 * k, 30 - 2 * k)
+        if k == 4:
+            w.key_callback(w.handle, glfw.KEY_E, 0, glfw.PRESS, 0)
+        app.frame(1 / 20)
+        cam = c.camera()
+        poses.append((cam.position.copy(), cam.rotation.copy()))
+    press(app, glfw.KEY_R)
+    assert not c.recording and c.saved_paths == [tmp_path / "rec.json"]
+    assert not list(tmp_path.glob(".*.tmp"))  # written atomically, nothing left behind
+    keys = json.loads((tmp_path / "rec.json").read_text())
+    assert len(keys) == 8
+    dt = app.engine.scene.dt
+    path = load_path(tmp_path / "rec.json")
+    for k, (p, rot) in enumerate(poses):
+        cam = path.camera_at((k + 1) * dt)
+        assert np.abs(cam.position - p).max() < 1e-6
+        assert np.abs(cam.rotation - rot).max() < 1e-6
+    # a scene replays it through [camera] path_file, frame f at the f-th recorded pose
+    sc = tmp_path / "replay.toml"
+    sc.write_text(tiny_scene(replace={"position = [1.0, 2.0, 7.0]": 'path_file = "rec.json"',
+                                      "target = [1.0, 0.8, 1.0]": ""}))
+    with Engine(load_scene(sc), quiet=True) as e:
+        for k, (p, rot) in enumerate(poses):
+            e.step()
+            cam = e.camera_at(e.world.time)
+            assert np.abs(cam.position - p).max() < 1e-6 and np.abs(cam.rotation - rot).max() < 1e-6
+
+
+def test_stop_without_frames_writes_nothing(app, tmp_path):
+    c = app.controller
+    c.record_path = tmp_path / "none.json"
+    press(app, glfw.KEY_R)
+    press(app, glfw.KEY_R)
+    assert not (tmp_path / "none.json").exists() and "nothing written" in app.echoed[-1]
+
+
+def test_screenshot_matches_crowd_run_at_the_same_pose(app, tmp_path):
+    from PIL import Image
+
+    c = app.controller
+    c.on_key(glfw.KEY_D, glfw.PRESS, 0)
+    c.look(25, -10)
+    app.frame(0.1)
+    c.on_key(glfw.KEY_D, glfw.RELEASE, 0)
+    app.frame(0.1)
+    press(app, glfw.KEY_F12)
+    f = app.frame(0.1)  # third frame: the state after 3 steps
+    assert f.screenshot is not None and f.screenshot.parent == tmp_path / "fly-out"
+    shot = np.asarray(Image.open(f.screenshot).convert("RGB"))
+    assert shot.shape == (SIZE[1], SIZE[0], 3)
+    assert (np.abs(shot.astype(float) - BACKGROUND).max(axis=2) > 10).sum() > 50  # not empty
+    # one-key camera path at the screenshot pose, rendered headless by `crowd run`
+    cam = c.camera()
+    (tmp_path / "pose.json").write_text(json.dumps([{"time": 0.0, "position": cam.position.tolist(),
+                                                      "target": (cam.position + cam.forward).tolist()}]))
+    sc = tmp_path / "pose.toml"
+    sc.write_text(tiny_scene(replace={"position = [1.0, 2.0, 7.0]": 'path_file = "pose.json"',
+                                      "target = [1.0, 0.8, 1.0]": "",
+                                      "size = [64, 48]": f"size = [{SIZE[0]}, {SIZE[1]}]"}))
+    r = run_cli("run", sc, "--frames", 3, "--png-every", 1, "--out", tmp_path / "run", "--quiet")
+    assert r.returncode == 0, r.stderr
+    ref = np.asarray(Image.open(tmp_path / "run" / "frames" / "frame_00002.png").convert("RGB"))
+    close = (np.abs(shot.astype(int) - ref.astype(int)) <= 2).all(axis=2)
+    print(f"screenshot vs crowd run: {close.mean():.4%} of pixels within 2/255")
+    assert close.mean() >= 0.99
+
+
+# -- command line ------------------------------------------------------------------------------------------------------
+
+
+def test_cli_fly_runs_frames_under_xvfb(display, scene_file, tmp_path):
+    env_display = os.environ["DISPLAY"]
+    assert env_display == display
+    r = run_cli("fly", scene_file, "--frames", 2, "--size", "64x48", "--out", tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "2 frames" in r.stdout
+
+
+def test_cli_fly_without_display_suggests_run_or_xvfb(scene_file, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    r = run_cli("fly", scene_file)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert lines == [no_display_message(str(scene_file))]
+    assert "crowd run" in lines[0] and "xvfb-run crowd fly" in lines[0]
