@@ -64,6 +64,9 @@ SPLAT_RANGE, SPLAT_STEP = (0.5, 32.0), 0.5
 POE_RANGE = (0.125, 64.0)
 #: keyframe interval range, frames
 KEYFRAME_RANGE = (1, 64)
+#: seconds between HUD text refreshes (numbers readable, text not re-rasterised every frame);
+#: any input refreshes it at once
+HUD_REFRESH = 0.1
 #: exit code when no display is available (as for bad usage)
 EXIT_NO_DISPLAY = 2
 
@@ -186,6 +189,7 @@ class FlyController:
         self.saved_paths: list = []
         self.messages: list = []  # (text, expiry on the controller clock)
         self.clock = 0.0
+        self.revision = 0  # counts input events that may change what the HUD shows
         self._mode_cursor = LOD_MODES_ALL.index(self.settings.lod_mode) if self.settings.lod_mode in LOD_MODES_ALL else 0
         k = glfw
         self._move_keys = {k.KEY_W: (0, 1), k.KEY_S: (0, -1), k.KEY_D: (1, 1), k.KEY_A: (1, -1),
@@ -241,6 +245,7 @@ class FlyController:
     # -- input (called by glfw callbacks and tests) --------------------------------------------------------------------
     def on_key(self, key: int, action: int, mods: int = 0) -> None:
         glfw = self._glfw
+        self.revision += 1
         if key in self._move_keys:
             if action == glfw.PRESS:
                 self.held.add(key)
@@ -264,6 +269,7 @@ class FlyController:
         self._cursor = (float(x), float(y))
 
     def on_scroll(self, dx: float, dy: float) -> None:
+        self.revision += 1
         self.speed = float(np.clip(self.speed * FLY_SCROLL_FACTOR ** float(dy), *FLY_SPEED_RANGE))
 
     def on_resize(self, width: int, height: int) -> None:
@@ -271,10 +277,12 @@ class FlyController:
         (a minimised window, 0 x 0, is ignored)."""
         if width > 0 and height > 0:
             self.pending_size = (int(width), int(height))
+            self.revision += 1
 
     # -- actions -------------------------------------------------------------------------------------------------------
     def say(self, text: str, seconds: float = MESSAGE_SECONDS, echo: bool = True) -> None:
         """Show ``text`` in the HUD for ``seconds`` (and print it)."""
+        self.revision += 1
         self.messages.append((text, self.clock + seconds))
         del self.messages[:-4]
         if echo and self.echo is not None:
@@ -429,6 +437,9 @@ class FlyApp:
         self.last = None
         self._frozen = None
         self._last_stages: dict = {}
+        self._hud_lines = None  # text shown, refreshed every HUD_REFRESH seconds or on input
+        self._hud_revision = -1
+        self._hud_clock = 0.0
 
     @property
     def size(self) -> tuple:
@@ -465,6 +476,16 @@ class FlyApp:
             lines += [""] + HELP_TEXT.splitlines()
         return lines
 
+    def draw_hud(self, size, refresh: bool = False) -> tuple:
+        """Draw the HUD over the window's frame; the text is rebuilt when ``refresh``, after
+        any input, or every :data:`HUD_REFRESH` seconds of the controller clock. Returns its (w, h)."""
+        c = self.controller
+        if (refresh or self._hud_lines is None or c.revision != self._hud_revision
+                or not 0.0 <= c.clock - self._hud_clock < HUD_REFRESH):
+            self._hud_lines = self.hud_lines()
+            self._hud_revision, self._hud_clock = c.revision, c.clock
+        return self.hud.draw(self._hud_lines, size)
+
     def frame(self, dt: float) -> FlyFrame:
         """One frame: move the camera by ``dt`` seconds of input, step the simulation
         (unless paused), select (unless frozen), draw, blit, HUD, record, screenshot.
@@ -496,7 +517,7 @@ class FlyApp:
         result = FlyFrame(dl, stages, stepped)
         self.last = result
         if c.hud_visible:
-            self.hud.draw(self.hud_lines(), size)
+            self.draw_hud(size)
         t5 = time.perf_counter()
         stages["hud"] = t5 - t4
         c.record(camera)

@@ -40,7 +40,7 @@ Eurographics 2002, §3.4.2 and Figure 5:
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
 def interval_times(intervals: int) -> np.ndarray:
@@ -224,15 +224,17 @@ def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
     rad2 = rad * rad
     lo, dims, start, ids0, cell, cell_of0 = _grid(pa0, rad)
     tot = start.shape[0] - 1
-    rank = np.empty(n, np.int64)
-    for t in range(n):
-        rank[order0[t]] = t
-    key = np.empty(n, np.int64)
-    for i in range(n):
-        key[i] = cell_of0[i] * n + (n - 1 - rank[i])
-    # renumber the points in (cell, latest first) order: the cell scans then
-    # read contiguous memory, which is what bounds the speed of this loop
-    perm = np.argsort(key)
+    # renumber the points in (cell, latest in order first) order with a
+    # counting sort: the cell scans then read contiguous memory
+    fill = start[:-1].copy()
+    perm = np.empty(n, np.int64)
+    inv = np.empty(n, np.int64)
+    for t in range(n - 1, -1, -1):
+        p = order0[t]
+        c = cell_of0[p]
+        perm[fill[c]] = p
+        inv[p] = fill[c]
+        fill[c] += 1
     pa = np.empty((n, 3))
     pb = np.empty((n, 3))
     cell_of = np.empty(n, np.int64)
@@ -243,7 +245,8 @@ def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
             pa[s, k] = pa0[p, k]
             pb[s, k] = pb0[p, k]
         cell_of[s] = cell_of0[p]
-        order[rank[p]] = s
+    for t in range(n):
+        order[t] = inv[order0[t]]
     ids = np.arange(n)
     keep = np.ones(n, np.bool_)
     nu = np.empty(tot, np.int64)
@@ -291,14 +294,6 @@ def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, parallel=True)
-def _stratify_intervals(pos, rad, order, keep):  # pragma: no cover - compiled
-    """The time intervals are independent: one thread each."""
-    for j in prange(pos.shape[0] - 1):
-        _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
-    return keep
-
-
 def stratify(positions: np.ndarray, spacing: float, order: np.ndarray) -> np.ndarray:
     """Stratify moving candidates per time interval (§3.4.2, numba kernels).
 
@@ -335,11 +330,8 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray) -> np.nda
     if not np.isfinite(pos).all():
         raise ValueError("stratify: candidate positions must be finite, got NaN or Inf")
     rad = 0.5 * float(spacing)
-    if m > 1 and n * m >= 20_000:
-        _stratify_intervals(pos, rad, order, keep)
-    else:
-        for j in range(m):
-            _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
+    for j in range(m):
+        _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
     return keep
 
 

@@ -72,6 +72,11 @@ class FontAtlas:
 
     cells: np.ndarray
 
+    def __post_init__(self):
+        self.cells = np.ascontiguousarray(self.cells, np.uint8)
+        #: (line_height, n, advance) view of the cells by row, for fast gathers
+        self.rows = np.ascontiguousarray(self.cells.transpose(1, 0, 2))
+
     @property
     def advance(self) -> int:
         """Pixels from one character to the next."""
@@ -139,10 +144,10 @@ def rasterize_text(atlas: FontAtlas, lines, padding: int = 0) -> np.ndarray:
     lh, cw = atlas.line_height, atlas.advance
     L = len(lines)
     out = np.zeros((L * lh + 2 * padding, longest * cw + 2 * padding), np.uint8)
-    # one broadcast gather straight into (line, cell row, character, cell column) order
-    rows = np.arange(lh)[None, :, None]
-    text = atlas.cells[g[:, None, :], rows]
-    out[padding:padding + L * lh, padding:padding + longest * cw] = text.reshape(L * lh, longest * cw)
+    # gather cells by row: (cell row, line, character, cell column), then one strided copy
+    text = np.take(atlas.rows, g, axis=1)
+    out[padding:padding + L * lh, padding:padding + longest * cw].reshape(L, lh, longest, cw)[...] = \
+        text.transpose(1, 0, 2, 3)
     return out
 
 
@@ -158,7 +163,8 @@ class Hud:
     numpy gather of glyph cells), written into a part of one R8 texture and
     drawn as a single alpha-blended quad whose fragment shader mixes the panel
     colour (where there is no glyph) with the text colour. On llvmpipe this is
-    far cheaper than a quad per glyph, whose triangle set-up dominated.
+    far cheaper than a quad per glyph, whose triangle set-up dominated. Text
+    equal to the last one drawn is not rasterised or uploaded again.
 
     Parameters
     ----------
@@ -181,6 +187,8 @@ class Hud:
         self._tex_size = (0, 0)
         self._grow((256, 64))
         self.extent = (0, 0)  # (w, h) pixels of the last draw
+        self.rasterized = 0  # texts rasterised and uploaded (a repeated text is not)
+        self._text_key = None
         self._released = False
 
     def _track(self, obj, label):
@@ -201,6 +209,7 @@ class Hud:
         if self.texture is not None:
             self.texture.release()
             self._objects.remove(self.texture)
+            self._text_key = None
         self.texture = self._track(self.ctx.texture((w, h), 1, alignment=1), "render.hud.text")
         self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.texture.repeat_x = self.texture.repeat_y = False
@@ -214,13 +223,18 @@ class Hud:
         Returns the (w, h) pixels covered (0, 0 when there is no text).
         """
         pad = HUD_PADDING if panel is not None else 0
-        img = rasterize_text(self.atlas, lines, padding=pad)
-        h, w = img.shape
-        self.extent = (w, h)
-        if w == 0 or h == 0:
-            return self.extent
-        self._grow((w, h))
-        self.texture.write(img, viewport=(0, 0, w, h), alignment=1)
+        key = (tuple(str(x) for x in lines), pad)
+        if key != self._text_key:  # same text as last time: the texture already holds it
+            img = rasterize_text(self.atlas, key[0], padding=pad)
+            h, w = img.shape
+            self.extent = (w, h)
+            self._text_key = key if w and h else None
+            if w == 0 or h == 0:
+                return self.extent
+            self._grow((w, h))
+            self.texture.write(img, viewport=(0, 0, w, h), alignment=1)
+            self.rasterized += 1
+        w, h = self.extent
         tw, th = self._tex_size
         x0, y0 = float(origin[0] - pad), float(origin[1] - pad)
         quad = np.array([[x0, y0, 0.0, 0.0], [x0 + w, y0, w / tw, 0.0], [x0 + w, y0 + h, w / tw, h / th],

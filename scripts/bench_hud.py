@@ -5,7 +5,10 @@ select, draw, blit) in a glfw window and, on alternate frames, draws the HUD
 on top. Both kinds of frame are measured the same way, from a ``ctx.finish()``
 after the blit to a ``ctx.finish()`` after the (possibly absent) HUD, so the
 GPU work of the HUD is inside the clock; the HUD cost is the difference of the
-two medians. Frames alternate, so drift of the machine load hits both sides.
+two medians (means printed too). Frames alternate, so drift of the machine load
+hits both sides. Two modes are measured: as ``crowd fly`` draws it (the text
+is rebuilt every ``HUD_REFRESH`` seconds of the frame clock or after input, the
+quad is drawn every frame) and the worst case of text rebuilt every frame.
 
 Without a display, an Xvfb server is started for the run (Debian package
 ``xvfb``). Usage::
@@ -75,7 +78,7 @@ def main(argv=None) -> int:
 
 def _run(args, size, xvfb: bool) -> int:
     from crowd.engine import Engine
-    from crowd.fly import FlyApp
+    from crowd.fly import HUD_REFRESH, FlyApp
     from crowd.scene import load_scene
     from render.window import Window
 
@@ -92,38 +95,44 @@ def _run(args, size, xvfb: bool) -> int:
             c = app.controller
             c.help_visible = bool(args.help_text)
             ctx = window.ctx
-            on, off, frame_on, frame_off = [], [], [], []
+            modes = {"app": ([], [], [], []), "every": ([], [], [], [])}
             extent = (0, 0)
-            for i in range(args.frames + 4):
-                with_hud = i % 2 == 0
-                c.hud_visible = False  # the HUD is drawn below, inside the clock
-                t0 = time.perf_counter()
-                app.frame(1 / 30)
-                ctx.finish()
-                t1 = time.perf_counter()
-                if with_hud:
-                    extent = app.hud.draw(app.hud_lines(), app.size)
-                ctx.finish()
-                t2 = time.perf_counter()
-                window.swap()
-                window.poll()
-                if i < 4:  # warm-up: shader compilation, first uploads
-                    continue
-                (on if with_hud else off).append(t2 - t1)
-                (frame_on if with_hud else frame_off).append(t2 - t0)
+            for mode, (on, off, frame_on, frame_off) in modes.items():
+                for i in range(args.frames + 4):
+                    with_hud = i % 2 == 0
+                    c.hud_visible = False  # the HUD is drawn below, inside the clock
+                    t0 = time.perf_counter()
+                    app.frame(1 / 30)
+                    ctx.finish()
+                    t1 = time.perf_counter()
+                    if with_hud:
+                        extent = app.draw_hud(app.size, refresh=mode == "every")
+                    ctx.finish()
+                    t2 = time.perf_counter()
+                    window.swap()
+                    window.poll()
+                    if i < 4:  # warm-up: shader compilation, first uploads
+                        continue
+                    (on if with_hud else off).append(t2 - t1)
+                    (frame_on if with_hud else frame_off).append(t2 - t0)
         finally:
             if app is not None:
                 app.close()
             window.close()
 
-    med = statistics.median
-    cost = med(on) - med(off)
-    print(f"bench_hud: {scene.name}, {size[0]}x{size[1]}, {args.frames} frames "
+    med, mean = statistics.median, statistics.fmean
+    print(f"bench_hud: {scene.name}, {size[0]}x{size[1]}, {args.frames} frames per mode, half with HUD "
           f"({'Xvfb' if xvfb else os.environ.get('DISPLAY')}), HUD of {extent[0]}x{extent[1]} pixels"
           f"{' incl. help' if args.help_text else ''}")
-    print(f"  HUD stage median: with {med(on) * 1e3:.3f} ms, without {med(off) * 1e3:.3f} ms "
-          f"-> HUD cost {cost * 1e3:.3f} ms per frame (target <= 1 ms: {'met' if cost <= 1e-3 else 'MISSED'})")
-    print(f"  whole frame median: with HUD {med(frame_on) * 1e3:.2f} ms, without {med(frame_off) * 1e3:.2f} ms")
+    for mode, title in (("app", f"as in crowd fly (text rebuilt every {HUD_REFRESH:g} s or on input)"),
+                        ("every", "text rebuilt every frame (worst case)")):
+        on, off, frame_on, frame_off = modes[mode]
+        cost = med(on) - med(off)
+        print(f"  {title}:")
+        print(f"    HUD stage median: with {med(on) * 1e3:.3f} ms, without {med(off) * 1e3:.3f} ms -> HUD cost "
+              f"{cost * 1e3:.3f} ms per frame (mean {(mean(on) - mean(off)) * 1e3:.3f} ms; target <= 1 ms: "
+              f"{'met' if cost <= 1e-3 else 'MISSED'})")
+        print(f"    whole frame median: with HUD {med(frame_on) * 1e3:.2f} ms, without {med(frame_off) * 1e3:.2f} ms")
     return 0
 
 
