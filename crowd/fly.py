@@ -21,7 +21,7 @@ Controls (also printed by H / F1)::
 
 The controller (:class:`FlyController`) holds the camera, settings and key
 state; its plain methods ``on_key``, ``on_mouse_button``, ``on_mouse_move``,
-``on_scroll`` and ``on_resize`` are what glfw's callbacks call (via
+``on_scroll``, ``on_resize`` and ``on_focus`` are what glfw's callbacks call (via
 ``render.window.Window.attach``), and tests call them too.
 
 Recorded camera paths are keyed on the *frame clock*: the k-th recorded frame
@@ -77,9 +77,9 @@ O: occlusion culling   F: freeze LOD selection   C: colour by rep/level   R: rec
 P / F12: screenshot   Tab: HUD   H / F1: help   Esc: quit"""
 
 
-def no_display_message(scene: str = "SCENE") -> str:
+def no_display_message(scene: str = "SCENE", reason: str = "DISPLAY/WAYLAND_DISPLAY unset") -> str:
     """The one sentence printed when no window can be opened."""
-    return (f"crowd fly: no display to open a window on (DISPLAY/WAYLAND_DISPLAY unset or unusable); "
+    return (f"crowd fly: no display to open a window on ({reason}); "
             f"render headless with `crowd run {scene}` or run under Xvfb: `xvfb-run crowd fly {scene}`")
 
 
@@ -271,6 +271,13 @@ class FlyController:
     def on_scroll(self, dx: float, dy: float) -> None:
         self.revision += 1
         self.speed = float(np.clip(self.speed * FLY_SCROLL_FACTOR ** float(dy), *FLY_SPEED_RANGE))
+
+    def on_focus(self, focused: bool) -> None:
+        """Losing the focus releases held keys and the mouse drag (their release events go elsewhere)."""
+        if not focused:
+            self.held.clear()
+            self.dragging = False
+            self._cursor = None
 
     def on_resize(self, width: int, height: int) -> None:
         """Remember a new framebuffer size; the app applies it before the next frame
@@ -588,7 +595,7 @@ def fly(scene_path, size=None, out=None, record=None, frames=None, echo=print) -
     try:
         window = Window(scene.render.size, title=f"crowd fly {scene.name}")
     except WindowError as e:
-        print(no_display_message(str(scene_path)) + f" ({e})", file=sys.stderr)
+        print(no_display_message(str(scene_path), str(e)), file=sys.stderr)
         return EXIT_NO_DISPLAY
     app = None
     try:

@@ -309,6 +309,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
             nd["spacing"] = r
             v0, v1 = V0[tris], V1[tris]
             a = areas[tris]
+            pending = []
             ncand = candidate_count(float(a.sum()), r, safety)
             from lod.points_sampling import sample_triangles
 
@@ -333,16 +334,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                 for j in range(m):
                     sel = np.flatnonzero(keep[j])
                     s = slot[sel]
-                    nd["point_start"][j] = n_points
-                    nd["point_count"][j] = sel.size
-                    n_points += sel.size
-                    pts["tri"].append(tris[ctri[sel]])
-                    pts["bary"].append(cbary[sel])
-                    pts["col0"].append(fc0[s])
-                    pts["col1"].append(fc1[s])
-                    pts["nrm0"].append(fn0[s])
-                    pts["nrm1"].append(fn1[s])
-                    pts["node"].append(np.full(sel.size, me, np.int32))
+                    pending.append((j, sel.size, tris[ctri[sel]], cbary[sel], fc0[s], fc1[s], fn0[s], fn1[s]))
             # distribute the rest among the children (§3.1)
             rest = np.flatnonzero(~stored)
             half = 0.5 * cube_side
@@ -362,6 +354,17 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                 nd["child_start"] = len(queue)
                 nd["child_count"] = len(children)
                 queue.extend(children)
+                # the points represent the subtree; a node whose triangles all
+                # stay here is drawn as triangles only and keeps no points
+                for j, cnt, ptri, pbary, pc0, pc1, pn0, pn1 in pending:
+                    nd["point_start"][j] = n_points
+                    nd["point_count"][j] = cnt
+                    n_points += cnt
+                    for key, val in (("tri", ptri), ("bary", pbary), ("col0", pc0), ("col1", pc1),
+                                     ("nrm0", pn0), ("nrm1", pn1), ("node", np.full(cnt, me, np.int32))):
+                        pts[key].append(val)
+            else:
+                nd["spacing"] = 0.0
         mine = tris[stored]
         nd["tri_start"] = n_tris
         nd["tri_count"] = mine.size
@@ -422,3 +425,59 @@ def build_segment(animation, k: int, **kw) -> PointHierarchy:
                            np.asarray(seg.indices, np.int64),
                            np.asarray(a.colors, np.float64)[src], np.asarray(b.colors, np.float64)[dst],
                            np.asarray(a.normals, np.float64)[src], np.asarray(b.normals, np.float64)[dst], **kw)
+
+
+# --------------------------------------------------------------------------- files
+
+_FORMAT = 1
+
+
+def save_hierarchy(h: PointHierarchy, path) -> None:
+    """Write ``h`` to an ``.npz`` file atomically (temp file + rename).
+
+    The file holds every array of :class:`PointHierarchy` plus ``intervals``,
+    the build parameters (JSON) and a format number; see
+    :func:`load_hierarchy`.
+    """
+    import json
+    import os
+    import tempfile
+    from pathlib import Path
+
+    path = Path(path)
+    arrays = {k: v for k, v in h.__dict__.items() if isinstance(v, np.ndarray)}
+    meta = json.dumps({"format": _FORMAT, "intervals": int(h.intervals), "params": h.params})
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, __meta__=np.frombuffer(meta.encode(), np.uint8), **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load_hierarchy(path) -> PointHierarchy:
+    """Read a hierarchy written by :func:`save_hierarchy`.
+
+    Raises
+    ------
+    ValueError naming the file when it is unreadable, of another format or
+    missing arrays (a cache should then rebuild it).
+    """
+    import json
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["__meta__"]).decode())
+            if meta.get("format") != _FORMAT:
+                raise ValueError(f"{path}: point hierarchy format {meta.get('format')}, expected {_FORMAT}")
+            names = [f.name for f in PointHierarchy.__dataclass_fields__.values() if f.name not in ("intervals", "params")]
+            arrays = {k: z[k] for k in names}
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile, json.JSONDecodeError) as e:
+        if isinstance(e, ValueError) and str(e).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: not a readable point hierarchy file ({type(e).__name__}: {e})") from None
+    return PointHierarchy(**arrays, intervals=int(meta["intervals"]), params=dict(meta["params"]))

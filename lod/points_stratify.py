@@ -152,49 +152,98 @@ def _grid(pa, cell):  # pragma: no cover - compiled
     return lo, dims, counts, ids, cell, cell_of
 
 
+def _neighbour_order() -> np.ndarray:
+    """(27, 3) int64 cell offsets in "near/far" form, nearest first.
+
+    Component 0 = same cell index, 1 = the neighbour on the side nearer to the
+    point, 2 = the neighbour on the far side; sorted by the smallest possible
+    distance of such a cell from a point in the centre cell.
+    """
+    offs = [(a, b, c) for a in range(3) for b in range(3) for c in range(3)]
+    key = lambda o: (sum(x == 2 for x in o), sum(x == 1 for x in o))  # noqa: E731
+    return np.array(sorted(offs, key=key), np.int64)
+
+
+_NEIGHBOURS = _neighbour_order()
+
+
 @njit(cache=True)
-def _find_cover(k, excl, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids):  # pragma: no cover - compiled
+def _find_cover(k, excl, P, rad2, lo, cell, dims, cs, ids, nbr):  # pragma: no cover - compiled
     """A present point other than k and excl within rad at both times, or -1.
 
-    Cells are scanned centre first; in each cell the permanent points first,
-    then the unprocessed ones latest-in-order first (longest-lived witness).
+    Cells are scanned nearest first (``_NEIGHBOURS``) and skipped when their
+    box is farther than rad from the point; in each cell the permanent points
+    first, then the unprocessed ones latest-in-order first (longest-lived
+    witness).
     """
-    ix = min(max(int((pa[k, 0] - lo[0]) / cell), 0), dims[0] - 1)
-    iy = min(max(int((pa[k, 1] - lo[1]) / cell), 0), dims[1] - 1)
-    iz = min(max(int((pa[k, 2] - lo[2]) / cell), 0), dims[2] - 1)
-    px = pa[k, 0]
-    py = pa[k, 1]
-    pz = pa[k, 2]
-    qx = pb[k, 0]
-    qy = pb[k, 1]
-    qz = pb[k, 2]
-    for q in range(28):
-        if q == 0:
-            x, y, z = ix, iy, iz
-        else:
-            x = ix + (q - 1) // 9 - 1
-            y = iy + ((q - 1) // 3) % 3 - 1
-            z = iz + (q - 1) % 3 - 1
-            if (x == ix and y == iy and z == iz) or x < 0 or y < 0 or z < 0 \
-                    or x >= dims[0] or y >= dims[1] or z >= dims[2]:
-                continue
+    px = P[k, 0]
+    py = P[k, 1]
+    pz = P[k, 2]
+    qx = P[k, 3]
+    qy = P[k, 4]
+    qz = P[k, 5]
+    fx = (px - lo[0]) / cell
+    fy = (py - lo[1]) / cell
+    fz = (pz - lo[2]) / cell
+    ix = min(max(int(fx), 0), dims[0] - 1)
+    iy = min(max(int(fy), 0), dims[1] - 1)
+    iz = min(max(int(fz), 0), dims[2] - 1)
+    # distance (in cells) to the near and far neighbouring cells along each axis
+    rx = fx - ix
+    ry = fy - iy
+    rz = fz - iz
+    sx = -1 if rx < 0.5 else 1
+    sy = -1 if ry < 0.5 else 1
+    sz = -1 if rz < 0.5 else 1
+    nx = min(rx, 1.0 - rx)
+    ny = min(ry, 1.0 - ry)
+    nz = min(rz, 1.0 - rz)
+    lim = rad2 / (cell * cell)
+    for q in range(27):
+        ox = nbr[q, 0]
+        oy = nbr[q, 1]
+        oz = nbr[q, 2]
+        d2 = 0.0
+        x = ix
+        y = iy
+        z = iz
+        if ox == 1:
+            x += sx
+            d2 += nx * nx
+        elif ox == 2:
+            x -= sx
+            d2 += (1.0 - nx) * (1.0 - nx)
+        if oy == 1:
+            y += sy
+            d2 += ny * ny
+        elif oy == 2:
+            y -= sy
+            d2 += (1.0 - ny) * (1.0 - ny)
+        if oz == 1:
+            z += sz
+            d2 += nz * nz
+        elif oz == 2:
+            z -= sz
+            d2 += (1.0 - nz) * (1.0 - nz)
+        if d2 > lim or x < 0 or y < 0 or z < 0 or x >= dims[0] or y >= dims[1] or z >= dims[2]:
+            continue
         cc = (x * dims[1] + y) * dims[2] + z
-        s0 = start[cc]
-        u1 = s0 + nu[cc]
-        p1 = u1 + npm[cc]
+        s0 = cs[cc, 0]
+        u1 = s0 + cs[cc, 1]
+        p1 = u1 + cs[cc, 2]
         for t in range(p1 - s0):
             s = u1 + t if t < p1 - u1 else s0 + t - (p1 - u1)
             j = ids[s]
             if j == k or j == excl:
                 continue
-            d0 = px - pa[j, 0]
-            d1 = py - pa[j, 1]
-            d2 = pz - pa[j, 2]
-            if d0 * d0 + d1 * d1 + d2 * d2 > rad2:
+            d0 = px - P[j, 0]
+            d1 = py - P[j, 1]
+            d2_ = pz - P[j, 2]
+            if d0 * d0 + d1 * d1 + d2_ * d2_ > rad2:
                 continue
-            e0 = qx - pb[j, 0]
-            e1 = qy - pb[j, 1]
-            e2 = qz - pb[j, 2]
+            e0 = qx - P[j, 3]
+            e1 = qy - P[j, 4]
+            e2 = qz - P[j, 5]
             if e0 * e0 + e1 * e1 + e2 * e2 > rad2:
                 continue
             return j
@@ -202,7 +251,7 @@ def _find_cover(k, excl, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids):  # 
 
 
 @njit(cache=True)
-def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
+def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - compiled
     """Greedy deletion of §3.4.2 with witnesses instead of neighbour counts.
 
     Every deleted point d keeps a *witness*: a present point covering it
@@ -227,38 +276,37 @@ def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
     # renumber the points in (cell, latest in order first) order with a
     # counting sort: the cell scans then read contiguous memory
     fill = start[:-1].copy()
-    perm = np.empty(n, np.int64)
-    inv = np.empty(n, np.int64)
+    perm = np.empty(n, np.int32)
+    inv = np.empty(n, np.int32)
     for t in range(n - 1, -1, -1):
         p = order0[t]
         c = cell_of0[p]
         perm[fill[c]] = p
         inv[p] = fill[c]
         fill[c] += 1
-    pa = np.empty((n, 3))
-    pb = np.empty((n, 3))
-    cell_of = np.empty(n, np.int64)
-    order = np.empty(n, np.int64)
+    P = np.empty((n, 6))
+    cell_of = np.empty(n, np.int32)
+    order = np.empty(n, np.int32)
     for s in range(n):
         p = perm[s]
         for k in range(3):
-            pa[s, k] = pa0[p, k]
-            pb[s, k] = pb0[p, k]
+            P[s, k] = pa0[p, k]
+            P[s, 3 + k] = pb0[p, k]
         cell_of[s] = cell_of0[p]
     for t in range(n):
         order[t] = inv[order0[t]]
-    ids = np.arange(n)
+    ids = np.arange(n).astype(np.int32)
     keep = np.ones(n, np.bool_)
-    nu = np.empty(tot, np.int64)
-    npm = np.zeros(tot, np.int64)
+    cs = np.zeros((tot, 3), np.int64)  # per cell: start, unprocessed, permanent
     for c in range(tot):
-        nu[c] = start[c + 1] - start[c]
-    head = np.full(n, -1, np.int64)
-    nxt = np.full(n, -1, np.int64)
+        cs[c, 0] = start[c]
+        cs[c, 1] = start[c + 1] - start[c]
+    head = np.full(n, -1, np.int32)
+    nxt = np.full(n, -1, np.int32)
     for t in range(n):
         i = order[t]
         c = cell_of[i]
-        wi = _find_cover(i, -1, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids)
+        wi = _find_cover(i, -1, P, rad2, lo, cell, dims, cs, ids, nbr)
         ok = wi >= 0  # (a) some present point covers i
         if ok:
             cur = head[i]
@@ -267,7 +315,7 @@ def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
                 nx = nxt[cur]
                 w = -1
                 if ok:
-                    w = _find_cover(cur, i, pa, pb, rad2, lo, cell, dims, start, nu, npm, ids)
+                    w = _find_cover(cur, i, P, rad2, lo, cell, dims, cs, ids, nbr)
                     if w < 0:
                         ok = False  # (b) i is the last coverer of the deleted point cur
                 if w >= 0:
@@ -278,15 +326,15 @@ def _greedy_witness(pa0, pb0, rad, order0, out):  # pragma: no cover - compiled
                     head[i] = cur
                 cur = nx
         # i sits at the end of its cell's unprocessed block
-        s = start[c] + nu[c] - 1
-        nu[c] -= 1
+        s = cs[c, 0] + cs[c, 1] - 1
+        cs[c, 1] -= 1
         if not ok:
-            npm[c] += 1  # first permanent slot: nothing moves
+            cs[c, 2] += 1  # first permanent slot: nothing moves
             continue
         keep[i] = False
         nxt[i] = head[wi]
         head[wi] = i
-        last = s + npm[c]  # last permanent slot: swap i behind the permanent block
+        last = s + cs[c, 2]  # last permanent slot: swap i behind the permanent block
         ids[s] = ids[last]
         ids[last] = i
     for s in range(n):
@@ -331,7 +379,7 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray) -> np.nda
         raise ValueError("stratify: candidate positions must be finite, got NaN or Inf")
     rad = 0.5 * float(spacing)
     for j in range(m):
-        _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j])
+        _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j], _NEIGHBOURS)
     return keep
 
 

@@ -21,9 +21,11 @@ here knows the simulation.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -276,6 +278,13 @@ class Hud:
 _open_windows = 0
 
 
+def _glfw_error_text(err) -> str:
+    """``b'X11: Failed to open display :9'`` out of a glfw error's "(code) b'...'" message."""
+    text = str(err)
+    m = re.match(r"^\(\d+\)\s*b(['\"])(.*)\1$", text)
+    return m.group(2) if m else text
+
+
 class Window:
     """A glfw window with a moderngl context of OpenGL >= 3.3 core.
 
@@ -307,8 +316,12 @@ class Window:
         if not display_available():
             raise WindowError("no display: neither DISPLAY nor WAYLAND_DISPLAY is set")
         global _open_windows
-        if not glfw.init():
-            raise WindowError(f"glfw could not initialise on display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')!r}")
+        with warnings.catch_warnings(record=True) as caught:  # glfw reports errors as warnings
+            warnings.simplefilter("always")
+            ok = glfw.init()
+        if not ok:
+            why = "; ".join(_glfw_error_text(w.message) for w in caught) or "no reason given"
+            raise WindowError(f"glfw could not initialise: {why}")
         w, h = int(size[0]), int(size[1])
         self.handle = None
         for major, minor in GL_VERSIONS:
@@ -319,7 +332,9 @@ class Window:
             glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
             glfw.window_hint(glfw.VISIBLE, bool(visible))
             glfw.window_hint(glfw.DOUBLEBUFFER, True)
-            self.handle = glfw.create_window(w, h, title, None, None)
+            with warnings.catch_warnings():  # a refused version is expected: try the next one
+                warnings.simplefilter("ignore")
+                self.handle = glfw.create_window(w, h, title, None, None)
             if self.handle:
                 self.gl_version = (major, minor)
                 break
@@ -345,7 +360,7 @@ class Window:
     def attach(self, handler) -> None:
         """Route glfw's callbacks to ``handler``'s plain methods: ``on_key(key, action, mods)``,
         ``on_mouse_button(button, action, mods)``, ``on_mouse_move(x, y)``, ``on_scroll(dx, dy)``,
-        ``on_resize(width, height)`` (framebuffer pixels). Missing methods are ignored."""
+        ``on_resize(width, height)`` (framebuffer pixels), ``on_focus(focused)``. Missing methods are ignored."""
         glfw = self._glfw
         self.handler = handler
         glfw.set_key_callback(self.handle, self.key_callback)
@@ -353,6 +368,7 @@ class Window:
         glfw.set_cursor_pos_callback(self.handle, self.cursor_pos_callback)
         glfw.set_scroll_callback(self.handle, self.scroll_callback)
         glfw.set_framebuffer_size_callback(self.handle, self.framebuffer_size_callback)
+        glfw.set_window_focus_callback(self.handle, self.focus_callback)
 
     def _call(self, name, *args):
         fn = getattr(self.handler, name, None) if self.handler is not None else None
@@ -374,6 +390,9 @@ class Window:
 
     def framebuffer_size_callback(self, window, width, height):
         self._call("on_resize", int(width), int(height))
+
+    def focus_callback(self, window, focused):
+        self._call("on_focus", bool(focused))
 
     # -- state ---------------------------------------------------------------------------------------------------------
     @property

@@ -9,17 +9,15 @@ import json
 import math
 import os
 
+import glfw
 import numpy as np
 import pytest
 from crowd_testutil import run_cli, tiny_scene
 
-glfw = pytest.importorskip("glfw")
-
-from crowd.engine import Engine  # noqa: E402
-from crowd.fly import (FLY_SCROLL_FACTOR, FLY_SPEED, HELP_TEXT, FlyApp, no_display_message,  # noqa: E402
-                       reframe)
-from crowd.scene import load_scene  # noqa: E402
-from render.window import VirtualDisplay, Window  # noqa: E402
+from crowd.engine import Engine
+from crowd.fly import FLY_SCROLL_FACTOR, FLY_SPEED, HELP_TEXT, FlyApp, no_display_message, reframe
+from crowd.scene import load_scene
+from render.window import VirtualDisplay, Window
 
 SIZE = (96, 72)
 BACKGROUND = np.array([0.1, 0.1, 0.12]) * 255
@@ -102,6 +100,12 @@ def test_w_moves_along_forward_by_speed_dt(app):
     p1 = c.position.copy()
     app.frame(0.1)
     assert np.array_equal(c.position, p1)  # released: no motion
+    # losing the focus releases held keys (their release event goes to another window)
+    w.key_callback(w.handle, glfw.KEY_W, 0, glfw.PRESS, 0)
+    w.key_callback(w.handle, glfw.KEY_W, 0, glfw.REPEAT, 0)
+    w.focus_callback(w.handle, 0)
+    app.frame(0.1)
+    assert np.array_equal(c.position, p1)
     # the other axes, through the controller methods the callbacks call
     _, right, up = c.axes()
     for key, vec in ((glfw.KEY_D, right), (glfw.KEY_A, -right), (glfw.KEY_E, up), (glfw.KEY_Q, -up),
@@ -241,6 +245,9 @@ def test_resize_recreates_the_renderer(app):
     assert proj[1, 1] / proj[0, 0] == pytest.approx(128 / 80, rel=1e-5)
     assert app.window.read_pixels().shape == (80, 128, 3)
     assert f.drawlist.stats["instances"] == 4
+    press(app, glfw.KEY_TAB)  # HUD off: the whole resized window is the renderer's frame
+    app.frame(1 / 30)
+    assert np.array_equal(app.window.read_pixels(), app.renderer.read_pixels())
     # a minimised window (0 x 0) is ignored
     app.controller.on_resize(0, 0)
     assert app.controller.pending_size is None
@@ -344,3 +351,20 @@ def test_cli_fly_without_display_suggests_run_or_xvfb(scene_file, monkeypatch):
     lines = r.stderr.strip().splitlines()
     assert lines == [no_display_message(str(scene_file))]
     assert "crowd run" in lines[0] and "xvfb-run crowd fly" in lines[0]
+
+
+def test_cli_fly_bad_scene_is_one_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(tiny_scene().replace("dt = 0.05", "dt = -1.0"))
+    r = run_cli("fly", bad)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "dt" in lines[0] and "Traceback" not in r.stderr
+
+
+def test_cli_fly_with_an_unusable_display_says_so_in_one_line(scene_file, monkeypatch):
+    monkeypatch.setenv("DISPLAY", ":4095")  # no server there
+    r = run_cli("fly", scene_file)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "glfw could not initialise" in lines[0] and "xvfb-run crowd fly" in lines[0]
