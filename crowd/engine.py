@@ -21,6 +21,7 @@ import numpy as np
 from crowd.characters import build_character, clip_duration, clip_names
 from crowd.errors import SceneError, SimulationError
 from crowd.scene import Scene
+from lod.debug_colors import COLOR_BY  # noqa: F401  (the fly-through's colour-by modes)
 from sim.params import ParamError
 
 #: show a progress bar for character building when the scene has at least this many characters
@@ -131,7 +132,6 @@ def _progress(it, desc: str, disable: bool, total: int | None = None):
 # ---------------------------------------------------------------------------------------------------------------------
 
 #: colourings of the live ``LiveSettings.color_by`` setting (VDR-AM Fig. 11 colours by LOD level)
-COLOR_BY = ("none", "representation", "level")
 
 
 @dataclass
@@ -288,6 +288,11 @@ class Engine:
         for rep in [*self.reps, *self.statics]:
             self.renderer.upload(rep)
         return self.renderer
+
+    @property
+    def static_keys(self) -> frozenset:
+        """Representation keys of the scenery (terrain), never tinted by colour-by."""
+        return frozenset(r.key for r in self.statics)
 
     def select(self, camera, size):
         """The DrawList of the current state seen by ``camera`` at ``size`` (the

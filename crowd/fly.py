@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from crowd.engine import COLOR_BY
+from lod.debug_colors import apply_tints
 
 #: default movement speed, metres per second
 FLY_SPEED = 5.0
@@ -338,8 +339,7 @@ class FlyController:
     def cycle_color(self) -> None:
         s = self.settings
         s.color_by = COLOR_BY[(COLOR_BY.index(s.color_by) + 1) % len(COLOR_BY)] if s.color_by in COLOR_BY else "none"
-        note = "" if s.color_by == "none" else " (not drawn yet: the renderer has no per-batch tint)"
-        self.say(f"colour by {s.color_by}{note}", echo=False)
+        self.say(f"colour by {s.color_by}", echo=False)
 
     def request_screenshot(self) -> None:
         self.screenshot_requested = True
@@ -514,6 +514,7 @@ class FlyApp:
         else:
             dl = e.select(camera, size)
             self._frozen = dl
+        apply_tints(dl, e.settings.color_by, statics=e.static_keys)
         t2 = time.perf_counter()
         r = self.renderer.draw(dl, e.scene.render.background)
         t3 = time.perf_counter()

@@ -30,6 +30,11 @@ class DrawBatch:
         Triangles this batch submits (all instances).
     points : int
         Points this batch submits.
+    level : int
+        LOD level drawn (0 = full detail); for colouring by level.
+    tint : (4,) float or None
+        Debug colouring (VDR-AM Fig. 11): RGB mixed into the vertex colour
+        with weight A; None draws the true colours.
     """
 
     rep: str
@@ -38,6 +43,13 @@ class DrawBatch:
     instance_data: np.ndarray
     triangles: int = 0
     points: int = 0
+    level: int = 0
+    tint: tuple | None = None
+
+    @property
+    def representation(self) -> str:
+        """Representation family, the prefix of ``rep`` ("none", "points", ...)."""
+        return self.rep.split(":", 1)[0]
 
     @property
     def n_instances(self) -> int:

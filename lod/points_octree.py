@@ -47,7 +47,7 @@ from numba import njit
 
 from lod import points_config as C
 from lod.points_filter import filter_points
-from lod.points_sampling import candidate_count, max_area, triangle_vertices
+from lod.points_sampling import candidate_count, max_area, sample_triangles, triangle_vertices
 from lod.points_stratify import interval_times, stratify
 
 
@@ -165,7 +165,8 @@ def sample_positions_at(v0, v1, tri, bary, times) -> np.ndarray:
     times = np.ascontiguousarray(times, np.float64).reshape(-1)
     out = np.empty((times.shape[0], tri.shape[0], 3))
     if tri.shape[0]:
-        _positions_kernel(v0, v1, np.ascontiguousarray(tri, np.int64), np.ascontiguousarray(bary, np.float64), times, out)
+        _positions_kernel(v0, v1, np.ascontiguousarray(tri, np.int64), np.ascontiguousarray(bary, np.float64),
+                          times, out)
     return out
 
 
@@ -311,8 +312,6 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
             a = areas[tris]
             pending = []
             ncand = candidate_count(float(a.sum()), r, safety)
-            from lod.points_sampling import sample_triangles
-
             ctri, cbary = sample_triangles(a, ncand, rng)
             if ctri.size:
                 pos = sample_positions_at(v0, v1, ctri, cbary, times)
@@ -474,7 +473,7 @@ def load_hierarchy(path) -> PointHierarchy:
             meta = json.loads(bytes(z["__meta__"]).decode())
             if meta.get("format") != _FORMAT:
                 raise ValueError(f"{path}: point hierarchy format {meta.get('format')}, expected {_FORMAT}")
-            names = [f.name for f in PointHierarchy.__dataclass_fields__.values() if f.name not in ("intervals", "params")]
+            names = [f for f in PointHierarchy.__dataclass_fields__ if f not in ("intervals", "params")]
             arrays = {k: z[k] for k in names}
     except (OSError, KeyError, ValueError, zipfile.BadZipFile, json.JSONDecodeError) as e:
         if isinstance(e, ValueError) and str(e).startswith(str(path)):

@@ -382,18 +382,3 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray) -> np.nda
         _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j], _NEIGHBOURS)
     return keep
 
-
-def coverage_radius_violations(positions: np.ndarray, keep: np.ndarray, radius: float) -> int:
-    """Count candidates farther than ``radius`` from every kept point at some boundary.
-
-    A test helper (brute force, small inputs): positions (m + 1, N, 3), keep
-    (m, N); interval j is checked at boundaries j and j + 1.
-    """
-    pos = np.asarray(positions, np.float64)
-    bad = 0
-    for j in range(keep.shape[0]):
-        k = np.flatnonzero(keep[j])
-        for t in (j, j + 1):
-            d = np.sqrt(((pos[t][:, None, :] - pos[t][None, k, :]) ** 2).sum(-1)).min(1) if k.size else np.full(pos.shape[1], np.inf)
-            bad += int((d > radius * (1 + 1e-12)).sum())
-    return bad

@@ -457,6 +457,9 @@ class Renderer:
                 if i in palette:
                     prog["u_palette_base"].value = palette[i]
                     prog["u_palette_stride"].value = 3 * g.n_joints
+                if "u_tint" in prog:
+                    tint = getattr(b, "tint", None)
+                    prog["u_tint"].value = tuple(float(c) for c in tint) if tint is not None else (0.0, 0.0, 0.0, 0.0)
                 self._bind_instances(g.vao, g.locations, self._instances, offset)
                 k = b.n_instances
                 if g.kind == "keyframed":

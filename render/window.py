@@ -324,8 +324,14 @@ class Window:
             raise WindowError(f"glfw could not initialise: {why}")
         w, h = int(size[0]), int(size[1])
         self.handle = None
-        for major, minor in GL_VERSIONS:
+        # EGL first: once a process has used a headless EGL context (the engine's renderer, tests), Mesa refuses
+        # GLX MakeCurrent with BadAccess, which Xlib turns into exit(1). With EGL on both sides they coexist; GLX
+        # stays as the fallback for drivers without EGL window surfaces.
+        self.context_api = None
+        for api, major, minor in [(a, *v) for a in ("egl", "native") for v in GL_VERSIONS]:
             glfw.default_window_hints()
+            glfw.window_hint(glfw.CONTEXT_CREATION_API,
+                             glfw.EGL_CONTEXT_API if api == "egl" else glfw.NATIVE_CONTEXT_API)
             glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, major)
             glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, minor)
             glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -337,6 +343,7 @@ class Window:
                 self.handle = glfw.create_window(w, h, title, None, None)
             if self.handle:
                 self.gl_version = (major, minor)
+                self.context_api = api
                 break
         if not self.handle:
             if _open_windows == 0:
@@ -346,7 +353,12 @@ class Window:
         glfw.make_context_current(self.handle)
         glfw.swap_interval(1 if vsync else 0)
         try:
-            self.ctx = moderngl.create_context(require=REQUIRED_GL)
+            if self.context_api == "egl":
+                # glcontext's EGL backend cannot adopt glfw's context; "share" makes a context sharing its
+                # objects and drawing to the current window surface
+                self.ctx = moderngl.create_context(require=REQUIRED_GL, share=True, backend="egl")
+            else:
+                self.ctx = moderngl.create_context(require=REQUIRED_GL)
         except Exception as exc:  # moderngl raises plain Exceptions
             glfw.destroy_window(self.handle)
             if _open_windows == 0:

@@ -58,6 +58,18 @@ def test_kernel_matches_reference_over_random_views(hier):
                          traverse_reference(hier, u, planes, vs, splat, model))
 
 
+def test_kernel_matches_reference_with_rotated_scaled_instances(hier):
+    rng = np.random.default_rng(1)
+    cam_pos = np.array([0.0, 3.0, 12.0])
+    planes, _, vs = _view(cam_pos, (0.0, 0.0, 0.0))
+    for _ in range(20):
+        a = rng.uniform(0, 2 * np.pi)
+        rot = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]) * rng.uniform(0.2, 3.0)
+        model = np.hstack([rot, (rng.uniform(-6, 6, 3) - cam_pos).reshape(3, 1)])
+        u = float(rng.uniform())
+        _assert_same(traverse(hier, u, planes, vs, 2.0, model), traverse_reference(hier, u, planes, vs, 2.0, model))
+
+
 def test_no_node_is_drawn_together_with_its_descendants_and_everything_is_represented(hier):
     """A point node excludes its whole subtree; without culling each triangle is drawn once, as points or itself."""
     planes, model, vs = _view((0.0, 60.0, 0.01), (0.0, 0.0, 0.0), fov=90)
