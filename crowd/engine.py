@@ -237,26 +237,25 @@ class Engine:
         return self.camera_path.camera_at(t, fov_y=c.fov, near=c.near, far=c.far)
 
     def _build_reps(self):
-        from lod.nolod import build_rep
+        """Scenery (terrain) as static reps, then the representations and the
+        selector of the scene's LOD mode (``lod.modes``)."""
+        from lod.modes import mode_module
 
-        reps = []
-        pairs = list(zip(self.scene.characters, self.plan.characters))
-        for spec, ch in _progress(pairs, "representations", disable=self.quiet or not self.plan.big):
-            reps.append(build_rep(ch, fps=spec.fps, key=f"none:{spec.name}"))
         statics = []
         terrain = self.world.resources.get("terrain")
         if terrain is not None:
             from lod.nolod import build_static_rep
 
             statics.append(build_static_rep(terrain.mesh(), key="static:terrain"))
+        sc = self.scene
+        progress = None if (self.quiet or not self.plan.big) else (lambda it, desc: _progress(it, desc, disable=False))
+        reps, self._selector = mode_module(sc.lod_mode).build(
+            self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
+            dict(sc.lod_params), static_reps=statics, progress=progress)
         return reps, statics
 
     def _build_selector(self):
-        if self.scene.lod_mode == "none":
-            from lod.nolod import NoLodSelector
-
-            return NoLodSelector(self.reps, static_reps=self.statics)
-        raise AssertionError(f"lod mode {self.scene.lod_mode!r} passed validation but has no selector")
+        return self._selector
 
     def _open_renderer(self):
         if self.renderer is None:

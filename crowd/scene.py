@@ -24,14 +24,15 @@ from pathlib import Path
 from typing import Any
 
 from crowd.errors import SceneError
+from lod.modes import mode_names as _mode_names, mode_params as _mode_params
 from sim.params import Param, ParamError, validate
 
 #: character generators accepted by ``[[characters]] generator``
 GENERATORS = ("humanoid", "quadruped")
 #: glTF file suffixes accepted by ``[[characters]] file``
 GLTF_SUFFIXES = (".glb", ".gltf")
-#: level-of-detail modes accepted by ``[lod] mode``
-LOD_MODES = ("none",)
+#: level-of-detail modes accepted by ``[lod] mode`` (the registry in lod/modes.py)
+LOD_MODES = _mode_names()
 #: keys every ``[[placement]]`` table has, whatever its kind
 PLACEMENT_COMMON = ("kind", "character", "clip")
 #: keys accepted at the top level of a scene document
@@ -191,6 +192,7 @@ class Scene:
     lod_mode: str
     output_dir: Path
     terrain: dict | None = None
+    lod_params: tuple = ()  # ((key, value), ...) of the [lod] table besides mode (lod.modes PARAMS)
 
     @property
     def effect_names(self) -> list:
@@ -300,7 +302,9 @@ class _Parser:
         self.effect_requirements(effects, placements, terrain)
         camera = self.camera()
         render = self.render()
-        lod = validate(LOD_SCHEMA, self.table("lod"), "lod")
+        lod_table = dict(self.table("lod"))
+        mode = validate(LOD_SCHEMA, {"mode": lod_table.pop("mode")} if "mode" in lod_table else {}, "lod")["mode"]
+        lod = {"mode": mode, **validate(_mode_params(mode), lod_table, "lod")}
         out = validate(OUTPUT_SCHEMA, self.table("output"), "output")
         if out["dir"] is not None and not out["dir"].strip():
             self.fail("output.dir", "expected a non-empty directory path")
@@ -308,7 +312,8 @@ class _Parser:
         return Scene(path=self.path.absolute(), name=name, seed=top["seed"], dt=top["dt"],
                      substeps=top["substeps"], frames=top["frames"], characters=tuple(characters),
                      placements=tuple(placements), effects=tuple(effects), camera=camera, render=render,
-                     lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain)
+                     lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain,
+                     lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"))
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:

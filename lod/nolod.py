@@ -959,3 +959,20 @@ class NoLodSelector:
                  "batches": len(batches), "statics": n_static}
         return DrawList(origin=origin, view=camera.view_matrix().astype(np.float32),
                         proj=camera.projection(aspect).astype(np.float32), size=(w, h), batches=batches, stats=stats)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# LOD mode "none" (lod.modes protocol)
+# --------------------------------------------------------------------------------------------------------------------
+
+#: ``[lod]`` keys of mode "none": full detail has no parameters
+PARAMS: dict = {}
+
+
+def build(characters, names, fps, params, static_reps=(), progress=None):
+    """Mode "none" for ``lod.modes``: a full-detail rep per character and a NoLodSelector."""
+    items = list(zip(characters, names, fps))
+    if progress is not None:
+        items = progress(items, "representations")
+    reps = [build_rep(ch, fps=f, key=f"none:{n}") for ch, n, f in items]
+    return reps, NoLodSelector(reps, static_reps=static_reps)

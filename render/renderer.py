@@ -111,6 +111,18 @@ def prog_name(kind: str, skinning: str = "palette") -> str:
     return kind
 
 
+#: Representation kinds drawn by plug-in drawers: kind -> module exposing ``Drawer``.
+#: A ``Drawer(renderer)`` has ``upload(rep)``, ``draw(batches, drawlist, view_proj) -> None``
+#: (called after the built-in triangle batches, inside the frame's queries, with the
+#: renderer's FBO bound and depth test on), ``release()``, and an ``order`` number
+#: (lower draws first; opaque triangle kinds before point splats, which depth-test
+#: against them). Modules are imported only when a rep of their kind is uploaded.
+PLUGIN_KINDS: dict[str, str] = {
+    "clusters": "render.clusters",
+    "points": "render.points",
+}
+
+
 @dataclass
 class _GpuRep:
     key: str
@@ -161,6 +173,8 @@ class Renderer:
         self.debug = (os.environ.get(DEBUG_ENV, "0") not in ("", "0")) if debug is None else bool(debug)
         self._objects: list = []
         self._reps: dict[str, _GpuRep] = {}
+        self._plugin_reps: dict[str, str] = {}  # rep key -> kind drawn by a plug-in drawer
+        self._drawers: dict = {}  # kind -> Drawer (created on first upload of that kind)
         self._programs: dict = {}
         self._released = False
         w, h = self.size
@@ -281,6 +295,11 @@ class Renderer:
         if rep.key in self._reps:
             self._release_rep(self._reps.pop(rep.key))
         kind = rep.kind
+        if kind in PLUGIN_KINDS:
+            self.drawer(kind).upload(rep)
+            self._plugin_reps[rep.key] = kind
+            return
+        self._plugin_reps.pop(rep.key, None)
         ctx = self.ctx
         objs: list = []
 
@@ -368,10 +387,20 @@ class Renderer:
             if o in self._objects:
                 self._objects.remove(o)
 
+    def drawer(self, kind: str):
+        """The plug-in Drawer of representation ``kind`` (created on first use)."""
+        d = self._drawers.get(kind)
+        if d is None:
+            import importlib
+
+            d = importlib.import_module(PLUGIN_KINDS[kind]).Drawer(self)
+            self._drawers[kind] = d
+        return d
+
     @property
     def reps(self) -> list:
         """Keys of the uploaded representations."""
-        return list(self._reps)
+        return [*self._reps, *self._plugin_reps]
 
     # ------------------------------------------------------------------ drawing
     def _bind_instances(self, vao, locs: dict, buffer, offset: int) -> None:
@@ -404,6 +433,11 @@ class Renderer:
         """
         ctx = self.ctx
         batches = [b for b in drawlist.batches if b.n_instances]
+        plugin: dict = {}
+        for b in batches:
+            if b.rep in self._plugin_reps:
+                plugin.setdefault(self._plugin_reps[b.rep], []).append(b)
+        batches = [b for b in batches if b.rep not in self._plugin_reps]
         for b in batches:
             if b.rep not in self._reps:
                 raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
@@ -468,6 +502,9 @@ class Renderer:
                 else:
                     g.vao.render(ctx.TRIANGLES, vertices=g.n_indices, instances=k)
                 offset += k * INSTANCE_BYTES
+            for kind in sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k)):
+                self.fbo.use()
+                self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
         t2 = time.perf_counter()
         ctx.finish()
         t3 = time.perf_counter()
@@ -545,6 +582,10 @@ class Renderer:
         if self._released:
             return
         self._released = True
+        for d in reversed(list(self._drawers.values())):
+            d.release()
+        self._drawers.clear()
+        self._plugin_reps.clear()
         for o in reversed(self._objects):
             try:
                 o.release()
