@@ -12,6 +12,7 @@ traceback: they are bugs and must be visible.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 
@@ -185,6 +186,10 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"crowd {args.command}: interrupted; nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `crowd validate SCENE | head`: the reader left; not an error of ours
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so the interpreter's final flush does not fail again
+        return 0
 
 
 if __name__ == "__main__":
