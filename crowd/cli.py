@@ -121,6 +121,9 @@ def cmd_validate(args) -> int:
     print(f"OK {args.scene}: scene {scene.name!r}")
     for line in p.summary_lines():
         print("  " + line)
+    from crowd.memory import estimate_scene
+
+    print("  " + estimate_scene(scene, p.characters).line())
     return 0
 
 

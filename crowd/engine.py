@@ -86,13 +86,16 @@ def plan(scene: Scene, quiet: bool = True) -> Plan:
     sim.errors.AssetError
         A broken glTF file.
     """
+    from crowd.memory import guard
     from sim.placement import PLACEMENTS, concat_states
 
+    guard(scene)  # refuse a scene too big for the machine before building anything
     specs = scene.characters
     big = len(specs) >= PROGRESS_MIN_CHARACTERS or sum(c.triangles or 0 for c in specs) >= PROGRESS_MIN_TRIANGLES
     chars = []
     for spec in _progress(specs, "characters", disable=quiet or not big):
         chars.append(build_character(spec))
+    guard(scene, chars)  # again with the built characters, before allocating the agents
     seeds = np.random.SeedSequence(scene.seed).spawn(len(scene.placements))
     states, counts = [], []
     for p, ss in zip(scene.placements, seeds):

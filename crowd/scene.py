@@ -369,7 +369,7 @@ class _Parser:
         for i, t in enumerate(self.array_of_tables("placement", True)):
             where = f"placement[{i}]"
             kind = t.get("kind")
-            if kind not in PLACEMENTS:
+            if not isinstance(kind, str) or kind not in PLACEMENTS:  # a list/table kind is unhashable
                 self.fail(f"{where}.kind", f"expected one of {', '.join(map(repr, PLACEMENTS))}, got {kind!r}"
                           if kind is not None else f"required, one of {', '.join(map(repr, PLACEMENTS))}")
             char = t.get("character")

@@ -31,8 +31,11 @@ Conventions (model space is the hierarchy's; instances map it to the world):
   simplification happened to be exact). A camera inside the sphere
   (distance <= 0) always refines, since K >= r.
 
-:func:`cut_numpy` is the plain reference; :func:`cut` runs the numba kernel in
-parallel over instances and returns the cuts as CSR arrays.
+:func:`cut_numpy` is the plain reference; :func:`cut` runs the numba kernel
+serially over instances (a ``parallel=True`` kernel measured 16-20 ms per 1,000
+instances of an 83K-triangle hierarchy on the loaded 2-core machine, where
+llvmpipe's threads share the cores, against 0.7 ms serial) and returns the cuts
+as CSR arrays.
 """
 from __future__ import annotations
 
@@ -124,7 +127,7 @@ def cut_numpy(h, model, eye, scale: float, poe: float) -> list:
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _cut_kernel(children, keys, roots, M, eye, stack, buf, counts, bad):  # pragma: no cover - compiled
     I = M.shape[0]
     for i in prange(I):
@@ -176,7 +179,7 @@ def _cut_kernel(children, keys, roots, M, eye, stack, buf, counts, bad):  # prag
         counts[i] = n_out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _compact(buf, counts, offsets, out):  # pragma: no cover - compiled
     for i in prange(counts.shape[0]):
         o = offsets[i]
@@ -200,7 +203,7 @@ class CutWorkspace:
 
 
 def cut(h, model, eye, scale: float, poe: float, workspace: CutWorkspace | None = None):
-    """LOD cut of many instances of one hierarchy (numba, parallel over instances).
+    """LOD cut of many instances of one hierarchy (numba, serial over instances: see the module docstring).
 
     Parameters
     ----------

@@ -27,6 +27,8 @@ import importlib
 #: mode name -> module path (see the module docstring for the protocol)
 MODES: dict[str, str] = {
     "none": "lod.nolod",
+    "points": "lod.points_mode",
+    "clusters": "lod.clusters_mode",
 }
 
 

@@ -113,7 +113,9 @@ def prog_name(kind: str, skinning: str = "palette") -> str:
 
 #: Representation kinds drawn by plug-in drawers: kind -> module exposing ``Drawer``.
 #: A ``Drawer(renderer)`` has ``upload(rep)``, ``draw(batches, drawlist, view_proj) -> None``
-#: (called after the built-in triangle batches, inside the frame's queries, with the
+#: (called after the built-in triangle batches, inside the frame's queries -- or, for a
+#: drawer whose ``uses_queries`` is true, after them: its fragments are then not in
+#: ``samples_passed`` nor its time in ``gpu`` -- with the
 #: renderer's FBO bound and depth test on), ``release()``, and an ``order`` number
 #: (lower draws first; opaque triangle kinds before point splats, which depth-test
 #: against them). Modules are imported only when a rep of their kind is uploaded.
@@ -369,6 +371,7 @@ class Renderer:
         g = _GpuRep(rep.key, kind, vao, locs, int(np.asarray(rep.indices).size), objs, tex, cvao,
                     n_vertices=int(n_vertices))
         g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
+        g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])
             pvao = ctx.vertex_array(self.program("palette", ("v_row",)), [])
@@ -502,9 +505,18 @@ class Renderer:
                 else:
                     g.vao.render(ctx.TRIANGLES, vertices=g.n_indices, instances=k)
                 offset += k * INSTANCE_BYTES
-            for kind in sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k)):
+            kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
+            # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
+            # samples query closes: GL allows one active samples query at a time
+            querying = [k for k in kinds if getattr(self._drawers[k], "uses_queries", False)]
+            for kind in kinds:
+                if kind in querying:
+                    continue
                 self.fbo.use()
                 self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
+        for kind in querying:
+            self.fbo.use()
+            self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
         t2 = time.perf_counter()
         ctx.finish()
         t3 = time.perf_counter()

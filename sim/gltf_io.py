@@ -598,7 +598,15 @@ class _Prim:
             if j.dtype.kind != "u":
                 doc.fail(f"{where}: JOINTS_{k} must be unsigned byte or short, got {j.dtype}")
             js.append(j.astype(np.int64))
-            ws.append(np.clip(w.astype(np.float64), 0.0, None))
+            ws.append(w.astype(np.float64))
+        if ws:
+            neg = np.zeros(nv, bool)
+            for w in ws:
+                neg |= (w < 0.0).any(axis=1)
+            if neg.any():
+                warnings.warn(f"{doc.name}: {where}: {int(neg.sum())} vertices have negative skin weights; "
+                              "clipped to 0 and renormalised", stacklevel=4)
+            ws = [np.clip(w, 0.0, None) for w in ws]
         self.joints = np.concatenate(js, 1) if js else None
         self.weights = np.concatenate(ws, 1) if ws else None
         # morph targets

@@ -1,0 +1,279 @@
+"""LOD mode ``"clusters"``: per-instance cuts of VDR-AM cluster hierarchies.
+
+Claudio, Kim, Kim, Yoon, *VDR-AM: View-Dependent Representation of Articulated
+Models*. The hierarchy of every skinned character is built once (§4,
+:func:`lod.cluster_dag.build_cluster_hierarchy`) or loaded from an on-disk
+cache; each frame, every visible instance gets its own LOD cut by pixels of
+error (§5.1, :func:`lod.cluster_cut.cut`) and the renderer draws the selected
+clusters with GPU skinning (``render/clusters.py``).
+
+Batching: instances are culled and packed exactly as in the full-detail mode
+(:class:`lod.nolod.NoLodSelector`, one :class:`ClusterDrawBatch` per
+(character, clip)); each batch carries the CSR cut of its instances. The
+drawer merges the batches of one character, groups instances by identical cut
+and submits one multi-draw-indirect call per character, one command per
+distinct cut (drawn instanced), so the draw-call count stays at one per
+character whatever the number of instances, and instances far away (whose cut
+is the same few coarse clusters) share their command.
+
+Characters without a skin (keyframed) fall back to their full-detail
+representation.
+
+Cache: a hierarchy is stored under ``$CROWD_CACHE_DIR`` (default
+``~/.cache/crowd``) as ``clusters-<sha256>.npz``, the key hashing the mesh, the
+skin, the clips (as the baked skinning-matrix table), the build parameters,
+:data:`FORMAT_VERSION` and the source of the build modules; files are written
+atomically (temp file + rename), and a file that fails to load is rebuilt.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lod import cluster_cut
+from lod.cluster_dag import ClusterHierarchy, build_cluster_hierarchy
+from lod.clusters_config import CLUSTERS_DEFAULT_POE
+from lod.drawlist import DrawBatch, DrawList
+from lod.nolod import NoLodSelector, SkinnedRep, build_rep, build_skinned_rep
+from sim.params import Param
+
+#: bump when the cached file layout or its meaning changes
+FORMAT_VERSION = 1
+#: environment variable naming the cache folder
+CACHE_ENV = "CROWD_CACHE_DIR"
+#: modules whose source is part of the cache key (a changed algorithm rebuilds)
+_BUILD_MODULES = ("cluster_dag.py", "clustering.py", "qem.py", "poses.py", "deformation.py", "clusters_config.py")
+
+#: ``[lod]`` keys of mode "clusters"
+PARAMS: dict = {
+    "poe": Param("float", CLUSTERS_DEFAULT_POE, min=0.0, max=1000.0,
+                 doc="pixels of error: a cluster is drawn when its error projects below this many pixels (§5.1)"),
+    "occlusion": Param("bool", False, doc="GL occlusion queries on cluster boxes (§5.2)"),
+    "occlusion_every": Param("int", 8, min=1, max=10000,
+                             doc="frames between rebuilds of the potentially visible set (§5.2)"),
+    "clustering": Param("str", "error-aware", choices=("error-aware", "octree"),
+                        doc="leaf clustering: error-aware (§4.2) or the octree baseline (§6)"),
+}
+
+
+# ---------------------------------------------------------------------------- rep
+@dataclass
+class ClustersRep:
+    """A skinned character drawn as per-instance cuts of its cluster hierarchy.
+
+    Attributes
+    ----------
+    key : str, ``"clusters:<name>"``
+    skinned : lod.nolod.SkinnedRep with the same key: vertex buffer, skin and
+        baked joint table (the same as the full-detail path, so both skin alike)
+    hierarchy : lod.cluster_dag.ClusterHierarchy; its ``indices`` index
+        ``skinned.positions``
+    occlusion : bool, occlusion culling requested (§5.2)
+    occlusion_every : int, frames between rebuilds of the visible set
+    """
+
+    key: str
+    skinned: SkinnedRep
+    hierarchy: ClusterHierarchy
+    occlusion: bool = False
+    occlusion_every: int = 8
+
+    kind = "clusters"
+
+    @property
+    def n_parts(self) -> int:
+        return self.skinned.n_parts
+
+    @property
+    def n_triangles(self) -> int:
+        return self.skinned.n_triangles
+
+    def part_sphere(self) -> np.ndarray:
+        return self.skinned.part_sphere()
+
+    def part_triangles(self) -> np.ndarray:
+        return self.skinned.part_triangles()
+
+
+@dataclass
+class ClusterDrawBatch(DrawBatch):
+    """A :class:`lod.drawlist.DrawBatch` of a :class:`ClustersRep` with the
+    instances' cuts (CSR): instance i draws clusters
+    ``clusters[offsets[i]:offsets[i+1]]``.
+
+    offsets : (k+1,) int64; clusters : (offsets[-1],) int32 cluster ids
+    """
+
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    clusters: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+
+
+# ---------------------------------------------------------------------------- cache
+def cache_dir() -> Path:
+    """The hierarchy cache folder: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
+    d = os.environ.get(CACHE_ENV, "")
+    return Path(d).expanduser() if d else Path.home() / ".cache" / "crowd"
+
+
+def _source_digest() -> str:
+    h = hashlib.sha256()
+    here = Path(__file__).resolve().parent
+    for name in _BUILD_MODULES:
+        p = here / name
+        h.update(name.encode())
+        h.update(p.read_bytes() if p.is_file() else b"")
+    return h.hexdigest()
+
+
+def cache_key(skinned: SkinnedRep, build_params: dict) -> str:
+    """sha256 hex of everything a hierarchy depends on.
+
+    Parameters
+    ----------
+    skinned : lod.nolod.SkinnedRep of the character (mesh, skin, clips baked)
+    build_params : dict of JSON-serialisable build parameters
+    """
+    h = hashlib.sha256()
+    h.update(f"clusters-format-{FORMAT_VERSION}".encode())
+    h.update(_source_digest().encode())
+    h.update(json.dumps(build_params, sort_keys=True).encode())
+    for a in (skinned.positions, skinned.indices, skinned.joints, skinned.weights, skinned.joint_table,
+              skinned.clip_duration, skinned.clip_loop):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    h.update(json.dumps(list(skinned.clip_names)).encode())
+    return h.hexdigest()
+
+
+def cached_hierarchy(character, skinned: SkinnedRep, build_params: dict, cache: bool = True,
+                     directory: Path | None = None) -> ClusterHierarchy:
+    """Load the character's hierarchy from the cache, or build and store it.
+
+    A cached file that cannot be read (truncated, corrupt, wrong layout) is
+    rebuilt and overwritten; the write is atomic (temp file + rename), so
+    concurrent runs never read a half-written file. An unwritable cache folder
+    only costs the rebuild next time.
+    """
+    if not cache:
+        return build_cluster_hierarchy(character, **build_params)
+    d = Path(directory) if directory is not None else cache_dir()
+    path = d / f"clusters-{cache_key(skinned, build_params)}.npz"
+    if path.is_file():
+        try:
+            return ClusterHierarchy.load(path)
+        except ValueError:
+            pass  # corrupt: rebuild below
+    h = build_cluster_hierarchy(character, **build_params)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        h.save(path)
+    except OSError:
+        pass
+    return h
+
+
+# ---------------------------------------------------------------------------- selector
+def _model_rows(instance_data: np.ndarray) -> np.ndarray:
+    """(k, 3, 4) float64 camera-relative model rows of DrawBatch instance data."""
+    return np.asarray(instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
+
+
+class ClustersSelector:
+    """Cull and pack instances as the full-detail mode, then cut each one (§5.1).
+
+    Parameters
+    ----------
+    reps : list aligned with ``CrowdState.character``: :class:`ClustersRep`
+        for skinned characters, full-detail reps for the others
+    static_reps : StaticRep scenery ``select`` may be asked to draw
+    poe : float >= 0, pixels of error
+    cull : frustum culling on (default)
+    """
+
+    def __init__(self, reps, static_reps=(), poe: float = CLUSTERS_DEFAULT_POE, cull: bool = True):
+        if not (float(poe) >= 0.0 and np.isfinite(poe)):
+            raise ValueError(f"[lod] poe: expected a finite number >= 0, got {poe}")
+        self.poe = float(poe)
+        self.reps = list(reps)
+        self._clusters = {r.key: r for r in self.reps if r.kind == "clusters"}
+        self._inner = NoLodSelector([r.skinned if r.kind == "clusters" else r for r in self.reps],
+                                    static_reps=static_reps, cull=cull)
+        self._ws = cluster_cut.CutWorkspace()
+        #: seconds spent in the cut (§5.1) during the last ``select``
+        self.last_cut_seconds = 0.0
+
+    def select(self, state, camera, size, statics=()) -> DrawList:
+        """The frame's DrawList (see :meth:`lod.nolod.NoLodSelector.select`);
+        batches of clustered characters are :class:`ClusterDrawBatch` and
+        ``stats`` gains "clusters" (clusters drawn) and counts the cuts' triangles."""
+        dl = self._inner.select(state, camera, size, statics)
+        scale = cluster_cut.viewport_scale(max(1, int(size[1])), camera.fov_y)
+        out = []
+        n_clusters = 0
+        t_cut = 0.0
+        for b in dl.batches:
+            r = self._clusters.get(b.rep)
+            if r is None:
+                out.append(b)
+                continue
+            h = r.hierarchy
+            rows = _model_rows(b.instance_data)
+            t0 = time.perf_counter()
+            offsets, clusters = cluster_cut.cut(h, rows, np.zeros(3), scale, self.poe, self._ws)
+            t_cut += time.perf_counter() - t0
+            tris = int(cluster_cut.cut_triangle_count(h, offsets, clusters).sum())
+            n_clusters += int(clusters.shape[0])
+            out.append(ClusterDrawBatch(b.rep, b.part, b.instance_ids, b.instance_data, triangles=tris,
+                                        points=0, level=b.level, tint=b.tint, offsets=offsets, clusters=clusters))
+        dl.batches = out
+        self.last_cut_seconds = t_cut
+        dl.stats["triangles"] = int(sum(b.triangles for b in out))
+        dl.stats["clusters"] = n_clusters
+        return dl
+
+
+# ---------------------------------------------------------------------------- mode protocol
+def build_params_of(params: dict) -> dict:
+    """Hierarchy build parameters taken from a validated ``[lod]`` table."""
+    return {"clustering_method": str(params.get("clustering", PARAMS["clustering"].default))}
+
+
+def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True):
+    """Mode "clusters" for ``lod.modes``: a :class:`ClustersRep` per skinned
+    character (hierarchy built or loaded from the cache), full-detail reps for
+    the others, and a :class:`ClustersSelector`.
+
+    Parameters
+    ----------
+    characters, names, fps, params, static_reps, progress : see ``lod.modes``
+    cache : use the on-disk hierarchy cache (default)
+    """
+    params = dict(params or {})
+    poe = float(params.get("poe", PARAMS["poe"].default))
+    occ = bool(params.get("occlusion", PARAMS["occlusion"].default))
+    every = int(params.get("occlusion_every", PARAMS["occlusion_every"].default))
+    bp = build_params_of(params)
+    items = list(zip(characters, names, fps))
+    if progress is not None:
+        items = progress(items, "cluster hierarchies")
+    reps = []
+    for ch, name, f in items:
+        key = f"clusters:{name}"
+        if getattr(ch, "kind", "") == "skinned" and ch.mesh.is_skinned:
+            sk = build_skinned_rep(ch, fps=f, key=key)
+            h = cached_hierarchy(ch, sk, bp, cache=cache)
+            reps.append(ClustersRep(key, sk, h, occlusion=occ, occlusion_every=every))
+        else:
+            reps.append(build_rep(ch, fps=f, key=key))
+    return reps, ClustersSelector(reps, static_reps=static_reps, poe=poe)
+
+
+__all__ = ["PARAMS", "FORMAT_VERSION", "ClustersRep", "ClusterDrawBatch", "ClustersSelector", "build",
+           "cache_dir", "cache_key", "cached_hierarchy"]

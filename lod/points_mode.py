@@ -1,0 +1,400 @@
+"""LOD mode ``"points"``: point-sample hierarchies of keyframe animations
+(Wand & Straßer 2002, §3) selected per instance and frame.
+
+Build (:func:`build`): every character becomes a keyframe animation (skinned
+characters are baked to ``keyframes`` poses per clip with
+``sim.keyframes.bake_skinned``, §3 "keyframe animations"); every segment
+(keyframe pair) gets its own point/triangle octree (``lod.points_octree``,
+§3.1, §3.3-§3.5), kept in a content-addressed on-disk cache
+(:class:`HierarchyCache`).
+
+Selection (:class:`PointsSelector`): whole-animation sphere culling and
+segment/u location are those of the full-detail selector
+(``lod.nolod.NoLodSelector``) run on the keyframed form of the characters;
+then for each visible instance the octree of its segment is traversed at its
+u with its camera-relative model matrix (§3.2, numba kernel
+:func:`traverse_instances` over all instances of a segment, beside the
+per-instance reference :func:`traverse_instances_reference`). The result is
+one :class:`PointsBatch` per (character, segment): the instances, and two job
+lists ``(instance row, start, count)``: point ranges into the segment's points
+and triangle ranges into its ``tri_order``. ``render.points`` draws both.
+
+Departures: §3.6 hierarchical instantiation (super-hierarchies over
+instancing groups) is not implemented here; every instance is traversed.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from lod import points_config as C
+from lod.drawlist import DrawBatch, DrawList
+from lod.nolod import KeyframedRep, NoLodSelector, build_keyframed_rep
+from lod.points_octree import PointHierarchy, build_hierarchy, load_hierarchy, save_hierarchy
+from lod.points_traverse import _traverse_kernel, traverse, viewport_scale
+from sim.params import Param
+
+#: version of the cached hierarchy format and build; bump when either changes
+CACHE_FORMAT = 1
+#: environment variable naming the cache folder (default ``~/.cache/crowd``)
+CACHE_ENV = "CROWD_CACHE_DIR"
+#: renderer paths of the point splats
+RENDERERS = ("compute", "gl_points")
+
+#: ``[lod]`` keys of mode "points"
+PARAMS: dict = {
+    "splat_size": Param("int", 2, min=1, max=3, doc="splat size in pixels (§3.2): a node is drawn as points "
+                                                    "when its projected spacing is at most this"),
+    "keyframes": Param("int", 9, min=2, max=256, doc="poses baked per clip of a skinned character"),
+    "intervals": Param("int", C.POINTS_TIME_INTERVALS, min=1, max=16,
+                       doc="stratification time intervals per keyframe pair (§3.4.2)"),
+    "spacing_fraction": Param("float", C.POINTS_SPACING_FRACTION, min=1.0 / 64.0, max=1.0,
+                              doc="sample spacing as a fraction of a node's side (§3.1, 1/8-1/16)"),
+    "renderer": Param("str", "compute", choices=RENDERERS,
+                      doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
+}
+
+
+# ---------------------------------------------------------------------------- representation
+@dataclass
+class PointsRep:
+    """All segment hierarchies of one character, ready for upload.
+
+    key : ``"points:<name>"``
+    keyframed : lod.nolod.KeyframedRep, the segments' full-detail vertices
+        (the triangles stored in the octrees index them) and timing
+    hierarchies : list of PointHierarchy, one per segment (global order)
+    splat_size : int pixels; renderer : "compute" | "gl_points"
+    """
+
+    key: str
+    keyframed: KeyframedRep
+    hierarchies: list
+    splat_size: int = 2
+    renderer: str = "compute"
+
+    kind = "points"
+
+    @property
+    def n_parts(self) -> int:
+        return len(self.hierarchies)
+
+    @property
+    def n_points(self) -> int:
+        return int(sum(h.n_points for h in self.hierarchies))
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(h.nbytes for h in self.hierarchies))
+
+    def segment_triangles(self, s: int) -> np.ndarray:
+        """(T, 3) uint32 global vertex indices (into ``keyframed`` vertices) of
+        segment s's triangles in ``tri_order`` order."""
+        kf = self.keyframed
+        h = self.hierarchies[s]
+        first = int(kf.seg_first[s]) // 3
+        return kf.indices[first + h.tri_order.astype(np.int64)]
+
+
+@dataclass
+class PointsBatch(DrawBatch):
+    """A DrawBatch of instances at one segment of a points rep, plus what
+    each instance draws of it.
+
+    point_jobs : (J, 3) int64 (row in ``instance_data``, first point, count)
+    tri_jobs : (Q, 3) int64 (row, first entry of ``tri_order``, count)
+    """
+
+    point_jobs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+    tri_jobs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+
+
+# ---------------------------------------------------------------------------- cache
+def cache_dir() -> Path:
+    """Folder of cached hierarchies: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
+    d = os.environ.get(CACHE_ENV)
+    return Path(d) if d else Path.home() / ".cache" / "crowd"
+
+
+def hierarchy_key(arrays, params: dict) -> str:
+    """sha256 hex digest of the input arrays (shape, dtype, bytes), the build
+    parameters and :data:`CACHE_FORMAT`."""
+    h = hashlib.sha256()
+    h.update(f"points-hierarchy/{CACHE_FORMAT}".encode())
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    h.update(json.dumps(params, sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def _file_sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+class HierarchyCache:
+    """Content-addressed store of PointHierarchy files.
+
+    Entry ``<key>.npz`` (written atomically by ``save_hierarchy``) and
+    ``<key>.sha256``, the digest of the npz bytes, written after it
+    (temp file + rename). An entry is used only if the digest matches and the
+    file loads; anything else (truncated, corrupt, missing digest) is rebuilt
+    and overwritten. ``hits``/``misses`` count lookups.
+    """
+
+    def __init__(self, folder=None):
+        self.folder = Path(folder) if folder is not None else cache_dir()
+        self.hits = 0
+        self.misses = 0
+
+    def paths(self, key: str) -> tuple[Path, Path]:
+        return self.folder / f"{key}.npz", self.folder / f"{key}.sha256"
+
+    def load(self, key: str):
+        """The cached hierarchy of ``key`` or None (missing or corrupt)."""
+        npz, sha = self.paths(key)
+        try:
+            if not npz.is_file() or sha.read_text().strip() != _file_sha(npz):
+                return None
+            return load_hierarchy(npz)
+        except (OSError, ValueError):
+            return None
+
+    def store(self, key: str, h: PointHierarchy) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        npz, sha = self.paths(key)
+        save_hierarchy(h, npz)
+        tmp = sha.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(_file_sha(npz) + "\n")
+        os.replace(tmp, sha)
+
+    def get_or_build(self, arrays, params: dict) -> PointHierarchy:
+        """Cached hierarchy of ``build_hierarchy(*arrays, **params)``, built and stored on a miss."""
+        key = hierarchy_key(arrays, params)
+        h = self.load(key)
+        if h is not None:
+            self.hits += 1
+            return h
+        self.misses += 1
+        h = build_hierarchy(*arrays, **params, progress=False)
+        try:
+            self.store(key, h)
+        except OSError:  # a read-only cache still builds
+            pass
+        return h
+
+
+# ---------------------------------------------------------------------------- build
+def keyframed_character(character, keyframes: int):
+    """The character as a ``KeyframedCharacter``: skinned characters get every
+    clip baked to ``keyframes`` poses (``sim.keyframes.bake_skinned``), clip
+    order kept so that ``CrowdState.clip`` indices stay valid."""
+    if getattr(character, "kind", None) == "keyframed":
+        return character
+    if getattr(character, "kind", None) != "skinned":
+        raise TypeError(f"points mode: expected a skinned or keyframed character, got {type(character).__name__}")
+    from sim.character import KeyframedCharacter
+    from sim.keyframes import bake_skinned
+
+    anims = {name: bake_skinned(character, name, int(keyframes)) for name in character.clips}
+    return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims)
+
+
+def segment_arrays(kf: KeyframedRep, s: int) -> tuple:
+    """(p0, p1, indices, c0, c1, n0, n1) of segment s of a KeyframedRep, local
+    vertex numbering (the inputs of ``build_hierarchy``)."""
+    a, b = int(kf.seg_first[s]) // 3, int(kf.seg_first[s] + kf.seg_count[s]) // 3
+    idx = kf.indices[a:b].astype(np.int64)
+    if idx.size == 0:
+        z3 = np.zeros((0, 3), np.float32)
+        return z3, z3, np.zeros((0, 3), np.int64), np.zeros((0, 4), np.float32), np.zeros((0, 4), np.float32), z3, z3
+    lo, hi = int(idx.min()), int(idx.max()) + 1
+    sl = slice(lo, hi)
+    return (kf.positions0[sl], kf.positions1[sl], idx - lo, kf.colors0[sl], kf.colors1[sl], kf.normals0[sl],
+            kf.normals1[sl])
+
+
+def build_points_rep(character, name: str, params: dict, cache: HierarchyCache | None = None,
+                     progress=None) -> PointsRep:
+    """Bake (if skinned), then build or load one hierarchy per segment.
+
+    params : validated ``[lod]`` table (see :data:`PARAMS`); cache : default
+    :class:`HierarchyCache` at :func:`cache_dir`; progress : None or
+    ``progress(iterable, description)``.
+    """
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    cache = cache if cache is not None else HierarchyCache()
+    kfc = keyframed_character(character, int(p["keyframes"]))
+    kf = build_keyframed_rep(kfc, key=f"points:{name}")
+    bp = dict(intervals=int(p["intervals"]), spacing_fraction=float(p["spacing_fraction"]))
+    segs = range(kf.n_parts)
+    if progress is not None:
+        segs = progress(segs, f"point hierarchies {name}")
+    hs = [cache.get_or_build(segment_arrays(kf, s), bp) for s in segs]
+    return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]))
+
+
+def build(characters, names, fps, params, static_reps=(), progress=None, cache: HierarchyCache | None = None):
+    """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character and a :class:`PointsSelector`."""
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    p.pop("mode", None)
+    if progress is None:
+        from tqdm.auto import tqdm
+
+        def progress(it, desc):
+            return tqdm(it, desc=desc, leave=False, disable=None)
+    cache = cache if cache is not None else HierarchyCache()
+    reps = [build_points_rep(ch, n, p, cache, progress) for ch, n in zip(characters, names)]
+    return reps, PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]))
+
+
+# ---------------------------------------------------------------------------- traversal of many instances
+@njit(cache=True)
+def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
+                               tri_count, intervals, data, planes, vscale, splat, pjobs, tjobs):  # pragma: no cover
+    k = data.shape[0]
+    N = child_start.shape[0]
+    out_p = np.empty((N, 2), np.int64)
+    out_pn = np.empty(N, np.int32)
+    out_t = np.empty((N, 2), np.int64)
+    out_tn = np.empty(N, np.int32)
+    model = np.empty((3, 4))
+    npj = 0
+    ntj = 0
+    for r in range(k):
+        for a in range(3):
+            for b in range(4):
+                model[a, b] = data[r, 4 * a + b]
+        scale = 0.0
+        for b in range(3):
+            s = np.sqrt(model[0, b] ** 2 + model[1, b] ** 2 + model[2, b] ** 2)
+            if s > scale:
+                scale = s
+        u = data[r, 12]
+        if not np.isfinite(u):
+            u = 0.0
+        u = min(max(u, 0.0), 1.0)
+        j = min(max(int(np.floor(u * intervals)), 0), intervals - 1)
+        np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
+                                   tri_start, tri_count, u, j, planes, model, scale, vscale, splat,
+                                   out_p, out_pn, out_t, out_tn)
+        if npj + np_ > pjobs.shape[0] or ntj + nt > tjobs.shape[0]:
+            return -1 - r, npj, ntj
+        for q in range(np_):
+            pjobs[npj, 0] = r
+            pjobs[npj, 1] = out_p[q, 0]
+            pjobs[npj, 2] = out_p[q, 1]
+            npj += 1
+        for q in range(nt):
+            tjobs[ntj, 0] = r
+            tjobs[ntj, 1] = out_t[q, 0]
+            tjobs[ntj, 2] = out_t[q, 1]
+            ntj += 1
+    return k, npj, ntj
+
+
+def _harrays(h: PointHierarchy) -> tuple:
+    arr = getattr(h, "_traverse_arrays", None)
+    if arr is None:
+        arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
+               np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
+               np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
+               np.ascontiguousarray(h.tri_count))
+        h._traverse_arrays = arr
+    return arr
+
+
+def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: float, splat: float):
+    """Traverse ``h`` (§3.2) once per instance (numba).
+
+    Parameters
+    ----------
+    h : PointHierarchy
+    data : (k, 16) float32/64 instance data (camera-relative model rows, u in column 12)
+    planes : (6, 4) float64 camera-relative frustum planes; vscale : pixels per
+        metre at depth 1; splat : splat size in pixels
+
+    Returns
+    -------
+    point_jobs (J, 3) int64 and tri_jobs (Q, 3) int64: (instance row, start, count).
+    """
+    data = np.ascontiguousarray(data, np.float64).reshape(-1, 16)
+    planes = np.ascontiguousarray(planes, np.float64)
+    k = data.shape[0]
+    cap = max(16, 4 * k)
+    arr = _harrays(h)
+    while True:
+        pj = np.empty((cap, 3), np.int64)
+        tj = np.empty((cap, 3), np.int64)
+        done, npj, ntj = _traverse_instances_kernel(*arr, int(h.intervals), data, planes, float(vscale),
+                                                    float(splat), pj, tj)
+        if done == k:
+            return pj[:npj].copy(), tj[:ntj].copy()
+        cap *= 2
+
+
+def traverse_instances_reference(h: PointHierarchy, data, planes, vscale: float, splat: float):
+    """Reference of :func:`traverse_instances`: ``lod.points_traverse.traverse`` per instance."""
+    data = np.asarray(data, np.float64).reshape(-1, 16)
+    pj, tj = [], []
+    for r in range(data.shape[0]):
+        res = traverse(h, float(data[r, 12]), planes, vscale, splat, data[r, :12].reshape(3, 4))
+        pj += [(r, s, c) for s, c in res.point_ranges.tolist()]
+        tj += [(r, s, c) for s, c in res.tri_ranges.tolist()]
+    return np.array(pj, np.int64).reshape(-1, 3), np.array(tj, np.int64).reshape(-1, 3)
+
+
+# ---------------------------------------------------------------------------- selector
+class PointsSelector:
+    """Per frame: cull and locate instances (as ``NoLodSelector`` on the
+    keyframed form), then traverse each instance's segment octree (§3.2).
+
+    Parameters
+    ----------
+    reps : list of PointsRep aligned with ``CrowdState.character``
+    static_reps : StaticRep scenery drawn through ``statics``
+    splat_size : pixels (1..3)
+    """
+
+    def __init__(self, reps, static_reps=(), splat_size: int = 2):
+        if not 1 <= int(splat_size) <= 3:
+            raise ValueError(f"[lod] splat_size: expected 1, 2 or 3 pixels, got {splat_size}")
+        self.reps = list(reps)
+        self.splat_size = int(splat_size)
+        self._base = NoLodSelector([r.keyframed for r in self.reps], static_reps=static_reps)
+        self._by_key = {r.key: r for r in self.reps}
+
+    def select(self, state, camera, size, statics=()) -> DrawList:
+        """DrawList of :class:`PointsBatch` (plus static batches); stats hold
+        "points" and "triangles" actually submitted, "instances", "culled"."""
+        dl = self._base.select(state, camera, size, statics)
+        w, h = dl.size
+        planes = camera.frustum_planes(w / max(1, h))
+        vs = viewport_scale(h, camera.fov_y)
+        out = []
+        pts = tris = 0
+        for b in dl.batches:
+            rep = self._by_key.get(b.rep)
+            if rep is None:
+                out.append(b)
+                continue
+            hier = rep.hierarchies[b.part]
+            pj, tj = traverse_instances(hier, b.instance_data, planes, vs, self.splat_size)
+            np_ = int(pj[:, 2].sum()) if pj.size else 0
+            nt = int(tj[:, 2].sum()) if tj.size else 0
+            pts += np_
+            tris += nt
+            out.append(PointsBatch(b.rep, b.part, b.instance_ids, b.instance_data, triangles=nt, points=np_,
+                                   point_jobs=pj, tri_jobs=tj))
+        dl.batches = out
+        dl.stats["points"] = int(pts)
+        dl.stats["triangles"] = int(tris) + sum(b.triangles for b in out if not isinstance(b, PointsBatch))
+        dl.stats["batches"] = len(out)
+        return dl

@@ -1,0 +1,606 @@
+"""Drawer of ``"clusters"`` representations: per-instance cuts of VDR-AM cluster
+hierarchies (Claudio, Kim, Kim, Yoon, *VDR-AM*, §3.1, §5.1), skinned on the GPU.
+
+GPU resources per character (:class:`lod.clusters_mode.ClustersRep`):
+
+- the character's full-detail skinned representation, uploaded through the
+  renderer's own path (vertex buffers, the baked joint-table texture, the
+  palette pre-pass), so clusters skin exactly like the full-detail mesh;
+- the index buffer of the whole hierarchy (every cluster's triangles, indexing
+  the original vertex buffer);
+- a vertex array of the ``clusters`` program (``shaders/clusters.vert``: the
+  palette skinning of ``skinned.vert`` with the palette slot taken from the
+  instance data, since multi-draw commands start at a base instance).
+
+Per frame, the instances of one character (all its clips) are grouped by
+identical cut and sorted so that every group is a contiguous instance range;
+the skinning palette is built once for all of them (the renderer's pre-pass);
+then ONE ``glMultiDrawElementsIndirect`` (moderngl ``render_indirect``) per
+character draws every group instanced. Two command layouts
+(``Drawer.strategy``):
+
+- ``"indices"`` (default): the triangles of each distinct cut are gathered on
+  the CPU (numba) into a per-frame index buffer; one command per distinct cut.
+- ``"ranges"``: no per-frame index data; one command per run of consecutive
+  clusters of a distinct cut, pointing into the hierarchy's index buffer.
+
+``scripts/bench_clusters.py --strategy`` compares them.
+
+Occlusion culling (§5.2, when the representation asks for it): the previous
+frame's potentially visible set is drawn first as occluders, the other
+instances are tested with GL samples-passed queries on boxes that hold every
+pose they can be drawn in, the visible ones are drawn and join the set, and
+every ``occlusion_every`` frames the set is rebuilt front to back. Departure
+from the paper: the query unit is an instance (its whole cut), not each
+cluster of the cut -- on llvmpipe a query costs a draw call and a round trip,
+so per-cluster queries (100+ per instance) would cost more than they save.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
+
+import numpy as np
+from numba import njit
+
+from lod.drawlist import INSTANCE_FLOATS
+
+#: bytes of one DrawElementsIndirectCommand (count, instanceCount, firstIndex, baseVertex, baseInstance)
+COMMAND_BYTES = 20
+#: command layouts (module docstring)
+STRATEGIES = ("indices", "ranges")
+#: float of the instance data holding the instance's palette slot (i_anim.y)
+PALETTE_SLOT_FLOAT = 13
+#: occlusion culling: a camera closer to an instance's box than this many
+#: near-plane distances draws the instance without a query (the box could be clipped)
+OCCLUSION_NEAR_MARGIN = 2.0
+#: occlusion culling: instances drawn untested when the visible set is rebuilt (at least)
+OCCLUSION_FIRST_CHUNK = 16
+
+
+# ---------------------------------------------------------------------------- CPU side (numpy + numba)
+def group_cuts(offsets: np.ndarray, clusters: np.ndarray):
+    """Group instances by identical cut.
+
+    Parameters
+    ----------
+    offsets : (k+1,) int64 CSR offsets; clusters : (offsets[-1],) int32
+
+    Returns
+    -------
+    order : (k,) int64 instance order with each group contiguous (groups in
+        order of first appearance, instances in original order within a group)
+    counts : (G,) int64 instances per group
+    first : (G,) int64 an instance (original index) of each group
+    """
+    k = int(offsets.shape[0]) - 1
+    ids: dict = {}
+    gid = np.empty(k, np.int64)
+    raw = np.ascontiguousarray(clusters, np.int32)
+    for i in range(k):
+        gid[i] = ids.setdefault(raw[offsets[i]:offsets[i + 1]].tobytes(), len(ids))
+    order = np.argsort(gid, kind="stable")
+    counts = np.bincount(gid, minlength=len(ids)).astype(np.int64)
+    first = np.full(len(ids), -1, np.int64)
+    first[gid[::-1]] = np.arange(k - 1, -1, -1)
+    return order, counts, first
+
+
+def gather_numpy(flat_indices, tri_start, cut_offsets, cut_clusters):
+    """Reference of :func:`gather`: the concatenated triangles of each cut.
+
+    Parameters
+    ----------
+    flat_indices : (3M,) uint16/uint32 hierarchy indices, flattened
+    tri_start : (N+1,) int64
+    cut_offsets : (G+1,) int64; cut_clusters : int32 (CSR cuts)
+
+    Returns
+    -------
+    out : (3 * triangles,) uint32; first : (G+1,) int64 first index element of each cut
+    """
+    parts, first = [], [0]
+    for g in range(cut_offsets.shape[0] - 1):
+        n = 0
+        for c in cut_clusters[cut_offsets[g]:cut_offsets[g + 1]]:
+            a, b = 3 * int(tri_start[c]), 3 * int(tri_start[c + 1])
+            parts.append(np.asarray(flat_indices[a:b], np.uint32))
+            n += b - a
+        first.append(first[-1] + n)
+    out = np.concatenate(parts) if parts else np.zeros(0, np.uint32)
+    return out, np.asarray(first, np.int64)
+
+
+@njit(cache=True)
+def _gather_kernel(flat, tri_start, co, cc, first, out):  # pragma: no cover - compiled
+    for g in range(co.shape[0] - 1):
+        o = first[g]
+        for j in range(co[g], co[g + 1]):
+            c = cc[j]
+            for e in range(3 * tri_start[c], 3 * tri_start[c + 1]):
+                out[o] = flat[e]
+                o += 1
+
+
+def gather(flat_indices, tri_start, cut_offsets, cut_clusters):
+    """The concatenated triangles of each cut (numba; see :func:`gather_numpy`)."""
+    tc = 3 * np.diff(tri_start)
+    per = tc[cut_clusters] if cut_clusters.size else np.zeros(0, np.int64)
+    cs = np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
+    first = cs[cut_offsets]
+    out = np.empty(int(first[-1]) if first.size else 0, np.uint32)
+    if out.size:
+        _gather_kernel(flat_indices, np.asarray(tri_start, np.int64), np.asarray(cut_offsets, np.int64),
+                       np.asarray(cut_clusters, np.int32), first, out)
+    return out, first
+
+
+def range_commands_numpy(tri_start, cut_offsets, cut_clusters, counts, base):
+    """Reference of :func:`range_commands`: (C, 5) uint32 indirect commands, one
+    per run of consecutive clusters (adjacent in the hierarchy's index buffer)
+    of each cut; cut g is drawn ``counts[g]`` times from instance ``base[g]``."""
+    rows = []
+    for g in range(cut_offsets.shape[0] - 1):
+        cl = cut_clusters[cut_offsets[g]:cut_offsets[g + 1]]
+        j = 0
+        while j < cl.shape[0]:
+            a = int(tri_start[cl[j]])
+            b = int(tri_start[cl[j] + 1])
+            while j + 1 < cl.shape[0] and int(tri_start[cl[j + 1]]) == b:
+                j += 1
+                b = int(tri_start[cl[j] + 1])
+            if b > a:
+                rows.append((3 * (b - a), int(counts[g]), 3 * a, 0, int(base[g])))
+            j += 1
+    return np.asarray(rows, np.uint32).reshape(-1, 5)
+
+
+@njit(cache=True)
+def _range_kernel(tri_start, co, cc, counts, base, out):  # pragma: no cover - compiled
+    n = 0
+    for g in range(co.shape[0] - 1):
+        j = co[g]
+        while j < co[g + 1]:
+            a = tri_start[cc[j]]
+            b = tri_start[cc[j] + 1]
+            while j + 1 < co[g + 1] and tri_start[cc[j + 1]] == b:
+                j += 1
+                b = tri_start[cc[j] + 1]
+            if b > a:
+                out[n, 0] = 3 * (b - a)
+                out[n, 1] = counts[g]
+                out[n, 2] = 3 * a
+                out[n, 3] = 0
+                out[n, 4] = base[g]
+                n += 1
+            j += 1
+    return n
+
+
+def range_commands(tri_start, cut_offsets, cut_clusters, counts, base):
+    """(C, 5) uint32 indirect commands per run of consecutive clusters (numba)."""
+    out = np.empty((max(int(cut_clusters.shape[0]), 1), 5), np.uint32)
+    n = _range_kernel(np.asarray(tri_start, np.int64), np.asarray(cut_offsets, np.int64),
+                      np.asarray(cut_clusters, np.int32), np.asarray(counts, np.int64),
+                      np.asarray(base, np.int64), out)
+    return out[:n].copy()
+
+
+def _cut_arrays(b, n_leaves: int):
+    """(offsets, clusters) of a batch: its cut, or every leaf (full detail) for a plain DrawBatch."""
+    off = getattr(b, "offsets", None)
+    if off is not None and off.shape[0] == b.n_instances + 1:
+        return np.asarray(off, np.int64), np.asarray(b.clusters, np.int32)
+    k = b.n_instances
+    return (np.arange(k + 1, dtype=np.int64) * n_leaves,
+            np.tile(np.arange(n_leaves, dtype=np.int32), k))
+
+
+# ---------------------------------------------------------------------------- GPU side
+@dataclass
+class _ClusterGpu:
+    key: str
+    skin: object  # the renderer's _GpuRep of the skinned vertex buffer
+    hierarchy: object
+    flat: np.ndarray
+    vao_ranges: object
+    objects: list = field(default_factory=list)
+    content: list = field(default_factory=list)  # the skinned vertex buffers (buffer, format, attribute)
+    locs: dict = field(default_factory=dict)  # instanced attribute locations of the clusters program
+    occlusion: bool = False
+    occlusion_every: int = 8
+    clip_aabb: np.ndarray | None = None  # (C, 2, 3) model-space bounds of each clip over all baked frames
+    vao_frame: object = None  # bound to the drawer's current frame index buffer
+    vao_frame_buffer: object = None
+
+
+class Drawer:
+    """Plug-in drawer of ``"clusters"`` representations (``render.renderer.PLUGIN_KINDS``).
+
+    Attributes
+    ----------
+    order : 0 (opaque triangles, before point splats)
+    strategy : "indices" or "ranges" (module docstring)
+    last_stats : dict of the last draw: "commands", "draws", "groups"
+        (distinct cuts), "instances", "triangles", "index_bytes" (per-frame
+        index data uploaded)
+    """
+
+    order = 0
+
+    def __init__(self, renderer, strategy: str = "indices"):
+        if strategy not in STRATEGIES:
+            raise ValueError(f"clusters Drawer strategy: expected one of {STRATEGIES}, got {strategy!r}")
+        self.renderer = renderer
+        self.ctx = renderer.ctx
+        self.strategy = strategy
+        self._reps: dict = {}
+        self._objects: list = []
+        self._inst = None
+        self._inst_cap = 0
+        self._ind = None
+        self._ind_cap = 0
+        self._ibo = None
+        self._ibo_cap = 0
+        self._pal = None
+        self._pal_cap = 0
+        self._box = None
+        self._box_cap = 0
+        self._box_vao = None
+        self._box_vao_buffer = None
+        self._queries: list = []
+        self._pvs: dict = {}  # rep key -> agent ids of the potentially visible set (§5.2)
+        self._near = 0.1
+        #: frames drawn (drives the rebuild of the occlusion PVS every ``occlusion_every`` frames)
+        self.frame = 0
+        self.last_stats: dict = {}
+
+    # ------------------------------------------------------------------ resources
+    def _grow(self, attr: str, nbytes: int, label: str):
+        cap = getattr(self, attr + "_cap")
+        buf = getattr(self, attr)
+        if buf is not None and nbytes <= cap:
+            return buf
+        cap = max(4096, cap)
+        while cap < nbytes:
+            cap *= 2
+        if buf is not None:
+            buf.release()
+            self._objects.remove(buf)
+        buf = self.ctx.buffer(reserve=cap, dynamic=True)
+        buf.label = label
+        self._objects.append(buf)
+        setattr(self, attr, buf)
+        setattr(self, attr + "_cap", cap)
+        return buf
+
+    @property
+    def uses_queries(self) -> bool:
+        """True when a representation asks for occlusion culling: the renderer then
+        calls :meth:`draw` outside its own samples query (GL allows one at a time)."""
+        return any(st.occlusion for st in self._reps.values())
+
+    def upload(self, rep) -> None:
+        """GPU resources of a :class:`lod.clusters_mode.ClustersRep` (re-upload replaces)."""
+        old = self._reps.pop(rep.key, None)
+        if old is not None:
+            self._release_rep(old)
+        r = self.renderer
+        skin_key = f"{rep.key}#skin"
+        r.upload(replace(rep.skinned, key=skin_key))
+        g = r._reps[skin_key]
+        h = rep.hierarchy
+        prog = r.program("clusters")
+        flat = np.ascontiguousarray(np.asarray(h.indices).reshape(-1))
+        es = flat.dtype.itemsize
+        ibo = self.ctx.buffer(flat.tobytes() if flat.size else bytes(16))
+        ibo.label = f"{rep.key}.cluster_indices"
+        content = [c for c in g.content if c[2] in prog]
+        vao = self.ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=es)
+        vao.label = f"{rep.key}.vao_ranges"
+        st = _ClusterGpu(rep.key, g, h, flat, vao, [ibo, vao], content=content,
+                         locs={a: prog[a].location for a in ("i_m0", "i_m1", "i_m2", "i_anim") if a in prog},
+                         occlusion=bool(getattr(rep, "occlusion", False)),
+                         occlusion_every=int(getattr(rep, "occlusion_every", 8)),
+                         clip_aabb=np.asarray(rep.skinned.clip_aabb, np.float64))
+        self._reps[rep.key] = st
+
+    def _frame_vao(self, st: _ClusterGpu):
+        if st.vao_frame is None or st.vao_frame_buffer is not self._ibo:
+            if st.vao_frame is not None:
+                st.vao_frame.release()
+                st.objects.remove(st.vao_frame)
+            st.vao_frame = self.ctx.vertex_array(self.renderer.program("clusters"), st.content,
+                                                 index_buffer=self._ibo, index_element_size=4)
+            st.vao_frame.label = f"{st.key}.vao_frame"
+            st.vao_frame_buffer = self._ibo
+            st.objects.append(st.vao_frame)
+        return st.vao_frame
+
+    def _release_rep(self, st: _ClusterGpu) -> None:
+        for o in reversed(st.objects):
+            o.release()
+        st.objects.clear()
+
+    def release(self) -> None:
+        """Release this drawer's GL objects (the skinned vertex buffers belong to the renderer)."""
+        for st in self._reps.values():
+            self._release_rep(st)
+        self._reps.clear()
+        for o in reversed(self._objects):
+            o.release()
+        self._objects.clear()
+        self._queries.clear()  # moderngl queries have no release(); the context owns them
+        self._inst = self._ind = self._ibo = self._pal = self._box = self._box_vao = None
+        self._inst_cap = self._ind_cap = self._ibo_cap = self._pal_cap = self._box_cap = 0
+
+    # ------------------------------------------------------------------ drawing
+    def _collect(self, batches) -> list:
+        """Per (representation, tint): instance data (palette slot set), CSR cuts, agent ids, clips."""
+        groups: dict = {}
+        for b in batches:
+            if b.rep not in self._reps:
+                raise KeyError(f"DrawList batch names clusters representation {b.rep!r}, which was not uploaded; "
+                               f"uploaded: {sorted(self._reps)}")
+            tint = tuple(float(c) for c in b.tint) if b.tint is not None else (0.0, 0.0, 0.0, 0.0)
+            groups.setdefault((b.rep, tint), []).append(b)
+        items = []
+        for (key, tint), bs in groups.items():
+            st = self._reps[key]
+            n_leaves = st.hierarchy.n_leaves
+            offs, cls, data, ids, part = [], [], [], [], []
+            base = 0
+            for b in bs:
+                o, c = _cut_arrays(b, n_leaves)
+                offs.append(o[:-1] + base)
+                base += int(o[-1])
+                cls.append(c)
+                data.append(np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS))
+                ids.append(np.asarray(b.instance_ids, np.int64))
+                part.append(np.full(b.n_instances, int(b.part), np.int64))
+            k = sum(d.shape[0] for d in data)
+            if k == 0:
+                continue
+            data = np.concatenate(data)
+            data[:, PALETTE_SLOT_FLOAT] = np.arange(k, dtype=np.float32)
+            items.append(SimpleNamespace(st=st, key=key, tint=tint, k=k, data=data,
+                                         offsets=np.concatenate(offs + [np.array([base], np.int64)]),
+                                         clusters=np.concatenate(cls), ids=np.concatenate(ids),
+                                         part=np.concatenate(part)))
+        return items
+
+    def _plan(self, it, sub: np.ndarray, n_idx: int):
+        """Instance data (grouped by cut), commands and gathered indices of the subset ``sub`` of item ``it``."""
+        st, h = it.st, it.st.hierarchy
+        offsets, clusters = _sub_csr(it.offsets, it.clusters, sub)
+        order, counts, first = group_cuts(offsets, clusters)
+        data = it.data[sub[order]]
+        starts = np.zeros(counts.shape[0], np.int64)
+        np.cumsum(counts[:-1], out=starts[1:])
+        co = np.zeros(first.shape[0] + 1, np.int64)
+        np.cumsum(offsets[first + 1] - offsets[first], out=co[1:])
+        cc = _sub_csr(offsets, clusters, first)[1]
+        idx = None
+        if self.strategy == "indices":
+            idx, ifirst = gather(st.flat, h.tri_start, co, cc)
+            cmd = np.zeros((counts.shape[0], 5), np.uint32)
+            cmd[:, 0] = np.diff(ifirst)
+            cmd[:, 1] = counts
+            cmd[:, 2] = ifirst[:-1] + n_idx
+            cmd[:, 4] = starts
+            cmd = cmd[cmd[:, 0] > 0]
+        else:
+            cmd = range_commands(h.tri_start, co, cc, counts, starts)
+        return data, cmd, idx, counts.shape[0]
+
+    def _submit(self, items, subsets, pbases, stats) -> None:
+        """Draw ``subsets[j]`` (instance indices) of every item: one multi-draw-indirect per item."""
+        r, ctx = self.renderer, self.ctx
+        plans, datas, cmds, idxs = [], [], [], []
+        n_cmd = n_idx = n_inst = 0
+        for it, sub, pb in zip(items, subsets, pbases):
+            if sub.size == 0:
+                continue
+            data, cmd, idx, n_groups = self._plan(it, sub, n_idx)
+            plans.append((it, pb, n_inst, data.shape[0], n_cmd, cmd.shape[0]))
+            datas.append(data)
+            cmds.append(cmd)
+            if idx is not None:
+                idxs.append(idx)
+                n_idx += idx.shape[0]
+            n_inst += data.shape[0]
+            n_cmd += cmd.shape[0]
+            stats["groups"] += n_groups
+            stats["triangles"] += int((cmd[:, 0].astype(np.int64) * cmd[:, 1]).sum()) // 3
+        stats["commands"] += n_cmd
+        stats["index_bytes"] += 4 * n_idx
+        stats["instances"] += n_inst
+        if n_cmd == 0:
+            return
+        # each submission gets fresh buffers (orphaned), so draws still pending keep their data
+        all_data = np.concatenate(datas)
+        inst = self._grow("_inst", all_data.nbytes, "clusters.instances")
+        inst.orphan(self._inst_cap)
+        inst.write(all_data)
+        all_cmd = np.ascontiguousarray(np.concatenate(cmds), np.uint32)
+        ind = self._grow("_ind", all_cmd.nbytes, "clusters.indirect")
+        ind.orphan(self._ind_cap)
+        ind.write(all_cmd)
+        if idxs:
+            all_idx = np.concatenate(idxs)
+            ibo = self._grow("_ibo", all_idx.nbytes, "clusters.frame_indices")
+            ibo.orphan(self._ibo_cap)
+            ibo.write(all_idx)
+        prog = r.program("clusters")
+        for it, pb, off, k, c0, nc in plans:
+            if nc == 0:
+                continue
+            st = it.st
+            vao = self._frame_vao(st) if self.strategy == "indices" else st.vao_ranges
+            st.skin.joints.use(0)
+            prog["u_palette_base"].value = int(pb)
+            prog["u_palette_stride"].value = 3 * st.skin.n_joints
+            if "u_tint" in prog:
+                prog["u_tint"].value = it.tint
+            r._bind_instances(vao, st.locs, inst, off * INSTANCE_FLOATS * 4)
+            vao.render_indirect(ind, mode=ctx.TRIANGLES, count=nc, first=c0)
+            stats["draws"] += 1
+
+    def draw(self, batches, drawlist, view_proj) -> None:
+        """Draw the cuts of ``batches`` (``lod.clusters_mode.ClusterDrawBatch``; a
+        plain DrawBatch of a clusters rep draws every leaf, i.e. full detail).
+
+        With occlusion culling on (:class:`lod.clusters_mode.ClustersRep`
+        ``occlusion``), see :meth:`_draw_occlusion`.
+        """
+        r = self.renderer
+        items = self._collect(batches)
+        stats = {"commands": 0, "draws": 0, "groups": 0, "instances": 0, "triangles": 0, "index_bytes": 0,
+                 "queries": 0, "occluded": 0}
+        self.last_stats = stats
+        if not items:
+            return
+        # the skinning palette of every instance, once (the renderer's pre-pass over a buffer of its own)
+        all_data = np.concatenate([it.data for it in items])
+        pal = self._grow("_pal", all_data.nbytes, "clusters.palette_instances")
+        pal.orphan(self._pal_cap)
+        pal.write(all_data)
+        offs = np.concatenate([[0], np.cumsum([it.k for it in items])[:-1]])
+        pbases = r._build_palette([(it.st.skin, pal, int(o) * INSTANCE_FLOATS * 4, it.k)
+                                   for it, o in zip(items, offs)])
+        r.fbo.use()
+        r._set_uniforms(r.program("clusters"), view_proj)
+        P = np.asarray(drawlist.proj, np.float64)
+        if P[2, 2] != 1.0 and np.isfinite(P[2, 3] / (P[2, 2] - 1.0)):
+            self._near = abs(float(P[2, 3] / (P[2, 2] - 1.0)))
+        if any(it.st.occlusion for it in items):
+            self._draw_occlusion(items, pbases, view_proj, stats)
+        else:
+            self._submit(items, [np.arange(it.k) for it in items], pbases, stats)
+        self.frame += 1
+
+    # ------------------------------------------------------------------ occlusion culling (§5.2)
+    def _boxes(self, it) -> tuple:
+        """Camera-relative world corners (k, 8, 3) float32 of each instance's box (its clip's
+        bounds over every baked frame, which hold every rendered pose) and whether the
+        camera is inside a box (grown by a near-plane margin), where a query cannot be trusted."""
+        aabb = np.asarray(it.st.clip_aabb, np.float64)[it.part]  # (k, 2, 3)
+        M = it.data[:, :12].astype(np.float64).reshape(-1, 3, 4)
+        sel = np.array([[(c >> a) & 1 for a in range(3)] for c in range(8)])  # (8, 3) 0/1
+        corners = np.where(sel[None] == 1, aabb[:, None, 1, :], aabb[:, None, 0, :])  # (k, 8, 3)
+        world = np.einsum("kij,kcj->kci", M[:, :, :3], corners) + M[:, None, :, 3]
+        lin = M[:, :, :3]
+        eye = np.linalg.solve(lin, -M[:, :, 3][..., None])[..., 0]  # camera (origin) in model space
+        margin = (OCCLUSION_NEAR_MARGIN * self._near) / np.maximum(np.linalg.norm(lin, axis=1).min(axis=1), 1e-12)
+        inside = np.all((eye >= aabb[:, 0] - margin[:, None]) & (eye <= aabb[:, 1] + margin[:, None]), axis=1)
+        return world.astype(np.float32), inside
+
+    def _query(self, corners: np.ndarray, view_proj) -> np.ndarray:
+        """(n,) bool: does any sample of each box (n, 8, 3) pass the depth test? One
+        GL_SAMPLES_PASSED query per box (moderngl reads no other kind), colour and depth writes off."""
+        n = corners.shape[0]
+        if n == 0:
+            return np.zeros(0, bool)
+        tri = corners[:, _BOX_TRIANGLES.reshape(-1)]  # (n, 36, 3)
+        buf = self._grow("_box", tri.nbytes, "clusters.occlusion_boxes")
+        buf.orphan(self._box_cap)
+        buf.write(np.ascontiguousarray(tri, np.float32))
+        if self._box_vao is None or self._box_vao_buffer is not buf:
+            if self._box_vao is not None:
+                self._box_vao.release()
+                self._objects.remove(self._box_vao)
+            self._box_vao = self.ctx.vertex_array(self.renderer.program("clusters_box"), [(buf, "3f", "in_position")])
+            self._box_vao.label = "clusters.occlusion_box_vao"
+            self._box_vao_buffer = buf
+            self._objects.append(self._box_vao)
+        prog = self._box_vao.program
+        prog["u_view_proj"].write(np.ascontiguousarray(np.asarray(view_proj, np.float32).T).tobytes())
+        while len(self._queries) < n:
+            self._queries.append(self.ctx.query(samples=True))
+        fbo = self.renderer.fbo
+        fbo.color_mask = (False, False, False, False)
+        fbo.depth_mask = False
+        fbo.use()  # moderngl applies a framebuffer's write masks when it is bound
+        try:
+            for i in range(n):
+                with self._queries[i]:
+                    self._box_vao.render(self.ctx.TRIANGLES, vertices=36, first=36 * i)
+        finally:
+            fbo.color_mask = (True, True, True, True)
+            fbo.depth_mask = True
+            fbo.use()
+        return np.array([self._queries[i].samples > 0 for i in range(n)], bool)
+
+    def _draw_occlusion(self, items, pbases, view_proj, stats) -> None:
+        """§5.2 with instances as the occlusion unit (their cut's box over all poses):
+        the instances of the previous frame's potentially visible set (PVS) are
+        drawn first as occluders; the others are tested with occlusion queries on
+        their boxes against that depth, and those found visible are drawn and join
+        the PVS. Every ``occlusion_every`` frames the PVS is rebuilt from scratch:
+        instances are taken front to back, the nearest chunk is drawn untested,
+        each following chunk is tested against the depth drawn so far.
+
+        Never removes a visible instance: a skipped instance's box, which holds
+        every pose it can be drawn in, has no sample in front of geometry that
+        is part of the final image (the camera inside a box always draws)."""
+        every = min(int(it.st.occlusion_every) for it in items)
+        rebuild = self.frame % max(1, every) == 0
+        boxes = [self._boxes(it) for it in items]
+        drawn = [np.zeros(it.k, bool) for it in items]
+        if rebuild:
+            dist = [np.linalg.norm(b[0].mean(axis=1), axis=1) for b in boxes]
+            order = np.argsort(np.concatenate(dist), kind="stable")
+            owner = np.repeat(np.arange(len(items)), [it.k for it in items])
+            local = np.concatenate([np.arange(it.k) for it in items])
+            n = order.shape[0]
+            edges = [0, min(n, max(OCCLUSION_FIRST_CHUNK, n // 16))]
+            while edges[-1] < n:
+                edges.append(min(n, edges[-1] + max(OCCLUSION_FIRST_CHUNK, (n - edges[-1]) // 2)))
+            chunks = [order[a:b] for a, b in zip(edges[:-1], edges[1:])]
+            first = [[local[c[owner[c] == j]] for j in range(len(items))] for c in chunks]
+            self._submit(items, first[0], pbases, stats)
+            for j, s in enumerate(first[0]):
+                drawn[j][s] = True
+            tests = first[1:]
+        else:
+            pvs = [np.flatnonzero(np.isin(it.ids, self._pvs.get(it.key, np.zeros(0, np.int64)))) for it in items]
+            # an instance whose box holds the camera is always drawn first
+            pvs = [np.union1d(p, np.flatnonzero(b[1])) for p, b in zip(pvs, boxes)]
+            self._submit(items, pvs, pbases, stats)
+            for j, s in enumerate(pvs):
+                drawn[j][s] = True
+            tests = [[np.flatnonzero(~d) for d in drawn]]
+        for chunk in tests:
+            visible = []
+            for j, s in enumerate(chunk):
+                s = s[~drawn[j][s]]
+                inside = boxes[j][1][s]
+                res = np.ones(s.shape[0], bool)
+                q = s[~inside]
+                res[~inside] = self._query(boxes[j][0][q], view_proj)
+                stats["queries"] += int(q.shape[0])
+                stats["occluded"] += int((~res).sum())
+                visible.append(s[res])
+            self.renderer.fbo.use()
+            self._submit(items, visible, pbases, stats)
+            for j, s in enumerate(visible):
+                drawn[j][s] = True
+        self._pvs = {it.key: it.ids[d] for it, d in zip(items, drawn)}
+
+
+def _sub_csr(offsets: np.ndarray, clusters: np.ndarray, sub: np.ndarray):
+    """CSR (offsets, clusters) of the rows ``sub`` (int array) of a CSR array."""
+    sub = np.asarray(sub, np.int64)
+    lens = offsets[sub + 1] - offsets[sub]
+    out_off = np.zeros(sub.shape[0] + 1, np.int64)
+    np.cumsum(lens, out=out_off[1:])
+    total = int(out_off[-1])
+    if total == 0:
+        return out_off, np.zeros(0, np.int32)
+    idx = np.repeat(offsets[sub] - out_off[:-1], lens) + np.arange(total)
+    return out_off, clusters[idx]
+
+
+#: 12 triangles of a box whose corner c has coordinates ((c >> 0) & 1, (c >> 1) & 1, (c >> 2) & 1)
+_BOX_TRIANGLES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                           [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.int64)

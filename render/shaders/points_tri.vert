@@ -1,0 +1,27 @@
+#version 430
+// Triangles selected by the octree traversal (section 3.2), pulled per vertex:
+// work item = triangle * 3 + corner; the job gives the instance and the
+// first entry of the segment's triangles in tri_order order.
+#include "points_common.glsl"
+layout(std430, binding = 5) readonly buffer Verts { Sample verts[]; };
+layout(std430, binding = 6) readonly buffer Corners { uint corners[]; };
+uniform mat4 u_view_proj;
+out vec3 v_world;
+out vec3 v_normal;
+out vec4 v_color;
+
+void main() {
+    uint g = uint(gl_VertexID) / 3u;
+    uint corner = uint(gl_VertexID) - 3u * g;
+    uvec4 job = jobs[find_job(g)];
+    uint i = job.z;
+    uint v = corners[3u * (job.x + (g - job.w)) + corner];
+    vec3 p;
+    vec3 n;
+    vec4 c;
+    sample_at(verts[v], inst_u(i), p, n, c);
+    v_world = inst_point(i, p);
+    v_normal = inst_dir(i, n);
+    v_color = c;
+    gl_Position = u_view_proj * vec4(v_world, 1.0);
+}

@@ -1,0 +1,101 @@
+"""The memory guard (crowd.memory): estimates before allocating, refusal with the estimate."""
+
+import pytest
+
+from crowd_testutil import run_cli, tiny_scene
+
+from crowd import memory
+from crowd.errors import SceneError
+from crowd.scene import load_scene
+
+HUGE_GRID = {"rows = 2": "rows = 10000000", "cols = 2": "cols = 10000000"}
+
+
+def test_placement_agents_counts_without_building():
+    assert memory.placement_agents("grid", {"rows": 3, "cols": 7}) == 21
+    assert memory.placement_agents("random", {"count": 12}) == 12
+    assert memory.placement_agents("list", {"positions": [[0, 0, 0]] * 5}) == 5
+    levels = [{"layout": "grid", "nx": 2, "nz": 3, "spacing": [1.0, 1.0]},
+              {"layout": "grid", "nx": 4, "nz": 5, "spacing": [10.0, 10.0]}]
+    assert memory.placement_agents("hierarchy", {"levels": levels}) == 120
+
+
+def test_estimate_matches_built_state_and_grows_linearly(write_scene):
+    from crowd.engine import plan
+
+    sc = load_scene(write_scene(tiny_scene()))
+    e = memory.estimate_scene(sc)
+    p = plan(sc)
+    assert e.agents == p.state.n == 4
+    assert e.parts["state"] >= p.state.nbytes()
+    e2 = memory.estimate_scene(sc, p.characters)
+    assert e2.parts["characters"] > 0 and e2.parts["gpu"] > 0
+    big = load_scene(write_scene(tiny_scene(replace={"rows = 2": "rows = 2000"}), "big.toml"))
+    eb = memory.estimate_scene(big, p.characters)
+    assert eb.agents == 4000
+    per_agent = (eb.parts["state"] - e2.parts["state"]) / 3996
+    assert per_agent == memory.STATE_BYTES_PER_AGENT + memory.SIM_SCRATCH_PER_AGENT
+    assert eb.total > e2.total
+
+
+def test_available_memory_reads_meminfo_and_env(monkeypatch):
+    monkeypatch.delenv(memory.MEMORY_ENV, raising=False)
+    a = memory.available_memory()
+    assert a is not None and a > 0
+    monkeypatch.setenv(memory.MEMORY_ENV, "12345")
+    assert memory.available_memory() == 12345
+
+
+def test_guard_refuses_with_estimate_in_one_sentence(write_scene):
+    sc = load_scene(write_scene(tiny_scene(replace=HUGE_GRID)))
+    e = memory.estimate_scene(sc)
+    assert e.agents == 10 ** 14
+    with pytest.raises(SceneError) as ei:
+        memory.check_memory(sc, e, available=8 * 10 ** 9)
+    msg = str(ei.value)
+    assert "\n" not in msg and "estimated" in msg and memory.human_bytes(e.total) in msg
+    assert "100,000,000,000,000 agents" in msg
+    # a small scene passes
+    small = load_scene(write_scene(tiny_scene(), "small.toml"))
+    assert memory.check_memory(small, memory.estimate_scene(small), available=8 * 10 ** 9).total > 0
+
+
+def test_plan_refuses_before_allocating(write_scene, monkeypatch):
+    """10^14 agents would need petabytes: plan() must refuse before any array exists."""
+    from crowd.engine import plan
+
+    sc = load_scene(write_scene(tiny_scene(replace=HUGE_GRID)))
+    with pytest.raises(SceneError, match="estimated"):
+        plan(sc)
+
+
+def test_cli_validate_prints_estimate_and_run_refuses(write_scene, tmp_path):
+    ok = write_scene(tiny_scene())
+    r = run_cli("validate", ok)
+    assert r.returncode == 0, r.stderr
+    assert "memory estimate:" in r.stdout
+    bad = write_scene(tiny_scene(replace=HUGE_GRID), "huge.toml")
+    for cmd in (("validate", bad), ("run", bad, "--out", tmp_path / "o")):
+        r = run_cli(*cmd)
+        assert r.returncode == 2, r.stderr
+        assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+        assert "estimated" in r.stderr and "agents" in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_human_bytes():
+    assert memory.human_bytes(999) == "999 B"
+    assert memory.human_bytes(1500) == "1.5 kB"
+    assert memory.human_bytes(2.5e9) == "2.5 GB"
+
+
+def test_lod_mode_hierarchies_are_estimated(write_scene):
+    from crowd.engine import plan
+
+    none = load_scene(write_scene(tiny_scene()))
+    pts = load_scene(write_scene(tiny_scene(replace={'mode = "none"': 'mode = "points"'}), "p.toml"))
+    assert "lod" not in memory.estimate_scene(none).parts
+    chars = plan(none).characters
+    e = memory.estimate_scene(pts, chars)
+    assert e.parts["lod"] == memory.LOD_BYTES_PER_TRIANGLE["points"] * chars[0].mesh.n_triangles
+    assert memory.estimate_scene(pts).parts["lod"] == memory.LOD_BYTES_PER_TRIANGLE["points"] * 600

@@ -1,0 +1,293 @@
+"""Rendering VDR-AM cluster cuts (render/clusters.py): equality with the full mesh at
+PoE 0, no cracks, screen-space error bounded by PoE, and the CPU command kernels."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from lod import cluster_cut, clusters_mode, nolod
+from lod.view import Camera
+from render import clusters as rc
+from render.renderer import Renderer
+from sim.procedural import humanoid
+
+SIZE = (320, 240)
+BG = (0.1, 0.1, 0.12)
+
+
+@pytest.fixture(scope="module")
+def scene(gl_ctx):
+    c = humanoid(2500, 0)
+    reps, sel = clusters_mode.build([c], ["h"], [30], {"poe": 0.0}, cache=False)
+    full, fsel = nolod.build([c], ["h"], [30], {})
+    r = Renderer(SIZE, ctx=gl_ctx)
+    for rep in [*reps, *full]:
+        r.upload(rep)
+    yield SimpleNamespace(c=c, reps=reps, sel=sel, full=full, fsel=fsel, r=r)
+    r.release()
+
+
+def _state(pos, heading, t, clip=None):
+    n = len(pos)
+    return SimpleNamespace(n=n, character=np.zeros(n, np.int64),
+                           clip=np.zeros(n, np.int64) if clip is None else np.asarray(clip, np.int64),
+                           anim_time=np.asarray(t, float), position=np.asarray(pos, float), scale=np.ones(n),
+                           heading=np.asarray(heading, float))
+
+
+def _render(sc, selector, state, cam, poe=None, strategy="indices"):
+    if poe is not None:
+        selector.poe = poe
+    sc.r.drawer("clusters").strategy = strategy
+    dl = selector.select(state, cam, SIZE)
+    sc.r.draw(dl, background=BG)
+    return sc.r.read_pixels(), dl
+
+
+def _mask(img):
+    bg = np.round(np.asarray(BG) * 255).astype(int)
+    return np.abs(img.astype(int) - bg).max(axis=2) > 2
+
+
+CROWD = ([[0, 0, 0], [1.2, 0, -1.5], [-1.0, 0, 0.8]], [0.0, 1.0, 2.5], [0.1, 0.45, 0.8], [0, 1, 0])
+
+
+@pytest.mark.parametrize("strategy", rc.STRATEGIES)
+def test_poe_zero_renders_the_full_mesh(scene, strategy):
+    st = _state(*CROWD)
+    cam = Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0))
+    ref, _ = _render(scene, scene.fsel, st, cam)
+    img, dl = _render(scene, scene.sel, st, cam, poe=0.0, strategy=strategy)
+    assert _mask(ref).sum() > 2000
+    assert dl.stats["triangles"] == 3 * scene.c.mesh.n_triangles
+    assert np.array_equal(img, ref)
+
+
+def test_coarse_cut_changes_the_image_and_draws_fewer_triangles(scene):
+    """The comparison above can fail: a coarse cut differs from the full mesh."""
+    st = _state(*CROWD)
+    cam = Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0))
+    ref, _ = _render(scene, scene.fsel, st, cam)
+    img, dl = _render(scene, scene.sel, st, cam, poe=40.0)
+    assert dl.stats["triangles"] < 3 * scene.c.mesh.n_triangles
+    assert not np.array_equal(img, ref)
+
+
+def _silhouette_error(a, b):
+    """Largest distance (pixels) from a pixel of one silhouette to the other silhouette."""
+    if not (a ^ b).any():
+        return 0.0
+    da = ndimage.distance_transform_edt(~a)  # distance to the nearest pixel of a
+    db = ndimage.distance_transform_edt(~b)
+    return float(max(da[b].max(initial=0.0), db[a].max(initial=0.0)))
+
+
+#: supersampling of the silhouette measurements: the cut is chosen for SIZE,
+#: the images are rendered at SS x SIZE, so sub-pixel features are resolved
+SS = 4
+POSES = [(0.0, 0.05, 0), (2.4, 0.75, 1), (-0.8, 0.3, 1)]
+DISTANCES = (3.0, 7.0, 14.0)
+
+
+@pytest.fixture(scope="module")
+def hires(scene, gl_ctx):
+    r = Renderer((SIZE[0] * SS, SIZE[1] * SS), ctx=gl_ctx)
+    for rep in [*scene.reps, *scene.full]:
+        r.upload(rep)
+    yield r
+    r.release()
+
+
+def _hires(r, dl):
+    """Fill coverage, fill-or-edge coverage (slivers thinner than a pixel still
+    count: wireframe pass) and linear depth of a DrawList rendered by ``r``."""
+    r.draw(dl, background=BG)
+    fill = _mask(r.read_pixels())
+    w, h = r.size
+    depth = np.frombuffer(r.fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(h, w)[::-1]
+    r.ctx.wireframe = True
+    try:
+        r.draw(dl, background=BG)
+    finally:
+        r.ctx.wireframe = False
+    return fill, fill | _mask(r.read_pixels()), depth
+
+
+def _crack_pixels(full_fill, full_depth, cut_fill, cam, band_px):
+    """Background pixels of the cut inside the full silhouette, farther than
+    ``band_px`` from the full mesh's outline and its occluding contours (depth
+    jumps above 5 cm), where a simplified silhouette may legitimately move."""
+    n, f = cam.near, cam.far
+    z = np.where(full_fill, 2 * n * f / (f + n - (2 * full_depth.astype(np.float64) - 1) * (f - n)), 1e9)
+    edge = ~full_fill
+    for ax in (0, 1):
+        j = np.abs(np.diff(z, axis=ax)) > 0.05
+        sl0 = (slice(1, None), slice(None)) if ax == 0 else (slice(None), slice(1, None))
+        sl1 = (slice(None, -1), slice(None)) if ax == 0 else (slice(None), slice(None, -1))
+        edge[sl0] |= j
+        edge[sl1] |= j
+    band = ndimage.binary_dilation(edge, iterations=int(band_px))
+    return full_fill & ~cut_fill & ~band
+
+
+def _pose_cases():
+    for heading, t, clip in POSES:
+        for dist in DISTANCES:
+            yield (_state([[0, 0, 0]], [heading], [t], [clip]),
+                   Camera.look_at((0, 1.0, dist), (0, 0.9, 0), fov_y=40.0), (heading, dist))
+
+
+@pytest.mark.parametrize("poe", [0.5, 1.0, 2.0])
+def test_no_cracks_and_screen_space_error_within_poe(scene, hires, poe):
+    """Closed humanoid, several poses and distances: (1) no background pixel
+    inside the full silhouette away from its outline and occluding contours
+    (cracks); (2) the silhouette distance between cut and full mesh, measured
+    at 4x supersampling with sub-pixel slivers counted, stays <= PoE plus one
+    supersampled pixel of rasterisation."""
+    worst = 0.0
+    refined = 0
+    for st, cam, where in _pose_cases():
+        ref_fill, ref_cov, ref_depth = _hires(hires, scene.fsel.select(st, cam, SIZE))
+        scene.sel.poe = poe
+        dl = scene.sel.select(st, cam, SIZE)
+        refined += dl.stats["triangles"] < scene.c.mesh.n_triangles
+        fill, cov, _ = _hires(hires, dl)
+        cracks = _crack_pixels(ref_fill, ref_depth, fill, cam, np.ceil(SS * poe) + 2)
+        assert not cracks.any(), f"{cracks.sum()} crack pixels at poe={poe}, (heading, distance)={where}"
+        worst = max(worst, _silhouette_error(ref_cov, cov) / SS)
+    assert refined >= 3  # the cuts really are simplified
+    assert worst <= poe + 1.0 / SS, worst
+
+
+def test_crack_and_error_measures_can_fail(scene, hires):
+    """A missing cluster is found as a crack; a coarse cut exceeds a small PoE."""
+    st, cam, _ = next(_pose_cases())
+    ref_fill, ref_cov, ref_depth = _hires(hires, scene.fsel.select(st, cam, SIZE))
+    scene.sel.poe = 0.0
+    dl = scene.sel.select(st, cam, SIZE)
+    b = dl.batches[0]
+    h = scene.reps[0].hierarchy
+    tc = np.diff(h.tri_start)[b.clusters]
+    drop = int(np.argmax(tc))  # drop the largest leaf: a hole in the surface
+    keep = np.delete(b.clusters, drop)
+    b.clusters, b.offsets = keep, np.array([0, keep.size], np.int64)
+    fill, _, _ = _hires(hires, dl)
+    assert _crack_pixels(ref_fill, ref_depth, fill, cam, SS + 2).any()
+    scene.sel.poe = 60.0
+    _, cov, _ = _hires(hires, scene.sel.select(st, cam, SIZE))
+    assert _silhouette_error(ref_cov, cov) / SS > 2.0
+
+
+def test_strategies_render_the_same_image(scene):
+    st = _state(*CROWD)
+    cam = Camera.look_at((0, 1.2, 9.0), (0, 0.9, 0))
+    a, _ = _render(scene, scene.sel, st, cam, poe=1.0, strategy="indices")
+    sa = dict(scene.r.drawer("clusters").last_stats)
+    b, _ = _render(scene, scene.sel, st, cam, poe=1.0, strategy="ranges")
+    sb = dict(scene.r.drawer("clusters").last_stats)
+    assert np.array_equal(a, b)
+    assert sa["triangles"] == sb["triangles"] and sa["draws"] == sb["draws"] == 1
+    assert sb["index_bytes"] == 0 and sa["index_bytes"] > 0
+
+
+def test_identical_cuts_share_one_command(scene):
+    # four instances side by side at the same distance and pose: one distinct cut
+    st = _state([[x, 0, 0] for x in (-1.5, -0.5, 0.5, 1.5)], [0.0] * 4, [0.3] * 4)
+    cam = Camera.look_at((0, 30.0, 0.01), (0, 0, 0))  # straight above: equal distances
+    _render(scene, scene.sel, st, cam, poe=1.0)
+    s = scene.r.drawer("clusters").last_stats
+    assert s["instances"] == 4 and s["draws"] == 1
+    assert s["groups"] <= 2 and s["commands"] == s["groups"]
+
+
+def test_command_kernels_match_numpy_references(scene):
+    h = scene.reps[0].hierarchy
+    rng = np.random.default_rng(3)
+    M = np.tile(np.eye(4)[:3], (40, 1, 1))
+    M[:, :, 3] = rng.uniform(-20, 20, (40, 3))
+    offsets, clusters = cluster_cut.cut(h, M, np.zeros(3), 400.0, 1.0)
+    order, counts, first = rc.group_cuts(offsets, clusters)
+    assert counts.sum() == 40 and np.all(order[np.cumsum(counts) - counts] >= 0)
+    # groups are made of identical cuts
+    gid = np.repeat(np.arange(counts.shape[0]), counts)
+    for i, g in zip(order.tolist(), gid.tolist()):
+        f = first[g]
+        assert np.array_equal(clusters[offsets[i]:offsets[i + 1]], clusters[offsets[f]:offsets[f + 1]])
+    flat = np.asarray(h.indices).reshape(-1)
+    a, fa = rc.gather(flat, h.tri_start, offsets, clusters)
+    b, fb = rc.gather_numpy(flat, h.tri_start, offsets, clusters)
+    assert np.array_equal(a, b) and np.array_equal(fa, fb)
+    base = np.arange(40, dtype=np.int64)
+    ones = np.ones(40, np.int64)
+    ca = rc.range_commands(h.tri_start, offsets, clusters, ones, base)
+    cb = rc.range_commands_numpy(h.tri_start, offsets, clusters, ones, base)
+    assert np.array_equal(ca, cb)
+    # the commands cover exactly the cut triangles
+    assert int(ca[:, 0].sum()) == 3 * int(cluster_cut.cut_triangle_count(h, offsets, clusters).sum())
+    # a PoE-0 cut (all leaves, in order) is one run
+    leaves = np.arange(h.n_leaves, dtype=np.int32)
+    one = rc.range_commands(h.tri_start, np.array([0, h.n_leaves]), leaves, np.array([1]), np.array([0]))
+    assert one.shape[0] == 1 and one[0, 0] == 3 * h.n_triangles
+
+
+def test_empty_inputs():
+    o, c, f = rc.group_cuts(np.zeros(1, np.int64), np.zeros(0, np.int32))
+    assert o.size == c.size == f.size == 0
+    ts = np.array([0, 2], np.int64)
+    out, first = rc.gather(np.arange(6, dtype=np.uint32), ts, np.zeros(1, np.int64), np.zeros(0, np.int32))
+    assert out.size == 0 and first.tolist() == [0]
+    assert rc.range_commands(ts, np.zeros(1, np.int64), np.zeros(0, np.int32), np.zeros(0), np.zeros(0)).shape == (0, 5)
+    with pytest.raises(ValueError, match="strategy"):
+        rc.Drawer(SimpleNamespace(ctx=None), strategy="bogus")
+
+
+def test_plain_batch_of_a_clusters_rep_draws_full_detail(scene):
+    from lod.drawlist import DrawBatch, DrawList
+
+    st = _state(*CROWD)
+    cam = Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0))
+    ref, _ = _render(scene, scene.sel, st, cam, poe=0.0)
+    dl = scene.sel.select(st, cam, SIZE)
+    dl2 = DrawList(dl.origin, dl.view, dl.proj, dl.size,
+                   [DrawBatch(b.rep, b.part, b.instance_ids, b.instance_data) for b in dl.batches])
+    scene.r.draw(dl2, background=BG)
+    assert np.array_equal(scene.r.read_pixels(), ref)
+
+
+def test_occlusion_culling_never_removes_a_visible_cluster(scene, gl_ctx):
+    """§5.2: images equal with and without occlusion culling over frames that
+    rebuild the visible set and frames that reuse it, while queries do cull."""
+    from dataclasses import replace
+
+    occ_reps = [replace(rep, occlusion=True, occlusion_every=3) for rep in scene.reps]
+    with_oc, without = Renderer(SIZE, ctx=gl_ctx), Renderer(SIZE, ctx=gl_ctx)
+    try:
+        for rep in occ_reps:
+            with_oc.upload(rep)
+        for rep in scene.reps:
+            without.upload(rep)
+        # a front row close to the camera hides a crowd behind it (partly: gaps between legs and arms)
+        front = [[x, 0, 0] for x in np.linspace(-1.6, 1.6, 9)]
+        rng = np.random.default_rng(5)
+        back = np.column_stack([rng.uniform(-3, 3, 40), np.zeros(40), rng.uniform(-25, -4, 40)])
+        pos = np.vstack([front, back])
+        n = pos.shape[0]
+        st = _state(pos, rng.uniform(-0.3, 0.3, n), rng.uniform(0, 1, n), np.arange(n) % 2)
+        scene.sel.poe = 1.0
+        occluded = 0
+        for frame in range(7):
+            cam = Camera.look_at((0.05 * frame, 1.1, 1.6), (0, 1.0, -5.0), fov_y=45.0)
+            dl = scene.sel.select(st, cam, SIZE)
+            with_oc.draw(dl, background=BG)
+            without.draw(dl, background=BG)
+            s = with_oc.drawer("clusters").last_stats
+            occluded += s["occluded"]
+            assert s["instances"] + s["occluded"] == dl.stats["instances"]
+            assert np.array_equal(with_oc.read_pixels(), without.read_pixels()), f"frame {frame}"
+            st.anim_time = st.anim_time + 0.1
+        assert occluded > 0
+        assert with_oc.drawer("clusters").frame == 7
+    finally:
+        with_oc.release()
+        without.release()

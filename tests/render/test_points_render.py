@@ -1,0 +1,240 @@
+"""Point-hierarchy drawer (render/points.py): compute-shader splats against the
+GL_POINTS reference and against the triangle rendering, depth test with the
+frame's triangles, splat footprints, and the mode end to end through the CLI."""
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lod import points_mode as pm
+from lod.nolod import NoLodSelector, build_static_rep
+from lod.view import Camera
+from render.renderer import Renderer
+from sim.character import KeyframedCharacter
+from sim.keyframes import Keyframe, KeyframeAnimation, Segment
+from sim.mesh import Mesh
+from sim.state import CrowdState
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "crowd"))
+
+
+def sphere_character(n_lat=60, n_lon=100, name="ball") -> KeyframedCharacter:
+    """A UV sphere (radius 1 centred at y = 1) that swells by 20% and shifts
+    its colour over one non-looping segment: a compact, dense keyframed
+    character (about 12,000 triangles)."""
+    th = np.linspace(0, np.pi, n_lat + 1)
+    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    nrm = np.stack([np.sin(T) * np.cos(P), np.cos(T), np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
+    idx = []
+    for i in range(n_lat):
+        for j in range(n_lon):
+            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
+            c, d = a + n_lon, b + n_lon
+            if i > 0:
+                idx.append((a, b, d))
+            if i < n_lat - 1:
+                idx.append((a, d, c))
+    idx = np.array(idx, np.uint32)
+    col0 = np.tile([0.8, 0.3, 0.2, 1.0], (nrm.shape[0], 1)).astype(np.float32)
+    col1 = np.tile([0.2, 0.5, 0.9, 1.0], (nrm.shape[0], 1)).astype(np.float32)
+    k0 = Keyframe((nrm + [0, 1, 0]).astype(np.float32), nrm.astype(np.float32), col0, idx)
+    k1 = Keyframe((1.2 * nrm + [0, 1, 0]).astype(np.float32), nrm.astype(np.float32), col1, idx)
+    ident = np.arange(nrm.shape[0], dtype=np.int32)
+    anim = KeyframeAnimation("swell", np.array([0.0, 1.0]), [k0, k1], [Segment(ident, ident, idx.copy())],
+                             duration=1.0, loop=False)
+    return KeyframedCharacter(name, {"swell": anim})
+
+
+@pytest.fixture(scope="module")
+def ball(tmp_path_factory):
+    cache = pm.HierarchyCache(tmp_path_factory.mktemp("cache"))
+    reps, sel = pm.build([sphere_character()], ["ball"], [30], {"splat_size": 1}, cache=cache,
+                         progress=lambda it, d: it)
+    return reps[0], sel
+
+
+@pytest.fixture(scope="module")
+def renderer(gl_ctx, ball):
+    r = Renderer((256, 192), ctx=gl_ctx)
+    r.upload(ball[0])
+    yield r
+    r.release()
+
+
+def _state(n=1, u=0.4):
+    st = CrowdState.empty(n)
+    st.anim_time[:] = u
+    return st
+
+
+def _mask(img, bg):
+    return np.abs(img.astype(int) - np.asarray(bg, int)).sum(2) > 0
+
+
+def _bg(r):
+    return r.read_pixels()[0, 0]
+
+
+def _render(r, dl, path="compute"):
+    r.drawer("points").path = path
+    r.draw(dl)
+    return r.read_pixels()
+
+
+def _iou(a, b):
+    return (a & b).sum() / max(1, (a | b).sum())
+
+
+#: camera far enough for points to be drawn, near enough for a 57-pixel-wide disc
+FAR = Camera.look_at((0.0, 1.0, 10.0), (0.0, 1.0, 0.0), fov_y=40.0)
+#: farther: points are most of what is drawn, a 20-pixel disc
+FARTHER = Camera.look_at((0.0, 1.0, 28.0), (0.0, 1.0, 0.0), fov_y=40.0)
+
+
+def test_points_at_splat_1_agree_with_the_triangle_silhouette(renderer, ball):
+    rep, sel = ball
+    ref = dataclasses.replace(rep.keyframed, key="none:ball")
+    renderer.upload(ref)
+    for cam, min_iou in ((FAR, 0.97), (FARTHER, 0.85)):
+        dl = sel.select(_state(), cam, renderer.size)
+        assert dl.stats["points"] > 3000
+        pts = _render(renderer, dl)
+        bg = pts[0, 0]
+        tri = _render(renderer, NoLodSelector([ref]).select(_state(), cam, renderer.size))
+        mp, mt = _mask(pts, bg), _mask(tri, bg)
+        assert mt.sum() > 300
+        # no holes: the points cover >= 97 % of the triangle silhouette
+        assert (mp & mt).sum() / mt.sum() >= 0.97
+        # a 1-pixel splat covers the pixel holding the point, so the silhouette
+        # grows by about half a pixel: IoU >= 97 % at 57 px, lower at 20 px
+        assert _iou(mp, mt) >= min_iou, _iou(mp, mt)
+        both = mp & mt
+        assert np.abs(pts[both].astype(float) - tri[both].astype(float)).mean() < 12.0
+    assert sel.select(_state(), FARTHER, renderer.size).stats["points"] > \
+        sel.select(_state(), FARTHER, renderer.size).stats["triangles"]
+
+
+def test_compute_splat_and_gl_points_give_nearly_the_same_image(renderer, ball):
+    _, sel = ball
+    for splat in (1, 2, 3):
+        sel.splat_size = splat
+        renderer.drawer("points")._reps["points:ball"].splat = splat
+        dl = sel.select(_state(u=0.8), FAR, renderer.size)
+        a = _render(renderer, dl, "compute")
+        b = _render(renderer, dl, "gl_points")
+        bg = a[0, 0]
+        ma, mb = _mask(a, bg), _mask(b, bg)
+        assert _iou(ma, mb) > 0.99
+        both = ma & mb
+        assert np.abs(a[both].astype(float) - b[both].astype(float)).mean() < 3.0
+    sel.splat_size = 1
+    renderer.drawer("points")._reps["points:ball"].splat = 1
+
+
+def _one_point_batch(rep, data):
+    return pm.PointsBatch(rep.key, 0, np.array([0], np.int32), data.astype(np.float32), points=1,
+                          point_jobs=np.array([[0, 0, 1]], np.int64), tri_jobs=np.zeros((0, 3), np.int64))
+
+
+@pytest.mark.parametrize("splat", [1, 2, 3])
+@pytest.mark.parametrize("path", ["compute", "gl_points"])
+def test_a_single_point_covers_a_square_of_splat_size(renderer, ball, splat, path):
+    rep, sel = ball
+    dl = sel.select(_state(), FAR, renderer.size)
+    data = np.zeros((1, 16))
+    data[0, :12] = [1, 0, 0, 0.013, 0, 1, 0, 0.021, 0, 0, 1, -7.0]
+    dl.batches = [_one_point_batch(rep, data)]
+    renderer.drawer("points")._reps["points:ball"].splat = splat
+    try:
+        img = _render(renderer, dl, path)
+    finally:
+        renderer.drawer("points")._reps["points:ball"].splat = 1
+    m = _mask(img, img[0, 0])
+    ys, xs = np.nonzero(m)
+    assert m.sum() == splat * splat
+    assert xs.max() - xs.min() == splat - 1 and ys.max() - ys.min() == splat - 1
+
+
+def test_points_are_depth_tested_against_the_frames_triangles(renderer, ball):
+    rep, sel = ball
+    wall = Mesh(positions=np.array([[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], np.float32),
+                indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+    srep = build_static_rep(wall, key="static:wall")
+    renderer.upload(srep)
+    nsel = NoLodSelector([], static_reps=[srep])
+    dl = sel.select(_state(), FAR, renderer.size)
+    empty = CrowdState.empty(0)
+    ball_only = _render(renderer, dl)
+    assert _mask(ball_only, ball_only[0, 0])[96, 128]
+    for z, ball_wins in ((3.0, False), (-3.0, True)):  # wall between camera and ball, then behind it
+        m = np.eye(4)
+        m[2, 3] = z
+        walls = nsel.select(empty, FAR, renderer.size, statics=[("static:wall", m)]).batches
+        wall_only = _render(renderer, dataclasses.replace(dl, batches=list(walls)))
+        both = _render(renderer, dataclasses.replace(dl, batches=list(walls) + list(dl.batches)))
+        want = ball_only if ball_wins else wall_only
+        np.testing.assert_array_equal(both[80:112, 112:144], want[80:112, 112:144])
+
+
+def test_nothing_non_finite_and_camera_inside_the_bounds(renderer, ball):
+    rep, sel = ball
+    for h in rep.hierarchies:
+        for k, v in h.__dict__.items():
+            if isinstance(v, np.ndarray) and v.dtype.kind == "f":
+                assert np.isfinite(v).all(), k
+    inside = Camera.look_at((0.0, 1.0, 0.2), (0.0, 1.0, -1.0), fov_y=60.0)
+    dl = sel.select(_state(), inside, renderer.size)
+    assert dl.stats["triangles"] > 0
+    img = _render(renderer, dl)
+    assert img.shape == (192, 256, 3)
+    keys = np.frombuffer(renderer.drawer("points")._depth.read(), np.uint32)
+    filled = keys[keys != 0xFFFFFFFF].view(np.float32)
+    assert np.isfinite(filled).all() and ((filled >= 0) & (filled <= 1)).all()
+
+
+def test_crowd_run_with_points_mode_end_to_end(tmp_path, monkeypatch):
+    import csv
+
+    from crowd_testutil import run_cli, tiny_scene
+
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(tiny_scene(replace={'mode = "none"': 'mode = "points"\nkeyframes = 2\nsplat_size = 2',
+                                         "position = [1.0, 2.0, 7.0]": "position = [1.0, 2.0, 40.0]"}))
+    monkeypatch.setenv(pm.CACHE_ENV, str(tmp_path / "cache"))
+    out = tmp_path / "out"
+    res = run_cli("run", scene, "--out", out)
+    assert res.returncode == 0, res.stderr[-2000:]
+    rows = list(csv.DictReader(open(next(out.rglob("frames.csv")))))
+    assert len(rows) == 3
+    assert all(int(r["points"]) > 0 for r in rows)
+
+
+def test_sample_packing_and_job_tables():
+    from render.points import expand_jobs, job_table, pack_samples
+
+    rng = np.random.default_rng(0)
+    p0, p1 = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
+    n0 = rng.normal(size=(5, 3))
+    n0 /= np.linalg.norm(n0, axis=1, keepdims=True)
+    c0 = rng.uniform(size=(5, 4))
+    p0[2, 1] = np.nan  # never reaches the GPU
+    w = pack_samples(p0, p1, n0, n0, c0, c0)
+    f = w[:, :8].view(np.float32)
+    assert np.isfinite(f).all() and f[2, 1] == 0.0
+    np.testing.assert_allclose(f[:, 4:7], p1, rtol=1e-6)
+    np.testing.assert_allclose(f[:, 3], n0[:, 2], rtol=1e-6)
+    np.testing.assert_allclose((w[:, 8] & 0xFF) / 255.0, c0[:, 0], atol=0.5 / 255 + 1e-9)
+    xy = (w[:, 10] & 0xFFFF).astype(np.uint16).view(np.int16) / 32767.0
+    np.testing.assert_allclose(xy, n0[:, 0], atol=1e-4)
+    b1 = pm.PointsBatch("points:a", 1, np.arange(2, dtype=np.int32), np.zeros((2, 16), np.float32),
+                        point_jobs=np.array([[0, 5, 3], [1, 0, 0], [1, 7, 2]]))
+    b2 = pm.PointsBatch("points:a", 0, np.arange(1, dtype=np.int32), np.zeros((1, 16), np.float32),
+                        point_jobs=np.array([[0, 1, 4]]))
+    jobs = job_table([b1, b2], "points:a", np.array([0, 100]), "point_jobs", {id(b1): 0, id(b2): 2})
+    # empty jobs dropped; segment base added; instance rows offset; exclusive prefix
+    np.testing.assert_array_equal(jobs, [[105, 3, 0, 0], [107, 2, 1, 3], [1, 4, 2, 5]])
+    np.testing.assert_array_equal(expand_jobs(jobs), [[105, 0], [106, 0], [107, 0], [107, 1], [108, 1],
+                                                      [1, 2], [2, 2], [3, 2], [4, 2]])
