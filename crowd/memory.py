@@ -262,8 +262,9 @@ def check_memory(scene, estimate: MemoryEstimate, available: int | None = None) 
     """
     avail = available_memory() if available is None else int(available)
     if avail is not None and estimate.total > MEMORY_FRACTION * avail:
+        parts = ", ".join(f"{k} {human_bytes(v)}" for k, v in estimate.parts.items())
         raise SceneError(scene.path, "", f"needs an estimated {human_bytes(estimate.total)} for "
-                         f"{estimate.agents:,} agents ({', '.join(f'{k} {human_bytes(v)}' for k, v in estimate.parts.items())}), "
+                         f"{estimate.agents:,} agents ({parts}), "
                          f"more than the {human_bytes(MEMORY_FRACTION * avail)} available; "
                          f"reduce the placements' counts or the characters' triangles")
     return estimate

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from lod import cluster_cut
 from lod.cluster_dag import ClusterHierarchy, build_cluster_hierarchy
@@ -85,6 +86,15 @@ class ClustersRep:
     occlusion_every: int = 8
 
     kind = "clusters"
+
+    @property
+    def sphere64(self) -> np.ndarray:
+        """(N, 4) float64 cluster spheres (cached), for per-frame culling."""
+        s = self.__dict__.get("_sphere64")
+        if s is None:
+            s = np.ascontiguousarray(self.hierarchy.sphere, np.float64)
+            self.__dict__["_sphere64"] = s
+        return s
 
     @property
     def n_parts(self) -> int:
@@ -179,6 +189,80 @@ def cached_hierarchy(character, skinned: SkinnedRep, build_params: dict, cache: 
     return h
 
 
+# ---------------------------------------------------------------------------- cluster frustum culling
+def cull_clusters_numpy(sphere, rows, offsets, clusters, planes):
+    """Reference of :func:`cull_clusters`: drop the clusters of each cut whose
+    bounding sphere (all poses) lies outside a frustum plane.
+
+    Parameters
+    ----------
+    sphere : (N, 4) float model-space cluster spheres (centre, radius)
+    rows : (k, 3, 4) float64 camera-relative model rows of the k instances
+    offsets : (k+1,) int64; clusters : int32 CSR cuts
+    planes : (P, 4) float64 camera-relative planes (inside: n.x + d >= 0)
+
+    Returns
+    -------
+    offsets (k+1,) int64, clusters int32: the cuts without the culled clusters
+    """
+    k = rows.shape[0]
+    keep_off = [0]
+    keep = []
+    for i in range(k):
+        c = clusters[offsets[i]:offsets[i + 1]]
+        s = np.asarray(sphere, np.float64)[c]
+        cen = s[:, :3] @ rows[i, :, :3].T + rows[i, :, 3]
+        r = s[:, 3] * np.linalg.norm(rows[i, :, :3], axis=0).max()
+        dist = cen @ planes[:, :3].T + planes[:, 3]
+        inside = np.all(dist >= -r[:, None], axis=1)
+        keep.append(c[inside])
+        keep_off.append(keep_off[-1] + int(inside.sum()))
+    cl = np.concatenate(keep).astype(np.int32) if keep else np.zeros(0, np.int32)
+    return np.asarray(keep_off, np.int64), cl
+
+
+@njit(cache=True)
+def _cull_kernel(sphere, rows, offsets, clusters, planes, out_off, out):  # pragma: no cover - compiled
+    n = 0
+    for i in range(rows.shape[0]):
+        s0 = np.sqrt(rows[i, 0, 0] ** 2 + rows[i, 1, 0] ** 2 + rows[i, 2, 0] ** 2)
+        s1 = np.sqrt(rows[i, 0, 1] ** 2 + rows[i, 1, 1] ** 2 + rows[i, 2, 1] ** 2)
+        s2 = np.sqrt(rows[i, 0, 2] ** 2 + rows[i, 1, 2] ** 2 + rows[i, 2, 2] ** 2)
+        sc = max(s0, max(s1, s2))
+        for j in range(offsets[i], offsets[i + 1]):
+            c = clusters[j]
+            x, y, z = sphere[c, 0], sphere[c, 1], sphere[c, 2]
+            r = sphere[c, 3] * sc
+            ok = True
+            cx = rows[i, 0, 0] * x + rows[i, 0, 1] * y + rows[i, 0, 2] * z + rows[i, 0, 3]
+            cy = rows[i, 1, 0] * x + rows[i, 1, 1] * y + rows[i, 1, 2] * z + rows[i, 1, 3]
+            cz = rows[i, 2, 0] * x + rows[i, 2, 1] * y + rows[i, 2, 2] * z + rows[i, 2, 3]
+            for p in range(planes.shape[0]):
+                if planes[p, 0] * cx + planes[p, 1] * cy + planes[p, 2] * cz + planes[p, 3] < -r:
+                    ok = False
+                    break
+            if ok:
+                out[n] = c
+                n += 1
+        out_off[i + 1] = n
+    return n
+
+
+def cull_clusters(sphere, rows, offsets, clusters, planes):
+    """Frustum culling of the clusters of each cut (numba; see :func:`cull_clusters_numpy`).
+
+    A cut stays a consistent cover of what is inside the frustum: only
+    clusters whose sphere (which holds the cluster in every pose) is wholly
+    outside one plane are dropped, so nothing visible is lost.
+    """
+    rows = np.ascontiguousarray(rows, np.float64)
+    out_off = np.zeros(rows.shape[0] + 1, np.int64)
+    out = np.empty(clusters.shape[0], np.int32)
+    n = _cull_kernel(np.asarray(sphere, np.float64), rows, np.asarray(offsets, np.int64),
+                     np.asarray(clusters, np.int32), np.ascontiguousarray(planes, np.float64), out_off, out)
+    return out_off, out[:n].copy()
+
+
 # ---------------------------------------------------------------------------- selector
 def _model_rows(instance_data: np.ndarray) -> np.ndarray:
     """(k, 3, 4) float64 camera-relative model rows of DrawBatch instance data."""
@@ -186,7 +270,8 @@ def _model_rows(instance_data: np.ndarray) -> np.ndarray:
 
 
 class ClustersSelector:
-    """Cull and pack instances as the full-detail mode, then cut each one (§5.1).
+    """Cull and pack instances as the full-detail mode, then cut each one (§5.1)
+    and drop the clusters of the cut that lie outside the view frustum.
 
     Parameters
     ----------
@@ -194,7 +279,7 @@ class ClustersSelector:
         for skinned characters, full-detail reps for the others
     static_reps : StaticRep scenery ``select`` may be asked to draw
     poe : float >= 0, pixels of error
-    cull : frustum culling on (default)
+    cull : frustum culling of instances and clusters on (default)
     """
 
     def __init__(self, reps, static_reps=(), poe: float = CLUSTERS_DEFAULT_POE, cull: bool = True):
@@ -206,6 +291,8 @@ class ClustersSelector:
         self._inner = NoLodSelector([r.skinned if r.kind == "clusters" else r for r in self.reps],
                                     static_reps=static_reps, cull=cull)
         self._ws = cluster_cut.CutWorkspace()
+        #: frustum culling of instances and, after the cut, of clusters
+        self.cull = bool(cull)
         #: seconds spent in the cut (§5.1) during the last ``select``
         self.last_cut_seconds = 0.0
 
@@ -214,6 +301,7 @@ class ClustersSelector:
         batches of clustered characters are :class:`ClusterDrawBatch` and
         ``stats`` gains "clusters" (clusters drawn) and counts the cuts' triangles."""
         dl = self._inner.select(state, camera, size, statics)
+        planes = camera.frustum_planes(max(1, int(size[0])) / max(1, int(size[1])))
         scale = cluster_cut.viewport_scale(max(1, int(size[1])), camera.fov_y)
         out = []
         n_clusters = 0
@@ -228,6 +316,8 @@ class ClustersSelector:
             t0 = time.perf_counter()
             offsets, clusters = cluster_cut.cut(h, rows, np.zeros(3), scale, self.poe, self._ws)
             t_cut += time.perf_counter() - t0
+            if self.cull:
+                offsets, clusters = cull_clusters(r.sphere64, rows, offsets, clusters, planes)
             tris = int(cluster_cut.cut_triangle_count(h, offsets, clusters).sum())
             n_clusters += int(clusters.shape[0])
             out.append(ClusterDrawBatch(b.rep, b.part, b.instance_ids, b.instance_data, triangles=tris,

@@ -222,8 +222,8 @@ class Drawer:
     order : 0 (opaque triangles, before point splats)
     strategy : "indices" or "ranges" (module docstring)
     last_stats : dict of the last draw: "commands", "draws", "groups"
-        (distinct cuts), "instances", "triangles", "index_bytes" (per-frame
-        index data uploaded)
+        (distinct cuts), "instances" (drawn), "triangles", "index_bytes"
+        (per-frame index data uploaded), "queries" and "occluded" (§5.2)
     """
 
     order = 0

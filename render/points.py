@@ -20,10 +20,13 @@ Drawing, after the built-in triangle batches:
 2. the points. ``"compute"`` (main path): clear a per-pixel uint depth-key
    buffer, a compute pass projecting every selected point (interpolated
    between the keyframes at the instance's u, transformed by its model
-   matrix) and doing ``atomicMin`` of its window depth over its s x s pixel
-   footprint (s = splat size 1..3), a second compute pass where the winning
-   point of each pixel writes its lit colour, then a full-screen resolve
-   writing colour and ``gl_FragDepth``, so the fixed-function depth test
+   matrix) and doing ``atomicMin`` of its window depth into the anchor slot
+   of its s x s pixel footprint (s = splat size 1..3; the footprint is the
+   GL point rule's), a second compute pass where the point that won an anchor
+   writes its lit colour there, then a full-screen resolve taking per pixel
+   the nearest of the s x s anchors whose footprints cover it (the same
+   result as scattering into every footprint pixel, with one atomic per point
+   instead of s * s) and writing colour and ``gl_FragDepth``, so the fixed-function depth test
    compares points with the triangles already in the depth buffer (no depth
    texture needed). llvmpipe offers no 64-bit atomics, hence two passes
    instead of one packed (depth, index) atomicMin. ``"gl_points"``
@@ -40,6 +43,9 @@ from render.shaders import load_source, program_sources
 #: llvmpipe's SIMD width and measured 2x faster than 64 there (mean job: 160
 #: points); a hardware GPU wants 64 or more
 SPLAT_GROUP = 8
+#: border (pixels) of the anchor grid below and left of the image: a splat of
+#: size s <= 3 anchored there still covers pixel 0 (points_splat.glsl MARGIN)
+MARGIN = 2
 #: work-group size of the clear pass (must match points_clear.glsl)
 CLEAR_GROUP = 256
 #: largest work-group count per dispatch dimension (GL guarantees 65535)
@@ -145,6 +151,9 @@ class Drawer:
     def __init__(self, renderer):
         self.r = renderer
         self.ctx = renderer.ctx
+        if int(getattr(self.ctx, "version_code", 0)) < 430:
+            raise RuntimeError(f"[lod] mode 'points' needs OpenGL 4.3 (compute shaders and storage buffers); this "
+                               f"context offers {self.ctx.version_code // 100}.{self.ctx.version_code % 100 // 10}")
         self.path = None
         self._reps: dict[str, _GpuPoints] = {}
         self._objects: list = []
@@ -152,7 +161,7 @@ class Drawer:
         self._progs: dict = {}
         self.last_counts = {"points": 0, "triangles": 0}
         w, h = renderer.size
-        self._pixels = w * h
+        self._pixels = (w + MARGIN) * (h + MARGIN)  # anchor slots
         self._depth = self._track(self.ctx.buffer(reserve=4 * self._pixels), "points.depth_keys")
         self._color = self._track(self.ctx.buffer(reserve=4 * self._pixels), "points.colors")
         self._empty = self._track(self.ctx.vertex_array(self._program("points_resolve"), []), "points.empty_vao")
@@ -328,19 +337,23 @@ class Drawer:
         ctx.memory_barrier()  # the last frame's resolve has read the keys
         self._dispatch(clear, self._pixels, CLEAR_GROUP)
         ctx.memory_barrier()
+        # one splat size per frame (the resolve gathers s x s anchors); all
+        # reps of a scene share the [lod] splat_size
+        splat = int(per_rep[0][0].splat)
         for defines in ((), ("COLOR_PASS",)):
-            cs = self._compute("points_splat", defines + (f"LOCAL_SIZE {SPLAT_GROUP}",))
+            cs = self._compute("points_splat", defines + (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}"))
             self._uniforms(cs, vp, u_size=(w, h))
             for g, jobs, total in per_rep:
                 self._buffer("point_jobs", jobs).bind_to_storage_buffer(2)
                 g.points.bind_to_storage_buffer(0)
                 cs["u_njobs"].value = int(jobs.shape[0])
-                cs["u_splat"].value = int(g.splat)
+                cs["u_splat"].value = splat
                 self._dispatch(cs, int(jobs.shape[0]), 1)  # one work group per job
                 ctx.memory_barrier()
         self.last_counts["points"] = sum(t for _, _, t in per_rep)
         rprog = self._program("points_resolve")
         rprog["u_size"].value = (w, h)
+        rprog["u_splat"].value = splat
         self.r.fbo.use()
         self._empty.render(moderngl.TRIANGLES, vertices=3)
 

@@ -6,10 +6,17 @@
 // measured 2x faster than 64 there; render/points.py SPLAT_GROUP), so no search is needed to find the
 // instance, and the instance's matrix and u are read once per thread.
 // DEPTH_PASS (default): atomicMin of the window depth (float bits, positive,
-// so ordered as uint) into every pixel of the square footprint; COLOR_PASS:
-// the point whose depth won a pixel writes its lit RGBA8 colour there.
+// so ordered as uint) into the point's anchor slot (the lowest corner of its
+// s x s footprint, on a grid with a MARGIN-pixel border below and left);
+// COLOR_PASS: the point whose depth won its anchor writes its lit RGBA8
+// colour there. The resolve pass takes, per pixel, the nearest of the s x s
+// anchors whose footprints cover it: the same minimum as scattering into the
+// whole footprint, with one atomic per point instead of s * s.
 // (llvmpipe has no 64-bit atomics, so depth and index cannot be packed into
 // one 64-bit atomicMin.)
+#ifndef MARGIN
+#define MARGIN 2
+#endif
 #ifndef LOCAL_SIZE
 #define LOCAL_SIZE 8
 #endif
@@ -48,29 +55,22 @@ void main() {
         if (ndc.z < -1.0 || ndc.z > 1.0) continue;
         float x = (ndc.x * 0.5 + 0.5) * float(u_size.x);
         float y = (ndc.y * 0.5 + 0.5) * float(u_size.y);
-        // pixels whose centres lie in [x - s/2, x + s/2) (the GL point rule)
+        // the footprint is the s x s pixels from the anchor (x0, y0): those
+        // whose centres lie in [x - s/2, x + s/2) (the GL point rule)
         int x0 = int(ceil(x - half_s - 0.5));
         int y0 = int(ceil(y - half_s - 0.5));
+        if (x0 < -MARGIN || y0 < -MARGIN || x0 >= u_size.x || y0 >= u_size.y) continue;
+        uint slot = uint((y0 + MARGIN) * (u_size.x + MARGIN) + x0 + MARGIN);
         uint key = floatBitsToUint(ndc.z * 0.5 + 0.5);
 #ifdef COLOR_PASS
-        vec4 h = vec4(p, 1.0);
-        vec3 world = vec3(dot(m0, h), dot(m1, h), dot(m2, h));
-        vec3 nw = vec3(dot(m0.xyz, n), dot(m1.xyz, n), dot(m2.xyz, n));
-        uint rgba = packUnorm4x8(vec4(shade(world, nw, c.rgb), 1.0));
-#endif
-        for (int dy = 0; dy < u_splat; ++dy) {
-            int py = y0 + dy;
-            if (py < 0 || py >= u_size.y) continue;
-            for (int dx = 0; dx < u_splat; ++dx) {
-                int px = x0 + dx;
-                if (px < 0 || px >= u_size.x) continue;
-                uint pix = uint(py * u_size.x + px);
-#ifdef COLOR_PASS
-                if (depth[pix] == key) color[pix] = rgba;
-#else
-                atomicMin(depth[pix], key);
-#endif
-            }
+        if (depth[slot] == key) {
+            vec4 h = vec4(p, 1.0);
+            vec3 world = vec3(dot(m0, h), dot(m1, h), dot(m2, h));
+            vec3 nw = vec3(dot(m0.xyz, n), dot(m1.xyz, n), dot(m2.xyz, n));
+            color[slot] = packUnorm4x8(vec4(shade(world, nw, c.rgb), 1.0));
         }
+#else
+        atomicMin(depth[slot], key);
+#endif
     }
 }

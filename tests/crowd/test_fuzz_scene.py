@@ -39,7 +39,8 @@ BASE = {
          "heading": "random", "phase": "zero"},
         {"kind": "random", "character": "dog", "count": 5, "center": [10.0, 0.0, 0.0], "size": [5.0, 5.0],
          "min_distance": 0.5, "speed": 1.0},
-        {"kind": "list", "character": "walker", "positions": [[0.0, 0.0, 5.0], [1.0, 0.0, 5.0]], "headings": [0.0, 90.0]},
+        {"kind": "list", "character": "walker", "positions": [[0.0, 0.0, 5.0], [1.0, 0.0, 5.0]],
+         "headings": [0.0, 90.0]},
         {"kind": "hierarchy", "character": "dog",
          "levels": [{"layout": "grid", "nx": 2, "nz": 2, "spacing": [1.0, 1.0]}]},
     ],
@@ -194,3 +195,25 @@ def test_cli_validate_exit_2(tmp_path, i):
     assert r.returncode == 2, r.stdout + r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "bad.toml" in r.stderr
+
+
+def test_cli_validate_and_run_scene_with_broken_gltf_exit_2(tmp_path):
+    """A scene naming a truncated glTF file: one line naming the file, exit 2, no output directory."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
+    from test_fuzz_gltf import BASE_GLB
+
+    (tmp_path / "broken.glb").write_bytes(BASE_GLB[: len(BASE_GLB) // 3])
+    doc = copy.deepcopy(BASE)
+    doc["characters"] = [{"name": "walker", "file": "broken.glb"}, {"name": "dog", "generator": "quadruped"}]
+    doc["output"] = {"dir": str(tmp_path / "out")}
+    p = tmp_path / "gl.toml"
+    p.write_text(to_toml(doc))
+    for cmd in (("validate", p), ("run", p, "--quiet")):
+        r = run_cli(*cmd, timeout=120)
+        assert r.returncode == 2, r.stdout + r.stderr
+        assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert "broken.glb" in r.stderr
+    assert not (tmp_path / "out").exists()

@@ -6,15 +6,13 @@ images; bounded speeds and errors. See issue 10.
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
 from hc_util import crowd, look, render_frames
 from tiny_characters import tiny_keyframed, tiny_skinned
 
-from sim.character import KeyframedCharacter, SkinnedCharacter
+from sim.character import KeyframedCharacter
 from sim.clip import Channel, Clip
 from sim.keyframes import Keyframe, KeyframeAnimation, Segment
 from sim.mesh import Mesh, vertex_normals
@@ -36,7 +34,8 @@ def _sphere(n_lat=8, n_lon=12, radius=1.0):
 
 
 def _kf(p, idx):
-    return Keyframe(p.astype(np.float32), vertex_normals(p, idx), np.tile([0.7, 0.6, 0.2, 1.0], (len(p), 1)).astype(np.float32), idx)
+    col = np.tile([0.7, 0.6, 0.2, 1.0], (len(p), 1)).astype(np.float32)
+    return Keyframe(p.astype(np.float32), vertex_normals(p, idx), col, idx)
 
 
 def test_sphere_shrinking_to_a_hundredth_of_its_area(gl_ctx):

@@ -101,22 +101,28 @@ def test_selector_cuts_every_instance_and_counts_triangles(human):
     assert dl.batches and all(isinstance(b, clusters_mode.ClusterDrawBatch) for b in dl.batches)
     assert {b.part for b in dl.batches} == {0, 1}  # one batch per (character, clip)
     scale = cluster_cut.viewport_scale(size[1], cam.fov_y)
+    planes = cam.frustum_planes(size[0] / size[1])
     total = 0
+    culled = 0
     for b in dl.batches:
         M = b.instance_data[:, :12].astype(np.float64).reshape(-1, 3, 4)
         ref = cluster_cut.cut_numpy(h, M, np.zeros(3), scale, 1.0)
-        for i, r in enumerate(ref):
-            assert np.array_equal(b.clusters[b.offsets[i]:b.offsets[i + 1]], r)
+        ro = np.concatenate([[0], np.cumsum([len(r) for r in ref])])
+        co, cc = clusters_mode.cull_clusters_numpy(h.sphere, M, ro, np.concatenate(ref), planes)
+        culled += len(np.concatenate(ref)) - cc.size
+        assert np.array_equal(b.offsets, co) and np.array_equal(b.clusters, cc)
         assert b.triangles == int(cluster_cut.cut_triangle_count(h, b.offsets, b.clusters).sum())
         total += b.triangles
     assert dl.stats["triangles"] == total
     assert dl.stats["clusters"] == sum(b.clusters.size for b in dl.batches)
     n_vis = dl.stats["instances"]
     assert 0 < total < n_vis * h.n_triangles  # far instances are simplified
-    # PoE 0: the original mesh for every instance
+    # PoE 0 without culling: the original mesh for every instance
     sel.poe = 0.0
+    sel.cull = False
     dl0 = sel.select(st, cam, size)
     assert dl0.stats["triangles"] == n_vis * h.n_triangles
+    sel.cull = True
     # coarser PoE, fewer triangles
     sel.poe = 4.0
     assert sel.select(st, cam, size).stats["triangles"] < total
@@ -161,3 +167,40 @@ def test_crowd_run_end_to_end_reports_triangles(tmp_path, monkeypatch):
     assert all(int(float(row["triangles"])) > 0 for row in rows)
     assert len(list((out / "frames").iterdir())) == 3
     assert list((tmp_path / "cache").glob("clusters-*.npz"))  # the hierarchy was cached
+
+
+def test_cluster_culling_kernel_matches_reference_and_keeps_visible_clusters(human):
+    reps, _ = clusters_mode.build([human], ["h"], [30], {}, cache=False)
+    h = reps[0].hierarchy
+    rng = np.random.default_rng(7)
+    k = 30
+    rows = np.zeros((k, 3, 4))
+    for i in range(k):
+        a = rng.uniform(-np.pi, np.pi)
+        s = rng.uniform(0.5, 2.0)
+        rows[i, :, :3] = s * np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+        rows[i, :, 3] = rng.uniform(-6, 6, 3) + [0, -1, -6]
+    offsets, clusters = cluster_cut.cut(h, rows, np.zeros(3), 500.0, 0.0)
+    cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=40.0)
+    planes = cam.frustum_planes(1.5)
+    a = clusters_mode.cull_clusters(reps[0].sphere64, rows, offsets, clusters, planes)
+    b = clusters_mode.cull_clusters_numpy(h.sphere, rows, offsets, clusters, planes)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert 0 < a[1].size < clusters.size
+    # every vertex of a dropped cluster, in every sampled pose's bounds, is outside the frustum:
+    # check with the cluster's AABB corners in the rest pose (inside the sphere)
+    kept = set()
+    for i in range(k):
+        kept |= {(i, int(c)) for c in a[1][a[0][i]:a[0][i + 1]]}
+    for i in range(k):
+        for c in clusters[offsets[i]:offsets[i + 1]]:
+            if (i, int(c)) in kept:
+                continue
+            v = np.unique(h.cluster_triangles(int(c)))
+            pts = human.mesh.positions[v] @ rows[i, :, :3].T + rows[i, :, 3]
+            d = pts @ planes[:, :3].T + planes[:, 3]
+            assert np.any(np.all(d < 0, axis=0))  # all points behind one plane
+    # empty input
+    e = clusters_mode.cull_clusters(reps[0].sphere64, np.zeros((0, 3, 4)), np.zeros(1, np.int64),
+                                    np.zeros(0, np.int32), planes)
+    assert e[0].tolist() == [0] and e[1].size == 0

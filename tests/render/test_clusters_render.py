@@ -214,6 +214,10 @@ def test_command_kernels_match_numpy_references(scene):
     for i, g in zip(order.tolist(), gid.tolist()):
         f = first[g]
         assert np.array_equal(clusters[offsets[i]:offsets[i + 1]], clusters[offsets[f]:offsets[f + 1]])
+    sub = np.array([5, 0, 39, 5], np.int64)
+    so, sc = rc._sub_csr(offsets, clusters, sub)
+    assert np.array_equal(sc, np.concatenate([clusters[offsets[i]:offsets[i + 1]] for i in sub]))
+    assert np.array_equal(np.diff(so), offsets[sub + 1] - offsets[sub])
     flat = np.asarray(h.indices).reshape(-1)
     a, fa = rc.gather(flat, h.tri_start, offsets, clusters)
     b, fb = rc.gather_numpy(flat, h.tri_start, offsets, clusters)
