@@ -50,6 +50,8 @@ from numba import njit
 from sim.mesh import Mesh
 from sim.terrain import Terrain
 
+from lod.view import Camera
+
 #: default screen-space error bound (pixels)
 TERRAIN_LOD_TAU = 1.0
 #: largest grid side (2^k + 1) the hierarchy resamples a terrain to
@@ -215,6 +217,46 @@ def _collect_leaves(mid, active, first_leaf):
     return out[:n]
 
 
+@njit(cache=True)
+def _active_kernel(pos, err, rad, cam, fwd, planes, scale, tau, near, cull):
+    """(V,) bool screen-space activation of the module docstring (see
+    :meth:`TerrainHierarchy.active_vertices_reference`)."""
+    nv = pos.shape[0]
+    out = np.zeros(nv, np.bool_)
+    for v in range(nv):
+        if err[v] <= 0.0:
+            continue
+        rx = pos[v, 0] - cam[0]
+        ry = pos[v, 1] - cam[1]
+        rz = pos[v, 2] - cam[2]
+        d = rx * fwd[0] + ry * fwd[1] + rz * fwd[2] - rad[v]
+        if d < near:
+            d = near
+        if not err[v] * scale > tau * d:
+            continue
+        ok = True
+        if cull:
+            for k in range(planes.shape[0]):
+                if rx * planes[k, 0] + ry * planes[k, 1] + rz * planes[k, 2] + planes[k, 3] < -rad[v]:
+                    ok = False
+                    break
+        out[v] = ok
+    return out
+
+
+@njit(cache=True)
+def _interp_heights(y_true, tri, mid, active, n_levels):
+    """(V,) float64 surface heights of a section (see
+    :meth:`TerrainHierarchy.interpolated_heights_reference`)."""
+    y = y_true.copy()
+    for lev in range(n_levels - 1):
+        for i in range(1 << (lev + 1), 1 << (lev + 2)):
+            m = mid[i]
+            if not active[m]:
+                y[m] = 0.5 * (y[tri[i, 0]] + y[tri[i, 1]])
+    return y
+
+
 def collect_leaves_reference(mid: np.ndarray, active: np.ndarray, first_leaf: int) -> np.ndarray:
     """Plain numpy reference of :func:`_collect_leaves` (level-synchronous, heap-id order)."""
     front = np.array([2, 3], np.int64)
@@ -306,25 +348,52 @@ class TerrainHierarchy:
         ty = math.tan(math.radians(camera.fov_y) * 0.5)
         return (0.5 * h / ty) * math.sqrt(1.0 + ty * ty * (1.0 + (w / h) ** 2))
 
-    def active_vertices(self, camera, size, tau: float = TERRAIN_LOD_TAU, cull: bool = True) -> np.ndarray:
+    @staticmethod
+    def cull_planes(camera, size, margin_deg: float = 0.0) -> np.ndarray:
+        """(6, 4) camera-relative frustum planes, the side planes opened by
+        ``margin_deg`` degrees each (so geometry about to enter the view while a
+        keyframe is shown is already refined)."""
+        aspect = float(size[0]) / float(size[1])
+        if margin_deg <= 0:
+            return camera.frustum_planes(aspect)
+        ty = math.tan(math.radians(camera.fov_y) * 0.5)
+        hy = min(math.atan(ty) + math.radians(margin_deg), math.radians(85.0))
+        hx = min(math.atan(ty * aspect) + math.radians(margin_deg), math.radians(85.0))
+        wide = Camera(camera.position, camera.rotation, math.degrees(2 * hy), camera.near, camera.far)
+        return wide.frustum_planes(math.tan(hx) / math.tan(hy))
+
+    def active_vertices(self, camera, size, tau: float = TERRAIN_LOD_TAU, cull: bool = True,
+                        cull_margin: float = 0.0) -> np.ndarray:
         """(V,) bool: vertices whose saturated screen-space error exceeds ``tau``
-        pixels (and whose sphere meets the frustum when ``cull``)."""
+        pixels (and whose sphere meets the frustum, opened by ``cull_margin``
+        degrees, when ``cull``); numba kernel."""
+        if not tau > 0 or not math.isfinite(tau):
+            raise ValueError(f"terrain LOD tau: expected pixels > 0, got {tau}")
+        planes = self.cull_planes(camera, size, cull_margin)
+        return _active_kernel(self.positions, self.vert_err, self.vert_radius, camera.position,
+                              np.ascontiguousarray(camera.forward), planes, self.error_scale(camera, size),
+                              float(tau), float(camera.near), bool(cull))
+
+    def active_vertices_reference(self, camera, size, tau: float = TERRAIN_LOD_TAU, cull: bool = True,
+                                  cull_margin: float = 0.0) -> np.ndarray:
+        """Plain numpy reference of :meth:`active_vertices`."""
         if not tau > 0 or not math.isfinite(tau):
             raise ValueError(f"terrain LOD tau: expected pixels > 0, got {tau}")
         rel = self.positions - camera.position
         depth = rel @ camera.forward - self.vert_radius
         depth = np.maximum(depth, camera.near)
-        act = self.vert_err * self.error_scale(camera, size) > tau * depth
+        act = (self.vert_err > 0) & (self.vert_err * self.error_scale(camera, size) > tau * depth)
         if cull:
-            planes = camera.frustum_planes(float(size[0]) / float(size[1]))
+            planes = self.cull_planes(camera, size, cull_margin)
             dist = rel @ planes[:, :3].T + planes[:, 3]
             act &= (dist >= -self.vert_radius[:, None]).all(1)
         return act
 
-    def select(self, camera, size, tau: float = TERRAIN_LOD_TAU, cull: bool = True) -> TerrainSelection:
+    def select(self, camera, size, tau: float = TERRAIN_LOD_TAU, cull: bool = True,
+               cull_margin: float = 0.0) -> TerrainSelection:
         """View-dependent section for ``camera`` at ``size`` (width, height) pixels."""
         self.n_selections += 1
-        act = self.active_vertices(camera, size, tau, cull)
+        act = self.active_vertices(camera, size, tau, cull, cull_margin)
         return self.section(act)
 
     def section(self, active: np.ndarray) -> TerrainSelection:
@@ -336,7 +405,12 @@ class TerrainHierarchy:
     def interpolated_heights(self, active: np.ndarray) -> np.ndarray:
         """(V,) float64 world y of every grid vertex on the surface of the
         section ``active`` (inactive vertices: linear interpolation along the
-        refinement edge they would bisect, coarse to fine)."""
+        refinement edge they would bisect, coarse to fine); numba kernel."""
+        return _interp_heights(self.positions[:, 1].copy(), self.tri, self.mid,
+                               np.ascontiguousarray(active, np.bool_), self.n_levels)
+
+    def interpolated_heights_reference(self, active: np.ndarray) -> np.ndarray:
+        """Plain numpy reference of :meth:`interpolated_heights`."""
         y = self.positions[:, 1].copy()
         for lev in range(self.n_levels - 1):
             ids = np.arange(1 << (lev + 1), 1 << (lev + 2))

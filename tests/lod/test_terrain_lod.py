@@ -165,3 +165,17 @@ def test_flat_and_resampled_terrains():
         flat.select(cam_over(), SIZE, tau=0.0)
     with pytest.raises(ValueError):
         flat.select(cam_over(), SIZE, tau=float("nan"))
+
+
+@pytest.mark.parametrize("cull", [True, False])
+def test_active_and_height_kernels_match_references(small, cull):
+    for cam in (cam_over(), cam_over(20.0, 3.0), Camera.look_at([0.0, 10.0, 0.0], [50.0, 0.0, 0.0], near=0.5)):
+        got = small.active_vertices(cam, SIZE, 0.8, cull)
+        ref = small.active_vertices_reference(cam, SIZE, 0.8, cull)
+        np.testing.assert_array_equal(got, ref)
+        assert 0 < got.sum() < small.n_vertices
+        np.testing.assert_allclose(small.interpolated_heights(got), small.interpolated_heights_reference(got),
+                                   atol=1e-12)
+        # inactive vertices sit on the section's surface, active ones keep their true height
+        y = small.interpolated_heights(got)
+        np.testing.assert_array_equal(y[got], small.positions[got, 1])
