@@ -1,0 +1,20 @@
+"""Session-wide test settings.
+
+Hierarchy caches (points, clusters) go to a fresh folder per test session, so
+tests never read or fill the user's ``~/.cache/crowd`` and always exercise a
+cold cache first. Subprocesses inherit it through the environment.
+"""
+import os
+
+import pytest
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _isolated_cache(tmp_path_factory):
+    old = os.environ.get("CROWD_CACHE_DIR")
+    os.environ["CROWD_CACHE_DIR"] = str(tmp_path_factory.mktemp("crowd-cache"))
+    yield
+    if old is None:
+        os.environ.pop("CROWD_CACHE_DIR", None)
+    else:
+        os.environ["CROWD_CACHE_DIR"] = old
