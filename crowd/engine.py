@@ -242,20 +242,47 @@ class Engine:
     def _build_reps(self):
         """Scenery (terrain) as static reps, then the representations and the
         selector of the scene's LOD mode (``lod.modes``)."""
-        from lod.modes import mode_module
-
         statics = []
         terrain = self.world.resources.get("terrain")
         if terrain is not None:
             from lod.nolod import build_static_rep
 
             statics.append(build_static_rep(terrain.mesh(), key="static:terrain"))
-        sc = self.scene
-        progress = None if (self.quiet or not self.plan.big) else (lambda it, desc: _progress(it, desc, disable=False))
-        reps, self._selector = mode_module(sc.lod_mode).build(
-            self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
-            dict(sc.lod_params), static_reps=statics, progress=progress)
+        self.statics = statics
+        self._modes = {}  # mode -> (reps, selector), built on first use
+        reps, self._selector = self._build_mode(self.scene.lod_mode)
         return reps, statics
+
+    def _build_mode(self, mode: str):
+        """(reps, selector) of LOD ``mode``: with the scene's ``[lod]`` keys for
+        the scene's own mode, else with the mode's defaults."""
+        from lod.modes import mode_module
+
+        built = self._modes.get(mode)
+        if built is None:
+            sc = self.scene
+            params = dict(sc.lod_params) if mode == sc.lod_mode else {}
+            progress = False if self.quiet else (lambda it, desc: _progress(it, desc, disable=not self.plan.big))
+            built = mode_module(mode).build(
+                self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
+                params, static_reps=self.statics, progress=progress)
+            self._modes[mode] = built
+        return built
+
+    def set_lod_mode(self, mode: str) -> None:
+        """Switch the LOD mode while running (the fly-through's live control).
+
+        The mode's representations are built once (hierarchies come from the
+        disk cache when present) and uploaded to the open renderer.
+        """
+        if mode not in self.lod_modes:
+            raise ValueError(f"lod mode {mode!r}: expected one of {', '.join(self.lod_modes)}")
+        fresh = mode not in self._modes
+        self.reps, self.selector = self._build_mode(mode)
+        if fresh and self.renderer is not None:
+            for rep in self.reps:
+                self.renderer.upload(rep)
+        self.settings.lod_mode = mode
 
     def _build_selector(self):
         return self._selector
@@ -287,7 +314,10 @@ class Engine:
 
         self.close()
         self.renderer = Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx)
-        for rep in [*self.reps, *self.statics]:
+        for reps, _ in self._modes.values():
+            for rep in reps:
+                self.renderer.upload(rep)
+        for rep in self.statics:
             self.renderer.upload(rep)
         return self.renderer
 

@@ -309,7 +309,7 @@ class FlyController:
         self._mode_cursor = (self._mode_cursor + 1) % len(LOD_MODES_ALL)
         mode = LOD_MODES_ALL[self._mode_cursor]
         if mode in self.engine.lod_modes:
-            self.settings.lod_mode = mode
+            self.engine.set_lod_mode(mode)
             self.say(f"lod mode {mode}")
         else:
             self.say(f"mode {mode} not available yet")

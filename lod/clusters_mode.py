@@ -152,7 +152,8 @@ def cache_key(skinned: SkinnedRep, build_params: dict) -> str:
     h = hashlib.sha256()
     h.update(f"clusters-format-{FORMAT_VERSION}".encode())
     h.update(_source_digest().encode())
-    h.update(json.dumps(build_params, sort_keys=True).encode())
+    # the progress bar does not change the hierarchy
+    h.update(json.dumps({k: v for k, v in build_params.items() if k != "progress"}, sort_keys=True).encode())
     for a in (skinned.positions, skinned.indices, skinned.joints, skinned.weights, skinned.joint_table,
               skinned.clip_duration, skinned.clip_loop):
         a = np.ascontiguousarray(a)
@@ -163,16 +164,18 @@ def cache_key(skinned: SkinnedRep, build_params: dict) -> str:
 
 
 def cached_hierarchy(character, skinned: SkinnedRep, build_params: dict, cache: bool = True,
-                     directory: Path | None = None) -> ClusterHierarchy:
+                     directory: Path | None = None, quiet: bool = False) -> ClusterHierarchy:
     """Load the character's hierarchy from the cache, or build and store it.
 
     A cached file that cannot be read (truncated, corrupt, wrong layout) is
     rebuilt and overwritten; the write is atomic (temp file + rename), so
     concurrent runs never read a half-written file. An unwritable cache folder
-    only costs the rebuild next time.
+    only costs the rebuild next time. ``quiet`` hides the build's progress bar.
     """
+    build_params = dict(build_params)
+    bar = build_params.pop("progress", False if quiet else None)  # None: a bar once the build has run a second
     if not cache:
-        return build_cluster_hierarchy(character, **build_params)
+        return build_cluster_hierarchy(character, **build_params, progress=bar)
     d = Path(directory) if directory is not None else cache_dir()
     path = d / f"clusters-{cache_key(skinned, build_params)}.npz"
     if path.is_file():
@@ -180,7 +183,7 @@ def cached_hierarchy(character, skinned: SkinnedRep, build_params: dict, cache: 
             return ClusterHierarchy.load(path)
         except ValueError:
             pass  # corrupt: rebuild below
-    h = build_cluster_hierarchy(character, **build_params)
+    h = build_cluster_hierarchy(character, **build_params, progress=bar)
     try:
         d.mkdir(parents=True, exist_ok=True)
         h.save(path)
@@ -351,14 +354,14 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     every = int(params.get("occlusion_every", PARAMS["occlusion_every"].default))
     bp = build_params_of(params)
     items = list(zip(characters, names, fps))
-    if progress is not None:
+    if callable(progress):
         items = progress(items, "cluster hierarchies")
     reps = []
     for ch, name, f in items:
         key = f"clusters:{name}"
         if getattr(ch, "kind", "") == "skinned" and ch.mesh.is_skinned:
             sk = build_skinned_rep(ch, fps=f, key=key)
-            h = cached_hierarchy(ch, sk, bp, cache=cache)
+            h = cached_hierarchy(ch, sk, bp, cache=cache, quiet=progress is False)
             reps.append(ClustersRep(key, sk, h, occlusion=occ, occlusion_every=every))
         else:
             reps.append(build_rep(ch, fps=f, key=key))

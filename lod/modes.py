@@ -12,8 +12,9 @@ A mode is a module exposing
         params : dict, the validated ``[lod]`` table
         static_reps : lod.nolod.StaticRep scenery (terrain) the selector may be
             asked to draw through ``statics``
-        progress : None or a callable ``progress(iterable, description)``
-            wrapping a long loop in a progress bar
+        progress : a callable ``progress(iterable, description)`` wrapping a
+            long loop in a progress bar; False for no progress output at all
+            (``--quiet``); None lets the mode decide (bars on a terminal)
         reps : list of representations to upload to the renderer
         selector : object with ``select(state, camera, size, statics=()) -> DrawList``
 

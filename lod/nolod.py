@@ -972,7 +972,7 @@ PARAMS: dict = {}
 def build(characters, names, fps, params, static_reps=(), progress=None):
     """Mode "none" for ``lod.modes``: a full-detail rep per character and a NoLodSelector."""
     items = list(zip(characters, names, fps))
-    if progress is not None:
+    if callable(progress):
         items = progress(items, "representations")
     reps = [build_rep(ch, fps=f, key=f"none:{n}") for ch, n, f in items]
     return reps, NoLodSelector(reps, static_reps=static_reps)

@@ -245,7 +245,9 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character and a :class:`PointsSelector`."""
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     p.pop("mode", None)
-    if progress is None:
+    if progress is False:
+        progress = None  # quiet: no progress output
+    elif progress is None:
         from tqdm.auto import tqdm
 
         def progress(it, desc):

@@ -200,11 +200,16 @@ def test_pause_keeps_the_state(app):
 
 def test_live_settings_keys(app):
     s = app.engine.settings
-    press(app, glfw.KEY_M)
-    assert s.lod_mode == "none" and "mode points not available yet" in app.echoed
-    for _ in range(4):
+    press(app, glfw.KEY_M)  # points: built on first use, and the selector follows
+    assert s.lod_mode == "points" and app.echoed[-1] == "lod mode points"
+    assert type(app.engine.selector).__name__ == "PointsSelector"
+    assert app.frame(1 / 30).drawlist.points > 0
+    press(app, glfw.KEY_M)  # triangles: not a mode yet
+    assert s.lod_mode == "points" and "mode triangles not available yet" in app.echoed
+    for _ in range(3):
         press(app, glfw.KEY_M)
     assert s.lod_mode == "none" and app.echoed[-1] == "lod mode none"
+    assert type(app.engine.selector).__name__ == "NoLodSelector"
     splat, poe, kf = s.splat_size, s.poe, s.keyframe_interval
     press(app, glfw.KEY_RIGHT_BRACKET)
     press(app, glfw.KEY_EQUAL)
