@@ -207,7 +207,10 @@ class Engine:
         self.camera_path = self._build_camera()
         self.reps, self.statics = self._build_reps()
         self.selector = self._build_selector()
-        self.settings = LiveSettings(lod_mode=scene.lod_mode)
+        lp = dict(scene.lod_params)
+        self.settings = LiveSettings(lod_mode=scene.lod_mode, poe=float(lp.get("poe", LiveSettings.poe)),
+                                     splat_size=float(lp.get("splat_size", LiveSettings.splat_size)),
+                                     occlusion=bool(lp.get("occlusion", LiveSettings.occlusion)))
 
     # -- building -----------------------------------------------------------------------------------------------------
     def _build_world(self):
@@ -330,7 +333,19 @@ class Engine:
         """The DrawList of the current state seen by ``camera`` at ``size`` (the
         selection ``run`` makes each frame, statics included)."""
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
+        self.apply_live_settings()
         return self.selector.select(self.world.state, camera, size, statics=static_draws)
+
+    def apply_live_settings(self) -> None:
+        """Hand the live LOD settings to the current selector: pixels of error
+        to a cluster cut, the splat size to a point traversal (the drawer
+        splats at the size the DrawList names). Occlusion and the keyframe
+        interval are shown but not yet applied live."""
+        sel, s = self.selector, self.settings
+        if hasattr(sel, "poe"):
+            sel.poe = float(s.poe)
+        if hasattr(sel, "splat_size"):
+            sel.splat_size = int(min(3, max(1, round(s.splat_size))))
 
     def close(self) -> None:
         if self.renderer is not None:

@@ -68,6 +68,8 @@ class DrawList:
     size : (width, height) pixels
     batches : list[DrawBatch]
     stats : dict of counts ("instances", "culled", "triangles", "points", ...)
+    options : dict of per-frame drawing options the selector chose, read by
+        the renderer's drawers (e.g. "splat_size" in pixels for point splats)
     """
 
     origin: np.ndarray
@@ -76,6 +78,7 @@ class DrawList:
     size: tuple
     batches: list = field(default_factory=list)
     stats: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
 
     @property
     def n_instances(self) -> int:

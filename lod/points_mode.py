@@ -397,6 +397,7 @@ class PointsSelector:
                                    point_jobs=pj, tri_jobs=tj))
         dl.batches = out
         dl.stats["points"] = int(pts)
+        dl.options["splat_size"] = self.splat_size  # the drawer splats at the size the traversal assumed
         dl.stats["triangles"] = int(tris) + sum(b.triangles for b in out if not isinstance(b, PointsBatch))
         dl.stats["batches"] = len(out)
         return dl

@@ -339,7 +339,7 @@ class Drawer:
         ctx.memory_barrier()
         # one splat size per frame (the resolve gathers s x s anchors); all
         # reps of a scene share the [lod] splat_size
-        splat = int(per_rep[0][0].splat)
+        splat = int(drawlist.options.get("splat_size", per_rep[0][0].splat))
         for defines in ((), ("COLOR_PASS",)):
             cs = self._compute("points_splat", defines + (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}"))
             self._uniforms(cs, vp, u_size=(w, h))

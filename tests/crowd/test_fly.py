@@ -214,7 +214,7 @@ def test_live_settings_keys(app):
     press(app, glfw.KEY_RIGHT_BRACKET)
     press(app, glfw.KEY_EQUAL)
     press(app, glfw.KEY_PERIOD)
-    assert (s.splat_size, s.poe, s.keyframe_interval) == (splat + 0.5, poe * 2, kf + 1)
+    assert (s.splat_size, s.poe, s.keyframe_interval) == (min(splat + 1, 3), poe * 2, kf + 1)
     press(app, glfw.KEY_LEFT_BRACKET)
     press(app, glfw.KEY_MINUS)
     press(app, glfw.KEY_COMMA)
@@ -373,3 +373,23 @@ def test_cli_fly_with_an_unusable_display_says_so_in_one_line(scene_file, monkey
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "glfw could not initialise" in lines[0] and "xvfb-run crowd fly" in lines[0]
+
+
+def test_live_poe_and_splat_size_reach_the_selectors(app):
+    e, s = app.engine, app.engine.settings
+    e.set_lod_mode("clusters")
+    s.poe = 0.125
+    fine = app.frame(1 / 30).drawlist
+    s.poe = 64.0
+    coarse = app.frame(1 / 30).drawlist
+    assert e.selector.poe == 64.0
+    assert 0 < coarse.triangles < fine.triangles
+    e.set_lod_mode("points")
+    sizes = {}
+    for size in (1.0, 3.0):
+        s.splat_size = size
+        dl = app.frame(1 / 30).drawlist
+        assert dl.options["splat_size"] == int(size)
+        sizes[size] = dl.stats["points"] + dl.stats["triangles"]
+    # a larger splat lets the traversal stop higher up: fewer primitives
+    assert sizes[3.0] < sizes[1.0]
