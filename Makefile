@@ -22,10 +22,10 @@ PYTEST_ARGS  ?=
 setup: $(SENTINEL)
 
 # Re-runs only when pyproject.toml changes; a second `make setup` is instant.
-$(SENTINEL): pyproject.toml
+$(SENTINEL): pyproject.toml Makefile
 	@$(MAKE) --no-print-directory system-packages
 	@test -x $(VPY) || $(PYTHON) -m venv $(VENV)
-	$(VPY) -m pip install --quiet -e '.[test]'
+	$(VPY) -m pip install --quiet -e '.[test,report]'
 	@touch $(SENTINEL)
 
 system-packages:

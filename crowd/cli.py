@@ -4,6 +4,7 @@
     crowd validate SCENE
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
+    crowd report SCENE... [--sweep KEY=V1,V2,...]... [--frames N] [--size WxH] [--out DIR] [--sample-every K]
 
 Bad input (scene, asset, parameter) is reported as one line on stderr with exit
 code 2 and no traceback; nothing is written. Unexpected exceptions keep their
@@ -88,7 +89,38 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the scene's output dir + '-fly')")
     f.add_argument("--record", metavar="PATH", help="camera recording file written by R (default: timestamped)")
     f.add_argument("--frames", type=_positive_int, help="close after N frames (scripted runs)")
+
+    rp = sub.add_parser("report", help="frame-time and accuracy report (HTML) over scenes and swept settings")
+    rp.add_argument("scenes", nargs="+", metavar="SCENE", help="scene files (.toml)")
+    rp.add_argument("--sweep", action="append", default=[], metavar="KEY=V1,V2,...",
+                    help="sweep a setting: lod.mode, lod.poe, lod.splat_size, any lod.<key>, render.size "
+                    "(alias resolution, values WxH); repeat for a cartesian product")
+    rp.add_argument("--frames", type=_positive_int, help="frames per run (overrides each scene's `frames`)")
+    rp.add_argument("--size", type=_size, help="image size WxH (overrides [render] size)")
+    rp.add_argument("--out", metavar="DIR", default="out/report", help="report directory (replaced atomically; "
+                    "default out/report)")
+    rp.add_argument("--sample-every", type=_positive_int, metavar="K",
+                    help="compare every K-th frame with its NoLOD reference (default: frames // 4)")
+    rp.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
     return p
+
+
+def cmd_report(args) -> int:
+    from crowd.report import build_report, parse_sweep
+
+    sweeps = [parse_sweep(t) for t in args.sweep]
+    keys = [k for k, _ in sweeps]
+    dup = next((k for k in keys if keys.count(k) > 1), None)
+    if dup is not None:
+        from crowd.report import SweepError
+
+        raise SweepError(f"--sweep {dup}: given more than once; list all its values in one --sweep")
+    res = build_report(args.scenes, sweeps, frames=args.frames, size=args.size, out=args.out,
+                       sample_every=args.sample_every, quiet=args.quiet)
+    if not args.quiet:
+        n = sum(len(s["settings"]) for s in res.data["scenes"])
+        print(f"wrote {res.out_dir / 'index.html'}: {len(res.data['scenes'])} scene(s), {n} setting(s)")
+    return 0
 
 
 def cmd_fly(args) -> int:
@@ -167,7 +199,7 @@ def _fmt(v) -> str:
     return str(v)
 
 
-COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info, "fly": cmd_fly}
+COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info, "fly": cmd_fly, "report": cmd_report}
 
 
 def _sigterm(signum, frame):

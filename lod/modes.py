@@ -30,6 +30,7 @@ MODES: dict[str, str] = {
     "none": "lod.nolod",
     "points": "lod.points_mode",
     "clusters": "lod.clusters_mode",
+    "triangles": "lod.triangles_mode",
 }
 
 

@@ -372,6 +372,8 @@ class Renderer:
                     n_vertices=int(n_vertices))
         g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
         g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
+        # a LOD chain (lod.triangles_mode) holds all its levels: a batch without index_range draws level 0
+        g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])
             pvao = ctx.vertex_array(self.program("palette", ("v_row",)), [])
@@ -502,8 +504,14 @@ class Renderer:
                 if g.kind == "keyframed":
                     g.vao.render(ctx.TRIANGLES, vertices=int(g.seg_count[b.part]), first=int(g.seg_first[b.part]),
                                  instances=k)
+                elif getattr(b, "index_range", None) is not None:  # one level of a LOD chain
+                    first, count = (int(v) for v in b.index_range)
+                    if not (0 <= first and 0 <= count and first + count <= g.n_indices):
+                        raise ValueError(f"DrawBatch {b.rep!r}: index_range {b.index_range} outside the "
+                                         f"{g.n_indices} indices of the representation")
+                    g.vao.render(ctx.TRIANGLES, vertices=count, first=first, instances=k)
                 else:
-                    g.vao.render(ctx.TRIANGLES, vertices=g.n_indices, instances=k)
+                    g.vao.render(ctx.TRIANGLES, vertices=g.default_count, instances=k)
                 offset += k * INSTANCE_BYTES
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's

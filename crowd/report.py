@@ -1,0 +1,601 @@
+"""``crowd report``: frame-time and accuracy reports over scenes and swept settings.
+
+For each scene and each combination of swept settings (``--sweep KEY=V1,V2``)
+the scene runs headless along its camera path (``Engine.run``: frames.csv,
+summary.json, trace.json and every k-th frame as PNG). A full-detail reference
+run (LOD mode ``none``, same scene, seed and size; the simulation does not
+depend on the LOD mode, so the states and cameras of both runs are equal frame
+by frame) renders the same sampled frames, and each sampled frame is compared
+with its reference by PSNR, SSIM and FLIP (:mod:`crowd.image_metrics`).
+
+The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
+
+    index.html         self-contained page (relative links only)
+    report.json        every number of the page (non-finite values as null)
+    plots/*.png        matplotlib (Agg) figures
+    samples/*.png      sampled frames, references and error maps
+    runs/<scene>/<setting>/   the runs' own outputs (frames.csv, summary.json, ...)
+
+Sweep keys are applied to the parsed TOML document *before* validation, so a
+swept value is checked exactly as if it were written in the scene file.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+import dataclasses
+import html
+import itertools
+import math
+import re
+import shutil
+import sys
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from crowd.errors import CrowdError, SceneError
+
+#: swept keys besides ``lod.<key>`` (any key of an LOD mode's PARAMS, and ``lod.mode``)
+SIZE_KEYS = ("render.size", "resolution")
+#: default number of sampled (compared) frames per run
+DEFAULT_SAMPLES = 4
+#: frame-time stages of the breakdown plot (crowd.telemetry.STAGES)
+STAGE_COLUMNS = ("simulate", "select", "upload", "draw", "finish")
+
+
+class SweepError(CrowdError):
+    """A bad ``--sweep`` argument (exit code 2)."""
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# sweeps and settings
+# ---------------------------------------------------------------------------------------------------------------------
+
+
+def _all_lod_keys() -> dict:
+    """lod key -> modes accepting it (``mode`` is accepted by all)."""
+    from lod.modes import mode_names, mode_params
+
+    out = {"mode": list(mode_names())}
+    for m in mode_names():
+        for k in mode_params(m):
+            out.setdefault(k, []).append(m)
+    return out
+
+
+def parse_sweep(text: str) -> tuple:
+    """``KEY=V1,V2,...`` -> (canonical key, [values]).
+
+    Values are TOML literals when they parse as one (``0.5``, ``2``, ``true``),
+    else strings (``points``); sizes are ``WxH``. The key is checked here; the
+    values are checked by scene validation (:func:`expand_settings`).
+
+    Raises
+    ------
+    SweepError
+        Malformed argument or unknown key (one sentence naming what is accepted).
+    """
+    from crowd.scene import parse_size
+
+    lod_keys = _all_lod_keys()
+    accepted = ", ".join([f"lod.{k}" for k in lod_keys] + list(SIZE_KEYS))
+    key, sep, rest = text.partition("=")
+    key = key.strip()
+    if not sep or not key or not rest.strip():
+        raise SweepError(f"--sweep {text!r}: expected KEY=V1,V2,... with KEY one of {accepted}")
+    raw = [v.strip() for v in rest.split(",")]
+    if any(not v for v in raw):
+        raise SweepError(f"--sweep {text!r}: empty value in the list; expected KEY=V1,V2,...")
+    if key in SIZE_KEYS:
+        values = []
+        for v in raw:
+            s = parse_size(v)
+            if s is None:
+                from crowd.scene import SIZE_RANGE
+
+                raise SweepError(f"--sweep {key}: bad size {v!r}; expected WxH with integers in "
+                                 f"{SIZE_RANGE[0]} ..= {SIZE_RANGE[1]} (e.g. 640x360)")
+            values.append(list(s))
+        return "render.size", values
+    if not key.startswith("lod.") or key[4:] not in lod_keys:
+        raise SweepError(f"--sweep: unknown key {key!r}; accepted: {accepted}")
+    values = []
+    for v in raw:
+        try:
+            values.append(tomllib.loads(f"v = {v}")["v"])
+        except tomllib.TOMLDecodeError:
+            values.append(v)
+    if len(set(map(repr, values))) != len(values):
+        raise SweepError(f"--sweep {key}: a value is repeated in {rest!r}")
+    return key, values
+
+
+@dataclass
+class Setting:
+    """One combination of swept values for one scene.
+
+    label : str, e.g. ``lod.mode=points, lod.splat_size=2`` (``scene`` when nothing is swept)
+    values : dict canonical key -> value actually applied
+    scene : crowd.scene.Scene, validated with the values applied
+    """
+
+    label: str
+    values: dict
+    scene: object
+    slug: str = ""
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, list) and len(v) == 2:
+        return f"{v[0]}x{v[1]}"
+    return str(v)
+
+
+def expand_settings(scene_path, sweeps: list, size: tuple | None = None, frames: int | None = None) -> list:
+    """Validated settings of one scene: the cartesian product of ``sweeps``.
+
+    Parameters
+    ----------
+    scene_path : path of a TOML scene file
+    sweeps : list of (key, values) from :func:`parse_sweep`
+    size : (w, h) or None, the ``--size`` override (a swept render.size wins)
+    frames : int or None, the ``--frames`` override
+
+    An ``lod.<key>`` that the combination's LOD mode does not accept is left
+    out of that combination (so ``lod.mode=none,clusters`` sweeps with
+    ``lod.poe=0.5,2`` give three settings), as are the scene's own ``[lod]``
+    keys another mode does not accept. Duplicate combinations are merged.
+
+    Raises
+    ------
+    crowd.errors.SceneError
+        The scene file is invalid, or a swept value is not valid for its key.
+    """
+    from crowd.scene import load_scene, parse_scene
+    from lod.modes import mode_params
+
+    load_scene(scene_path)  # the file itself, with its own errors
+    path = Path(scene_path)
+    doc0 = tomllib.loads(path.read_text(encoding="utf-8"))
+    if size is not None:
+        doc0.setdefault("render", {})["size"] = list(size)
+    keys = [k for k, _ in sweeps]
+    settings, seen = [], set()
+    for combo in itertools.product(*[vals for _, vals in sweeps]):
+        doc = copy.deepcopy(doc0)
+        lod = doc.setdefault("lod", {})
+        if not isinstance(lod, dict):
+            break  # load_scene above reported this
+        applied = {}
+        if "lod.mode" in keys:
+            lod["mode"] = combo[keys.index("lod.mode")]
+            applied["lod.mode"] = lod["mode"]
+        mode = lod.get("mode", "none")
+        try:
+            accepted = set(mode_params(mode)) if isinstance(mode, str) else set()
+        except KeyError:
+            accepted = set()  # unknown mode: validation below names the accepted ones
+        if "lod.mode" in keys:
+            for k in list(lod):
+                if k != "mode" and k not in accepted:
+                    del lod[k]
+        for k, v in zip(keys, combo):
+            if k == "lod.mode":
+                continue
+            if k == "render.size":
+                doc.setdefault("render", {})["size"] = v
+            elif k[4:] in accepted:
+                lod[k[4:]] = v
+            else:
+                continue
+            applied[k] = v
+        try:
+            scene = parse_scene(doc, path)
+        except SceneError as e:
+            shown = ", ".join(f"{k}={_fmt_value(v)}" for k, v in applied.items())
+            raise SceneError(e.path, e.key, str(e).split(": ", 2)[-1] + f" (with --sweep {shown})") from None
+        ident = repr(sorted((k, repr(v)) for k, v in applied.items()))
+        if ident in seen:
+            continue
+        seen.add(ident)
+        if frames is not None:
+            scene = scene.with_overrides(frames=frames)
+        label = ", ".join(f"{k}={_fmt_value(v)}" for k, v in applied.items()) or "scene"
+        settings.append(Setting(label=label, values=applied, scene=scene, slug=f"s{len(settings)}"))
+    for k, _ in sweeps:
+        if k.startswith("lod.") and k != "lod.mode" and not any(k in s.values for s in settings):
+            raise SweepError(f"--sweep {k}: no swept LOD mode of {path} accepts {k[4:]!r}; "
+                             f"sweep lod.mode too or set [lod] mode in the scene")
+    return settings
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# running and measuring
+# ---------------------------------------------------------------------------------------------------------------------
+
+
+def read_frames_csv(path) -> dict:
+    """frames.csv -> column name -> float64 array (blank cells are NaN)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    cols = rows[0].keys() if rows else []
+    return {c: np.array([float(r[c]) if r[c] != "" else np.nan for r in rows], np.float64) for c in cols}
+
+
+@dataclass
+class RunData:
+    """A finished run of one setting: its directory, summary and frames.csv columns."""
+
+    setting: Setting
+    out_dir: Path
+    summary: dict
+    columns: dict
+    pngs: list
+    metrics: list = field(default_factory=list)  # per sampled frame: dict frame, psnr, ssim, flip, mse, identical
+
+
+def _run(scene, out_dir: Path, png_every: int) -> tuple:
+    from crowd.engine import Engine
+
+    with Engine(scene, quiet=True) as engine:
+        r = engine.run(frames=scene.frames, out_dir=out_dir, png_every=png_every)
+    return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(r.pngs)
+
+
+def _reference_scene(scene):
+    return dataclasses.replace(scene, lod_mode="none", lod_params=())
+
+
+def _progress(total: int, quiet: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="report", disable=quiet or not sys.stderr.isatty(), leave=False,
+                file=sys.stderr, dynamic_ncols=True)
+
+
+def finite_or_none(x):
+    """JSON-safe number: non-finite floats become None."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def aggregate(metrics: list) -> dict:
+    """Per-setting accuracy over its sampled frames: ``psnr`` of the mean MSE (inf when every frame is
+    identical), mean ``ssim``, mean ``flip`` (None without FLIP), ``identical`` (all frames)."""
+    if not metrics:
+        return {"psnr": None, "ssim": None, "flip": None, "identical": None, "samples": 0}
+    m = float(np.mean([x["mse"] for x in metrics]))
+    flips = [x["flip"] for x in metrics if x["flip"] is not None]
+    return {"psnr": math.inf if m == 0.0 else 10.0 * math.log10(1.0 / m),
+            "ssim": float(np.mean([x["ssim"] for x in metrics])),
+            "flip": float(np.mean(flips)) if flips else None,
+            "identical": all(x["identical"] for x in metrics), "samples": len(metrics)}
+
+
+def pareto_front(times, errors) -> list:
+    """Indices of the points not dominated (lower time and lower error is better), sorted by time.
+
+    A point is dominated when another has time <= and error <= with one of them strictly smaller.
+    """
+    idx = sorted(range(len(times)), key=lambda i: (times[i], errors[i]))
+    front, best = [], math.inf
+    for i in idx:
+        if errors[i] < best:
+            front.append(i)
+            best = errors[i]
+    return front
+
+
+@dataclass
+class ReportResult:
+    out_dir: Path
+    data: dict  # as report.json
+
+
+def build_report(scene_paths: list, sweeps: list, frames: int | None = None, size: tuple | None = None,
+                 out: str | Path = "out/report", sample_every: int | None = None, quiet: bool = False
+                 ) -> ReportResult:
+    """Run every scene x setting plus references, measure, and write the report directory atomically.
+
+    Parameters
+    ----------
+    scene_paths : list of scene file paths
+    sweeps : list of (key, values) (:func:`parse_sweep`)
+    frames, size : overrides of every scene's ``frames`` and ``[render] size``
+    out : report directory (replaced atomically)
+    sample_every : compare every k-th frame (default: ``frames // 4``, at least 1)
+    quiet : no progress bar
+
+    Raises
+    ------
+    crowd.errors.CrowdError
+        Bad scene or sweep (before anything runs or is written).
+    """
+    from crowd.image_metrics import compare, flip_available
+    from crowd.output import atomic_dir, check_output_dir
+    from render.image import read_png, write_png
+
+    all_settings = [(Path(p), expand_settings(p, sweeps, size=size, frames=frames)) for p in scene_paths]
+    names = [s[0].scene.name for _, s in all_settings]
+    slugs = _unique_slugs(names)
+    out = check_output_dir(out)
+    total_runs = sum(len(s) + len({tuple(x.scene.render.size) for x in s}) for _, s in all_settings)
+    data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None}
+    with atomic_dir(out) as tmp, _progress(total_runs, quiet) as bar:
+        for d in ("plots", "samples", "runs"):
+            (tmp / d).mkdir()
+        for (path, settings), slug in zip(all_settings, slugs):
+            nframes = settings[0].scene.frames
+            k = sample_every or max(1, nframes // DEFAULT_SAMPLES)
+            runs = []
+            for st in settings:
+                bar.set_postfix_str(f"{slug} {st.label}")
+                rd = tmp / "runs" / slug / st.slug
+                summ, cols, pngs = _run(st.scene, rd, k)
+                runs.append(RunData(st, rd, summ, cols, [rd / "frames" / Path(p).name for p in pngs]))
+                bar.update(1)
+            refs = {}
+            for run in runs:  # a setting of mode none without LOD keys is its own size's reference
+                sz = tuple(run.setting.scene.render.size)
+                if run.setting.scene.lod_mode == "none" and sz not in refs:
+                    refs[sz] = run.pngs
+            for sz in sorted({tuple(r.setting.scene.render.size) for r in runs}):
+                if sz not in refs:
+                    bar.set_postfix_str(f"{slug} reference {sz[0]}x{sz[1]}")
+                    rd = tmp / "runs" / slug / f"reference_{sz[0]}x{sz[1]}"
+                    ref_scene = _reference_scene(next(r.setting.scene for r in runs
+                                                      if tuple(r.setting.scene.render.size) == sz))
+                    _, _, pngs = _run(ref_scene, rd, k)
+                    refs[sz] = [rd / "frames" / Path(p).name for p in pngs]
+                bar.update(1)
+            scene_entry = {"name": names[len(data["scenes"])], "slug": slug, "file": str(path), "frames": nframes,
+                           "sample_every": k, "settings": []}
+            for run in runs:
+                sz = tuple(run.setting.scene.render.size)
+                ref_by_name = {p.name: p for p in refs[sz]}
+                for p in run.pngs:
+                    frame = int(re.search(r"(\d+)", p.name).group(1))
+                    img, ref = read_png(p), read_png(ref_by_name[p.name])
+                    m = compare(img, ref)
+                    mse = float(np.mean((img.astype(np.float64) / 255 - ref.astype(np.float64) / 255) ** 2))
+                    base = f"{slug}_{run.setting.slug}_f{frame:05d}"
+                    shutil.copyfile(p, tmp / "samples" / f"{base}.png")
+                    shutil.copyfile(ref_by_name[p.name], tmp / "samples" / f"{base}_ref.png")
+                    write_png(tmp / "samples" / f"{base}_err.png",
+                              (np.clip(m["error_map"], 0, 1) * 255 + 0.5).astype(np.uint8))
+                    run.metrics.append({"frame": frame, "psnr": m["psnr"], "ssim": m["ssim"], "flip": m["flip"],
+                                        "mse": mse, "identical": m["identical"], "image": f"samples/{base}.png",
+                                        "reference": f"samples/{base}_ref.png", "error": f"samples/{base}_err.png"})
+                scene_entry["settings"].append(_setting_entry(run, tmp))
+                if data["machine"] is None:
+                    data["machine"] = run.summary.get("machine")
+            _plots(tmp, scene_entry, runs)
+            data["scenes"].append(scene_entry)
+        from crowd.output import write_atomic, write_json
+
+        write_json(tmp / "report.json", _json_safe(data))
+        write_atomic(tmp / "index.html", render_html(data))
+    return ReportResult(out_dir=out, data=data)
+
+
+def _unique_slugs(names: list) -> list:
+    out, used = [], set()
+    for n in names:
+        base = re.sub(r"[^A-Za-z0-9_.-]+", "_", n) or "scene"
+        s, i = base, 2
+        while s in used:
+            s, i = f"{base}_{i}", i + 1
+        used.add(s)
+        out.append(s)
+    return out
+
+
+def frame_seconds(columns: dict) -> np.ndarray:
+    """Per-frame time, seconds: the sum of the stage columns of frames.csv (simulate, select, upload, draw,
+    finish). Unlike ``total`` it leaves out the PNG writes of the sampled frames, which would otherwise
+    inflate exactly the frames that are compared, and telemetry bookkeeping."""
+    return sum(np.nan_to_num(columns[k]) for k in STAGE_COLUMNS if k in columns)
+
+
+def _setting_entry(run: RunData, tmp: Path) -> dict:
+    from crowd.telemetry import stats
+
+    s, st = run.summary, run.setting
+    stages = s["stages"]
+    ft = stats(frame_seconds(run.columns))
+    return {"label": st.label, "slug": st.slug, "values": st.values, "lod_mode": st.scene.lod_mode,
+            "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
+            "run_dir": str(run.out_dir.relative_to(tmp)),
+            "frame_ms": {q: ft[q] * 1e3 for q in ("mean", "p50", "p95", "p99", "max")},
+            "stage_ms": {k: stages[k]["mean"] * 1e3 for k in STAGE_COLUMNS if stages.get(k)},
+            "gpu_ms": (stages["gpu"]["p50"] * 1e3) if stages.get("gpu") else None,
+            "triangles": s["counts"]["triangles"]["mean"], "points": s["counts"]["points"]["mean"],
+            "instances": s["counts"]["instances"]["mean"],
+            "accuracy": aggregate(run.metrics), "samples": run.metrics}
+
+
+def _json_safe(obj):
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        obj = obj.item()
+    return finite_or_none(obj)
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# plots (matplotlib, Agg)
+# ---------------------------------------------------------------------------------------------------------------------
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _error_axis(settings: list) -> tuple:
+    """(name, values) of the error shown on the Pareto plot: mean FLIP, else 1 - SSIM."""
+    if all(s["accuracy"]["flip"] is not None for s in settings):
+        return "mean FLIP error", [s["accuracy"]["flip"] for s in settings]
+    return "1 - SSIM", [1.0 - (s["accuracy"]["ssim"] if s["accuracy"]["ssim"] is not None else 0.0)
+                        for s in settings]
+
+
+def _plots(tmp: Path, entry: dict, runs: list) -> None:
+    plt = _plt()
+    slug = entry["slug"]
+    plots = entry["plots"] = {}
+
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=96)
+    for run in runs:
+        c = run.columns
+        ax.plot(c["frame"], frame_seconds(c) * 1e3, label=run.setting.label, lw=1.2)
+    ax.set_xlabel("frame (along the camera path)")
+    ax.set_ylabel("frame time, ms")
+    ax.set_title(f"{entry['name']}: frame time")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plots["frame_time"] = _save(fig, tmp, f"plots/{slug}_frame_time.png")
+
+    plots["stages"] = {}
+    for run in runs:
+        c = run.columns
+        fig, ax = plt.subplots(figsize=(8, 3), dpi=96)
+        ys = [np.nan_to_num(c[k]) * 1e3 for k in STAGE_COLUMNS if k in c]
+        ax.stackplot(c["frame"], *ys, labels=[k for k in STAGE_COLUMNS if k in c], alpha=0.85)
+        ax.set_xlabel("frame")
+        ax.set_ylabel("ms")
+        ax.set_title(f"{entry['name']} [{run.setting.label}]: per-stage breakdown", fontsize=9)
+        ax.legend(fontsize=7, loc="upper right", ncol=5)
+        ax.grid(alpha=0.3)
+        plots["stages"][run.setting.slug] = _save(fig, tmp, f"plots/{slug}_{run.setting.slug}_stages.png")
+
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=96)
+    for run in runs:
+        c = run.columns
+        prims = np.nan_to_num(c.get("triangles", 0)) + np.nan_to_num(c.get("points", 0))
+        ax.plot(c["frame"], prims, label=run.setting.label, lw=1.2)
+    ax.set_xlabel("frame")
+    ax.set_ylabel("primitives drawn (triangles + points)")
+    ax.set_title(f"{entry['name']}: primitives drawn")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plots["primitives"] = _save(fig, tmp, f"plots/{slug}_primitives.png")
+
+    sets = entry["settings"]
+    name, errs = _error_axis(sets)
+    times = [s["frame_ms"]["p50"] for s in sets]
+    fig, ax = plt.subplots(figsize=(6, 4.5), dpi=96)
+    ax.scatter(times, errs, zorder=3)
+    for t, e, s in zip(times, errs, sets):
+        ax.annotate(s["label"], (t, e), fontsize=7, xytext=(4, 4), textcoords="offset points")
+    front = pareto_front(times, errs)
+    ax.plot([times[i] for i in front], [errs[i] for i in front], "r--", lw=1, marker="o", ms=11, mfc="none",
+            label="Pareto front", zorder=2)
+    ax.set_xlabel("median frame time, ms")
+    ax.set_ylabel(name + " vs NoLOD")
+    ax.set_title(f"{entry['name']}: accuracy against time")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plots["pareto"] = _save(fig, tmp, f"plots/{slug}_pareto.png")
+    entry["pareto_front"] = [sets[i]["slug"] for i in front]
+    entry["pareto_error"] = name
+
+
+def _save(fig, tmp: Path, rel: str) -> str:
+    import io
+
+    from crowd.output import write_atomic
+
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png")
+    _plt().close(fig)
+    write_atomic(tmp / rel, buf.getvalue())
+    return rel
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# HTML
+# ---------------------------------------------------------------------------------------------------------------------
+
+_CSS = """body{font-family:sans-serif;margin:1.5em;max-width:1200px;color:#222}
+table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 7px;font-size:13px}
+th{background:#eee}td.n{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%}
+.samples img{width:260px;image-rendering:pixelated}h2{border-bottom:2px solid #888;margin-top:2em}"""
+
+
+def _num(x, fmt="{:.2f}") -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, float) and math.isinf(x):
+        return "∞ (identical)"
+    return fmt.format(x)
+
+
+def render_html(data: dict) -> str:
+    """The report page: only relative links to ``plots/`` and ``samples/``; no scripts, no external resources."""
+    e = html.escape
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8"><title>crowd report</title>',
+           f"<style>{_CSS}</style></head><body>", "<h1>crowd report</h1>"]
+    if data["sweeps"]:
+        out.append("<p>Sweeps: " + "; ".join(e(f"{k} = {', '.join(_fmt_value(x) for x in v)}")
+                                               for k, v in data["sweeps"]) + "</p>")
+    out.append("<p>Accuracy is measured against full-detail (NoLOD) reference frames at the same simulated time and "
+               "camera: PSNR (of the mean MSE over the sampled frames), mean SSIM (Wang et al. 2004), mean FLIP "
+               f"(Andersson et al. 2020){'' if data['flip'] else ' — not available: flip-evaluator is not installed'}"
+               ". Frame time is the wall-clock sum of the stages simulate, select, upload, draw and finish "
+               "(the PNG writes of sampled frames are left out); the first frame is included.</p>")
+    for sc in data["scenes"]:
+        out.append(f"<h2>{e(sc['name'])}</h2><p>{e(sc['file'])}: {sc['frames']} frames, every "
+                   f"{sc['sample_every']}-th frame compared.</p>")
+        out.append("<table><tr><th>setting</th><th>size</th><th>p50 ms</th><th>p95 ms</th><th>p99 ms</th>"
+                   "<th>max ms</th><th>mean ms: " + " / ".join(STAGE_COLUMNS) + "</th><th>GPU p50 ms</th>"
+                   "<th>triangles/frame</th><th>points/frame</th><th>PSNR dB</th><th>SSIM</th><th>FLIP</th>"
+                   "<th>Pareto</th></tr>")
+        for s in sc["settings"]:
+            fm, a = s["frame_ms"], s["accuracy"]
+            stages = " / ".join(f"{s['stage_ms'].get(k, 0.0):.2f}" for k in STAGE_COLUMNS)
+            out.append(f"<tr class='setting'><td>{e(s['label'])}</td><td>{s['size'][0]}x{s['size'][1]}</td>"
+                       + "".join(f"<td class='n'>{fm[q]:.2f}</td>" for q in ("p50", "p95", "p99", "max"))
+                       + f"<td class='n'>{stages}</td><td class='n'>{_num(s['gpu_ms'])}</td>"
+                       f"<td class='n'>{s['triangles']:,.0f}</td><td class='n'>{s['points']:,.0f}</td>"
+                       f"<td class='n'>{_num(a['psnr'])}</td><td class='n'>{_num(a['ssim'], '{:.4f}')}</td>"
+                       f"<td class='n'>{_num(a['flip'], '{:.4f}')}</td>"
+                       f"<td>{'front' if s['slug'] in sc['pareto_front'] else ''}</td></tr>")
+        out.append("</table>")
+        p = sc["plots"]
+        out.append(f"<h3>Frame time along the path</h3><img src='{e(p['frame_time'])}' alt='frame time'>")
+        for s in sc["settings"]:
+            out.append(f"<img src='{e(p['stages'][s['slug']])}' alt='stages {e(s['label'])}'>")
+        out.append(f"<h3>Primitives drawn</h3><img src='{e(p['primitives'])}' alt='primitives'>")
+        out.append(f"<h3>Accuracy against time ({e(sc['pareto_error'])})</h3>"
+                   f"<img src='{e(p['pareto'])}' alt='pareto'>")
+        out.append("<h3>Sample frames</h3><table class='samples'><tr><th>setting</th><th>frame</th><th>frame</th>"
+                   "<th>NoLOD reference</th><th>error map</th><th>PSNR / SSIM / FLIP</th></tr>")
+        for s in sc["settings"]:
+            for m in s["samples"]:
+                out.append(f"<tr><td>{e(s['label'])}</td><td>{m['frame']}</td>"
+                           f"<td><img src='{e(m['image'])}' alt='frame'></td>"
+                           f"<td><img src='{e(m['reference'])}' alt='reference'></td>"
+                           f"<td><img src='{e(m['error'])}' alt='error map'></td>"
+                           f"<td>{_num(m['psnr'])} dB<br>{_num(m['ssim'], '{:.4f}')}<br>"
+                           f"{_num(m['flip'], '{:.4f}')}</td></tr>")
+        out.append("</table>")
+    mach = data.get("machine") or {}
+    out.append("<h2>Machine</h2><table>")
+    for k in ("cpu", "cores", "platform", "gl_renderer", "gl_version"):
+        out.append(f"<tr><th>{e(k)}</th><td>{e(str(mach.get(k)))}</td></tr>")
+    pk = mach.get("packages") or {}
+    out.append("<tr><th>packages</th><td>" + e(", ".join(f"{k} {v}" for k, v in pk.items())) + "</td></tr>")
+    out.append("</table></body></html>")
+    return "\n".join(out) + "\n"

@@ -1,0 +1,176 @@
+"""``crowd report`` and the image metrics behind it."""
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+from crowd_testutil import run_cli, tiny_scene
+
+from crowd import image_metrics as im
+from crowd.errors import CrowdError, SceneError
+from crowd.report import aggregate, expand_settings, pareto_front, parse_sweep, read_frames_csv
+
+REPORT_SCENE = tiny_scene(replace={"frames = 3": "frames = 6", "size = [64, 48]": "size = [96, 72]",
+                                   "png_every = 1": "png_every = 0"})
+
+
+# ---------------------------------------------------------------------------------------------------- image metrics
+def _img(seed=0, shape=(40, 50, 3)):
+    return np.random.default_rng(seed).integers(0, 256, shape, dtype=np.uint8)
+
+
+def test_identical_images_are_perfect():
+    a = _img()
+    assert im.psnr(a, a) == math.inf
+    assert im.ssim(a, a) == 1.0
+    m = im.compare(a, a)
+    assert m["identical"] and m["ssim"] == 1.0
+    if im.flip_available():
+        assert m["flip"] == pytest.approx(0.0, abs=1e-6)
+    assert m["error_map"].shape == (40, 50, 3) and np.all(np.isfinite(m["error_map"]))
+
+
+def test_psnr_matches_formula():
+    a = np.zeros((8, 8, 3), np.uint8)
+    b = a.copy()
+    b[0, 0, 0] = 255  # one full-scale error in 192 values: MSE = 1/192
+    assert im.psnr(b, a) == pytest.approx(10 * math.log10(192))
+
+
+def test_ssim_orders_distortions_and_is_symmetric():
+    a = _img(1).astype(np.float64) / 255
+    rng = np.random.default_rng(2)
+    small = np.clip(a + rng.normal(0, 0.02, a.shape), 0, 1)
+    big = np.clip(a + rng.normal(0, 0.2, a.shape), 0, 1)
+    s_small, s_big = im.ssim(small, a), im.ssim(big, a)
+    assert 1.0 > s_small > s_big > -1.0
+    assert im.ssim(a, small) == pytest.approx(s_small)
+    # a constant image against itself shifted: SSIM reduces to the luminance term of Wang et al. eq. 6
+    c, d = np.full((16, 16, 3), 0.5), np.full((16, 16, 3), 0.6)
+    c1 = (im.SSIM_K1) ** 2
+    assert im.ssim(c, d) == pytest.approx((2 * 0.5 * 0.6 + c1) / (0.25 + 0.36 + c1))
+
+
+def test_metrics_refuse_bad_inputs():
+    with pytest.raises(ValueError, match="shapes differ"):
+        im.psnr(_img(shape=(4, 4, 3)), _img(shape=(4, 5, 3)))
+    bad = np.zeros((4, 4, 3))
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        im.ssim(bad, np.zeros((4, 4, 3)))
+
+
+@pytest.mark.skipif(not im.flip_available(), reason="flip-evaluator is not installed (pip install flip-evaluator)")
+def test_flip_grows_with_error():
+    a = _img(3).astype(np.float64) / 255
+    small = np.clip(a + 0.02, 0, 1)
+    big = np.clip(a + 0.3, 0, 1)
+    f_small, _ = im.flip(small, a)
+    f_big, fmap = im.flip(big, a)
+    assert 0.0 < f_small < f_big <= 1.0
+    assert fmap.shape == a.shape and fmap.dtype == np.float32
+
+
+# --------------------------------------------------------------------------------------------------- sweeps, pareto
+def test_parse_sweep_values():
+    assert parse_sweep("lod.mode=none,points") == ("lod.mode", ["none", "points"])
+    assert parse_sweep("lod.poe=0.5,2") == ("lod.poe", [0.5, 2])
+    assert parse_sweep("resolution=96x72,64x48") == ("render.size", [[96, 72], [64, 48]])
+    for bad, msg in [("lod.foo=1", "unknown key"), ("sim.dt=1", "unknown key"), ("lod.poe", "KEY=V1"),
+                     ("lod.poe=1,,2", "empty value"), ("render.size=3x3", "bad size"), ("lod.poe=1,1", "repeated")]:
+        with pytest.raises(CrowdError, match=msg):
+            parse_sweep(bad)
+
+
+def test_expand_settings_drops_keys_a_mode_does_not_take(write_scene):
+    p = write_scene(REPORT_SCENE)
+    sets = expand_settings(p, [parse_sweep("lod.mode=none,clusters"), parse_sweep("lod.poe=0.5,2")])
+    assert [s.label for s in sets] == ["lod.mode=none", "lod.mode=clusters, lod.poe=0.5",
+                                       "lod.mode=clusters, lod.poe=2"]
+    assert dict(sets[2].scene.lod_params)["poe"] == 2.0
+    with pytest.raises(SceneError, match="lod.poe"):
+        expand_settings(p, [parse_sweep("lod.mode=clusters"), parse_sweep("lod.poe=-1")])
+    with pytest.raises(CrowdError, match="accepts 'poe'"):
+        expand_settings(p, [parse_sweep("lod.poe=1,2")])  # the scene's mode is none
+
+
+def test_pareto_front_and_aggregate():
+    assert pareto_front([1.0, 2.0, 3.0, 2.5], [0.5, 0.2, 0.3, 0.1]) == [0, 1, 3]
+    assert pareto_front([1.0, 1.0], [0.3, 0.2]) == [1]
+    a = aggregate([{"mse": 0.0, "ssim": 1.0, "flip": 0.0, "identical": True}] * 2)
+    assert a["psnr"] == math.inf and a["identical"]
+    b = aggregate([{"mse": 0.01, "ssim": 0.9, "flip": 0.1, "identical": False},
+                   {"mse": 0.0, "ssim": 1.0, "flip": 0.0, "identical": True}])
+    assert b["psnr"] == pytest.approx(10 * math.log10(200)) and b["ssim"] == pytest.approx(0.95)
+
+
+# --------------------------------------------------------------------------------------------------- the whole report
+def test_report_of_a_tiny_scene_with_a_two_value_sweep(write_scene, tmp_path):
+    scene = write_scene(REPORT_SCENE)
+    out = tmp_path / "rep"
+    r = run_cli("report", scene, "--sweep", "lod.mode=none,clusters", "--out", out, "--sample-every", "2",
+                "--quiet")
+    assert r.returncode == 0, r.stderr
+    page = (out / "index.html").read_text()
+    data = json.loads((out / "report.json").read_text())
+    # every image the page names exists, and every plot and sample written is on the page
+    srcs = set(re.findall(r"<img src='([^']+)'", page))
+    assert srcs and all((out / s).is_file() for s in srcs)
+    written = {p.relative_to(out).as_posix() for d in ("plots", "samples") for p in (out / d).glob("*.png")}
+    assert written == srcs
+    (sc,) = data["scenes"]
+    assert [s["label"] for s in sc["settings"]] == ["lod.mode=none", "lod.mode=clusters"]
+    assert page.count("<tr class='setting'>") == 2
+    for s in sc["settings"]:
+        assert [m["frame"] for m in s["samples"]] == [0, 2, 4]
+        for q in ("p50", "p95", "p99", "max"):
+            assert math.isfinite(s["frame_ms"][q]) and s["frame_ms"][q] > 0
+        assert s["frame_ms"]["p50"] <= s["frame_ms"]["p95"] <= s["frame_ms"]["p99"] <= s["frame_ms"]["max"]
+        for m in s["samples"]:
+            assert 0.0 <= m["ssim"] <= 1.0 and (m["flip"] is None or 0.0 <= m["flip"] <= 1.0)
+            assert m["psnr"] is None or math.isfinite(m["psnr"])  # None = identical (inf)
+    nolod, clusters = sc["settings"]
+    assert nolod["accuracy"]["identical"] and nolod["accuracy"]["psnr"] is None  # inf: its own reference
+    assert nolod["accuracy"]["ssim"] == 1.0
+    assert all(m["psnr"] is None and m["ssim"] == 1.0 for m in nolod["samples"])
+    assert clusters["triangles"] <= nolod["triangles"] and clusters["triangles"] > 0
+    assert clusters["accuracy"]["psnr"] is None or 10.0 < clusters["accuracy"]["psnr"]
+    assert sc["pareto_front"][0] in ("s0", "s1")
+    assert data["machine"]["cpu"] and "∞ (identical)" in page
+    assert (out / "runs" / sc["slug"] / "s0" / "summary.json").is_file()
+    # frame time = sum of the stages (PNG writes of the sampled frames left out), from the run's frames.csv
+    cols = read_frames_csv(out / "runs" / sc["slug"] / "s1" / "frames.csv")
+    ft = sum(cols[k] for k in ("simulate", "select", "upload", "draw", "finish")) * 1e3
+    assert clusters["frame_ms"]["max"] == pytest.approx(ft.max()) and np.all(ft <= cols["total"] * 1e3 + 1e-9)
+    assert not list(tmp_path.glob(".rep*"))  # no temporary directories left
+
+
+def test_reference_run_when_no_setting_is_nolod(write_scene, tmp_path):
+    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 2"))
+    out = tmp_path / "rep"
+    r = run_cli("report", scene, "--sweep", "lod.mode=clusters", "--sweep", "resolution=64x48,80x60",
+                "--out", out, "--quiet")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((out / "report.json").read_text())
+    (sc,) = data["scenes"]
+    assert [s["size"] for s in sc["settings"]] == [[64, 48], [80, 60]]
+    assert sorted(p.name for p in (out / "runs" / sc["slug"]).iterdir()) == [
+        "reference_64x48", "reference_80x60", "s0", "s1"]
+    for s in sc["settings"]:
+        assert len(s["samples"]) == 2 and all(0.0 < m["ssim"] <= 1.0 for m in s["samples"])
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["--sweep", "lod.nope=1,2"], "unknown key 'lod.nope'"),
+    (["--sweep", "lod.mode=none,bogus"], "lod.mode"),
+    (["--sweep", "lod.mode=none", "--sweep", "lod.mode=points"], "more than once"),
+])
+def test_bad_sweep_exit_2_nothing_written(write_scene, tmp_path, args, msg):
+    scene = write_scene(REPORT_SCENE)
+    out = tmp_path / "rep"
+    r = run_cli("report", scene, *args, "--out", out)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and msg in lines[0] and "Traceback" not in r.stderr
+    assert not out.exists() and not list(tmp_path.glob(".rep*"))

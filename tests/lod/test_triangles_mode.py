@@ -1,0 +1,326 @@
+"""LOD mode "triangles" (lod/triangles_mode.py): the discrete chain, its cache,
+per-instance level selection, equality with NoLOD at a zero bound, measured
+silhouette error within the bound, and a `crowd run` with the mode."""
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from lod import modes, nolod, qem
+from lod import triangles_mode as tm
+from lod.cluster_cut import viewport_scale
+from lod.view import Camera
+from sim.procedural import humanoid
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
+from tiny_characters import tiny_keyframed  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+SIZE = (320, 240)
+BG = (0.1, 0.1, 0.12)
+
+
+@pytest.fixture(scope="module")
+def char():
+    return humanoid(2500, 0)
+
+
+@pytest.fixture(scope="module")
+def built(char):
+    reps, sel = tm.build([char], ["h"], [30], {"poe": 0.0}, cache=False)
+    full, fsel = nolod.build([char], ["h"], [30], {})
+    return SimpleNamespace(rep=reps[0], sel=sel, full=full, fsel=fsel)
+
+
+def _state(pos, heading=None, t=None, clip=None, character=None):
+    pos = np.asarray(pos, float).reshape(-1, 3)
+    n = len(pos)
+    return SimpleNamespace(n=n, character=np.zeros(n, np.int64) if character is None else np.asarray(character),
+                           clip=np.zeros(n, np.int64) if clip is None else np.asarray(clip, np.int64),
+                           anim_time=np.zeros(n) if t is None else np.asarray(t, float), position=pos,
+                           scale=np.ones(n), heading=np.zeros(n) if heading is None else np.asarray(heading, float))
+
+
+# ------------------------------------------------------------------------------------------ chain
+def test_registered_with_params():
+    assert modes.MODES["triangles"] == "lod.triangles_mode"
+    p = modes.mode_params("triangles")
+    assert (p["poe"].default, p["levels"].default, p["ratio"].default) == (1.0, 7, 0.5)
+
+
+def test_chain_invariants(built, char):
+    r = built.rep
+    assert isinstance(r, nolod.SkinnedRep) and r.kind == "skinned" and r.key == "triangles:h"
+    assert 6 <= r.n_levels <= 7
+    cnt = r.level_count
+    assert cnt[0] == char.mesh.n_triangles == r.n_triangles
+    np.testing.assert_array_equal(r.part_triangles(), [cnt[0]] * r.n_parts)
+    ratios = cnt[1:] / cnt[:-1]
+    assert np.all(ratios < 0.6) and np.all(ratios[:-1] > 0.4), ratios
+    np.testing.assert_array_equal(r.level_first, np.concatenate([[0], np.cumsum(cnt)[:-1]]))
+    assert r.indices.shape == (cnt.sum(), 3) and r.indices.dtype == np.uint32
+    e = r.level_error
+    assert e[0] == 0.0 and np.all(e[1:] > 0) and np.all(np.diff(e) >= 0) and np.isfinite(e).all()
+    V = r.positions.shape[0]
+    for k in range(r.n_levels):
+        t = r.level_indices(k)
+        assert t.shape[0] == cnt[k] and t.max() < V
+        assert np.all((t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2]))
+    np.testing.assert_array_equal(r.level_indices(0), np.asarray(char.mesh.indices).reshape(-1, 3))
+    # vertex data shared with the full-detail rep: every level skins like the full mesh
+    full = built.full[0]
+    for name in ("positions", "joints", "weights", "joint_table", "clip_sphere"):
+        np.testing.assert_array_equal(getattr(r, name), getattr(full, name))
+
+
+def test_level_error_bounds_measured_distance(built, char):
+    """The stored error is at least the vertex-to-surface distance at the sampled poses."""
+    from lod import poses
+    from lod.cluster_dag import skin_poses
+    mats, _, _ = poses.representative_poses(char)
+    X = skin_poses(char.mesh, mats[::5])
+    r = built.rep
+    for k in (1, 3):
+        d = qem.vertex_surface_distance(X, r.level_indices(0), r.level_indices(k))
+        assert d.max() <= r.level_error[k] + 1e-9
+        assert d.max() > 0.0
+
+
+def test_short_chain_and_bad_params(char):
+    sk = nolod.build_skinned_rep(char, key="x")
+    chain, err = tm.build_chain(char, sk, levels=1)
+    assert len(chain) == 1 and err.tolist() == [0.0]
+    with pytest.raises(ValueError, match="ratio"):
+        tm.build_chain(char, sk, levels=3, ratio=1.5)
+    with pytest.raises(ValueError, match="poe"):
+        tm.TrianglesSelector([], poe=float("nan"))
+
+
+def test_cache_round_trip_and_corrupt_file(char, tmp_path):
+    sk = nolod.build_skinned_rep(char, key="x")
+    c1, e1 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
+    files = list(tmp_path.glob("triangles-*.npz"))
+    assert len(files) == 1 and not list(tmp_path.glob("*.tmp"))
+    c2, e2 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
+    assert len(c1) == len(c2) == 4
+    for a, b in zip(c1, c2):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(e1, e2)
+    files[0].write_bytes(b"garbage")
+    c3, e3 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
+    np.testing.assert_array_equal(e3, e1)
+    tm._load(files[0], sk.positions.shape[0])  # rewritten: loads again
+    tm.cached_chain(char, sk, 3, 0.5, directory=tmp_path)
+    assert len(list(tmp_path.glob("triangles-*.npz"))) == 2  # other parameters, other key
+
+
+# ------------------------------------------------------------------------------------------ selection
+def test_choose_levels_rule():
+    err = np.array([0.0, 0.01, 0.02, 0.08])
+    sphere = np.array([0.0, 1.0, 0.0, 1.0])
+    z = np.array([0.5, 5.0, 20.0, 80.0, 1e6])
+    rows = np.zeros((z.size, 3, 4))
+    rows[:, :, :3] = np.eye(3)
+    rows[:, 2, 3] = -z
+    lv = tm.choose_levels(err, rows, sphere, 300.0, 1.0)
+    d = np.linalg.norm(np.stack([np.zeros_like(z), np.ones_like(z), -z], 1), axis=1) - 1.0
+    ref = [0 if dd <= 0 else max(k for k in range(4) if err[k] * 300 / dd <= 1.0) for dd in d]
+    assert lv.tolist() == ref
+    assert lv[0] == 0 and lv[-1] == 3 and np.all(np.diff(lv) >= 0)
+    assert tm.choose_levels(err, rows, sphere, 300.0, 0.0).tolist() == [0] * z.size
+    rows2 = rows.copy()
+    rows2[:, :, :3] *= 2.0  # twice as big: twice the projected error and radius
+    assert np.all(tm.choose_levels(err, rows2, sphere, 300.0, 1.0) <= lv)
+
+
+def _crowd(n=60, seed=3, half_width=20.0, depth=60.0):
+    rng = np.random.default_rng(seed)
+    pos = np.column_stack([rng.uniform(-half_width, half_width, n), np.zeros(n), rng.uniform(-depth, 5, n)])
+    return _state(pos, rng.uniform(0, 6.3, n), rng.uniform(0, 2, n))
+
+
+def test_every_visible_instance_drawn_once(built):
+    st = _crowd()
+    cam = Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0))
+    sel = built.sel
+    ref = built.fsel.select(st, cam, SIZE)
+    ref_ids = np.sort(np.concatenate([b.instance_ids for b in ref.batches]))
+    for poe in (0.0, 1.0, 5.0, 1e3):
+        sel.poe = poe
+        dl = sel.select(st, cam, SIZE)
+        ids = np.concatenate([b.instance_ids for b in dl.batches])
+        assert np.array_equal(np.sort(ids), ref_ids)  # none twice, none dropped
+        assert sum(dl.stats["levels"]) == ids.size == dl.stats["instances"]
+        assert dl.stats["triangles"] == sum(b.triangles for b in dl.batches)
+        keys = [(b.rep, b.part, b.level) for b in dl.batches]
+        assert len(set(keys)) == len(keys) and keys == sorted(keys)
+        for b in dl.batches:
+            f, c = b.index_range
+            assert f == 3 * built.rep.level_first[b.level] and c == 3 * built.rep.level_count[b.level]
+            assert b.triangles == built.rep.level_count[b.level] * b.n_instances
+        if poe == 0.0:
+            assert dl.stats["triangles"] == ref.stats["triangles"]
+            assert dl.stats["levels"][0] == ids.size
+    assert dl.stats["levels"][-1] > 0  # a huge bound reaches the coarsest level
+    sel.poe = 0.0
+
+
+def test_keyframed_character_falls_back_to_full_detail(char):
+    kf = tiny_keyframed()
+    reps, sel = tm.build([char, kf], ["h", "flag"], [30, 30], {"poe": 2.0}, cache=False)
+    assert isinstance(reps[0], tm.TrianglesRep) and reps[1].kind == "keyframed"
+    st = _state([[0, 0, 0], [1, 0, 0], [30, 0, -40]], character=[0, 1, 0])
+    dl = sel.select(st, Camera.look_at((0, 1.5, 6), (0, 1, 0)), SIZE)
+    kb = [b for b in dl.batches if b.rep == "triangles:flag"]
+    assert kb and all(getattr(b, "index_range", None) is None and b.level == 0 for b in kb)
+    assert sum(dl.stats["levels"]) == dl.stats["instances"] >= 2
+
+
+# ------------------------------------------------------------------------------------------ rendering
+@pytest.fixture(scope="module")
+def gl(built):
+    from render.context import create_context
+    from render.renderer import Renderer
+    ctx = create_context()
+    rs = {}
+    for ss in (1, 4):
+        r = Renderer((SIZE[0] * ss, SIZE[1] * ss), ctx=ctx)
+        for rep in [built.rep, *built.full]:
+            r.upload(rep)
+        rs[ss] = r
+    yield rs
+    for r in rs.values():
+        r.release()
+    ctx.release()
+
+
+def _mask(img):
+    bg = np.round(np.asarray(BG) * 255).astype(int)
+    return np.abs(img.astype(int) - bg).max(axis=2) > 2
+
+
+def _draw(r, dl):
+    r.draw(dl, background=BG)
+    return r.read_pixels()
+
+
+def _silhouette_error(a, b):
+    """Largest distance (pixels) from a pixel of one silhouette to the other
+    (as tests/render/test_clusters_render.py measures it)."""
+    if not (a ^ b).any():
+        return 0.0
+    da = ndimage.distance_transform_edt(~a)
+    db = ndimage.distance_transform_edt(~b)
+    return float(max(da[b].max(initial=0.0), db[a].max(initial=0.0)))
+
+
+def test_poe_zero_is_pixel_identical_to_nolod(built, gl):
+    st = _crowd(30, 5, half_width=5.0, depth=25.0)
+    cam = Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0))
+    built.sel.poe = 0.0
+    ref_dl = built.fsel.select(st, cam, SIZE)
+    dl = built.sel.select(st, cam, SIZE)
+    ref, img = _draw(gl[1], ref_dl), _draw(gl[1], dl)
+    assert _mask(ref).sum() > 1000
+    assert dl.stats["triangles"] == ref_dl.stats["triangles"] and dl.n_instances == ref_dl.n_instances
+    assert np.array_equal(img, ref)
+    # plain DrawBatches of the chain rep (no index_range, e.g. re-based by a frozen view) draw level 0 only
+    from dataclasses import replace
+    from lod.drawlist import DrawBatch
+    plain = replace(dl, batches=[DrawBatch(b.rep, b.part, b.instance_ids, b.instance_data) for b in dl.batches])
+    assert np.array_equal(_draw(gl[1], plain), ref)
+    # the comparison can fail: coarse levels change the image and draw fewer triangles
+    built.sel.poe = 50.0
+    dl = built.sel.select(st, cam, SIZE)
+    assert dl.stats["triangles"] < ref_dl.stats["triangles"]
+    assert not np.array_equal(_draw(gl[1], dl), ref)
+    built.sel.poe = 0.0
+
+
+@pytest.mark.parametrize("poe", [1.0, 3.0])
+def test_silhouette_error_within_poe(built, gl, poe):
+    """One instance at distances where the bound picks levels > 0: rendered at
+    4x the selection resolution, the silhouette of the chosen level stays within
+    ``poe`` (+1 pixel of rasterisation) of level 0's."""
+    r = gl[4]
+    sel = built.sel
+    seen = set()
+    for z, t, heading in ((-4.0, 0.3, 0.4), (-10.0, 0.9, 1.2), (-25.0, 0.1, 2.0), (-60.0, 0.6, 0.0)):
+        st = _state([[0.0, 0.0, z]], [heading], [t])
+        cam = Camera.look_at((0, 1.0, 3.0), (0, 0.9, z))
+        sel.poe = 0.0
+        full = _mask(_draw(r, sel.select(st, cam, SIZE)))
+        sel.poe = poe
+        dl = sel.select(st, cam, SIZE)
+        (b,) = dl.batches
+        seen.add(b.level)
+        err = _silhouette_error(full, _mask(_draw(r, dl))) / 4.0
+        assert err <= poe + 1.0, (z, b.level, err)
+    assert max(seen) >= 2
+    sel.poe = 0.0
+
+
+def test_index_range_is_checked(built, gl):
+    from lod.drawlist import DrawList
+    st = _state([[0, 0, -5.0]])
+    cam = Camera.look_at((0, 1.0, 3.0), (0, 0.9, -5.0))
+    dl = built.sel.select(st, cam, SIZE)
+    dl.batches[0].index_range = (0, 3 * int(built.rep.level_count.sum()) + 3)
+    with pytest.raises(ValueError, match="index_range"):
+        gl[1].draw(dl)
+    assert isinstance(dl, DrawList)
+
+
+# ------------------------------------------------------------------------------------------ crowd run
+SCENE = """\
+name = "tiny"
+seed = 1
+dt = 0.05
+frames = 3
+effects = ["animation"]
+
+[[characters]]
+name = "walker"
+generator = "humanoid"
+triangles = 600
+
+[[placement]]
+kind = "grid"
+character = "walker"
+rows = 2
+cols = 2
+spacing = [1.5, 1.5]
+
+[camera]
+position = [1.0, 2.0, 30.0]
+target = [1.0, 0.8, 1.0]
+
+[render]
+size = [64, 48]
+png_every = 1
+
+[lod]
+mode = "triangles"
+poe = 1.0
+levels = 5
+"""
+
+
+def test_crowd_run_with_mode_triangles(tmp_path):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(SCENE)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    p = subprocess.run([sys.executable, "-m", "crowd", "run", str(scene), "--out", str(tmp_path / "out"), "--quiet"],
+                       capture_output=True, text=True, cwd=REPO, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    rows = list(csv.DictReader(open(tmp_path / "out" / "frames.csv")))
+    assert len(rows) == 3
+    tri = [int(float(r["triangles"])) for r in rows]
+    assert all(0 < t < 4 * 600 for t in tri), tri  # far away: coarser than full detail
