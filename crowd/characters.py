@@ -31,6 +31,12 @@ def build_character(spec: CharacterSpec):
         from sim.gltf_io import load_gltf
 
         ch = load_gltf(spec.file)
+    if ch.kind == "skinned":
+        from sim.skin_weights import repair_mesh_weights
+
+        # a safety net for every source: weights that are negative, all zero or off 1 are repaired with a
+        # warning naming the asset; NaN weights are refused in one sentence
+        repair_mesh_weights(ch.mesh, str(spec.file or spec.generator), ch.skeleton.n_joints)
     ch.name = spec.name
     return ch
 

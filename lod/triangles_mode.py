@@ -46,7 +46,6 @@ Keyframed characters fall back to their full-detail representation.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import tempfile
 from dataclasses import dataclass, field

@@ -325,7 +325,7 @@ class Drawer:
             for g, jobs, total in per_rep:
                 self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
                 g.points.bind_to_storage_buffer(0)
-                prog["u_splat"].value = float(g.splat)
+                prog["u_splat"].value = float(drawlist.options.get("splat_size", g.splat))
                 self._empty_for(prog).render(moderngl.POINTS, vertices=total)
                 self.last_counts["points"] += total
             ctx.disable(ctx.PROGRAM_POINT_SIZE)

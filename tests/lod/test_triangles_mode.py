@@ -14,7 +14,6 @@ from scipy import ndimage
 
 from lod import modes, nolod, qem
 from lod import triangles_mode as tm
-from lod.cluster_cut import viewport_scale
 from lod.view import Camera
 from sim.procedural import humanoid
 

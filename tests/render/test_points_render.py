@@ -147,6 +147,7 @@ def test_a_single_point_covers_a_square_of_splat_size(renderer, ball, splat, pat
     data = np.zeros((1, 16))
     data[0, :12] = [1, 0, 0, 0.013, 0, 1, 0, 0.021, 0, 0, 1, -7.0]
     dl.batches = [_one_point_batch(rep, data)]
+    dl.options["splat_size"] = splat  # the drawer splats at the size the DrawList names
     renderer.drawer("points")._reps["points:ball"].splat = splat
     try:
         img = _render(renderer, dl, path)
