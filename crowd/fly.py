@@ -102,7 +102,9 @@ def reframe(drawlist, camera, size):
     -------
     lod.drawlist.DrawList
     """
-    from lod.drawlist import DrawBatch, DrawList
+    import dataclasses
+
+    from lod.drawlist import DrawList
 
     w, h = int(size[0]), int(size[1])
     origin = np.asarray(camera.position, np.float64).copy()
@@ -113,10 +115,11 @@ def reframe(drawlist, camera, size):
         if d.shape[0]:
             t = d[:, [3, 7, 11]].astype(np.float64) + shift
             d[:, [3, 7, 11]] = t.astype(np.float32)
-        batches.append(DrawBatch(b.rep, b.part, b.instance_ids, d, triangles=b.triangles, points=b.points))
+        # replace() keeps what a mode's batch subclass adds (cluster cuts, point jobs, index ranges)
+        batches.append(dataclasses.replace(b, instance_data=d))
     return DrawList(origin=origin, view=camera.view_matrix().astype(np.float32),
                     proj=camera.projection(w / max(1, h)).astype(np.float32), size=(w, h), batches=batches,
-                    stats=dict(drawlist.stats))
+                    stats=dict(drawlist.stats), options=dict(drawlist.options))
 
 
 def _stamp() -> str:

@@ -204,10 +204,13 @@ def test_live_settings_keys(app):
     assert s.lod_mode == "points" and app.echoed[-1] == "lod mode points"
     assert type(app.engine.selector).__name__ == "PointsSelector"
     assert app.frame(1 / 30).drawlist.points > 0
-    press(app, glfw.KEY_M)  # triangles: not a mode yet
-    assert s.lod_mode == "points" and "mode triangles not available yet" in app.echoed
-    for _ in range(3):
-        press(app, glfw.KEY_M)
+    press(app, glfw.KEY_M)  # triangles
+    assert s.lod_mode == "triangles" and type(app.engine.selector).__name__ == "TrianglesSelector"
+    press(app, glfw.KEY_M)  # clusters
+    assert s.lod_mode == "clusters"
+    press(app, glfw.KEY_M)  # auto: not a mode yet
+    assert s.lod_mode == "clusters" and "mode auto not available yet" in app.echoed
+    press(app, glfw.KEY_M)
     assert s.lod_mode == "none" and app.echoed[-1] == "lod mode none"
     assert type(app.engine.selector).__name__ == "NoLodSelector"
     splat, poe, kf = s.splat_size, s.poe, s.keyframe_interval
