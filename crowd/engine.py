@@ -207,6 +207,7 @@ class Engine:
         self.camera_path = self._build_camera()
         self.reps, self.statics = self._build_reps()
         self.selector = self._build_selector()
+        self.terrain_lod = self._build_terrain_lod()
         lp = dict(scene.lod_params)
         self.settings = LiveSettings(lod_mode=scene.lod_mode, poe=float(lp.get("poe", LiveSettings.poe)),
                                      splat_size=float(lp.get("splat_size", LiveSettings.splat_size)),
@@ -271,6 +272,34 @@ class Engine:
                 params, static_reps=self.statics, progress=progress)
             self._modes[mode] = built
         return built
+
+    def _build_terrain_lod(self):
+        """The view-dependent bisection terrain (Friedrich et al.), when the
+        scene's [terrain] asks for ``lod = "bisection"``; else None (the
+        full-resolution terrain mesh is drawn as a static rep)."""
+        terrain = self.world.resources.get("terrain")
+        if terrain is None:
+            return None
+        from lod.temporal import terrain_lod_from_params
+
+        return terrain_lod_from_params(terrain, self.scene.render.size, dict(self.scene.terrain_lod), self.scene.dt)
+
+    def terrain_frame(self, camera, renderer) -> tuple:
+        """Select (or interpolate) this frame's terrain and upload it in place of
+        the full-resolution terrain; returns (camera to draw with, metrics dict).
+
+        In "delayed" extrapolation mode the frame is drawn with the delayed
+        camera (Friedrich et al. §4.1, mode 1)."""
+        if self.terrain_lod is None:
+            return camera, {}
+        from lod.nolod import build_static_rep
+
+        fr = self.terrain_lod.frame(camera)
+        renderer.upload(build_static_rep(fr.mesh(), key="static:terrain"))
+        metrics = {"terrain_triangles": float(len(fr.triangles)), "terrain_selected": float(bool(fr.selected)),
+                   "err_inter": fr.err_inter, "err_view": fr.err_view, "err_extra": fr.err_extra,
+                   "terrain_delay": fr.delay}
+        return (fr.camera if fr.camera is not None else camera), metrics
 
     def set_lod_mode(self, mode: str) -> None:
         """Switch the LOD mode while running (the fly-through's live control).
@@ -400,6 +429,7 @@ class Engine:
                 t1 = time.perf_counter()
                 stages["simulate"] = (0.0, t1 - t_frame)
                 camera = self.camera_at(self.world.time)
+                camera, metrics = self.terrain_frame(camera, renderer)
                 dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
                 t2 = time.perf_counter()
                 stages["select"] = (t1 - t_frame, t2 - t1)
@@ -421,7 +451,7 @@ class Engine:
                           "batches": len(dl.batches)}
                 tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
                                     total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
-                                    counts=counts, samples_passed=r.get("samples_passed")))
+                                    counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))
             digest = self.world.state.digest()
             extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
                      "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,

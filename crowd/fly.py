@@ -512,6 +512,7 @@ class FlyApp:
         t1 = time.perf_counter()
         camera = c.camera()
         size = self.renderer.size
+        camera, _ = e.terrain_frame(camera, self.renderer)
         if e.settings.freeze and self._frozen is not None:
             dl = reframe(self._frozen, camera, size)
         else:

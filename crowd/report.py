@@ -18,6 +18,21 @@ The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
 
 Sweep keys are applied to the parsed TOML document *before* validation, so a
 swept value is checked exactly as if it were written in the scene file.
+
+Regression check (``--compare BASELINE_DIR``, :func:`compare_reports`): each
+setting runs ``--repeat N`` times (default 3 with ``--compare``, serially, never
+two timed runs at once); a run's frame time is the median of its per-frame stage
+sums and a setting's is the median of its runs' medians. Per (scene, setting
+label) found in both reports, ``ratio = current / baseline`` and the noise of
+each report is its relative spread ``(max - min) / median`` of the repeated
+medians. A regression is ``ratio > 1 + threshold`` with
+``threshold = max(MIN_REGRESSION, NOISE_K * max(spread_current, spread_baseline))``
+(5 % and 2: a slowdown must exceed twice the widest run-to-run range seen).
+
+Test-only setting: the environment variable ``CROWD_TEST_SLEEP_MS`` makes every
+timed frame of a report's runs sleep that long inside the ``select`` stage (the
+report wraps the engine's selector; :class:`_SleepySelector`), so a test can
+produce an artificially slower run.
 """
 from __future__ import annotations
 
@@ -44,6 +59,14 @@ SIZE_KEYS = ("render.size", "resolution")
 DEFAULT_SAMPLES = 4
 #: frame-time stages of the breakdown plot (crowd.telemetry.STAGES)
 STAGE_COLUMNS = ("simulate", "select", "upload", "draw", "finish")
+
+
+#: smallest relative slowdown flagged as a regression by ``--compare``
+MIN_REGRESSION = 0.05
+#: a slowdown must exceed NOISE_K times the larger relative spread of the repeated medians of both reports
+NOISE_K = 2.0
+#: environment variable (test-only): milliseconds slept inside each timed frame of the report's runs
+SLEEP_ENV = "CROWD_TEST_SLEEP_MS"
 
 
 class SweepError(CrowdError):
@@ -234,13 +257,59 @@ class RunData:
     summary: dict
     columns: dict
     pngs: list
-    metrics: list = field(default_factory=list)  # per sampled frame: dict frame, psnr, ssim, flip, mse, identical
+    metrics: list = field(default_factory=list)
+    repeat_medians: list = field(default_factory=list)  # median frame seconds of each repeated run  # per sampled frame: dict frame, psnr, ssim, flip, mse, identical
+
+
+class _SleepySelector:
+    """Test-only proxy of an LOD selector whose ``select`` first sleeps ``seconds`` (inside the engine's timed
+    ``select`` stage, so the report's frame times grow by that much); everything else is delegated."""
+
+    def __init__(self, selector, seconds: float):
+        self._inner, self._seconds = selector, seconds
+
+    def select(self, *args, **kwargs):
+        import time
+
+        time.sleep(self._seconds)
+        return self._inner.select(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+def test_sleep_seconds() -> float:
+    """Seconds of the test-only per-frame sleep (``CROWD_TEST_SLEEP_MS``; 0 when unset).
+
+    Raises
+    ------
+    crowd.errors.CrowdError
+        The variable is set but not a finite number of milliseconds >= 0.
+    """
+    import os
+
+    raw = os.environ.get(SLEEP_ENV, "").strip()
+    if not raw:
+        return 0.0
+    try:
+        ms = float(raw)
+    except ValueError:
+        ms = math.nan
+    if not math.isfinite(ms) or ms < 0:
+        raise CrowdError(f"environment variable {SLEEP_ENV}={raw!r}: expected milliseconds, a number >= 0")
+    return ms / 1e3
+
+
+test_sleep_seconds.__test__ = False  # not a pytest test
 
 
 def _run(scene, out_dir: Path, png_every: int) -> tuple:
     from crowd.engine import Engine
 
+    sleep = test_sleep_seconds()
     with Engine(scene, quiet=True) as engine:
+        if sleep > 0:
+            engine.selector = _SleepySelector(engine.selector, sleep)
         r = engine.run(frames=scene.frames, out_dir=out_dir, png_every=png_every)
     return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(r.pngs)
 

@@ -193,6 +193,7 @@ class Scene:
     output_dir: Path
     terrain: dict | None = None
     lod_params: tuple = ()  # ((key, value), ...) of the [lod] table besides mode (lod.modes PARAMS)
+    terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal)
 
     @property
     def effect_names(self) -> list:
@@ -313,7 +314,8 @@ class _Parser:
                      substeps=top["substeps"], frames=top["frames"], characters=tuple(characters),
                      placements=tuple(placements), effects=tuple(effects), camera=camera, render=render,
                      lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain,
-                     lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"))
+                     lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"),
+                     terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else ())
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:
@@ -435,10 +437,20 @@ class _Parser:
     def terrain(self) -> dict | None:
         if "terrain" not in self.doc:
             return None
-        t = self.table("terrain")
+        t = dict(self.table("terrain"))
         import sim.terrain
+        from lod.temporal import TERRAIN_LOD_PARAMS
 
-        cfg = validate(sim.terrain.PARAMS, t, "terrain")
+        # the view-dependent terrain's keys (lod, lod_tau, ...) belong to the LOD layer; the rest to sim.terrain
+        lod_keys = {k: t.pop(k) for k in list(t) if k in TERRAIN_LOD_PARAMS}
+        self._terrain_lod = validate(TERRAIN_LOD_PARAMS, lod_keys, "terrain")
+        try:
+            cfg = validate(sim.terrain.PARAMS, t, "terrain")
+        except ParamError as e:
+            if "unknown key" in e.message:  # name the LOD keys among the accepted ones
+                accepted = ", ".join(sorted([*sim.terrain.PARAMS, *TERRAIN_LOD_PARAMS]))
+                raise ParamError(e.key, f"unknown key; accepted: {accepted}") from None
+            raise
         size = cfg.get("size")
         if size is not None and not (size[0] > 0 and size[1] > 0):
             self.fail("terrain.size", f"expected two numbers > 0, got {t['size']!r}")

@@ -60,6 +60,7 @@ class FrameRecord:
     systems: dict
     counts: dict
     samples_passed: int | None = None
+    metrics: dict = field(default_factory=dict)  # extra per-frame figures (e.g. the terrain LOD's error terms)
 
 
 @dataclass
@@ -71,17 +72,21 @@ class Telemetry:
 
     systems: list = field(default_factory=list)
     frames: list = field(default_factory=list)
+    metrics: list = field(default_factory=list)  # names of FrameRecord.metrics seen, in order of appearance
 
     def add(self, rec: FrameRecord) -> None:
         for name in rec.systems:
             if name not in self.systems:
                 self.systems.append(name)
+        for name in rec.metrics:
+            if name not in self.metrics:
+                self.metrics.append(name)
         self.frames.append(rec)
 
     # ----------------------------------------------------------------------------------------------------- frames.csv
     def columns(self) -> list:
         return (["frame", "sim_time", "total", *STAGES, "gpu"] + [f"sys.{s}" for s in self.systems]
-                + [*COUNTS, "samples_passed"])
+                + [*COUNTS, "samples_passed"] + list(self.metrics))
 
     def csv_text(self) -> str:
         buf = io.StringIO()
@@ -93,7 +98,8 @@ class Telemetry:
                        + [_num(r.gpu) if r.gpu is not None else ""]
                        + [_num(r.systems.get(s, 0.0)) for s in self.systems]
                        + [int(r.counts.get(c, 0)) for c in COUNTS]
-                       + ["" if r.samples_passed is None else int(r.samples_passed)])
+                       + ["" if r.samples_passed is None else int(r.samples_passed)]
+                       + [_num(r.metrics[m]) if r.metrics.get(m) is not None else "" for m in self.metrics])
         return buf.getvalue()
 
     # --------------------------------------------------------------------------------------------------- summary.json
@@ -119,6 +125,9 @@ class Telemetry:
             "systems": systems,
             "counts": counts,
         }
+        if self.metrics:
+            out["metrics"] = {m: stats([r.metrics[m] for r in self.frames if r.metrics.get(m) is not None])
+                              for m in self.metrics}
         if extra:
             out.update(extra)
         out["machine"] = machine if machine is not None else machine_info()

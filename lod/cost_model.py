@@ -1,0 +1,247 @@
+"""A linear model of a frame's rendering cost, fitted to measured frames.
+
+The frame time of a draw list is modelled as a non-negative combination of
+the work it submits (issue 7, "a cost model"; the classic per-primitive /
+per-call cost decomposition of Funkhouser & Séquin, "Adaptive Display
+Algorithm for Interactive Frame Rates During Visualization of Complex
+Virtual Environments", SIGGRAPH 1993, §4.1)::
+
+    seconds ≈ c_frame + c_tri·triangles + c_splat·points + c_draw·batches
+              + c_inst·instances + c_cluster·clusters
+
+The coefficients are fitted by non-negative least squares
+(:func:`scipy.optimize.nnls`, Lawson & Hanson 1974) to frames measured on the
+machine at hand (``crowd calibrate``, :mod:`crowd.calibrate`), and stored as
+JSON per machine and GL renderer string under ``$CROWD_CACHE_DIR`` (default
+``~/.cache/crowd``) in ``cost_model.json``; writes are atomic (temp file +
+rename). Without a calibration for the current (machine, renderer) the
+defaults :data:`DEFAULTS` apply, taken from the figures measured on the
+development machine (llvmpipe, 1280x720: ~8 M triangles/s instanced,
+~27 M splats/s compute-shader splatting).
+
+This module is pure numpy/scipy: ``lod`` imports only ``sim``; the renderer
+string is passed in by the caller.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+#: feature names, in the order of :attr:`CostModel.coefficients` (after ``frame``)
+FEATURES = ("triangles", "points", "batches", "instances", "clusters")
+#: coefficient names: the constant per frame, then one per feature (seconds per unit)
+COEFFICIENTS = ("frame",) + FEATURES
+#: defaults (seconds per unit) when no calibration exists for this machine and renderer
+DEFAULTS = {
+    "frame": 1.0e-3,  # clear + finish + readback-free overhead
+    "triangles": 1.0 / 8.0e6,  # ~8 M triangles/s instanced (llvmpipe, 1280x720)
+    "points": 1.0 / 27.0e6,  # ~27 M splats/s compute-shader splat
+    "batches": 5.0e-5,  # one instanced draw call + state changes
+    "instances": 1.0e-6,  # instance data upload + palette row per instance
+    "clusters": 2.0e-7,  # one cluster record in a cluster cut
+}
+#: file name of the stored calibrations inside the cache folder
+FILE_NAME = "cost_model.json"
+#: bump when the stored layout changes
+FORMAT_VERSION = 1
+#: environment variable naming the cache folder (shared with the LOD caches)
+CACHE_ENV = "CROWD_CACHE_DIR"
+
+
+def cache_dir() -> Path:
+    """The cache folder: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
+    d = os.environ.get(CACHE_ENV, "")
+    return Path(d).expanduser() if d else Path.home() / ".cache" / "crowd"
+
+
+def machine_key(renderer: str = "") -> str:
+    """``"<host>|<machine>|<GL renderer>"``: what a calibration is stored under."""
+    return f"{platform.node()}|{platform.machine()}|{renderer or 'unknown'}"
+
+
+def features(drawlist) -> np.ndarray:
+    """(5,) float64 counts of a DrawList in :data:`FEATURES` order.
+
+    Triangles and points are summed over the batches (``stats`` when the
+    selector recorded them), batches and instances count non-empty batches,
+    clusters come from ``stats["clusters"]`` (0 when absent).
+    """
+    bs = [b for b in drawlist.batches if b.n_instances]
+    st = getattr(drawlist, "stats", {}) or {}
+    tri = st.get("triangles", sum(int(b.triangles) for b in bs))
+    pts = st.get("points", sum(int(b.points) for b in bs))
+    return np.array([float(tri), float(pts), float(len(bs)), float(sum(b.n_instances for b in bs)),
+                     float(st.get("clusters", 0) or 0)], np.float64)
+
+
+@dataclass
+class CostModel:
+    """Coefficients (seconds per unit) of the linear frame-cost model.
+
+    Attributes
+    ----------
+    coefficients : dict name -> float >= 0 for every name in :data:`COEFFICIENTS`
+    key : the :func:`machine_key` it was calibrated for ("" = defaults)
+    median_rel_error : median |predicted - measured| / measured of the fit
+        (None for the defaults)
+    samples : frames the fit used
+    """
+
+    coefficients: dict = field(default_factory=lambda: dict(DEFAULTS))
+    key: str = ""
+    median_rel_error: float | None = None
+    samples: int = 0
+
+    def __post_init__(self):
+        c = dict(DEFAULTS)
+        for k, v in dict(self.coefficients).items():
+            if k not in DEFAULTS:
+                raise ValueError(f"cost model: unknown coefficient {k!r}; accepted: {', '.join(COEFFICIENTS)}")
+            v = float(v)
+            if not (np.isfinite(v) and v >= 0.0):
+                raise ValueError(f"cost model: coefficient {k!r} must be a finite number >= 0, got {v}")
+            c[k] = v
+        self.coefficients = c
+
+    @property
+    def vector(self) -> np.ndarray:
+        """(6,) float64 coefficients in :data:`COEFFICIENTS` order."""
+        return np.array([self.coefficients[k] for k in COEFFICIENTS], np.float64)
+
+    @property
+    def is_default(self) -> bool:
+        return self.key == ""
+
+    def predict_counts(self, triangles=0, points=0, batches=0, instances=0, clusters=0):
+        """Predicted seconds for the given counts (scalars or arrays broadcast together)."""
+        c = self.coefficients
+        return (c["frame"] + c["triangles"] * np.asarray(triangles, np.float64)
+                + c["points"] * np.asarray(points, np.float64) + c["batches"] * np.asarray(batches, np.float64)
+                + c["instances"] * np.asarray(instances, np.float64)
+                + c["clusters"] * np.asarray(clusters, np.float64))
+
+    def predict(self, drawlist) -> float:
+        """Predicted seconds to render ``drawlist`` (a :class:`lod.drawlist.DrawList`)."""
+        return float(self.vector[0] + self.vector[1:] @ features(drawlist))
+
+    def to_dict(self) -> dict:
+        return {"coefficients": dict(self.coefficients), "median_rel_error": self.median_rel_error,
+                "samples": int(self.samples)}
+
+
+def fit(X, y) -> tuple[np.ndarray, float]:
+    """Non-negative least-squares fit of the frame model.
+
+    Parameters
+    ----------
+    X : (n, 5) float64 feature counts (:func:`features`), n >= 1
+    y : (n,) float64 measured seconds, finite and > 0
+
+    Returns
+    -------
+    coef : (6,) float64 >= 0, in :data:`COEFFICIENTS` order
+    median_rel_error : float, median of |X·coef - y| / y
+
+    Each column is scaled to unit maximum before :func:`scipy.optimize.nnls`
+    (counts span ~1 to ~1e7), and the rows are weighted by 1/y so that the
+    fit minimises *relative* error (a slow frame does not dominate).
+    Columns that are all zero get coefficient 0 (callers substitute defaults).
+    """
+    from scipy.optimize import nnls
+
+    X = np.asarray(X, np.float64).reshape(-1, len(FEATURES))
+    y = np.asarray(y, np.float64).reshape(-1)
+    if X.shape[0] != y.shape[0] or X.shape[0] == 0:
+        raise ValueError(f"cost model fit: expected matching non-empty samples, got {X.shape[0]} rows and "
+                         f"{y.shape[0]} times")
+    if not (np.isfinite(X).all() and np.isfinite(y).all() and (y > 0).all() and (X >= 0).all()):
+        raise ValueError("cost model fit: counts must be finite and >= 0 and times finite and > 0")
+    A = np.concatenate([np.ones((X.shape[0], 1)), X], axis=1)
+    scale = A.max(axis=0)
+    scale[scale <= 0] = 1.0
+    w = 1.0 / y
+    sol, _ = nnls(A / scale * w[:, None], y * w)
+    coef = sol / scale
+    pred = A @ coef
+    return coef, float(np.median(np.abs(pred - y) / y))
+
+
+def fit_model(X, y, key: str = "") -> CostModel:
+    """:func:`fit` as a :class:`CostModel`; features never exercised (an
+    all-zero column) keep their :data:`DEFAULTS` coefficient."""
+    coef, err = fit(X, y)
+    X = np.asarray(X, np.float64).reshape(-1, len(FEATURES))
+    used = np.concatenate([[True], X.max(axis=0) > 0])
+    c = {k: (float(v) if u else DEFAULTS[k]) for k, v, u in zip(COEFFICIENTS, coef, used)}
+    return CostModel(c, key=key, median_rel_error=err, samples=int(X.shape[0]))
+
+
+# ---------------------------------------------------------------------------- storage
+def _read(path: Path) -> dict:
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(d, dict) or d.get("format") != FORMAT_VERSION or not isinstance(d.get("machines"), dict):
+        return {}
+    return d
+
+
+def save(model: CostModel, directory: Path | None = None) -> Path:
+    """Store ``model`` under its key in ``cost_model.json`` (other machines'
+    entries kept); atomic write. Returns the file path."""
+    if not model.key:
+        raise ValueError("cost model: refusing to store a model without a machine key")
+    d = Path(directory) if directory is not None else cache_dir()
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / FILE_NAME
+    data = _read(path) or {"format": FORMAT_VERSION, "machines": {}}
+    data["machines"][model.key] = model.to_dict()
+    fd, tmp = tempfile.mkstemp(prefix=FILE_NAME + ".", suffix=".tmp", dir=d)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(data, f, indent=1, sort_keys=True)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def load(renderer: str = "", directory: Path | None = None, key: str | None = None) -> CostModel:
+    """The stored model of this machine and GL ``renderer`` string, or the
+    defaults (``key == ""``) when none is stored or the file is unreadable."""
+    k = machine_key(renderer) if key is None else key
+    d = Path(directory) if directory is not None else cache_dir()
+    entry = _read(d / FILE_NAME).get("machines", {}).get(k)
+    if not isinstance(entry, dict):
+        return CostModel()
+    try:
+        return CostModel(entry.get("coefficients", {}), key=k, median_rel_error=entry.get("median_rel_error"),
+                         samples=int(entry.get("samples", 0)))
+    except (TypeError, ValueError):
+        return CostModel()
+
+
+def load_any(directory: Path | None = None) -> CostModel:
+    """A model stored for this host (any renderer; the first key in sorted
+    order), else the defaults. For ``lod`` code that has no GL context to ask
+    for its renderer string."""
+    d = Path(directory) if directory is not None else cache_dir()
+    machines = _read(d / FILE_NAME).get("machines", {})
+    prefix = f"{platform.node()}|{platform.machine()}|"
+    for k in sorted(machines):
+        if k.startswith(prefix):
+            return load(directory=d, key=k)
+    return CostModel()
+
+
+__all__ = ["FEATURES", "COEFFICIENTS", "DEFAULTS", "CostModel", "features", "fit", "fit_model", "save", "load",
+           "load_any", "machine_key", "cache_dir"]
