@@ -5,6 +5,8 @@
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
     crowd report SCENE... [--sweep KEY=V1,V2,...]... [--frames N] [--size WxH] [--out DIR] [--sample-every K]
+                 [--compare BASELINE_DIR] [--repeat N] [--cluster local|tcp://HOST:PORT]
+    crowd calibrate [--quick] [--size WxH] [--no-save]
 
 Bad input (scene, asset, parameter) is reported as one line on stderr with exit
 code 2 and no traceback; nothing is written. Unexpected exceptions keep their
@@ -101,8 +103,27 @@ def build_parser() -> argparse.ArgumentParser:
                     "default out/report)")
     rp.add_argument("--sample-every", type=_positive_int, metavar="K",
                     help="compare every K-th frame with its NoLOD reference (default: frames // 4)")
+    rp.add_argument("--compare", metavar="BASELINE_DIR", help="flag frame-time regressions against an earlier "
+                    "report directory (exit code 1 when one is found)")
+    rp.add_argument("--repeat", type=_positive_int, metavar="N", help="timed runs per setting (default 3 with "
+                    "--compare, else 1)")
+    rp.add_argument("--cluster", metavar="ADDRESS", help="compute image errors on dask.distributed: 'local' "
+                    "(an embedded LocalCluster) or tcp://HOST:PORT of a scheduler; timed runs stay here, serial")
     rp.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+
+    c = sub.add_parser("calibrate", help="measure this machine's frame-cost model (a few seconds) and store it")
+    c.add_argument("--quick", action="store_true", help="fewer, shorter measurements (about half the time)")
+    c.add_argument("--size", type=_size, default=(1280, 720), help="image size WxH (default 1280x720)")
+    c.add_argument("--no-save", action="store_true", help="print the fit without storing it")
     return p
+
+
+def cmd_calibrate(args) -> int:
+    from crowd.calibrate import calibrate, summary
+
+    model, path = calibrate(size=args.size, quick=args.quick, save=not args.no_save)
+    print(summary(model, path))
+    return 0
 
 
 def cmd_report(args) -> int:
@@ -115,11 +136,27 @@ def cmd_report(args) -> int:
         from crowd.report import SweepError
 
         raise SweepError(f"--sweep {dup}: given more than once; list all its values in one --sweep")
+    baseline = None
+    if args.compare is not None:
+        from crowd.report import load_baseline
+
+        baseline = load_baseline(args.compare)  # read before --out may replace the same directory
     res = build_report(args.scenes, sweeps, frames=args.frames, size=args.size, out=args.out,
-                       sample_every=args.sample_every, quiet=args.quiet)
+                       sample_every=args.sample_every, quiet=args.quiet, repeat=args.repeat, baseline=baseline,
+                       baseline_dir=args.compare, cluster=args.cluster)
     if not args.quiet:
         n = sum(len(s["settings"]) for s in res.data["scenes"])
         print(f"wrote {res.out_dir / 'index.html'}: {len(res.data['scenes'])} scene(s), {n} setting(s)")
+    cmp_ = res.data.get("compare")
+    if cmp_ is not None:
+        for r in cmp_["rows"]:
+            if r["regression"]:
+                print(f"REGRESSION {r['scene']} [{r['label']}]: {r['current_ms']:.3f} ms vs baseline "
+                      f"{r['baseline_ms']:.3f} ms (x{r['ratio']:.3f} > 1 + {r['threshold']:.3f})")
+        if not args.quiet or cmp_["regressions"]:
+            print(f"compare with {args.compare}: {cmp_['regressions']} regression(s) in {len(cmp_['rows'])} "
+                  f"compared setting(s)")
+        return 1 if cmp_["regressions"] else 0
     return 0
 
 
@@ -199,7 +236,8 @@ def _fmt(v) -> str:
     return str(v)
 
 
-COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info, "fly": cmd_fly, "report": cmd_report}
+COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info, "fly": cmd_fly, "report": cmd_report,
+            "calibrate": cmd_calibrate}
 
 
 def _sigterm(signum, frame):

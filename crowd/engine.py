@@ -434,6 +434,13 @@ class Engine:
                 t2 = time.perf_counter()
                 stages["select"] = (t1 - t_frame, t2 - t1)
                 r = renderer.draw(dl, bg)
+                measured = sum(float(r.get(k) or 0.0) for k in ("upload", "draw", "finish"))
+                if hasattr(self.selector, "observe"):  # frame-budget modes adapt to the measured cost
+                    self.selector.observe(measured)
+                auto = dl.stats.get("auto")
+                if isinstance(auto, dict) and auto.get("predicted_ms") is not None:
+                    metrics = {**metrics, "predicted_ms": float(auto["predicted_ms"]),
+                               "measured_ms": 1e3 * measured, "lod_bound": float(auto.get("bound") or 0.0)}
                 off = t2 - t_frame
                 for s in ("upload", "draw", "finish"):
                     d = float(r.get(s) or 0.0)

@@ -137,3 +137,30 @@ def compare(test: np.ndarray, reference: np.ndarray) -> dict:
         fmap = np.repeat(e[:, :, None], 3, axis=2)
     return {"psnr": psnr(t, r), "ssim": ssim(t, r), "flip": f, "identical": bool(np.array_equal(t, r)),
             "error_map": fmap}
+
+
+def flicker(prev: np.ndarray, cur: np.ndarray, ref_prev: np.ndarray, ref_cur: np.ndarray) -> float:
+    """LOD flicker of one pair of consecutive frames: the temporal change the reference does not have.
+
+    ``mean |(F_t - F_{t-1}) - (R_t - R_{t-1})|`` over pixels and channels, images
+    in [0, 1]: motion that the full-detail reference also shows (walking,
+    camera moves) cancels out; what remains is popping between LOD levels,
+    splat shimmer and other changes the representation adds (the temporal
+    error of the test sequence against the reference, in the spirit of
+    Andersson et al.'s "alternating images" of FLIP, HPG 2020, §1, measured
+    here in plain intensity).
+
+    Parameters
+    ----------
+    prev, cur : (h, w, c) frames t-1 and t of the tested setting (uint8 or float in [0, 1])
+    ref_prev, ref_cur : the reference's frames t-1 and t, same shape
+
+    Returns
+    -------
+    float in [0, 2]; 0 when the setting changes exactly as the reference does.
+    """
+    a, b = _pair(cur, prev)
+    c, d = _pair(ref_cur, ref_prev)
+    if a.shape != c.shape:
+        raise ValueError(f"image shapes differ: test {a.shape}, reference {c.shape}")
+    return float(np.mean(np.abs((a - b) - (c - d))))

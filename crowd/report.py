@@ -24,10 +24,13 @@ setting runs ``--repeat N`` times (default 3 with ``--compare``, serially, never
 two timed runs at once); a run's frame time is the median of its per-frame stage
 sums and a setting's is the median of its runs' medians. Per (scene, setting
 label) found in both reports, ``ratio = current / baseline`` and the noise of
-each report is its relative spread ``(max - min) / median`` of the repeated
-medians. A regression is ``ratio > 1 + threshold`` with
+each report is its relative spread ``1.4826 * MAD / median`` of the repeated
+medians (MAD, the median absolute deviation, scaled to estimate a standard
+deviation; robust to one slow run, e.g. a cold first run on a shared machine).
+A regression is ``ratio > 1 + threshold`` with
 ``threshold = max(MIN_REGRESSION, NOISE_K * max(spread_current, spread_baseline))``
-(5 % and 2: a slowdown must exceed twice the widest run-to-run range seen).
+(5 % and 3: a slowdown must exceed three robust standard deviations of the
+noisier report).
 
 Test-only setting: the environment variable ``CROWD_TEST_SLEEP_MS`` makes every
 timed frame of a report's runs sleep that long inside the ``select`` stage (the
@@ -63,8 +66,10 @@ STAGE_COLUMNS = ("simulate", "select", "upload", "draw", "finish")
 
 #: smallest relative slowdown flagged as a regression by ``--compare``
 MIN_REGRESSION = 0.05
-#: a slowdown must exceed NOISE_K times the larger relative spread of the repeated medians of both reports
-NOISE_K = 2.0
+#: a slowdown must exceed NOISE_K times the larger relative spread (1.4826 MAD / median) of both reports
+NOISE_K = 3.0
+#: MAD -> standard deviation of a normal distribution
+MAD_TO_SIGMA = 1.4826
 #: environment variable (test-only): milliseconds slept inside each timed frame of the report's runs
 SLEEP_ENV = "CROWD_TEST_SLEEP_MS"
 
@@ -257,8 +262,8 @@ class RunData:
     summary: dict
     columns: dict
     pngs: list
-    metrics: list = field(default_factory=list)
-    repeat_medians: list = field(default_factory=list)  # median frame seconds of each repeated run  # per sampled frame: dict frame, psnr, ssim, flip, mse, identical
+    metrics: list = field(default_factory=list)  # per sampled frame: dict frame, psnr, ssim, flip, mse, flicker, ...
+    repeat_medians: list = field(default_factory=list)  # median frame seconds of each repeated run
 
 
 class _SleepySelector:
@@ -303,15 +308,40 @@ def test_sleep_seconds() -> float:
 test_sleep_seconds.__test__ = False  # not a pytest test
 
 
-def _run(scene, out_dir: Path, png_every: int) -> tuple:
+class _PairRenderer:
+    """Proxy of the engine's renderer that writes only the PNGs of sampled frames ``f % k == 0`` and of their
+    successors ``f + 1`` (the consecutive pairs of the flicker measure) when the engine is run with
+    ``png_every=1``; the other frames are neither read back nor written. Everything else is delegated."""
+
+    def __init__(self, renderer, every: int):
+        self._inner, self._every = renderer, every
+
+    def save_png(self, path):
+        f = int(re.search(r"(\d+)", Path(path).name).group(1))
+        if f % self._every in (0, 1 % self._every):
+            return self._inner.save_png(path)
+        return path
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+def _run(scene, out_dir: Path, png_every: int, pairs: bool = False) -> tuple:
+    """Run ``scene`` headless into ``out_dir``; with ``pairs`` the PNGs of frames ``f % png_every in (0, 1)``.
+
+    Returns (summary, frames.csv columns, sorted paths of the PNGs written)."""
     from crowd.engine import Engine
 
     sleep = test_sleep_seconds()
     with Engine(scene, quiet=True) as engine:
         if sleep > 0:
             engine.selector = _SleepySelector(engine.selector, sleep)
-        r = engine.run(frames=scene.frames, out_dir=out_dir, png_every=png_every)
-    return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(r.pngs)
+        every = png_every
+        if pairs and png_every:
+            engine.renderer = _PairRenderer(engine.open_renderer(), png_every)
+            every = 1
+        r = engine.run(frames=scene.frames, out_dir=out_dir, png_every=every)
+    return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(p for p in r.pngs if Path(p).is_file())
 
 
 def _reference_scene(scene):
@@ -334,15 +364,18 @@ def finite_or_none(x):
 
 def aggregate(metrics: list) -> dict:
     """Per-setting accuracy over its sampled frames: ``psnr`` of the mean MSE (inf when every frame is
-    identical), mean ``ssim``, mean ``flip`` (None without FLIP), ``identical`` (all frames)."""
+    identical), mean ``ssim``, mean ``flip`` (None without FLIP), ``identical`` (all frames), mean ``flicker``
+    (:func:`crowd.image_metrics.flicker` of the frames that have a successor; None when none has)."""
     if not metrics:
-        return {"psnr": None, "ssim": None, "flip": None, "identical": None, "samples": 0}
+        return {"psnr": None, "ssim": None, "flip": None, "identical": None, "samples": 0, "flicker": None}
     m = float(np.mean([x["mse"] for x in metrics]))
     flips = [x["flip"] for x in metrics if x["flip"] is not None]
     return {"psnr": math.inf if m == 0.0 else 10.0 * math.log10(1.0 / m),
             "ssim": float(np.mean([x["ssim"] for x in metrics])),
             "flip": float(np.mean(flips)) if flips else None,
-            "identical": all(x["identical"] for x in metrics), "samples": len(metrics)}
+            "identical": all(x["identical"] for x in metrics), "samples": len(metrics),
+            "flicker": float(np.mean(fl)) if (fl := [x["flicker"] for x in metrics
+                                                     if x.get("flicker") is not None]) else None}
 
 
 def pareto_front(times, errors) -> list:
@@ -359,15 +392,177 @@ def pareto_front(times, errors) -> list:
     return front
 
 
+def frame_metrics(img: np.ndarray, ref: np.ndarray, nxt: np.ndarray | None = None,
+                  ref_nxt: np.ndarray | None = None) -> dict:
+    """Image error of one sampled frame (the unit of work sent to a dask worker).
+
+    Parameters
+    ----------
+    img, ref : (h, w, 3) uint8, the frame and its NoLOD reference
+    nxt, ref_nxt : (h, w, 3) uint8 or None, the following frame of both (for the flicker measure)
+
+    Returns
+    -------
+    dict: psnr (inf when identical), ssim, flip (None without flip-evaluator), mse, identical, flicker (None
+    without a following frame), error_png ((h, w, 3) uint8 error map).
+    """
+    from crowd.image_metrics import compare, flicker, mse
+
+    m = compare(img, ref)
+    flick = flicker(img, nxt, ref, ref_nxt) if nxt is not None and ref_nxt is not None else None
+    return {"psnr": m["psnr"], "ssim": m["ssim"], "flip": m["flip"], "mse": mse(img, ref),
+            "identical": m["identical"], "flicker": flick,
+            "error_png": (np.clip(m["error_map"], 0, 1) * 255 + 0.5).astype(np.uint8)}
+
+
+class MetricsPool:
+    """Where the image-error work runs: this process, or a dask.distributed cluster.
+
+    ``cluster=None``: in this process, in order. ``"local"``: an embedded
+    ``LocalCluster`` on loopback (processes, one single-threaded worker: this
+    process keeps the other core). Else the address of an existing scheduler
+    (``tcp://HOST:PORT``). Frames are scattered to the workers as arrays, so
+    workers need no shared filesystem, only this package importable.
+
+    Raises
+    ------
+    crowd.errors.CrowdError
+        dask.distributed is not installed, or the scheduler cannot be reached.
+    """
+
+    def __init__(self, cluster: str | None = None):
+        self.cluster_arg, self._cluster, self._client = cluster, None, None
+        self.description = "this process"
+
+    def __enter__(self):
+        if self.cluster_arg is None:
+            return self
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise CrowdError(f"--cluster {self.cluster_arg}: dask.distributed is not installed "
+                             "(pip install 'crowd-sandbox[report]' or pip install dask distributed)") from None
+        try:
+            if self.cluster_arg == "local":
+                self._cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                             dashboard_address=None)
+                self._client = Client(self._cluster)
+                self.description = f"embedded dask LocalCluster {self._cluster.scheduler_address}"
+            else:
+                self._client = Client(self.cluster_arg, timeout="10s")
+                self.description = f"dask scheduler {self.cluster_arg}"
+        except (OSError, TimeoutError, ValueError) as e:
+            self.__exit__()
+            raise CrowdError(f"--cluster {self.cluster_arg}: cannot connect ({type(e).__name__}: {e}); expected "
+                             "'local' or the address tcp://HOST:PORT of a running dask scheduler") from None
+        return self
+
+    def map(self, fn, args: list) -> list:
+        """``[fn(*a) for a in args]``, on the cluster when there is one (results in order)."""
+        if self._client is None:
+            return [fn(*a) for a in args]
+        futures, held = [], []
+        for a in args:
+            # hash=False: equal images (a NoLOD frame is its own reference) must not share, and then lose, one key;
+            # the scattered futures are held until the results are back
+            parts = self._client.scatter([x for x in a if x is not None], hash=False)
+            held.append(parts)
+            it = iter(parts)
+            futures.append(self._client.submit(fn, *[next(it) if x is not None else None for x in a], pure=False))
+        try:
+            return self._client.gather(futures)
+        finally:
+            del held
+
+    def __exit__(self, *exc):
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+
 @dataclass
 class ReportResult:
     out_dir: Path
     data: dict  # as report.json
 
 
+def load_baseline(path) -> dict:
+    """The report.json of a baseline report directory (``--compare``).
+
+    Raises
+    ------
+    crowd.errors.CrowdError
+        The directory has no readable report.json of a crowd report.
+    """
+    import json
+
+    f = Path(path) / "report.json"
+    try:
+        data = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise CrowdError(f"--compare {path}: cannot read {f} ({type(e).__name__}); expected the directory of an "
+                         f"earlier `crowd report` run") from None
+    if not isinstance(data, dict) or not isinstance(data.get("scenes"), list):
+        raise CrowdError(f"--compare {path}: {f} is not a crowd report (no 'scenes' list)")
+    return data
+
+
+def _timing(entry: dict) -> tuple:
+    """(median ms, relative spread, runs) of a setting entry: the median of its repeated runs' median frame times
+    and ``1.4826 * MAD / median`` of them (0 for one run; reports without repeats use their p50)."""
+    meds = [float(x) for x in (entry.get("repeat_medians_ms") or []) if x is not None]
+    if not meds:
+        p50 = (entry.get("frame_ms") or {}).get("p50")
+        meds = [float(p50)] if p50 is not None else []
+    if not meds:
+        return math.nan, math.nan, 0
+    m = float(np.median(meds))
+    mad = float(np.median(np.abs(np.asarray(meds) - m)))
+    spread = MAD_TO_SIGMA * mad / m if m > 0 else 0.0
+    return m, spread, len(meds)
+
+
+def compare_reports(current: dict, baseline: dict, min_regression: float = MIN_REGRESSION,
+                    noise_k: float = NOISE_K) -> list:
+    """Frame-time comparison per (scene name, setting label) present in both reports.
+
+    The rule (module docstring): ``ratio = median_current / median_baseline``;
+    ``threshold = max(min_regression, noise_k * max(spread_current, spread_baseline))``;
+    ``regression = ratio > 1 + threshold``.
+
+    Returns
+    -------
+    list of dict: scene, label, current_ms, baseline_ms, ratio, spread_current,
+    spread_baseline, threshold, runs_current, runs_baseline, regression (bool);
+    settings without a counterpart in the baseline are left out.
+    """
+    base = {(sc.get("name"), st.get("label")): st for sc in baseline.get("scenes", [])
+            for st in sc.get("settings", [])}
+    rows = []
+    for sc in current.get("scenes", []):
+        for st in sc.get("settings", []):
+            b = base.get((sc["name"], st["label"]))
+            if b is None:
+                continue
+            mc, sc_, nc = _timing(st)
+            mb, sb, nb = _timing(b)
+            if not (math.isfinite(mc) and math.isfinite(mb) and mb > 0):
+                continue
+            ratio = mc / mb
+            thr = max(min_regression, noise_k * max(sc_, sb))
+            rows.append({"scene": sc["name"], "label": st["label"], "current_ms": mc, "baseline_ms": mb,
+                         "ratio": ratio, "spread_current": sc_, "spread_baseline": sb, "threshold": thr,
+                         "runs_current": nc, "runs_baseline": nb, "regression": bool(ratio > 1.0 + thr)})
+    return rows
+
+
 def build_report(scene_paths: list, sweeps: list, frames: int | None = None, size: tuple | None = None,
-                 out: str | Path = "out/report", sample_every: int | None = None, quiet: bool = False
-                 ) -> ReportResult:
+                 out: str | Path = "out/report", sample_every: int | None = None, quiet: bool = False,
+                 repeat: int | None = None, baseline: dict | None = None, baseline_dir: str | None = None,
+                 cluster: str | None = None) -> ReportResult:
     """Run every scene x setting plus references, measure, and write the report directory atomically.
 
     Parameters
@@ -378,13 +573,21 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     out : report directory (replaced atomically)
     sample_every : compare every k-th frame (default: ``frames // 4``, at least 1)
     quiet : no progress bar
+    repeat : timed runs per setting (default 3 with a baseline, else 1); the first run's images are compared,
+        every run's median frame time goes into ``repeat_medians_ms``. Runs are serial.
+    baseline : a baseline report.json (:func:`load_baseline`); the comparison goes into ``data["compare"]``
+        and the page
+    baseline_dir : the baseline's directory, as shown on the page
+    cluster : None (image error computed in this process), ``"local"`` (an embedded dask LocalCluster) or the
+        address of a dask scheduler (``tcp://HOST:PORT``): see :class:`MetricsPool`. Timed runs always run
+        here, one at a time, and never while the pool computes.
 
     Raises
     ------
     crowd.errors.CrowdError
         Bad scene or sweep (before anything runs or is written).
     """
-    from crowd.image_metrics import compare, flip_available
+    from crowd.image_metrics import flip_available
     from crowd.output import atomic_dir, check_output_dir
     from render.image import read_png, write_png
 
@@ -392,9 +595,15 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     names = [s[0].scene.name for _, s in all_settings]
     slugs = _unique_slugs(names)
     out = check_output_dir(out)
-    total_runs = sum(len(s) + len({tuple(x.scene.render.size) for x in s}) for _, s in all_settings)
-    data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None}
-    with atomic_dir(out) as tmp, _progress(total_runs, quiet) as bar:
+    repeat = int(repeat) if repeat is not None else (3 if baseline is not None else 1)
+    if repeat < 1:
+        raise CrowdError(f"--repeat {repeat}: expected a positive number of runs per setting")
+    test_sleep_seconds()  # a bad test-only setting fails before anything runs
+    total_runs = sum(repeat * len(s) + len({tuple(x.scene.render.size) for x in s}) for _, s in all_settings)
+    data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None,
+            "repeat": repeat}
+    with MetricsPool(cluster) as pool, atomic_dir(out) as tmp, _progress(total_runs, quiet) as bar:
+        data["cluster"] = pool.description
         for d in ("plots", "samples", "runs"):
             (tmp / d).mkdir()
         for (path, settings), slug in zip(all_settings, slugs):
@@ -404,9 +613,15 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
             for st in settings:
                 bar.set_postfix_str(f"{slug} {st.label}")
                 rd = tmp / "runs" / slug / st.slug
-                summ, cols, pngs = _run(st.scene, rd, k)
-                runs.append(RunData(st, rd, summ, cols, [rd / "frames" / Path(p).name for p in pngs]))
+                summ, cols, pngs = _run(st.scene, rd, k, pairs=True)
+                run = RunData(st, rd, summ, cols, [rd / "frames" / Path(p).name for p in pngs])
+                run.repeat_medians.append(float(np.median(frame_seconds(cols))))
                 bar.update(1)
+                for i in range(1, repeat):  # timing only: no PNGs
+                    _, cols_i, _ = _run(st.scene, tmp / "runs" / slug / f"{st.slug}_r{i}", 0)
+                    run.repeat_medians.append(float(np.median(frame_seconds(cols_i))))
+                    bar.update(1)
+                runs.append(run)
             refs = {}
             for run in runs:  # a setting of mode none without LOD keys is its own size's reference
                 sz = tuple(run.setting.scene.render.size)
@@ -418,32 +633,47 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
                     rd = tmp / "runs" / slug / f"reference_{sz[0]}x{sz[1]}"
                     ref_scene = _reference_scene(next(r.setting.scene for r in runs
                                                       if tuple(r.setting.scene.render.size) == sz))
-                    _, _, pngs = _run(ref_scene, rd, k)
+                    _, _, pngs = _run(ref_scene, rd, k, pairs=True)
                     refs[sz] = [rd / "frames" / Path(p).name for p in pngs]
                 bar.update(1)
             scene_entry = {"name": names[len(data["scenes"])], "slug": slug, "file": str(path), "frames": nframes,
                            "sample_every": k, "settings": []}
+            # image-error work of this scene, after its timed runs (none is running while the pool computes)
+            jobs = []
             for run in runs:
                 sz = tuple(run.setting.scene.render.size)
                 ref_by_name = {p.name: p for p in refs[sz]}
+                own = {p.name: p for p in run.pngs}
                 for p in run.pngs:
                     frame = int(re.search(r"(\d+)", p.name).group(1))
-                    img, ref = read_png(p), read_png(ref_by_name[p.name])
-                    m = compare(img, ref)
-                    mse = float(np.mean((img.astype(np.float64) / 255 - ref.astype(np.float64) / 255) ** 2))
-                    base = f"{slug}_{run.setting.slug}_f{frame:05d}"
-                    shutil.copyfile(p, tmp / "samples" / f"{base}.png")
-                    shutil.copyfile(ref_by_name[p.name], tmp / "samples" / f"{base}_ref.png")
-                    write_png(tmp / "samples" / f"{base}_err.png",
-                              (np.clip(m["error_map"], 0, 1) * 255 + 0.5).astype(np.uint8))
-                    run.metrics.append({"frame": frame, "psnr": m["psnr"], "ssim": m["ssim"], "flip": m["flip"],
-                                        "mse": mse, "identical": m["identical"], "image": f"samples/{base}.png",
-                                        "reference": f"samples/{base}_ref.png", "error": f"samples/{base}_err.png"})
+                    if frame % k:
+                        continue  # the second frame of a flicker pair
+                    nxt = f"frame_{frame + 1:05d}.png"
+                    pair = nxt in own and nxt in ref_by_name
+                    jobs.append((run, frame, p, ref_by_name[p.name], (read_png(p), read_png(ref_by_name[p.name]),
+                                 read_png(own[nxt]) if pair else None, read_png(ref_by_name[nxt]) if pair else None)))
+            bar.set_postfix_str(f"{slug} image error ({len(jobs)} frames)")
+            results = pool.map(frame_metrics, [j[4] for j in jobs])
+            for (run, frame, p, ref_path, _), m in zip(jobs, results):
+                base = f"{slug}_{run.setting.slug}_f{frame:05d}"
+                shutil.copyfile(p, tmp / "samples" / f"{base}.png")
+                shutil.copyfile(ref_path, tmp / "samples" / f"{base}_ref.png")
+                write_png(tmp / "samples" / f"{base}_err.png", m.pop("error_png"))
+                run.metrics.append({"frame": frame, **m, "image": f"samples/{base}.png",
+                                    "reference": f"samples/{base}_ref.png", "error": f"samples/{base}_err.png"})
+            for run in runs:
                 scene_entry["settings"].append(_setting_entry(run, tmp))
                 if data["machine"] is None:
                     data["machine"] = run.summary.get("machine")
             _plots(tmp, scene_entry, runs)
             data["scenes"].append(scene_entry)
+        if baseline is not None:
+            rows = compare_reports(data, baseline)
+            data["compare"] = {"baseline": str(baseline_dir) if baseline_dir is not None else None, "rows": rows,
+                               "regressions": sum(r["regression"] for r in rows),
+                               "rule": f"ratio of medians > 1 + max({MIN_REGRESSION:g}, {NOISE_K:g} x the larger "
+                                       f"relative spread {MAD_TO_SIGMA} MAD / median of the repeated medians "
+                                       f"of both reports)"}
         from crowd.output import write_atomic, write_json
 
         write_json(tmp / "report.json", _json_safe(data))
@@ -480,6 +710,7 @@ def _setting_entry(run: RunData, tmp: Path) -> dict:
             "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
             "run_dir": str(run.out_dir.relative_to(tmp)),
             "frame_ms": {q: ft[q] * 1e3 for q in ("mean", "p50", "p95", "p99", "max")},
+            "repeat_medians_ms": [m * 1e3 for m in run.repeat_medians],
             "stage_ms": {k: stages[k]["mean"] * 1e3 for k in STAGE_COLUMNS if stages.get(k)},
             "gpu_ms": (stages["gpu"]["p50"] * 1e3) if stages.get("gpu") else None,
             "triangles": s["counts"]["triangles"]["mean"], "points": s["counts"]["points"]["mean"],
@@ -560,6 +791,19 @@ def _plots(tmp: Path, entry: dict, runs: list) -> None:
     ax.legend(fontsize=7)
     plots["primitives"] = _save(fig, tmp, f"plots/{slug}_primitives.png")
 
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=96)
+    for s in entry["settings"]:
+        pts = [(m["frame"], m["flicker"]) for m in s["samples"] if m["flicker"] is not None]
+        if pts:
+            ax.plot(*zip(*pts), marker="o", label=s["label"], lw=1.2)
+    ax.set_xlabel("frame t (pair t, t+1)")
+    ax.set_ylabel("mean |ΔF − ΔR|")
+    ax.set_title(f"{entry['name']}: LOD flicker (temporal change the NoLOD reference does not have)")
+    ax.grid(alpha=0.3)
+    if ax.lines:
+        ax.legend(fontsize=7)
+    plots["flicker"] = _save(fig, tmp, f"plots/{slug}_flicker.png")
+
     sets = entry["settings"]
     name, errs = _error_axis(sets)
     times = [s["frame_ms"]["p50"] for s in sets]
@@ -600,7 +844,8 @@ def _save(fig, tmp: Path, rel: str) -> str:
 _CSS = """body{font-family:sans-serif;margin:1.5em;max-width:1200px;color:#222}
 table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 7px;font-size:13px}
 th{background:#eee}td.n{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%}
-.samples img{width:260px;image-rendering:pixelated}h2{border-bottom:2px solid #888;margin-top:2em}"""
+.samples img{width:260px;image-rendering:pixelated}h2{border-bottom:2px solid #888;margin-top:2em}
+tr.regressed td,b.regressed{background:#fcc;color:#900}b.ok{color:#060}"""
 
 
 def _num(x, fmt="{:.2f}") -> str:
@@ -624,12 +869,29 @@ def render_html(data: dict) -> str:
                f"(Andersson et al. 2020){'' if data['flip'] else ' — not available: flip-evaluator is not installed'}"
                ". Frame time is the wall-clock sum of the stages simulate, select, upload, draw and finish "
                "(the PNG writes of sampled frames are left out); the first frame is included.</p>")
+    cmp_ = data.get("compare")
+    if cmp_ is not None:
+        n = cmp_["regressions"]
+        out.append(f"<h2>Comparison with baseline</h2><p>Baseline: {e(str(cmp_['baseline']))}. "
+                   f"{data.get('repeat', 1)} timed run(s) per setting; regression when {e(cmp_['rule'])}. "
+                   f"<b class='{'regressed' if n else 'ok'}'>{n} regression(s)</b>.</p>")
+        out.append("<table><tr><th>scene</th><th>setting</th><th>baseline ms</th><th>current ms</th><th>ratio</th>"
+                   "<th>spread base / current</th><th>threshold</th><th>verdict</th></tr>")
+        for r in cmp_["rows"]:
+            out.append(f"<tr class='{'regressed' if r['regression'] else 'cmp'}'><td>{e(r['scene'])}</td>"
+                       f"<td>{e(r['label'])}</td><td class='n'>{r['baseline_ms']:.3f}</td>"
+                       f"<td class='n'>{r['current_ms']:.3f}</td><td class='n'>{r['ratio']:.3f}</td>"
+                       f"<td class='n'>{r['spread_baseline']:.1%} / {r['spread_current']:.1%}</td>"
+                       f"<td class='n'>+{r['threshold']:.1%}</td>"
+                       f"<td>{'REGRESSION' if r['regression'] else 'ok'}</td></tr>")
+        out.append("</table>")
     for sc in data["scenes"]:
         out.append(f"<h2>{e(sc['name'])}</h2><p>{e(sc['file'])}: {sc['frames']} frames, every "
                    f"{sc['sample_every']}-th frame compared.</p>")
         out.append("<table><tr><th>setting</th><th>size</th><th>p50 ms</th><th>p95 ms</th><th>p99 ms</th>"
                    "<th>max ms</th><th>mean ms: " + " / ".join(STAGE_COLUMNS) + "</th><th>GPU p50 ms</th>"
                    "<th>triangles/frame</th><th>points/frame</th><th>PSNR dB</th><th>SSIM</th><th>FLIP</th>"
+                   "<th>flicker</th>"
                    "<th>Pareto</th></tr>")
         for s in sc["settings"]:
             fm, a = s["frame_ms"], s["accuracy"]
@@ -640,6 +902,7 @@ def render_html(data: dict) -> str:
                        f"<td class='n'>{s['triangles']:,.0f}</td><td class='n'>{s['points']:,.0f}</td>"
                        f"<td class='n'>{_num(a['psnr'])}</td><td class='n'>{_num(a['ssim'], '{:.4f}')}</td>"
                        f"<td class='n'>{_num(a['flip'], '{:.4f}')}</td>"
+                       f"<td class='n'>{_num(a.get('flicker'), '{:.5f}')}</td>"
                        f"<td>{'front' if s['slug'] in sc['pareto_front'] else ''}</td></tr>")
         out.append("</table>")
         p = sc["plots"]
@@ -647,6 +910,11 @@ def render_html(data: dict) -> str:
         for s in sc["settings"]:
             out.append(f"<img src='{e(p['stages'][s['slug']])}' alt='stages {e(s['label'])}'>")
         out.append(f"<h3>Primitives drawn</h3><img src='{e(p['primitives'])}' alt='primitives'>")
+        out.append("<h3>LOD flicker</h3><p>Per sampled frame t: mean |(F<sub>t+1</sub> − F<sub>t</sub>) − "
+                   "(R<sub>t+1</sub> − R<sub>t</sub>)| over pixels and channels in [0, 1], F the setting's frames, "
+                   "R the NoLOD reference's: the temporal change the reference does not have (LOD popping, "
+                   "shimmer); 0 when the setting changes exactly as the reference does.</p>"
+                   f"<img src='{e(p['flicker'])}' alt='flicker'>")
         out.append(f"<h3>Accuracy against time ({e(sc['pareto_error'])})</h3>"
                    f"<img src='{e(p['pareto'])}' alt='pareto'>")
         out.append("<h3>Sample frames</h3><table class='samples'><tr><th>setting</th><th>frame</th><th>frame</th>"

@@ -39,11 +39,11 @@ FEATURES = ("triangles", "points", "batches", "instances", "clusters")
 COEFFICIENTS = ("frame",) + FEATURES
 #: defaults (seconds per unit) when no calibration exists for this machine and renderer
 DEFAULTS = {
-    "frame": 1.0e-3,  # clear + finish + readback-free overhead
+    "frame": 1.0e-3,  # clear + palette set-up + finish
     "triangles": 1.0 / 8.0e6,  # ~8 M triangles/s instanced (llvmpipe, 1280x720)
     "points": 1.0 / 27.0e6,  # ~27 M splats/s compute-shader splat
     "batches": 5.0e-5,  # one instanced draw call + state changes
-    "instances": 1.0e-6,  # instance data upload + palette row per instance
+    "instances": 3.0e-5,  # instance upload + palette pre-pass (llvmpipe calibration: ~30 us)
     "clusters": 2.0e-7,  # one cluster record in a cluster cut
 }
 #: file name of the stored calibrations inside the cache folder

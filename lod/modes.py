@@ -31,6 +31,7 @@ MODES: dict[str, str] = {
     "points": "lod.points_mode",
     "clusters": "lod.clusters_mode",
     "triangles": "lod.triangles_mode",
+    "auto": "lod.auto_mode",
 }
 
 

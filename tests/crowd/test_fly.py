@@ -208,8 +208,8 @@ def test_live_settings_keys(app):
     assert s.lod_mode == "triangles" and type(app.engine.selector).__name__ == "TrianglesSelector"
     press(app, glfw.KEY_M)  # clusters
     assert s.lod_mode == "clusters"
-    press(app, glfw.KEY_M)  # auto: not a mode yet
-    assert s.lod_mode == "clusters" and "mode auto not available yet" in app.echoed
+    press(app, glfw.KEY_M)  # auto
+    assert s.lod_mode == "auto" and type(app.engine.selector).__name__ == "AutoSelector"
     press(app, glfw.KEY_M)
     assert s.lod_mode == "none" and app.echoed[-1] == "lod mode none"
     assert type(app.engine.selector).__name__ == "NoLodSelector"

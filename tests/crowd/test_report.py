@@ -174,3 +174,88 @@ def test_bad_sweep_exit_2_nothing_written(write_scene, tmp_path, args, msg):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and msg in lines[0] and "Traceback" not in r.stderr
     assert not out.exists() and not list(tmp_path.glob(".rep*"))
+
+
+# --------------------------------------------------------------------------------------------------------- flicker
+def test_flicker_cancels_motion_the_reference_shares():
+    rng = np.random.default_rng(5)
+    r0, r1 = rng.random((12, 10, 3)), rng.random((12, 10, 3))
+    assert im.flicker(r0, r1, r0, r1) == 0.0  # the setting changes exactly as the reference
+    # a constant offset of the test (a static LOD error) does not flicker either
+    assert im.flicker(np.clip(r0, 0, .9) + .1, np.clip(r1, 0, .9) + .1,
+                      np.clip(r0, 0, .9), np.clip(r1, 0, .9)) == pytest.approx(0.0, abs=1e-12)
+    # a pop in one pixel channel of frame t+1 by 0.5: 0.5 / (12 * 10 * 3)
+    t1 = r1.copy()
+    t1[3, 4, 1] = r1[3, 4, 1] + (0.5 if r1[3, 4, 1] < 0.5 else -0.5)
+    assert im.flicker(r0, t1, r0, r1) == pytest.approx(0.5 / 360)
+    a = _img(7)
+    assert im.flicker(a, a, a, a) == 0.0
+    with pytest.raises(ValueError, match="shapes differ"):
+        im.flicker(a, a, _img(shape=(4, 4, 3)), _img(shape=(4, 4, 3)))
+
+
+def test_report_flicker_from_consecutive_frame_pairs(write_scene, tmp_path):
+    from render.image import read_png
+
+    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 7"))
+    out = tmp_path / "rep"
+    r = run_cli("report", scene, "--sweep", "lod.mode=none,points", "--out", out, "--sample-every", "3",
+                "--quiet")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((out / "report.json").read_text())
+    (sc,) = data["scenes"]
+    nolod, pts = sc["settings"]
+    # pairs (0, 1), (3, 4) and frame 6 without a successor in a 7-frame run; frames 2 and 5 are not written
+    for s in ("s0", "s1"):
+        frames = sorted(p.name for p in (out / "runs" / sc["slug"] / s / "frames").iterdir())
+        assert frames == [f"frame_{f:05d}.png" for f in (0, 1, 3, 4, 6)]
+    assert [m["frame"] for m in pts["samples"]] == [0, 3, 6]
+    assert [m["flicker"] is None for m in pts["samples"]] == [False, False, True]
+    assert all(m["flicker"] == 0.0 for m in nolod["samples"][:2]) and nolod["accuracy"]["flicker"] == 0.0
+    d = out / "runs" / sc["slug"]
+    png = lambda s, f: read_png(d / s / "frames" / f"frame_{f:05d}.png")  # noqa: E731
+    want = im.flicker(png("s1", 3), png("s1", 4), png("s0", 3), png("s0", 4))
+    assert pts["samples"][1]["flicker"] == pytest.approx(want) and math.isfinite(want) and want >= 0.0
+    assert pts["accuracy"]["flicker"] == pytest.approx(np.mean([m["flicker"] for m in pts["samples"][:2]]))
+    page = (out / "index.html").read_text()
+    assert "LOD flicker" in page and (out / sc["plots"]["flicker"]).is_file()
+
+
+# ------------------------------------------------------------------------------------------------ dask.distributed
+def test_report_through_a_local_dask_cluster_matches_the_local_path(write_scene, tmp_path):
+    pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install dask distributed)")
+    from distributed import LocalCluster
+
+    from crowd.report import MetricsPool, frame_metrics
+    from render.image import read_png
+
+    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 4"))
+    out = tmp_path / "rep"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        addr = cluster.scheduler_address
+        assert addr.startswith("tcp://127.0.0.1:")
+        rng = np.random.default_rng(9)
+        args = [tuple(rng.integers(0, 256, (20, 24, 3), dtype=np.uint8) for _ in range(4)),
+                (_img(1, (20, 24, 3)), _img(2, (20, 24, 3)), None, None)]
+        with MetricsPool(addr) as pool:
+            remote = pool.map(frame_metrics, args)
+        for a, rm in zip(args, remote):
+            lm = frame_metrics(*a)
+            assert np.array_equal(lm.pop("error_png"), rm.pop("error_png")) and lm == rm
+        r = run_cli("report", scene, "--sweep", "lod.mode=none,points", "--out", out, "--sample-every", "2",
+                    "--cluster", addr, "--quiet")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((out / "report.json").read_text())
+    assert data["cluster"] == f"dask scheduler {addr}"
+    (sc,) = data["scenes"]
+    d = out / "runs" / sc["slug"]
+    png = lambda s, f: read_png(d / s / "frames" / f"frame_{f:05d}.png")  # noqa: E731
+    for st in sc["settings"]:
+        assert [m["frame"] for m in st["samples"]] == [0, 2]
+        for m in st["samples"]:
+            f = m["frame"]
+            want = frame_metrics(png(st["slug"], f), png("s0", f), png(st["slug"], f + 1), png("s0", f + 1))
+            assert np.array_equal(want.pop("error_png"), read_png(out / m["error"]))
+            want["psnr"] = None if math.isinf(want["psnr"]) else want["psnr"]
+            assert {k: m[k] for k in want} == want

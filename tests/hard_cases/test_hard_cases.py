@@ -429,7 +429,7 @@ def _shrinking_sphere():
                                                                    duration=1.5, loop=True)})
 
 
-@pytest.mark.parametrize("mode", ["none", "triangles", "clusters", "points"])
+@pytest.mark.parametrize("mode", ["none", "triangles", "clusters", "points", "auto"])
 def test_degenerate_assets_in_every_lod_mode(gl_ctx, mode, tmp_path, monkeypatch):
     """Degenerate meshes and a sphere shrinking to 1/100 of its area through
     each LOD mode's build and selection: finite representations and instance
@@ -462,7 +462,7 @@ def test_degenerate_assets_in_every_lod_mode(gl_ctx, mode, tmp_path, monkeypatch
             r.draw(dl)
 
 
-@pytest.mark.parametrize("mode", ["none", "triangles", "clusters", "points"])
+@pytest.mark.parametrize("mode", ["none", "triangles", "clusters", "points", "auto"])
 def test_far_crowd_images_match_origin_in_every_lod_mode(gl_ctx, mode, tmp_path, monkeypatch):
     """A crowd 1e6 m from the origin draws the same image as at the origin,
     and two identical frames draw identical images (camera-relative data)."""
