@@ -446,11 +446,13 @@ class Engine:
                     d = float(r.get(s) or 0.0)
                     stages[s] = (off, d)
                     off += d
+                t_png = time.perf_counter()
                 if png_every and f % png_every == 0:
                     p = tmp / "frames" / f"frame_{f:05d}.png"
                     renderer.save_png(p)
                     pngs.append(out_dir / "frames" / p.name)
                 t_end = time.perf_counter()
+                stages["png"] = (t_png - t_frame, t_end - t_png)  # read-back + encode; 0 on frames without one
                 counts = {"instances": dl.stats.get("instances", dl.n_instances),
                           "culled": dl.stats.get("culled", 0),
                           "triangles": dl.stats.get("triangles", dl.triangles),

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: wall-clock stages of a frame, in order
-STAGES = ("simulate", "select", "upload", "draw", "finish")
+STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
 COUNTS = ("instances", "culled", "triangles", "points", "batches")
 #: percentiles reported in summary.json
