@@ -240,32 +240,13 @@ class AutoSelector:
         dl = self._inner.select(state, camera, size, statics)
         scale_px = viewport_scale(max(1, int(size[1])), camera.fov_y)
         c = self.model.coefficients
-        counts = np.zeros(self._n_levels, np.int64)
-        out = []
-        for b in dl.batches:
-            r = self._chains.get(b.rep)
-            if r is None:
-                if int(np.asarray(b.instance_ids).size) and int(b.instance_ids[0]) >= 0:
-                    counts[0] += b.n_instances
-                out.append(b)
-                continue
-            rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
+
+        def levels_of(r, b, rows):
             err = projected_errors(r.level_error, rows, r.clip_sphere[b.part], scale_px)
             cost = c["triangles"] * r.level_count.astype(np.float64) + c["instances"]
-            lvl = choose(cost, err, bound)
-            order = np.argsort(lvl, kind="stable")
-            ls = lvl[order]
-            for L in np.unique(ls).tolist():
-                sel = order[ls == L]
-                n_t = int(r.level_count[L])
-                out.append(tm.TriangleDrawBatch(b.rep, b.part, b.instance_ids[sel], b.instance_data[sel],
-                                                triangles=n_t * int(sel.size), level=int(L), tint=b.tint,
-                                                index_range=(3 * int(r.level_first[L]), 3 * n_t)))
-                counts[L] += sel.size
-        dl.batches = out
-        dl.stats["triangles"] = int(sum(b.triangles for b in out))
-        dl.stats["batches"] = len(out)
-        dl.stats["levels"] = [int(x) for x in counts]
+            return choose(cost, err, bound)
+
+        counts = tm.split_by_level(dl, self._chains, self._n_levels, levels_of)
         predicted = self.model.predict(dl)
         dl.stats["auto"] = {"levels": [int(x) for x in counts], "predicted_ms": 1e3 * predicted, "bound": bound,
                             "budget_ms": self.budget_ms}

@@ -303,31 +303,44 @@ class TrianglesSelector:
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {self.poe}")
         dl = self._inner.select(state, camera, size, statics)
         scale_px = viewport_scale(max(1, int(size[1])), camera.fov_y)
-        counts = np.zeros(self._n_levels, np.int64)
-        out = []
-        for b in dl.batches:
-            r = self._chains.get(b.rep)
-            if r is None:
-                if int(np.asarray(b.instance_ids).size) and int(b.instance_ids[0]) >= 0:
-                    counts[0] += b.n_instances
-                out.append(b)
-                continue
-            rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
-            lvl = choose_levels(r.level_error, rows, r.clip_sphere[b.part], scale_px, self.poe)
-            order = np.argsort(lvl, kind="stable")
-            ls = lvl[order]
-            for L in np.unique(ls).tolist():
-                sel = order[ls == L]
-                n_t = int(r.level_count[L])
-                out.append(TriangleDrawBatch(b.rep, b.part, b.instance_ids[sel], b.instance_data[sel],
-                                             triangles=n_t * int(sel.size), level=int(L), tint=b.tint,
-                                             index_range=(3 * int(r.level_first[L]), 3 * n_t)))
-                counts[L] += sel.size
-        dl.batches = out
-        dl.stats["triangles"] = int(sum(b.triangles for b in out))
-        dl.stats["batches"] = len(out)
-        dl.stats["levels"] = [int(c) for c in counts]
+        split_by_level(dl, self._chains, self._n_levels,
+                       lambda r, b, rows: choose_levels(r.level_error, rows, r.clip_sphere[b.part], scale_px, self.poe))
         return dl
+
+
+def split_by_level(dl, chains: dict, n_levels: int, levels_of) -> np.ndarray:
+    """Split the full-detail batches of ``dl`` into one batch per chain level, in place.
+
+    chains : rep key -> :class:`TrianglesRep`; batches of other reps are kept as they are (level 0)
+    levels_of : ``levels_of(rep, batch, rows)`` -> (k,) int level per instance of the batch, where rows
+        (k, 3, 4) float64 are the instances' camera-relative model matrices
+    Returns the (n_levels,) int64 instance count per level; sets stats "triangles", "batches", "levels".
+    """
+    counts = np.zeros(n_levels, np.int64)
+    out = []
+    for b in dl.batches:
+        r = chains.get(b.rep)
+        if r is None:
+            if int(np.asarray(b.instance_ids).size) and int(b.instance_ids[0]) >= 0:
+                counts[0] += b.n_instances
+            out.append(b)
+            continue
+        rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
+        lvl = np.asarray(levels_of(r, b, rows))
+        order = np.argsort(lvl, kind="stable")
+        ls = lvl[order]
+        for L in np.unique(ls).tolist():
+            sel = order[ls == L]
+            n_t = int(r.level_count[L])
+            out.append(TriangleDrawBatch(b.rep, b.part, b.instance_ids[sel], b.instance_data[sel],
+                                         triangles=n_t * int(sel.size), level=int(L), tint=b.tint,
+                                         index_range=(3 * int(r.level_first[L]), 3 * n_t)))
+            counts[L] += sel.size
+    dl.batches = out
+    dl.stats["triangles"] = int(sum(b.triangles for b in out))
+    dl.stats["batches"] = len(out)
+    dl.stats["levels"] = [int(c) for c in counts]
+    return counts
 
 
 # ---------------------------------------------------------------------------- mode protocol
