@@ -18,6 +18,7 @@ from lod.view import Camera
 from sim.procedural import humanoid
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
+from image_checks import silhouette_error  # noqa: E402
 from tiny_characters import tiny_keyframed  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -296,8 +297,7 @@ def test_silhouette_error_within_bound(built, gl, poe):
     """One instance at distances where the bound picks coarse levels: rendered at 4x the selection
     resolution, the chosen level's silhouette stays within ``poe`` (+1 pixel of rasterisation) of
     full detail's (the measure of tests/lod/test_triangles_mode.py)."""
-    from scipy import ndimage
-
+    
     r = gl[4]
     sel = built.sel
     seen = set()
@@ -311,11 +311,7 @@ def test_silhouette_error_within_bound(built, gl, poe):
         (b,) = dl.batches
         seen.add(b.level)
         a = _mask(_draw(r, dl))
-        if (a ^ full).any():
-            da, df = ndimage.distance_transform_edt(~a), ndimage.distance_transform_edt(~full)
-            err = max(da[full].max(initial=0.0), df[a].max(initial=0.0)) / 4.0
-        else:
-            err = 0.0
+        err = silhouette_error(full, a) / 4.0
         assert err <= poe + 1.0, (z, b.level, err)
     sel.poe = 0.0
     assert max(seen) > 0

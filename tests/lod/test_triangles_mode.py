@@ -10,7 +10,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from scipy import ndimage
 
 from lod import modes, nolod, qem
 from lod import triangles_mode as tm
@@ -18,6 +17,7 @@ from lod.view import Camera
 from sim.procedural import humanoid
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
+from image_checks import silhouette_error  # noqa: E402
 from tiny_characters import tiny_keyframed  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -209,16 +209,6 @@ def _draw(r, dl):
     return r.read_pixels()
 
 
-def _silhouette_error(a, b):
-    """Largest distance (pixels) from a pixel of one silhouette to the other
-    (as tests/render/test_clusters_render.py measures it)."""
-    if not (a ^ b).any():
-        return 0.0
-    da = ndimage.distance_transform_edt(~a)
-    db = ndimage.distance_transform_edt(~b)
-    return float(max(da[b].max(initial=0.0), db[a].max(initial=0.0)))
-
-
 def test_poe_zero_is_pixel_identical_to_nolod(built, gl):
     st = _crowd(30, 5, half_width=5.0, depth=25.0)
     cam = Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0))
@@ -259,7 +249,7 @@ def test_silhouette_error_within_poe(built, gl, poe):
         dl = sel.select(st, cam, SIZE)
         (b,) = dl.batches
         seen.add(b.level)
-        err = _silhouette_error(full, _mask(_draw(r, dl))) / 4.0
+        err = silhouette_error(full, _mask(_draw(r, dl))) / 4.0
         assert err <= poe + 1.0, (z, b.level, err)
     assert max(seen) >= 2
     sel.poe = 0.0

@@ -12,6 +12,8 @@ from render import clusters as rc
 from render.renderer import Renderer
 from sim.procedural import humanoid
 
+from image_checks import silhouette_error  # tests/fixtures (on sys.path via tests/render/conftest.py)
+
 SIZE = (320, 240)
 BG = (0.1, 0.1, 0.12)
 
@@ -72,15 +74,6 @@ def test_coarse_cut_changes_the_image_and_draws_fewer_triangles(scene):
     img, dl = _render(scene, scene.sel, st, cam, poe=40.0)
     assert dl.stats["triangles"] < 3 * scene.c.mesh.n_triangles
     assert not np.array_equal(img, ref)
-
-
-def _silhouette_error(a, b):
-    """Largest distance (pixels) from a pixel of one silhouette to the other silhouette."""
-    if not (a ^ b).any():
-        return 0.0
-    da = ndimage.distance_transform_edt(~a)  # distance to the nearest pixel of a
-    db = ndimage.distance_transform_edt(~b)
-    return float(max(da[b].max(initial=0.0), db[a].max(initial=0.0)))
 
 
 #: supersampling of the silhouette measurements: the cut is chosen for SIZE,
@@ -155,7 +148,7 @@ def test_no_cracks_and_screen_space_error_within_poe(scene, hires, poe):
         fill, cov, _ = _hires(hires, dl)
         cracks = _crack_pixels(ref_fill, ref_depth, fill, cam, np.ceil(SS * poe) + 2)
         assert not cracks.any(), f"{cracks.sum()} crack pixels at poe={poe}, (heading, distance)={where}"
-        worst = max(worst, _silhouette_error(ref_cov, cov) / SS)
+        worst = max(worst, silhouette_error(ref_cov, cov) / SS)
     assert refined >= 3  # the cuts really are simplified
     assert worst <= poe + 1.0 / SS, worst
 
@@ -176,7 +169,7 @@ def test_crack_and_error_measures_can_fail(scene, hires):
     assert _crack_pixels(ref_fill, ref_depth, fill, cam, SS + 2).any()
     scene.sel.poe = 60.0
     _, cov, _ = _hires(hires, scene.sel.select(st, cam, SIZE))
-    assert _silhouette_error(ref_cov, cov) / SS > 2.0
+    assert silhouette_error(ref_cov, cov) / SS > 2.0
 
 
 def test_strategies_render_the_same_image(scene):
