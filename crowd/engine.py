@@ -11,6 +11,7 @@ seed, so a run is deterministic for a seed (``CrowdState.digest``).
 """
 from __future__ import annotations
 
+import inspect
 import sys
 import time
 from dataclasses import dataclass, field
@@ -267,9 +268,14 @@ class Engine:
             sc = self.scene
             params = dict(sc.lod_params) if mode == sc.lod_mode else {}
             progress = False if self.quiet else (lambda it, desc: _progress(it, desc, disable=not self.plan.big))
-            built = mode_module(mode).build(
+            module = mode_module(mode)
+            extra = {}
+            if "instancing" in inspect.signature(module.build).parameters:
+                # hierarchical instantiation (Wand & Strasser §3.6): the simulation's instancing groups
+                extra["instancing"] = self.world.resources.get("instancing")
+            built = module.build(
                 self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
-                params, static_reps=self.statics, progress=progress)
+                params, static_reps=self.statics, progress=progress, **extra)
             self._modes[mode] = built
         return built
 

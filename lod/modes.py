@@ -18,6 +18,11 @@ A mode is a module exposing
         reps : list of representations to upload to the renderer
         selector : object with ``select(state, camera, size, statics=()) -> DrawList``
 
+    A mode whose ``build`` also names a keyword parameter ``instancing`` is
+    given the simulation's ``sim.instancing.Instancing`` (its groups of
+    hierarchical instances, Wand & Strasser §3.6), or None when the scene has
+    no instancing effect.
+
 Modules are imported only when a scene asks for their mode, so an unused
 representation costs nothing.
 """
