@@ -11,9 +11,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
+
+from lod.atomic_io import write_atomic as _write_atomic
 
 
 def temp_sibling(final: Path) -> Path:
@@ -86,27 +87,9 @@ def atomic_dir(final: str | os.PathLike):
 
 
 def write_atomic(path: str | os.PathLike, data: bytes | str) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same folder + ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode("utf-8") if isinstance(data, str) else data)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+    """Write ``data`` to ``path`` via a temporary file in the same folder + ``os.replace``
+    (:func:`lod.atomic_io.write_atomic`)."""
+    _write_atomic(path, data)
 
 
 def write_json(path: str | os.PathLike, obj, indent: int | None = 1) -> None:

@@ -26,10 +26,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from lod.atomic_io import atomic_open
 
 
 class CameraPathError(ValueError):
@@ -197,17 +198,6 @@ def load_path(path: str | os.PathLike) -> CameraPath:
 
 def save_path(path: str | os.PathLike, camera_path: CameraPath) -> None:
     """Write ``camera_path`` as JSON, atomically (temp file in the same folder + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(camera_path.keys(), f, indent=1)
-            f.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_open(path, "w") as f:
+        json.dump(camera_path.keys(), f, indent=1)
+        f.write("\n")

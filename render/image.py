@@ -1,11 +1,11 @@
 """Image output: PNG files written atomically."""
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from lod.atomic_io import atomic_open
 
 
 def write_png(path, pixels: np.ndarray) -> Path:
@@ -20,18 +20,8 @@ def write_png(path, pixels: np.ndarray) -> Path:
     px = np.asarray(pixels)
     if px.dtype != np.uint8 or px.ndim != 3 or px.shape[2] not in (3, 4):
         raise ValueError(f"write_png {path}: expected (h, w, 3|4) uint8 pixels, got {px.shape} {px.dtype}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            Image.fromarray(np.ascontiguousarray(px)).save(fh, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_open(path, "wb") as fh:
+        Image.fromarray(np.ascontiguousarray(px)).save(fh, format="PNG")
     return path
 
 
