@@ -2,14 +2,17 @@
 #   make demo    set up, then render scenes/quickstart.toml headless into out/quickstart/
 #   make test    set up, then run the test suite (fails when no test is collected)
 #   make bench   set up, then run the benchmark scenes (short default runs)
-#   make setup   .venv + the package with test extras + system GL libraries (idempotent)
+#   make setup   .venv + the package with test extras + system GL libraries and chromium (idempotent)
+#   make report  set up, then the frame-time and accuracy report of the seven benchmark scenes
+#                (scripts/report_seeds.sh: out/report_seeds/<scene>/index.html and table.md)
 
 PYTHON   ?= python3
 VENV     ?= .venv
 VPY      := $(VENV)/bin/python
 SENTINEL := $(VENV)/.crowd-setup-done
-# Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL) and a virtual X server
-SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri xvfb
+# Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL), a virtual X server, and the headless
+# browser the report test opens index.html in (tests/crowd/test_report_browser.py)
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri xvfb chromium
 # benchmark scenes: every scene but the quick start (override: make bench BENCH_SCENES=scenes/office.toml)
 BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.toml)))
 # short default runs: full-detail (lod "none") frames of the big scenes take seconds each on llvmpipe
@@ -17,7 +20,7 @@ BENCH_FRAMES ?= 3
 BENCH_SIZE   ?= 1280x720
 PYTEST_ARGS  ?=
 
-.PHONY: setup system-packages demo test bench clean
+.PHONY: setup system-packages demo test bench report clean
 
 setup: $(SENTINEL)
 
@@ -65,6 +68,9 @@ bench: setup
 	  $(VPY) -m crowd run $$s --frames $(BENCH_FRAMES) --size $(BENCH_SIZE) --png-every 0 --out out/bench/$$n --quiet || exit $$?; \
 	  $(VPY) -c "import json,sys; s=json.load(open(sys.argv[1])); st=s['stages']; print('  %d frames, mean frame %.1f ms (simulate %.1f, select %.1f, draw %.1f), %d triangles/frame' % (s['frames'], 1e3*st['total']['mean'], 1e3*st['simulate']['mean'], 1e3*st['select']['mean'], 1e3*st['draw']['mean'], s['counts']['triangles']['mean']))" out/bench/$$n/summary.json; \
 	done
+
+report: setup
+	PYTHON=$(VPY) scripts/report_seeds.sh
 
 clean:
 	rm -rf out .pytest_cache

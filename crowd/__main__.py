@@ -3,4 +3,5 @@ import sys
 
 from crowd.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # dask / multiprocessing workers may import this module
+    sys.exit(main())

@@ -5,8 +5,10 @@
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
     crowd report SCENE... [--sweep KEY=V1,V2,...]... [--frames N] [--size WxH] [--out DIR] [--sample-every K]
-                 [--compare BASELINE_DIR] [--repeat N] [--cluster local|tcp://HOST:PORT]
+                 [--compare BASELINE_DIR] [--repeat N] [--cluster local|none|tcp://HOST:PORT]
     crowd calibrate [--quick] [--size WxH] [--no-save]
+    crowd build ASSET... [--mode points|clusters|triangles|auto|all] [--cluster local|none|tcp://HOST:PORT]
+    crowd inspect ASSET [--png FILE] [--clip NAME] [--time S] [--pose K] [--poe P] [--camera X,Y,Z] [--size WxH]
 
 Bad input (scene, asset, parameter) is reported as one line on stderr with exit
 code 2 and no traceback; nothing is written. Unexpected exceptions keep their
@@ -107,15 +109,72 @@ def build_parser() -> argparse.ArgumentParser:
                     "report directory (exit code 1 when one is found)")
     rp.add_argument("--repeat", type=_positive_int, metavar="N", help="timed runs per setting (default 3 with "
                     "--compare, else 1)")
-    rp.add_argument("--cluster", metavar="ADDRESS", help="compute image errors on dask.distributed: 'local' "
-                    "(an embedded LocalCluster) or tcp://HOST:PORT of a scheduler; timed runs stay here, serial")
+    rp.add_argument("--cluster", metavar="ADDRESS", default="local",
+                    help="where the runs and image errors run, on dask.distributed: 'local' (default: an embedded "
+                    "LocalCluster on loopback), tcp://HOST:PORT of a running scheduler, or 'none' (this process); "
+                    "timed runs run one at a time per machine with nothing else running")
     rp.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
 
-    c = sub.add_parser("calibrate", help="measure this machine's frame-cost model (a few seconds) and store it")
+    b = sub.add_parser("build", help="build the LOD hierarchies of many characters into the cache, on a dask cluster")
+    b.add_argument("assets", nargs="+", metavar="ASSET", help="a scene (.toml: all its characters, with its fps and "
+                   "[lod] keys), a .glb/.gltf file or generator:NAME[:TRIANGLES[:SEED]] (30 fps, mode defaults)")
+    b.add_argument("--mode", default="all", help="LOD modes to build: points, clusters, triangles, auto, a "
+                   "comma-separated list, or all (default)")
+    b.add_argument("--cluster", metavar="ADDRESS", default="local", help="'local' (default: an embedded dask "
+                   "LocalCluster on loopback), tcp://HOST:PORT of a running scheduler (its workers write to this "
+                   "machine's cache path: share it), or 'none' (this process)")
+    b.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+
+    c = sub.add_parser("calibrate", help="measure this machine's frame-cost model (about 2-3 minutes; "
+                       "--quick for about half) and store it")
     c.add_argument("--quick", action="store_true", help="fewer, shorter measurements (about half the time)")
     c.add_argument("--size", type=_size, default=(1280, 720), help="image size WxH (default 1280x720)")
     c.add_argument("--no-save", action="store_true", help="print the fit without storing it")
+
+    ins = sub.add_parser("inspect", help="show a character's VDR-AM cluster hierarchy (pyvista): clusters, "
+                         "deformation levels, the cut a view selects; on screen or --png FILE",
+                         description="Three views of a skinned character's cluster hierarchy: leaf clusters "
+                         "coloured (VDR-AM Fig. 7), deformation level per cluster and the LOD cut a view selects "
+                         "at --poe, coloured by cluster height (Fig. 11). Needs pyvista.")
+    ins.add_argument("asset", metavar="ASSET", help="a skinned .glb/.gltf file or generator:NAME[:TRIANGLES[:SEED]] "
+                     "(e.g. generator:humanoid:20000)")
+    ins.add_argument("--png", metavar="FILE", help="write the image to FILE (.png, off screen) instead of a window")
+    ins.add_argument("--clip", metavar="NAME", help="clip of the pose shown (default: the first clip)")
+    ins.add_argument("--time", type=float, metavar="SECONDS", help="time in the clip (default 0)")
+    ins.add_argument("--pose", type=_nonneg_int, metavar="K",
+                     help="show the hierarchy's K-th representative pose (section 4.1) instead of --clip/--time")
+    ins.add_argument("--poe", type=float, default=1.0, help="pixels of error of the cut shown (default 1)")
+    ins.add_argument("--camera", type=_vec3, metavar="X,Y,Z",
+                     help="eye position in model space, metres (default: in front at 2.5 model sizes)")
+    ins.add_argument("--size", type=_size, help="image size WxH (default 1500x600)")
+    ins.add_argument("--clustering", choices=("error-aware", "octree"), default="error-aware",
+                     help="leaf clustering of the hierarchy (default error-aware)")
     return p
+
+
+def _vec3(text: str) -> tuple:
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(abs(x) < float("inf") for x in v):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z, got {text!r}")
+    return v
+
+
+def cmd_inspect(args) -> int:
+    from crowd.inspect import main as inspect_main
+
+    return inspect_main(args)
+
+
+def cmd_build(args) -> int:
+    from crowd.build import build_assets, parse_modes, summary
+
+    res = build_assets(args.assets, parse_modes(args.mode), cluster=args.cluster, quiet=args.quiet)
+    if not args.quiet:
+        print(summary(res))
+    return 0
 
 
 def cmd_calibrate(args) -> int:
@@ -238,6 +297,8 @@ def _fmt(v) -> str:
 
 COMMANDS = {"run": cmd_run, "validate": cmd_validate, "info": cmd_info, "fly": cmd_fly, "report": cmd_report,
             "calibrate": cmd_calibrate}
+COMMANDS["inspect"] = cmd_inspect
+COMMANDS["build"] = cmd_build
 
 
 def _sigterm(signum, frame):

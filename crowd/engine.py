@@ -212,6 +212,7 @@ class Engine:
         lp = dict(scene.lod_params)
         self.settings = LiveSettings(lod_mode=scene.lod_mode, poe=float(lp.get("poe", LiveSettings.poe)),
                                      splat_size=float(lp.get("splat_size", LiveSettings.splat_size)),
+                                     keyframe_interval=self.keyframe_every,
                                      occlusion=bool(lp.get("occlusion", LiveSettings.occlusion)))
 
     # -- building -----------------------------------------------------------------------------------------------------
@@ -276,8 +277,25 @@ class Engine:
             built = module.build(
                 self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
                 params, static_reps=self.statics, progress=progress, **extra)
+            reps, selector = built
+            built = (reps, self._keyframed(selector, self.keyframe_every))
             self._modes[mode] = built
         return built
+
+    @property
+    def keyframe_every(self) -> int:
+        """``[lod] keyframe_every`` of the scene (1 = per-frame selection)."""
+        return int(dict(self.scene.lod_common).get("keyframe_every", 1))
+
+    def _keyframed(self, selector, n: int):
+        """``selector`` wrapped in a :class:`lod.keyframed_selection.KeyframedSelector`
+        when ``n > 1`` (Friedrich et al. §3 for the crowd's LOD), else itself."""
+        if int(n) <= 1:
+            return selector
+        from lod.keyframed_selection import KEYFRAME_EXTRAPOLATION_DEFAULT, KeyframedSelector
+
+        mode = dict(self.scene.lod_common).get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
+        return KeyframedSelector(selector, int(n), mode)
 
     def _build_terrain_lod(self):
         """The view-dependent bisection terrain (Friedrich et al.), when the
@@ -374,13 +392,39 @@ class Engine:
     def apply_live_settings(self) -> None:
         """Hand the live LOD settings to the current selector: pixels of error
         to a cluster cut, the splat size to a point traversal (the drawer
-        splats at the size the DrawList names). Occlusion and the keyframe
-        interval are shown but not yet applied live."""
-        sel, s = self.selector, self.settings
+        splats at the size the DrawList names), the keyframe interval to the
+        keyframed selection (wrapping the mode's selector when it becomes > 1;
+        restarting its keyframes when it changes) and the occlusion toggle to
+        the cluster representations (and the open renderer's cluster drawer)."""
+        from lod.keyframed_selection import KeyframedSelector
+
+        s = self.settings
+        n = max(1, int(s.keyframe_interval))
+        if isinstance(self.selector, KeyframedSelector):
+            if self.selector.n != n:
+                self.selector.set_interval(n)
+        elif n > 1:
+            self.selector = self._keyframed(self.selector, n)
+            mode = s.lod_mode if s.lod_mode in self._modes else self.scene.lod_mode
+            if mode in self._modes:
+                self._modes[mode] = (self._modes[mode][0], self.selector)
+        self.apply_occlusion(bool(s.occlusion))
+        sel = self.selector
         if hasattr(sel, "poe"):
             sel.poe = float(s.poe)
         if hasattr(sel, "splat_size"):
             sel.splat_size = int(min(3, max(1, round(s.splat_size))))
+
+    def apply_occlusion(self, on: bool) -> None:
+        """Occlusion culling (VDR-AM §5.2) of the cluster representations on or off:
+        sets ``occlusion`` on the LOD reps and on the open renderer's per-rep state."""
+        for reps, _ in self._modes.values():
+            for rep in reps:
+                if hasattr(rep, "occlusion") and getattr(rep, "kind", "") == "clusters":
+                    rep.occlusion = bool(on)
+        d = self.renderer.uploaded_drawer("clusters") if self.renderer is not None else None
+        if d is not None:  # render.clusters keeps its own state per uploaded rep
+            d.set_occlusion(bool(on))
 
     def close(self) -> None:
         if self.renderer is not None:
@@ -439,8 +483,13 @@ class Engine:
                 dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
                 t2 = time.perf_counter()
                 stages["select"] = (t1 - t_frame, t2 - t1)
+                if "keyframe" in dl.stats:  # keyframed selection (lod.keyframed_selection)
+                    metrics = {**metrics, "lod_keyframe": float(bool(dl.stats["keyframe"])),
+                               "lod_selection_ms": 1e3 * float(getattr(self.selector, "last_selection_seconds", 0.0)),
+                               "lod_transitions": float(dl.stats.get("transitions", 0))}
                 r = renderer.draw(dl, bg)
-                measured = sum(float(r.get(k) or 0.0) for k in ("upload", "draw", "finish"))
+                # the frame cost a budget covers: LOD selection + rendering (simulation is the scene's own cost)
+                measured = (t2 - t1) + sum(float(r.get(k) or 0.0) for k in ("upload", "draw", "finish"))
                 if hasattr(self.selector, "observe"):  # frame-budget modes adapt to the measured cost
                     self.selector.observe(measured)
                 auto = dl.stats.get("auto")

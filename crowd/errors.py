@@ -12,9 +12,16 @@ class CrowdError(Exception):
     exit_code = 2
 
 
+def printable(text: str) -> str:
+    """``text`` with control characters (newlines, tabs, NUL, ...) written as escapes,
+    so a key taken from a file cannot break the one-line message."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 class SceneError(CrowdError):
     def __init__(self, path, key: str, message: str):
         self.path, self.key = str(path), key
+        path, key = printable(path), printable(key)
         super().__init__(f"{path}: {key}: {message}" if key else f"{path}: {message}")
 
 

@@ -15,11 +15,20 @@ already built, from their meshes and clips. It adds up
 - ``gpu``: the instance buffer (capacity doubles, so up to 2x), vertex
   buffers and joint textures of every representation, the skinning palette
   (3 texels of 16 bytes per joint per visible skinned instance, buffer and
-  texture) and the framebuffer.
-
+  texture) and the framebuffer;
+- ``driver``: the GL driver's binned triangles (Mesa llvmpipe keeps each
+  36 MB "scene" of binned triangle data until it reuses it; the renderer
+  waits after every :data:`render.renderer.MAX_TRIANGLES_IN_FLIGHT`
+  triangles, so a few scenes are ever in use): triangles per frame at full
+  detail x :data:`BINNED_BYTES_PER_TRIANGLE`, capped at
+  :data:`DRIVER_SCENES` scenes of :data:`DRIVER_SCENE_BYTES`;
 - ``lod``: the LOD mode's hierarchies (:data:`LOD_BYTES_PER_TRIANGLE`, or the
   mode module's own ``memory_estimate(characters_or_specs, params) -> int``
   bytes when it has one).
+
+Measured against the peak resident memory of ``crowd run --frames 2`` the
+estimate was 0.86x-1.19x of it on six scenes (table in scripts/soak.md);
+tests/crowd/test_memory_guard.py checks a small scene within a factor 1.6.
 
 The guard compares the total with ``MemAvailable`` of ``/proc/meminfo``
 (fallback: ``os.sysconf`` physical pages; unknown: no refusal).
@@ -64,9 +73,18 @@ LOD_BYTES_PER_TRIANGLE = {"none": 0, "clusters": 80, "points": 16_500}
 #: bytes of a glTF file per triangle (used before the file is loaded)
 GLTF_BYTES_PER_TRIANGLE = 40
 #: the process before any scene data: interpreter, numpy, numba kernels, the GL
-#: driver (llvmpipe keeps its triangle bins, bounded, in this too); measured
-#: resident ~240 MB after the imports and ~330 MB at the first frame of quickstart
-RUNTIME_BYTES = 300_000_000
+#: context and compiled shaders; measured peak resident 273 MB for
+#: scenes/poser4.toml (4 agents) with ``crowd run --frames 2``
+RUNTIME_BYTES = 270_000_000
+#: bytes of one llvmpipe scene (``LP_SCENE_MAX_SIZE`` of Mesa's lp_scene.h)
+DRIVER_SCENE_BYTES = 36 * 1024 * 1024
+#: llvmpipe scenes a frame keeps at most with the renderer's split of large
+#: draws (one binning, one rasterizing, one for state flushes)
+DRIVER_SCENES = 3
+#: binned bytes per drawn triangle, averaged over culled, sub-pixel and
+#: multi-tile triangles (fitted: quickstart 500 k triangles/frame ~20 MB,
+#: office 16 M ~50 MB, horses 58 M ~80 MB of resident memory beyond the rest)
+BINNED_BYTES_PER_TRIANGLE = 100
 #: fraction of MemAvailable a scene may use
 MEMORY_FRACTION = 0.9
 #: environment variable overriding the available bytes (tests, CI machines)
@@ -194,6 +212,10 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     palette = 2 * 16 * min(PALETTE_MAX_TEXELS, n * 3 * max_joints)
     w, h = scene.render.size
     parts["gpu"] = n * GPU_INSTANCE_BYTES + gpu + palette + w * h * 8 + w * h * 3
+    chars = characters if characters is not None else [None] * len(scene.characters)
+    tris = sum(placement_agents(p.kind, p.params) * _triangles(scene.characters[p.character], chars[p.character])
+               for p in scene.placements)
+    parts["driver"] = min(tris * BINNED_BYTES_PER_TRIANGLE, DRIVER_SCENES * DRIVER_SCENE_BYTES)
     lod = _mode_estimate(scene, characters)
     if lod:
         parts["lod"] = lod

@@ -19,6 +19,19 @@ The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
 Sweep keys are applied to the parsed TOML document *before* validation, so a
 swept value is checked exactly as if it were written in the scene file.
 
+Scale-out (:class:`ClusterPool`, ``--cluster``): by default the work runs on an
+embedded dask ``LocalCluster`` on loopback (one single-threaded worker process
+per core); ``--cluster tcp://HOST:PORT`` uses a running dask scheduler and
+``--cluster none`` keeps everything in this process, serially. Timed runs come
+first, through one queue per host: a host runs one timed run at a time and
+nothing else of the report runs anywhere meanwhile, so no two timed runs share a
+machine's cores and no image-error work disturbs them; different hosts time in
+parallel. Then the NoLOD reference runs and the image error of every sampled
+frame run in parallel on all workers. A run (:func:`run_task`) writes to a
+temporary folder on its worker and returns its files as data; the client writes
+them into the report. Results are the same as in this process (same frames,
+same counts, same image errors; only the wall-clock times differ).
+
 Regression check (``--compare BASELINE_DIR``, :func:`compare_reports`): each
 setting runs ``--repeat N`` times (default 3 with ``--compare``, serially, never
 two timed runs at once); a run's frame time is the median of its per-frame stage
@@ -83,14 +96,25 @@ class SweepError(CrowdError):
 # ---------------------------------------------------------------------------------------------------------------------
 
 
+def _common_lod_keys() -> tuple:
+    """``[lod]`` keys valid for every mode (``lod.keyframed_selection.LOD_COMMON_PARAMS``: keyframe_every, ...)."""
+    try:
+        from lod.keyframed_selection import LOD_COMMON_PARAMS
+    except ImportError:
+        return ()
+    return tuple(LOD_COMMON_PARAMS)
+
+
 def _all_lod_keys() -> dict:
-    """lod key -> modes accepting it (``mode`` is accepted by all)."""
+    """lod key -> modes accepting it (``mode`` and the common keys are accepted by all)."""
     from lod.modes import mode_names, mode_params
 
     out = {"mode": list(mode_names())}
     for m in mode_names():
         for k in mode_params(m):
             out.setdefault(k, []).append(m)
+    for k in _common_lod_keys():
+        out[k] = list(mode_names())
     return out
 
 
@@ -206,6 +230,7 @@ def expand_settings(scene_path, sweeps: list, size: tuple | None = None, frames:
             accepted = set(mode_params(mode)) if isinstance(mode, str) else set()
         except KeyError:
             accepted = set()  # unknown mode: validation below names the accepted ones
+        accepted |= set(_common_lod_keys())  # e.g. keyframe_every: every mode takes it
         if "lod.mode" in keys:
             for k in list(lod):
                 if k != "mode" and k not in accepted:
@@ -264,6 +289,7 @@ class RunData:
     pngs: list
     metrics: list = field(default_factory=list)  # per sampled frame: dict frame, psnr, ssim, flip, mse, flicker, ...
     repeat_medians: list = field(default_factory=list)  # median frame seconds of each repeated run
+    host: str | None = None  # the machine of the timed runs
 
 
 class _SleepySelector:
@@ -326,13 +352,14 @@ class _PairRenderer:
         return getattr(self._inner, name)
 
 
-def _run(scene, out_dir: Path, png_every: int, pairs: bool = False) -> tuple:
+def _run(scene, out_dir: Path, png_every: int, pairs: bool = False, sleep: float | None = None) -> tuple:
     """Run ``scene`` headless into ``out_dir``; with ``pairs`` the PNGs of frames ``f % png_every in (0, 1)``.
 
+    ``sleep``: seconds of the test-only per-frame sleep (default: :func:`test_sleep_seconds` of this process).
     Returns (summary, frames.csv columns, sorted paths of the PNGs written)."""
     from crowd.engine import Engine
 
-    sleep = test_sleep_seconds()
+    sleep = test_sleep_seconds() if sleep is None else float(sleep)
     with Engine(scene, quiet=True) as engine:
         if sleep > 0:
             engine.selector = _SleepySelector(engine.selector, sleep)
@@ -344,8 +371,81 @@ def _run(scene, out_dir: Path, png_every: int, pairs: bool = False) -> tuple:
     return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(p for p in r.pngs if Path(p).is_file())
 
 
+def _user_errors() -> tuple:
+    """Exceptions that are bad input, not bugs (as ``crowd.cli`` treats them)."""
+    from render.context import ContextError
+    from sim.errors import AssetError as SimAssetError
+    from sim.params import ParamError
+
+    return CrowdError, SimAssetError, ParamError, ContextError
+
+
+def run_task(scene, png_every: int, pairs: bool = False, sleep: float = 0.0) -> dict:
+    """One headless run of ``scene``: the unit of work of a timed or reference run, in this process or on a dask
+    worker.
+
+    The run goes to a temporary folder and everything it wrote comes back as data, so a worker needs no
+    filesystem shared with the client (only this package, and the scene's asset files at the same paths).
+
+    Parameters
+    ----------
+    scene : crowd.scene.Scene (validated)
+    png_every : k, write the PNGs of frames ``f % k == 0`` (0: none)
+    pairs : also the PNG of each such frame's successor ``f + 1`` (the flicker measure's pairs)
+    sleep : seconds of the test-only per-frame sleep (:data:`SLEEP_ENV`, read by the client)
+
+    Returns
+    -------
+    dict
+        ``summary`` (summary.json), ``columns`` (frames.csv: name -> (frames,) float64), ``files`` (path relative
+        to the run folder -> bytes: frames.csv, summary.json, trace.json, frames/frame_NNNNN.png), ``pngs``
+        (sorted PNG file names), ``host`` (its name), ``start``/``end`` (wall-clock seconds since the epoch,
+        the task's interval on its worker); or ``{"error": message, "exit_code": code}`` for bad input (an
+        asset, the memory guard, no GL context, NaN in the simulation), which the client raises as
+        :class:`crowd.errors.CrowdError` with that exit code.
+    """
+    import socket
+    import tempfile
+    import time
+
+    start = time.time()
+    try:
+        with tempfile.TemporaryDirectory(prefix="crowd-run-") as d:
+            rd = Path(d) / "run"
+            summary, columns, pngs = _run(scene, rd, png_every, pairs=pairs, sleep=sleep)
+            files = {p.relative_to(rd).as_posix(): p.read_bytes() for p in sorted(rd.rglob("*")) if p.is_file()}
+    except _user_errors() as e:
+        return {"error": str(e).splitlines()[0] if str(e) else type(e).__name__,
+                "exit_code": int(getattr(e, "exit_code", 2))}  # e.g. 3: NaN/Inf in the simulation
+    return {"summary": summary, "columns": columns, "files": files, "pngs": [Path(p).name for p in pngs],
+            "host": socket.gethostname(), "start": start, "end": time.time()}
+
+
+def _checked(result: dict) -> dict:
+    """A task's result, or its user error raised here (one sentence; the task's exit code, 2 by default)."""
+    if "error" in result:
+        err = CrowdError(result["error"])
+        err.exit_code = int(result.get("exit_code", 2))
+        raise err
+    return result
+
+
+def _is_reference(scene) -> bool:
+    """True when ``scene`` renders its own full-detail reference: mode none, common LOD keys at their defaults."""
+    if scene.lod_mode != "none":
+        return False
+    try:
+        from lod.keyframed_selection import LOD_COMMON_PARAMS
+    except ImportError:
+        return True
+    common = dict(getattr(scene, "lod_common", ()) or ())
+    return all(common.get(k, p.default) == p.default for k, p in LOD_COMMON_PARAMS.items())
+
+
 def _reference_scene(scene):
-    return dataclasses.replace(scene, lod_mode="none", lod_params=())
+    """The full-detail reference of ``scene``: LOD mode none, no LOD keys (per-frame selection)."""
+    extra = {"lod_common": ()} if any(f.name == "lod_common" for f in dataclasses.fields(scene)) else {}
+    return dataclasses.replace(scene, lod_mode="none", lod_params=(), **extra)
 
 
 def _progress(total: int, quiet: bool):
@@ -415,50 +515,201 @@ def frame_metrics(img: np.ndarray, ref: np.ndarray, nxt: np.ndarray | None = Non
             "error_png": (np.clip(m["error_map"], 0, 1) * 255 + 0.5).astype(np.uint8)}
 
 
-class MetricsPool:
-    """Where the image-error work runs: this process, or a dask.distributed cluster.
+def _png(data: bytes) -> np.ndarray:
+    """PNG bytes -> (h, w, 3) uint8."""
+    import io
 
-    ``cluster=None``: in this process, in order. ``"local"``: an embedded
-    ``LocalCluster`` on loopback (processes, one single-threaded worker: this
-    process keeps the other core). Else the address of an existing scheduler
-    (``tcp://HOST:PORT``). Frames are scattered to the workers as arrays, so
-    workers need no shared filesystem, only this package importable.
+    from render.image import read_png
+
+    return read_png(io.BytesIO(data))
+
+
+def metrics_task(run: dict, ref: dict, frame: int) -> dict:
+    """:func:`frame_metrics` of sampled ``frame`` of a run against its reference run (both :func:`run_task`
+    results); the pair (frame, frame + 1) feeds the flicker measure when both runs wrote the successor."""
+    name, nxt = f"frames/frame_{frame:05d}.png", f"frames/frame_{frame + 1:05d}.png"
+    a, b = run["files"], ref["files"]
+    pair = nxt in a and nxt in b
+    return frame_metrics(_png(a[name]), _png(b[name]), _png(a[nxt]) if pair else None,
+                         _png(b[nxt]) if pair else None)
+
+
+#: default ``--cluster``: an embedded dask LocalCluster on loopback
+DEFAULT_CLUSTER = "local"
+#: ``--cluster`` value that runs everything in this process, serially
+NO_CLUSTER = "none"
+#: seconds to wait for a scheduler (``--cluster tcp://...``) and for its first worker
+CONNECT_TIMEOUT_S = 10
+
+
+class _Done:
+    """An in-process result with the part of the ``distributed.Future`` interface the pool uses."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def result(self):
+        return self.value
+
+
+def _host(address: str) -> str:
+    """``tcp://10.0.0.5:40123`` -> ``10.0.0.5`` (a worker's machine)."""
+    rest = address.split("://", 1)[-1]
+    return rest.rsplit(":", 1)[0] if ":" in rest else rest
+
+
+class ClusterPool:
+    """Where the work of ``crowd report`` and ``crowd build`` runs: dask.distributed, or this process.
+
+    Parameters
+    ----------
+    cluster : str or None
+        ``"local"`` (the default): an embedded ``LocalCluster`` on loopback (127.0.0.1, no dashboard), one
+        single-threaded worker process per core of this machine, no memory limit (``crowd.memory`` guards the
+        scenes), and dask's per-worker thread pinning (``OMP_NUM_THREADS=1`` ...) left out, so a timed run has
+        the same numba, BLAS and llvmpipe threads as ``crowd run``. ``tcp://HOST:PORT``: a running scheduler
+        (its workers need this package and the scenes' assets at the same paths; ``crowd build`` also needs
+        the cache folder on a filesystem the workers share). ``"none"`` or None: this process, serially.
+
+    Notes
+    -----
+    Scheduling. :meth:`timed` runs the timed work so that no two timed runs share a machine's cores: the
+    workers are grouped by host (the host part of their addresses), each host gets one queue, and a host's
+    next timed task is submitted (pinned to that host's workers) only when its previous one has finished;
+    different hosts time in parallel. :meth:`timed` returns when all are done, and the report submits
+    nothing else meanwhile, so no image-error work, reference run or build runs beside a timed run either
+    (on any host of the cluster; other clients of a shared cluster are not controlled). Untimed work
+    (:meth:`submit`) fills every worker. Results move between workers as futures; the client only writes
+    them to the report folder.
 
     Raises
     ------
     crowd.errors.CrowdError
-        dask.distributed is not installed, or the scheduler cannot be reached.
+        dask.distributed is not installed, the address is malformed, or the scheduler cannot be reached.
     """
 
-    def __init__(self, cluster: str | None = None):
-        self.cluster_arg, self._cluster, self._client = cluster, None, None
+    def __init__(self, cluster: str | None = DEFAULT_CLUSTER):
+        if cluster is not None and cluster != NO_CLUSTER and cluster != "local" and "://" not in cluster:
+            raise CrowdError(f"--cluster {cluster!r}: expected 'local' (an embedded dask LocalCluster), 'none' "
+                             "(this process) or the address tcp://HOST:PORT of a running dask scheduler")
+        self.cluster_arg = None if cluster == NO_CLUSTER else cluster
+        self._cluster, self._client = None, None
         self.description = "this process"
+
+    @property
+    def distributed(self) -> bool:
+        """True when the work runs on a dask cluster."""
+        return self._client is not None
 
     def __enter__(self):
         if self.cluster_arg is None:
             return self
         try:
+            import dask
             from dask.distributed import Client, LocalCluster
         except ImportError:
             raise CrowdError(f"--cluster {self.cluster_arg}: dask.distributed is not installed "
-                             "(pip install 'crowd-sandbox[report]' or pip install dask distributed)") from None
+                             "(pip install 'crowd-sandbox[report]' or pip install dask distributed); "
+                             "--cluster none runs in this process") from None
+        import logging
+        import os
+        import warnings
+
         try:
             if self.cluster_arg == "local":
-                self._cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                             dashboard_address=None)
+                n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+                env = {k: v for k, v in (dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {}).items()
+                       if not k.endswith("_NUM_THREADS")}
+                with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message=".*already in use")  # its HTTP port: any free one
+                    self._cluster = LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
+                                                 host="127.0.0.1", dashboard_address=None, memory_limit=0,
+                                                 silence_logs=logging.ERROR)
                 self._client = Client(self._cluster)
-                self.description = f"embedded dask LocalCluster {self._cluster.scheduler_address}"
+                self.description = (f"embedded dask LocalCluster {self._cluster.scheduler_address} "
+                                    f"({max(1, n)} single-threaded workers)")
             else:
-                self._client = Client(self.cluster_arg, timeout="10s")
+                self._client = Client(self.cluster_arg, timeout=f"{CONNECT_TIMEOUT_S}s")
+                self._client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
                 self.description = f"dask scheduler {self.cluster_arg}"
         except (OSError, TimeoutError, ValueError) as e:
             self.__exit__()
             raise CrowdError(f"--cluster {self.cluster_arg}: cannot connect ({type(e).__name__}: {e}); expected "
-                             "'local' or the address tcp://HOST:PORT of a running dask scheduler") from None
+                             "'local', 'none' or the address tcp://HOST:PORT of a running dask scheduler with "
+                             "workers") from None
         return self
 
+    def hosts(self) -> dict:
+        """host -> sorted worker addresses on it ({"this process": []} without a cluster)."""
+        if self._client is None:
+            return {"this process": []}
+        out = {}
+        for addr, info in self._client.scheduler_info(n_workers=-1)["workers"].items():
+            out.setdefault(info.get("host") or _host(addr), []).append(addr)
+        return {h: sorted(v) for h, v in sorted(out.items())}
+
+    def submit(self, fn, *args):
+        """``fn(*args)`` as untimed work; args may be results of :meth:`submit`/:meth:`timed` (handles).
+        Returns a handle (a ``distributed.Future``, or a finished in-process result)."""
+        if self._client is None:
+            return _Done(fn(*[a.value if isinstance(a, _Done) else a for a in args]))
+        return self._client.submit(fn, *args, pure=False)
+
+    def results(self, handles: list, done=None) -> list:
+        """Values of ``handles`` in order; ``done()`` is called as each one finishes."""
+        if self._client is None:
+            for _ in handles:
+                if done is not None:
+                    done()
+            return [h.value for h in handles]
+        from distributed import as_completed
+
+        for _ in as_completed(handles):
+            if done is not None:
+                done()
+        return [h.result() for h in handles]
+
+    def timed(self, fn, jobs: list, done=None) -> list:
+        """``fn(*args)`` for each args of ``jobs``, never two on one host at a time (class Notes).
+
+        Returns
+        -------
+        list of (handle, value) in the order of ``jobs``; ``done(value)`` is called as each one finishes.
+        """
+        out = [None] * len(jobs)
+        if self._client is None:
+            for i, a in enumerate(jobs):
+                v = fn(*a)
+                out[i] = (_Done(v), v)
+                if done is not None:
+                    done(v)
+            return out
+        from distributed import as_completed
+
+        pending = list(enumerate(jobs))
+        running, ac = {}, as_completed()
+
+        def start(host, workers):
+            if pending:
+                i, a = pending.pop(0)
+                f = self._client.submit(fn, *a, workers=workers, allow_other_workers=False, pure=False)
+                running[f.key] = (i, host, workers)
+                ac.add(f)
+
+        for host, workers in self.hosts().items():
+            start(host, workers)
+        for f in ac:
+            i, host, workers = running.pop(f.key)
+            v = f.result()
+            out[i] = (f, v)
+            if done is not None:
+                done(v)
+            start(host, workers)
+        return out
+
     def map(self, fn, args: list) -> list:
-        """``[fn(*a) for a in args]``, on the cluster when there is one (results in order)."""
+        """``[fn(*a) for a in args]`` as untimed work, results in order (array arguments are scattered to the
+        workers, so they need no shared filesystem)."""
         if self._client is None:
             return [fn(*a) for a in args]
         futures, held = [], []
@@ -475,12 +726,40 @@ class MetricsPool:
             del held
 
     def __exit__(self, *exc):
-        if self._client is not None:
-            self._client.close()
-            self._client = None
-        if self._cluster is not None:
-            self._cluster.close()
-            self._cluster = None
+        client, cluster = self._client, self._cluster
+        self._client = self._cluster = None
+        shutdown_dask(client, cluster)
+
+
+#: the former name (image-error work only); same class
+MetricsPool = ClusterPool
+
+
+def shutdown_dask(client=None, cluster=None) -> None:
+    """Close a dask client, then a cluster, quietly.
+
+    Closing a ``LocalCluster`` waits a fixed 5 s (``distributed.nanny.Nanny.close``) for each worker process to
+    exit before killing it; on a loaded machine that wait can time out after the work is complete, which is no
+    error of the report: the timeout and the log lines it causes are swallowed (the processes are killed).
+    """
+    import asyncio
+    import logging
+
+    loggers = [logging.getLogger(n) for n in ("distributed", "tornado.application", "asyncio")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL)
+    try:
+        for obj in (client, cluster):
+            if obj is None:
+                continue
+            try:
+                obj.close()
+            except (TimeoutError, asyncio.TimeoutError, asyncio.CancelledError, OSError, RuntimeError):
+                pass
+    finally:
+        for lg, lv in zip(loggers, levels):
+            lg.setLevel(lv)
 
 
 @dataclass
@@ -562,7 +841,7 @@ def compare_reports(current: dict, baseline: dict, min_regression: float = MIN_R
 def build_report(scene_paths: list, sweeps: list, frames: int | None = None, size: tuple | None = None,
                  out: str | Path = "out/report", sample_every: int | None = None, quiet: bool = False,
                  repeat: int | None = None, baseline: dict | None = None, baseline_dir: str | None = None,
-                 cluster: str | None = None) -> ReportResult:
+                 cluster: str | None = DEFAULT_CLUSTER) -> ReportResult:
     """Run every scene x setting plus references, measure, and write the report directory atomically.
 
     Parameters
@@ -574,22 +853,29 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     sample_every : compare every k-th frame (default: ``frames // 4``, at least 1)
     quiet : no progress bar
     repeat : timed runs per setting (default 3 with a baseline, else 1); the first run's images are compared,
-        every run's median frame time goes into ``repeat_medians_ms``. Runs are serial.
+        every run's median frame time goes into ``repeat_medians_ms``.
     baseline : a baseline report.json (:func:`load_baseline`); the comparison goes into ``data["compare"]``
         and the page
     baseline_dir : the baseline's directory, as shown on the page
-    cluster : None (image error computed in this process), ``"local"`` (an embedded dask LocalCluster) or the
-        address of a dask scheduler (``tcp://HOST:PORT``): see :class:`MetricsPool`. Timed runs always run
-        here, one at a time, and never while the pool computes.
+    cluster : ``"local"`` (default, an embedded dask LocalCluster), ``"none"``/None (this process) or the
+        address of a dask scheduler (``tcp://HOST:PORT``): see :class:`ClusterPool`.
+
+    Notes
+    -----
+    Two phases. First every timed run (each setting ``repeat`` times, all scenes) through
+    :meth:`ClusterPool.timed`: one at a time per host, nothing else running. Then, in parallel on every
+    worker, the NoLOD reference runs (untimed) and the image error of every sampled frame
+    (:func:`metrics_task`). The client writes the runs' files, plots and the page.
 
     Raises
     ------
     crowd.errors.CrowdError
-        Bad scene or sweep (before anything runs or is written).
+        Bad scene, sweep or ``cluster`` (before anything runs or is written); a user error raised by a run
+        (e.g. a broken asset) is raised here with its message, and nothing is written.
     """
     from crowd.image_metrics import flip_available
     from crowd.output import atomic_dir, check_output_dir
-    from render.image import read_png, write_png
+    from render.image import write_png
 
     all_settings = [(Path(p), expand_settings(p, sweeps, size=size, frames=frames)) for p in scene_paths]
     names = [s[0].scene.name for _, s in all_settings]
@@ -598,74 +884,110 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     repeat = int(repeat) if repeat is not None else (3 if baseline is not None else 1)
     if repeat < 1:
         raise CrowdError(f"--repeat {repeat}: expected a positive number of runs per setting")
-    test_sleep_seconds()  # a bad test-only setting fails before anything runs
-    total_runs = sum(repeat * len(s) + len({tuple(x.scene.render.size) for x in s}) for _, s in all_settings)
+    sleep = test_sleep_seconds()  # a bad test-only setting fails before anything runs
+    pool = ClusterPool(cluster)  # a malformed address fails here, before anything runs
+    ks = [sample_every or max(1, settings[0].scene.frames // DEFAULT_SAMPLES) for _, settings in all_settings]
+    # reference runs: one per scene and size, unless a setting of mode none without LOD keys is its own
+    refs_needed = []
+    for (_, settings), k in zip(all_settings, ks):
+        own = {tuple(st.scene.render.size) for st in settings if _is_reference(st.scene)}
+        refs_needed.append(sorted({tuple(st.scene.render.size) for st in settings} - own))
+    n_timed = sum(repeat * len(s) for _, s in all_settings)
+    n_refs = sum(len(r) for r in refs_needed)
+    n_metrics = sum(len(s) * len(range(0, s[0].scene.frames, k)) for (_, s), k in zip(all_settings, ks))
     data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None,
             "repeat": repeat}
-    with MetricsPool(cluster) as pool, atomic_dir(out) as tmp, _progress(total_runs, quiet) as bar:
+    with pool, atomic_dir(out) as tmp, _progress(n_timed + n_refs + n_metrics, quiet) as bar:
         data["cluster"] = pool.description
+        data["hosts"] = {h: len(w) for h, w in pool.hosts().items()}
         for d in ("plots", "samples", "runs"):
             (tmp / d).mkdir()
-        for (path, settings), slug in zip(all_settings, slugs):
-            nframes = settings[0].scene.frames
-            k = sample_every or max(1, nframes // DEFAULT_SAMPLES)
-            runs = []
+
+        # phase 1: timed runs, never two on one host, nothing else running
+        jobs, where = [], []
+        for si, ((_, settings), k) in enumerate(zip(all_settings, ks)):
             for st in settings:
-                bar.set_postfix_str(f"{slug} {st.label}")
-                rd = tmp / "runs" / slug / st.slug
-                summ, cols, pngs = _run(st.scene, rd, k, pairs=True)
-                run = RunData(st, rd, summ, cols, [rd / "frames" / Path(p).name for p in pngs])
-                run.repeat_medians.append(float(np.median(frame_seconds(cols))))
-                bar.update(1)
-                for i in range(1, repeat):  # timing only: no PNGs
-                    _, cols_i, _ = _run(st.scene, tmp / "runs" / slug / f"{st.slug}_r{i}", 0)
-                    run.repeat_medians.append(float(np.median(frame_seconds(cols_i))))
-                    bar.update(1)
-                runs.append(run)
-            refs = {}
-            for run in runs:  # a setting of mode none without LOD keys is its own size's reference
+                for i in range(repeat):  # the first run writes the sampled frames; repeats are timing only
+                    jobs.append((st.scene, k if i == 0 else 0, i == 0, sleep))
+                    where.append((si, st, i))
+        bar.set_postfix_str(f"timed runs on {pool.description}")
+
+        def timed_done(v):
+            _checked(v)
+            bar.update(1)
+
+        timed = pool.timed(run_task, jobs, done=timed_done)
+        runs_of = [[] for _ in all_settings]  # per scene: (RunData, handle of the first run)
+        first = {}
+        # when and where each run ran (wall-clock seconds since the epoch): the scheduling, checkable
+        data["schedule"] = []
+        for (si, st, i), (handle, v) in zip(where, timed):
+            data["schedule"].append({"kind": "timed", "scene": names[si], "label": st.label, "run": i,
+                                     "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
+            slug = slugs[si]
+            rd = tmp / "runs" / slug / (st.slug if i == 0 else f"{st.slug}_r{i}")
+            _write_files(rd, v["files"])
+            median = float(np.median(frame_seconds(v["columns"])))
+            if i == 0:
+                run = RunData(st, rd, v["summary"], v["columns"], [rd / "frames" / n for n in v["pngs"]])
+                run.host = v.get("host")
+                runs_of[si].append(run)
+                first[id(run)] = (handle, v)
+            runs_of[si][-1].repeat_medians.append(median)
+
+        # phase 2: reference runs and image error, in parallel on every worker
+        bar.set_postfix_str("references and image error")
+        ref_handles = {}
+        for si, (_, settings) in enumerate(all_settings):
+            for sz in refs_needed[si]:
+                scene = _reference_scene(next(st.scene for st in settings if tuple(st.scene.render.size) == sz))
+                ref_handles[si, sz] = pool.submit(run_task, scene, ks[si], True, 0.0)
+        mjobs, mhandles = [], []
+        for si in range(len(all_settings)):
+            for run in runs_of[si]:
                 sz = tuple(run.setting.scene.render.size)
-                if run.setting.scene.lod_mode == "none" and sz not in refs:
-                    refs[sz] = run.pngs
-            for sz in sorted({tuple(r.setting.scene.render.size) for r in runs}):
-                if sz not in refs:
-                    bar.set_postfix_str(f"{slug} reference {sz[0]}x{sz[1]}")
-                    rd = tmp / "runs" / slug / f"reference_{sz[0]}x{sz[1]}"
-                    ref_scene = _reference_scene(next(r.setting.scene for r in runs
-                                                      if tuple(r.setting.scene.render.size) == sz))
-                    _, _, pngs = _run(ref_scene, rd, k, pairs=True)
-                    refs[sz] = [rd / "frames" / Path(p).name for p in pngs]
-                bar.update(1)
-            scene_entry = {"name": names[len(data["scenes"])], "slug": slug, "file": str(path), "frames": nframes,
-                           "sample_every": k, "settings": []}
-            # image-error work of this scene, after its timed runs (none is running while the pool computes)
-            jobs = []
-            for run in runs:
+                if (si, sz) in ref_handles:
+                    ref = ref_handles[si, sz]
+                else:  # a NoLOD setting of this size is the reference
+                    ref = first[id(next(r for r in runs_of[si] if _is_reference(r.setting.scene)
+                                        and tuple(r.setting.scene.render.size) == sz))][0]
+                handle = first[id(run)][0]
+                for name in first[id(run)][1]["pngs"]:
+                    frame = int(re.search(r"(\d+)", name).group(1))
+                    if frame % ks[si] == 0:  # not the second frame of a flicker pair
+                        mjobs.append((si, run, frame, ref))
+                        mhandles.append(pool.submit(metrics_task, handle, ref, frame))
+        ref_values = dict(zip(ref_handles, pool.results(list(ref_handles.values()), done=lambda: bar.update(1))))
+        for (si, sz), v in ref_values.items():
+            _checked(v)
+            data["schedule"].append({"kind": "reference", "scene": names[si], "label": f"{sz[0]}x{sz[1]}", "run": 0,
+                                     "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
+            _write_files(tmp / "runs" / slugs[si] / f"reference_{sz[0]}x{sz[1]}", v["files"])
+        results = pool.results(mhandles, done=lambda: bar.update(1))
+
+        for si, (path, settings) in enumerate(all_settings):
+            slug, k = slugs[si], ks[si]
+            for (sj, run, frame, ref), m in zip(mjobs, results):
+                if sj != si:
+                    continue
                 sz = tuple(run.setting.scene.render.size)
-                ref_by_name = {p.name: p for p in refs[sz]}
-                own = {p.name: p for p in run.pngs}
-                for p in run.pngs:
-                    frame = int(re.search(r"(\d+)", p.name).group(1))
-                    if frame % k:
-                        continue  # the second frame of a flicker pair
-                    nxt = f"frame_{frame + 1:05d}.png"
-                    pair = nxt in own and nxt in ref_by_name
-                    jobs.append((run, frame, p, ref_by_name[p.name], (read_png(p), read_png(ref_by_name[p.name]),
-                                 read_png(own[nxt]) if pair else None, read_png(ref_by_name[nxt]) if pair else None)))
-            bar.set_postfix_str(f"{slug} image error ({len(jobs)} frames)")
-            results = pool.map(frame_metrics, [j[4] for j in jobs])
-            for (run, frame, p, ref_path, _), m in zip(jobs, results):
+                ref_dir = (tmp / "runs" / slug / f"reference_{sz[0]}x{sz[1]}" if (si, sz) in ref_handles
+                           else next(r.out_dir for r in runs_of[si] if _is_reference(r.setting.scene)
+                                     and tuple(r.setting.scene.render.size) == sz))
                 base = f"{slug}_{run.setting.slug}_f{frame:05d}"
-                shutil.copyfile(p, tmp / "samples" / f"{base}.png")
-                shutil.copyfile(ref_path, tmp / "samples" / f"{base}_ref.png")
+                shutil.copyfile(run.out_dir / "frames" / f"frame_{frame:05d}.png", tmp / "samples" / f"{base}.png")
+                shutil.copyfile(ref_dir / "frames" / f"frame_{frame:05d}.png", tmp / "samples" / f"{base}_ref.png")
+                m = dict(m)
                 write_png(tmp / "samples" / f"{base}_err.png", m.pop("error_png"))
                 run.metrics.append({"frame": frame, **m, "image": f"samples/{base}.png",
                                     "reference": f"samples/{base}_ref.png", "error": f"samples/{base}_err.png"})
-            for run in runs:
+            scene_entry = {"name": names[si], "slug": slug, "file": str(path), "frames": settings[0].scene.frames,
+                           "sample_every": k, "settings": []}
+            for run in runs_of[si]:
                 scene_entry["settings"].append(_setting_entry(run, tmp))
                 if data["machine"] is None:
                     data["machine"] = run.summary.get("machine")
-            _plots(tmp, scene_entry, runs)
+            _plots(tmp, scene_entry, runs_of[si])
             data["scenes"].append(scene_entry)
         if baseline is not None:
             rows = compare_reports(data, baseline)
@@ -679,6 +1001,14 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
         write_json(tmp / "report.json", _json_safe(data))
         write_atomic(tmp / "index.html", render_html(data))
     return ReportResult(out_dir=out, data=data)
+
+
+def _write_files(folder: Path, files: dict) -> None:
+    """Write a run's files (relative path -> bytes) under ``folder`` (inside the report's temporary folder)."""
+    for rel, blob in files.items():
+        p = folder / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(blob)
 
 
 def _unique_slugs(names: list) -> list:
@@ -707,6 +1037,7 @@ def _setting_entry(run: RunData, tmp: Path) -> dict:
     stages = s["stages"]
     ft = stats(frame_seconds(run.columns))
     return {"label": st.label, "slug": st.slug, "values": st.values, "lod_mode": st.scene.lod_mode,
+            "host": run.host,
             "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
             "run_dir": str(run.out_dir.relative_to(tmp)),
             "frame_ms": {q: ft[q] * 1e3 for q in ("mean", "p50", "p95", "p99", "max")},
@@ -809,12 +1140,15 @@ def _plots(tmp: Path, entry: dict, runs: list) -> None:
     times = [s["frame_ms"]["p50"] for s in sets]
     fig, ax = plt.subplots(figsize=(6, 4.5), dpi=96)
     ax.scatter(times, errs, zorder=3)
-    for t, e, s in zip(times, errs, sets):
-        ax.annotate(s["label"], (t, e), fontsize=7, xytext=(4, 4), textcoords="offset points")
+    for i, (t, e, s) in enumerate(zip(times, errs, sets)):  # staggered: settings of equal cost stay readable
+        ax.annotate(s["label"], (t, e), fontsize=7, xytext=(4, 4 + 9 * (i % 3)), textcoords="offset points")
     front = pareto_front(times, errs)
     ax.plot([times[i] for i in front], [errs[i] for i in front], "r--", lw=1, marker="o", ms=11, mfc="none",
             label="Pareto front", zorder=2)
-    ax.set_xlabel("median frame time, ms")
+    log_x = min(times) > 0 and max(times) > 20 * min(times)  # NoLOD of a big scene is 10-100x the LOD modes
+    if log_x:
+        ax.set_xscale("log")
+    ax.set_xlabel("median frame time, ms" + (" (log scale)" if log_x else ""))
     ax.set_ylabel(name + " vs NoLOD")
     ax.set_title(f"{entry['name']}: accuracy against time")
     ax.grid(alpha=0.3)
@@ -869,6 +1203,14 @@ def render_html(data: dict) -> str:
                f"(Andersson et al. 2020){'' if data['flip'] else ' — not available: flip-evaluator is not installed'}"
                ". Frame time is the wall-clock sum of the stages simulate, select, upload, draw and finish "
                "(the PNG writes of sampled frames are left out); the first frame is included.</p>")
+    hosts = data.get("hosts") or {}
+    if any(hosts.values()):
+        out.append(f"<p>Ran on {e(str(data['cluster']))} ("
+                   + ", ".join(e(f"{h}: {n} worker(s)") for h, n in hosts.items() if n)
+                   + "). Timed runs ran one at a time per host with nothing else of the report running; the "
+                   "reference runs and the image error ran afterwards, in parallel.</p>")
+    elif data.get("cluster"):
+        out.append(f"<p>Ran in {e(str(data['cluster']))}, one run after the other.</p>")
     cmp_ = data.get("compare")
     if cmp_ is not None:
         n = cmp_["regressions"]

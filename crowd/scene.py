@@ -194,6 +194,7 @@ class Scene:
     terrain: dict | None = None
     lod_params: tuple = ()  # ((key, value), ...) of the [lod] table besides mode (lod.modes PARAMS)
     terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal)
+    lod_common: tuple = ()  # ((key, value), ...): the [lod] keys of every mode (lod.keyframed_selection)
 
     @property
     def effect_names(self) -> list:
@@ -305,6 +306,10 @@ class _Parser:
         render = self.render()
         lod_table = dict(self.table("lod"))
         mode = validate(LOD_SCHEMA, {"mode": lod_table.pop("mode")} if "mode" in lod_table else {}, "lod")["mode"]
+        from lod.keyframed_selection import LOD_COMMON_PARAMS  # (imports numba: only when a scene is loaded)
+
+        common = {k: lod_table.pop(k) for k in list(lod_table) if k in LOD_COMMON_PARAMS}
+        lod_common = validate(LOD_COMMON_PARAMS, common, "lod")  # keys of every mode (keyframed selection)
         lod = {"mode": mode, **validate(_mode_params(mode), lod_table, "lod")}
         out = validate(OUTPUT_SCHEMA, self.table("output"), "output")
         if out["dir"] is not None and not out["dir"].strip():
@@ -315,7 +320,8 @@ class _Parser:
                      placements=tuple(placements), effects=tuple(effects), camera=camera, render=render,
                      lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain,
                      lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"),
-                     terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else ())
+                     terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else (),
+                     lod_common=tuple(lod_common.items()))
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:

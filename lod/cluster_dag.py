@@ -17,7 +17,8 @@ Departures and choices:
 
 - Pairing runs level by level as a greedy matching (clusters in increasing
   deformation level each take their unmatched adjacent cluster of nearest
-  level), so the tree stays balanced and every level halves the triangles. A
+  level), so the tree stays balanced (each parent is simplified to half, less
+  where locked borders leave nothing to collapse). A
   cluster left without an unmatched neighbour waits for the next round; when
   no pair is adjacent any more (a character made of separate parts), the
   spatially nearest clusters are paired so a single root results.
@@ -31,10 +32,21 @@ Departures and choices:
   §5.1's sqrt of the largest quadric value: once a vertex has absorbed hundreds
   of planes that square root grows with the plane count (1.85 m at the root of a
   1.9 m, 2,000-triangle humanoid), which would make the cut refine far too
-  much. We measure instead, over the representative poses, the distance from
-  every original vertex of the region to the simplified triangles around the
-  vertex it collapsed into (:func:`lod.qem.collapse_distance`, an upper bound
-  of the vertex-sampled Hausdorff distance), made monotone (parent >= children).
+  much. Each cluster's own error is instead MEASURED, over the representative
+  poses, as the two-sided Hausdorff distance between its simplified triangles
+  and the ORIGINAL leaf triangles of its region (:func:`lod.qem.cluster_hausdorff`:
+  exact from every original vertex, sampled at triangle centroids and edge
+  midpoints the other way), so errors do not compound with depth; the stored
+  error is max(own, children's), monotone as §5.1 needs.
+- Pairing (§4.3 "the adjacent cluster of nearest deformation level") compares
+  levels in steps of the §4.2 tolerance and, within a step, takes the
+  neighbour sharing the longest border. Every locked border stays at leaf
+  resolution up to the cluster holding both sides, so the coarse levels are
+  bounded by the border length of their regions: compact merges (and compact
+  leaves, :func:`lod.clustering.compact_partition`) are what let them coarsen.
+- Geomorph targets (``morph_*``): the vertices each simplification removed and
+  the vertex each collapsed onto, for a renderer that blends a child into its
+  parent.
 - Bounds hold over all *sampled* poses, padded by half the largest movement of
   a vertex between consecutive samples, and a parent's bounds hold its whole
   region (so they nest, as a BVH for culling needs).
@@ -94,6 +106,13 @@ class ClusterHierarchy:
         representatives : (G,) int64 sample indices of the representative poses
     params : dict of the build parameters (for cache keys and reports)
     build_seconds : float
+    morph_ptr : (N+1,) int64; morph_vertex, morph_target : (K,) uint32 geomorph
+        targets: for internal cluster i, ``morph_vertex[morph_ptr[i]:morph_ptr[i+1]]``
+        are the vertices of its children's geometry that the simplification of
+        cluster i removed, and ``morph_target`` (same slice) the vertex of cluster
+        i each collapsed onto (subset placement, so blending a removed vertex's
+        skinned position towards its target's morphs a child into its parent).
+        Empty slices for leaves. Not part of :meth:`arrays` (optional data).
     """
 
     indices: np.ndarray
@@ -116,6 +135,9 @@ class ClusterHierarchy:
     representatives: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     params: dict = field(default_factory=dict)
     build_seconds: float = 0.0
+    morph_ptr: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    morph_vertex: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
+    morph_target: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
 
     @property
     def n_clusters(self) -> int:
@@ -158,6 +180,7 @@ class ClusterHierarchy:
         d["pose_times"] = self.pose_times
         d["pose_clip"] = self.pose_clip
         d["representatives"] = self.representatives
+        d["morph_ptr"], d["morph_vertex"], d["morph_target"] = self.morph_ptr, self.morph_vertex, self.morph_target
         meta = {"n_vertices": self.n_vertices, "n_triangles": self.n_triangles, "pose_clips": self.pose_clips,
                 "params": self.params, "build_seconds": self.build_seconds}
         d["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
@@ -224,20 +247,42 @@ def _leaf_pairs_adjacency(labels: np.ndarray, ptr: np.ndarray, nbr: np.ndarray) 
     src = np.repeat(np.arange(ptr.shape[0] - 1), np.diff(ptr))
     a, b = labels[src], labels[nbr]
     k = a != b
-    pairs = np.unique(np.stack([a[k], b[k]], 1), axis=0) if np.any(k) else np.zeros((0, 2), np.int64)
-    adj = [set() for _ in range(C)]
-    for x, y in pairs.tolist():
-        adj[x].add(y)
+    pairs, cnt = np.unique(np.stack([a[k], b[k]], 1), axis=0, return_counts=True) if np.any(k) else \
+        (np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
+    adj = [dict() for _ in range(C)]
+    for (x, y), n in zip(pairs.tolist(), cnt.tolist()):
+        adj[x][y] = n
     return adj
 
 
-def _build_topology(n_leaves: int, adj: list, level: np.ndarray, tris: np.ndarray, centroid: np.ndarray):
-    """Greedy level-by-level pairing (§4.3). Returns children (N, 2) int64 of all nodes (leaves first)."""
+def _merge_adj(x: dict, y: dict, drop) -> dict:
+    out = dict(x)
+    for o, n in y.items():
+        out[o] = out.get(o, 0) + n
+    for d in drop:
+        out.pop(d, None)
+    return out
+
+
+def _build_topology(n_leaves: int, adj: list, level: np.ndarray, tris: np.ndarray, centroid: np.ndarray,
+                    band: float = 0.0):
+    """Greedy level-by-level pairing (§4.3). Returns children (N, 2) int64 of all nodes (leaves first).
+
+    ``adj[i]`` maps each adjacent cluster to the number of triangle edges they
+    share. A cluster takes the unmatched neighbour of nearest deformation level;
+    levels are compared in steps of ``band`` metres (the §4.2 tolerance), and
+    within one step the neighbour sharing the longest border wins, so merged
+    regions stay compact (their locked border, kept at leaf resolution until
+    it becomes interior, is what bounds the coarse levels).
+    """
     children = [(-1, -1)] * n_leaves
     level = list(level.tolist())
     tris = list(tris.tolist())
     cent = [c for c in centroid]
-    adj = [set(s) for s in adj]
+    adj = [dict(s) for s in adj]
+
+    def lkey(dl):
+        return int(dl // band) if band > 0 else dl
     active = list(range(n_leaves))
     while len(active) > 1:
         act = set(active)
@@ -249,9 +294,9 @@ def _build_topology(n_leaves: int, adj: list, level: np.ndarray, tris: np.ndarra
             if c in matched:
                 continue
             best, key = -1, None
-            for o in adj[c]:
+            for o, shared in adj[c].items():
                 if o in act and o not in matched and o != c:
-                    k = (abs(level[o] - level[c]), tris[o], o)
+                    k = (lkey(abs(level[o] - level[c])), -shared, tris[o], o)
                     if key is None or k < key:
                         best, key = o, k
             if best < 0:
@@ -263,7 +308,7 @@ def _build_topology(n_leaves: int, adj: list, level: np.ndarray, tris: np.ndarra
             level.append(max(level[c], level[best]))
             tris.append(tris[c] + tris[best])
             cent.append((cent[c] * tris[c] + cent[best] * tris[best]) / max(tris[c] + tris[best], 1))
-            adj.append((adj[c] | adj[best]) - {c, best})
+            adj.append(_merge_adj(adj[c], adj[best], (c, best)))
             merges += 1
         if merges == 0:
             # no adjacent pair left (separate parts): pair spatially nearest clusters
@@ -288,7 +333,7 @@ def _build_topology(n_leaves: int, adj: list, level: np.ndarray, tris: np.ndarra
                 level.append(max(level[c], level[o]))
                 tris.append(tris[c] + tris[o])
                 cent.append((cent[c] * tris[c] + cent[o] * tris[o]) / max(tris[c] + tris[o], 1))
-                adj.append((adj[c] | adj[o]) - {c, o})
+                adj.append(_merge_adj(adj[c], adj[o], (c, o)))
                 merges += 1
         for c in active:
             if c not in matched:
@@ -296,7 +341,12 @@ def _build_topology(n_leaves: int, adj: list, level: np.ndarray, tris: np.ndarra
         new_active.extend(sorted(set(matched.values())))
         # rewrite adjacency of the surviving nodes in terms of the new nodes
         for c in new_active:
-            adj[c] = {matched.get(o, o) for o in adj[c]} - {c}
+            nd: dict = {}
+            for o, n in adj[c].items():
+                m = matched.get(o, o)
+                if m != c:
+                    nd[m] = nd.get(m, 0) + n
+            adj[c] = nd
         active = new_active
     return np.array(children, np.int64).reshape(-1, 2)
 
@@ -441,7 +491,7 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
         labels = clustering.error_aware_clusters(rest, tri, vlevel, s, tolerance)
     L = int(labels.max()) + 1 if T else 0
     bar.update(1)
-    ptr, nbr = clustering.triangle_adjacency(tri, V)
+    ptr, nbr = clustering.triangle_adjacency(clustering.welded_indices(rest, tri), V)
     adj = _leaf_pairs_adjacency(labels, ptr, nbr)
     tlevel = clustering.triangle_levels(tri, vlevel)
     order = np.argsort(labels, kind="stable")
@@ -449,7 +499,8 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
     leaf_tris = [order[bounds[i]:bounds[i + 1]] for i in range(L)]
     leaf_level = np.array([tlevel[g].max() for g in leaf_tris]) if L else np.zeros(0)
     centroid = np.array([rest[tri[g]].mean(axis=(0, 1)) for g in leaf_tris]) if L else np.zeros((0, 3))
-    children = _build_topology(L, adj, leaf_level, np.array([g.size for g in leaf_tris]), centroid) if L else \
+    band = float(tolerance) * float(vlevel.max()) if vlevel.size else 0.0
+    children = _build_topology(L, adj, leaf_level, np.array([g.size for g in leaf_tris]), centroid, band) if L else \
         np.zeros((0, 2), np.int64)
     N = children.shape[0]
     bar.update(1)
@@ -495,6 +546,9 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
     region: list = [None] * N
     node_tris: list = [None] * N
     error = np.zeros(N)
+    own = np.zeros(N)
+    morph_v: list = [np.zeros(0, np.int64)] * N
+    morph_t: list = [np.zeros(0, np.int64)] * N
     height = np.zeros(N, np.int64)
     leaf_lo = np.zeros(N, np.int64)
     leaf_hi = np.zeros(N, np.int64)
@@ -525,13 +579,18 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
                                              border, quadrics=Ql)
             Q[:, verts] = Ql
             node_tris[i] = verts[out]
+            gone = np.nonzero(remap[:verts.shape[0]] != np.arange(verts.shape[0]))[0]
+            morph_v[i] = verts[gone]
+            morph_t[i] = verts[remap[gone]]
             rv = np.unique(tri[region[i]])
             cur = rep[rv]
             if not np.array_equal(verts[local[cur]], cur):  # invariant: every vertex's survivor is in this cluster
                 raise RuntimeError(f"cluster hierarchy build: cluster {i} lost track of collapsed vertices")
             rep[rv] = verts[remap[local[cur]]]
-            err = qem._collapse_distance(X_rep, node_tris[i], local, verts.shape[0], rv, rep)
-            error[i] = max(err, error[a], error[b])
+            fwd, bwd = qem._cluster_hausdorff_sq(X_rep, np.ascontiguousarray(node_tris[i]), rv, rep, vt_ptr, vt_idx,
+                                                 tri, owner, i)
+            own[i] = max(fwd, bwd)
+            error[i] = max(own[i], error[a], error[b])
             height[i] = 1 + max(height[a], height[b])
             leaf_lo[i], leaf_hi[i] = min(leaf_lo[a], leaf_lo[b]), max(leaf_hi[a], leaf_hi[b])
         if a < 0:
@@ -554,6 +613,10 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
         sphere=sphere.astype(np.float32), aabb=aabb.astype(np.float32), deformation=deform.astype(np.float32),
         n_vertices=int(V), n_triangles=int(T), pose_clips=names, pose_times=times,
         pose_clip=pose_clip.astype(np.int32), representatives=np.asarray(reps, np.int64), params=params)
+    mc = np.array([x.shape[0] for x in morph_v], np.int64)
+    h.morph_ptr = np.concatenate([[0], np.cumsum(mc)]).astype(np.int64)
+    h.morph_vertex = (np.concatenate(morph_v) if N else np.zeros(0)).astype(np.uint32)
+    h.morph_target = (np.concatenate(morph_t) if N else np.zeros(0)).astype(np.uint32)
     # float32 rounding must not shrink a sphere below its float64 value or break monotone errors
     h.sphere[:, 3] = np.nextafter(h.sphere[:, 3], np.float32(np.inf))
     validate(h)

@@ -45,7 +45,7 @@ from lod.nolod import NoLodSelector, SkinnedRep, build_rep, build_skinned_rep
 from sim.params import Param
 
 #: bump when the cached file layout or its meaning changes
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: geomorph targets (morph_ptr, morph_vertex, morph_target)
 #: environment variable naming the cache folder
 CACHE_ENV = "CROWD_CACHE_DIR"
 #: modules whose source is part of the cache key (a changed algorithm rebuilds)

@@ -8,6 +8,19 @@ Virtual Environments", SIGGRAPH 1993, §4.1)::
 
     seconds ≈ c_frame + c_tri·triangles + c_splat·points + c_draw·batches
               + c_inst·instances + c_cluster·clusters
+              + c_pass·pixels + c_area·pixels·s²     (when any point is splatted)
+              + c_pinst·point_instances + c_cpath·[any cluster cut drawn]
+
+The last two terms are the point splatting pass of ``render/points.py``
+(clearing and resolving a depth/colour buffer of the whole viewport,
+gathering s x s anchors per pixel for splat size s; Schütz, Kerbl & Wimmer
+2021): a per-frame cost that does not depend on how many points are drawn,
+and on llvmpipe at 1280x720 the largest single term of a points frame.
+``instances`` counts the instances of the triangle and cluster paths (GPU
+skinning with a per-instance palette pre-pass), ``point_instances`` those
+drawn from point hierarchies (keyframed: no palette, a job table instead),
+whose per-instance cost is much lower. ``cluster_frames`` is 1 when the
+frame draws any cluster cut (the cluster drawer's fixed work per frame).
 
 The coefficients are fitted by non-negative least squares
 (:func:`scipy.optimize.nnls`, Lawson & Hanson 1974) to frames measured on the
@@ -34,7 +47,8 @@ from pathlib import Path
 import numpy as np
 
 #: feature names, in the order of :attr:`CostModel.coefficients` (after ``frame``)
-FEATURES = ("triangles", "points", "batches", "instances", "clusters")
+FEATURES = ("triangles", "points", "batches", "instances", "clusters", "splat_pixels", "splat_area",
+            "point_instances", "cluster_frames")
 #: coefficient names: the constant per frame, then one per feature (seconds per unit)
 COEFFICIENTS = ("frame",) + FEATURES
 #: defaults (seconds per unit) when no calibration exists for this machine and renderer
@@ -45,6 +59,10 @@ DEFAULTS = {
     "batches": 5.0e-5,  # one instanced draw call + state changes
     "instances": 3.0e-5,  # instance upload + palette pre-pass (llvmpipe calibration: ~30 us)
     "clusters": 2.0e-7,  # one cluster record in a cluster cut
+    "splat_pixels": 3.0e-8,  # point pass: clear + resolve, per viewport pixel (llvmpipe: ~28 ms at 1280x720)
+    "splat_area": 3.5e-9,  # point pass: per viewport pixel and squared splat size (s x s anchors gathered)
+    "point_instances": 5.0e-6,  # one instance drawn from a point hierarchy (job table, no skinning palette)
+    "cluster_frames": 5.0e-3,  # the cluster drawer's per-frame work when it draws anything (pre-pass, gather)
 }
 #: file name of the stored calibrations inside the cache folder
 FILE_NAME = "cost_model.json"
@@ -66,18 +84,43 @@ def machine_key(renderer: str = "") -> str:
 
 
 def features(drawlist) -> np.ndarray:
-    """(5,) float64 counts of a DrawList in :data:`FEATURES` order.
+    """(9,) float64 counts of a DrawList in :data:`FEATURES` order.
 
     Triangles and points are summed over the batches (``stats`` when the
-    selector recorded them), batches and instances count non-empty batches,
-    clusters come from ``stats["clusters"]`` (0 when absent).
+    selector recorded them), batches count non-empty batches, instances the
+    instances of batches without point jobs,
+    clusters come from ``stats["clusters"]`` (0 when absent); when points
+    are drawn, ``splat_pixels`` is the viewport's pixel count and
+    ``splat_area`` that times the squared splat size
+    (``options["splat_size"]``, default 2), else both are 0;
+    ``point_instances`` counts the instances of batches with point jobs
+    (``point_jobs``, :class:`lod.points_mode.PointsBatch`); ``cluster_frames``
+    is 1.0 when a batch carries a cluster cut (``offsets``,
+    :class:`lod.clusters_mode.ClusterDrawBatch`), else 0.
     """
     bs = [b for b in drawlist.batches if b.n_instances]
     st = getattr(drawlist, "stats", {}) or {}
     tri = st.get("triangles", sum(int(b.triangles) for b in bs))
     pts = st.get("points", sum(int(b.points) for b in bs))
-    return np.array([float(tri), float(pts), float(len(bs)), float(sum(b.n_instances for b in bs)),
-                     float(st.get("clusters", 0) or 0)], np.float64)
+    px = area = 0.0
+    if pts:
+        w, h = (int(v) for v in drawlist.size)
+        s = float((getattr(drawlist, "options", {}) or {}).get("splat_size", 2))
+        px = float(w * h)
+        area = px * s * s
+    pinst = float(sum(b.n_instances for b in bs if getattr(b, "point_jobs", None) is not None))
+    inst = float(sum(b.n_instances for b in bs)) - pinst
+    cframe = 1.0 if any(getattr(b, "offsets", None) is not None for b in bs) else 0.0
+    return np.array([float(tri), float(pts), float(len(bs)), inst, float(st.get("clusters", 0) or 0), px, area, pinst,
+                     cframe], np.float64)
+
+
+def pass_cost(model, size, splat: float) -> float:
+    """Predicted seconds of the point splatting pass at viewport ``size`` (w, h)
+    and splat size ``splat`` pixels (the per-frame cost of drawing any point)."""
+    c = model.coefficients
+    px = float(int(size[0]) * int(size[1]))
+    return c["splat_pixels"] * px + c["splat_area"] * px * float(splat) ** 2
 
 
 @dataclass
@@ -91,12 +134,15 @@ class CostModel:
     median_rel_error : median |predicted - measured| / measured of the fit
         (None for the defaults)
     samples : frames the fit used
+    validation_rel_error : median |predicted - measured| / measured on draw
+        lists held out of the fit (mixed lists of mode "auto"), or None
     """
 
     coefficients: dict = field(default_factory=lambda: dict(DEFAULTS))
     key: str = ""
     median_rel_error: float | None = None
     samples: int = 0
+    validation_rel_error: float | None = None
 
     def __post_init__(self):
         c = dict(DEFAULTS)
@@ -111,20 +157,25 @@ class CostModel:
 
     @property
     def vector(self) -> np.ndarray:
-        """(6,) float64 coefficients in :data:`COEFFICIENTS` order."""
+        """(10,) float64 coefficients in :data:`COEFFICIENTS` order."""
         return np.array([self.coefficients[k] for k in COEFFICIENTS], np.float64)
 
     @property
     def is_default(self) -> bool:
         return self.key == ""
 
-    def predict_counts(self, triangles=0, points=0, batches=0, instances=0, clusters=0):
+    def predict_counts(self, triangles=0, points=0, batches=0, instances=0, clusters=0, splat_pixels=0,
+                       splat_area=0, point_instances=0, cluster_frames=0):
         """Predicted seconds for the given counts (scalars or arrays broadcast together)."""
         c = self.coefficients
         return (c["frame"] + c["triangles"] * np.asarray(triangles, np.float64)
                 + c["points"] * np.asarray(points, np.float64) + c["batches"] * np.asarray(batches, np.float64)
                 + c["instances"] * np.asarray(instances, np.float64)
-                + c["clusters"] * np.asarray(clusters, np.float64))
+                + c["clusters"] * np.asarray(clusters, np.float64)
+                + c["splat_pixels"] * np.asarray(splat_pixels, np.float64)
+                + c["splat_area"] * np.asarray(splat_area, np.float64)
+                + c["point_instances"] * np.asarray(point_instances, np.float64)
+                + c["cluster_frames"] * np.asarray(cluster_frames, np.float64))
 
     def predict(self, drawlist) -> float:
         """Predicted seconds to render ``drawlist`` (a :class:`lod.drawlist.DrawList`)."""
@@ -132,7 +183,7 @@ class CostModel:
 
     def to_dict(self) -> dict:
         return {"coefficients": dict(self.coefficients), "median_rel_error": self.median_rel_error,
-                "samples": int(self.samples)}
+                "samples": int(self.samples), "validation_rel_error": self.validation_rel_error}
 
 
 def fit(X, y) -> tuple[np.ndarray, float]:
@@ -140,12 +191,12 @@ def fit(X, y) -> tuple[np.ndarray, float]:
 
     Parameters
     ----------
-    X : (n, 5) float64 feature counts (:func:`features`), n >= 1
+    X : (n, 9) float64 feature counts (:func:`features`), n >= 1
     y : (n,) float64 measured seconds, finite and > 0
 
     Returns
     -------
-    coef : (6,) float64 >= 0, in :data:`COEFFICIENTS` order
+    coef : (10,) float64 >= 0, in :data:`COEFFICIENTS` order
     median_rel_error : float, median of |X·coef - y| / y
 
     Each column is scaled to unit maximum before :func:`scipy.optimize.nnls`
@@ -172,6 +223,17 @@ def fit(X, y) -> tuple[np.ndarray, float]:
     return coef, float(np.median(np.abs(pred - y) / y))
 
 
+def relative_error(model: CostModel, X, y) -> float:
+    """Median |predicted - measured| / measured of ``model`` on feature rows
+    ``X`` (n, 9) and measured seconds ``y`` (n,) > 0."""
+    X = np.asarray(X, np.float64).reshape(-1, len(FEATURES))
+    y = np.asarray(y, np.float64).reshape(-1)
+    if X.shape[0] != y.shape[0] or X.shape[0] == 0 or not (y > 0).all():
+        raise ValueError("cost model: relative_error needs matching non-empty samples with times > 0")
+    pred = model.vector[0] + X @ model.vector[1:]
+    return float(np.median(np.abs(pred - y) / y))
+
+
 def fit_model(X, y, key: str = "") -> CostModel:
     """:func:`fit` as a :class:`CostModel`; features never exercised (an
     all-zero column) keep their :data:`DEFAULTS` coefficient."""
@@ -180,6 +242,47 @@ def fit_model(X, y, key: str = "") -> CostModel:
     used = np.concatenate([[True], X.max(axis=0) > 0])
     c = {k: (float(v) if u else DEFAULTS[k]) for k, v, u in zip(COEFFICIENTS, coef, used)}
     return CostModel(c, key=key, median_rel_error=err, samples=int(X.shape[0]))
+
+
+def refine(prior: CostModel, X, y) -> CostModel:
+    """The calibration rescaled to the frames observed while rendering.
+
+    Every coefficient of ``prior`` is multiplied by one factor, the median
+    (in log space) of measured / predicted over the observed frames, so that
+    predictions follow the load and regime the engine really runs in (the
+    machine is shared; the calibration's synthetic draw lists are smaller
+    than a benchmark frame) while the *relative* costs of the
+    representations, which decide mode auto's choices, stay those of the
+    calibration: a per-coefficient refit from a few frames of one view is
+    ill-conditioned (the features of consecutive frames are nearly
+    collinear) and would distort them. The median makes one noisy frame
+    harmless.
+
+    Parameters
+    ----------
+    prior : CostModel
+    X : (n, 9) float64 observed feature counts (:func:`features`), n >= 0
+    y : (n,) float64 measured seconds; rows with y <= 0 or non-finite values are ignored
+
+    Returns
+    -------
+    CostModel with the prior's key (``prior`` itself when no row is usable);
+    ``median_rel_error`` on the observed rows, ``samples`` their number
+    """
+    X = np.asarray(X, np.float64).reshape(-1, len(FEATURES))
+    y = np.asarray(y, np.float64).reshape(-1)
+    ok = np.isfinite(X).all(axis=1) & np.isfinite(y) & (y > 0) & (X >= 0).all(axis=1)
+    X, y = X[ok], y[ok]
+    pred = prior.vector[0] + X @ prior.vector[1:]
+    good = pred > 0
+    if not good.any():
+        return prior
+    f = float(np.exp(np.median(np.log(y[good] / pred[good]))))
+    if not (np.isfinite(f) and f > 0):
+        return prior
+    c = {k: v * f for k, v in prior.coefficients.items()}
+    return CostModel(c, key=prior.key, median_rel_error=float(np.median(np.abs(pred * f - y) / y)),
+                     samples=int(X.shape[0]), validation_rel_error=prior.validation_rel_error)
 
 
 # ---------------------------------------------------------------------------- storage
@@ -224,8 +327,10 @@ def load(renderer: str = "", directory: Path | None = None, key: str | None = No
     if not isinstance(entry, dict):
         return CostModel()
     try:
+        v = entry.get("validation_rel_error")
         return CostModel(entry.get("coefficients", {}), key=k, median_rel_error=entry.get("median_rel_error"),
-                         samples=int(entry.get("samples", 0)))
+                         samples=int(entry.get("samples", 0)),
+                         validation_rel_error=float(v) if isinstance(v, (int, float)) else None)
     except (TypeError, ValueError):
         return CostModel()
 
@@ -243,5 +348,5 @@ def load_any(directory: Path | None = None) -> CostModel:
     return CostModel()
 
 
-__all__ = ["FEATURES", "COEFFICIENTS", "DEFAULTS", "CostModel", "features", "fit", "fit_model", "save", "load",
-           "load_any", "machine_key", "cache_dir"]
+__all__ = ["FEATURES", "COEFFICIENTS", "DEFAULTS", "CostModel", "features", "fit", "fit_model", "relative_error",
+           "pass_cost", "refine", "save", "load", "load_any", "machine_key", "cache_dir"]

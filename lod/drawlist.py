@@ -7,6 +7,21 @@ import numpy as np
 
 #: floats per instance in DrawBatch.instance_data
 INSTANCE_FLOATS = 16
+#: ``DrawBatch.fade`` roles: the outgoing and the incoming batch of a transition
+FADE_OUT = 1
+FADE_IN = -1
+
+
+def fade_uniform(fade) -> tuple:
+    """``(t, role)`` as the float pair of the shaders' ``u_fade`` uniform;
+    (0, 0) draws every fragment (no fade). ``t`` is clamped to [0, 1]; a
+    non-finite ``t`` or an unknown role is a ValueError."""
+    if fade is None:
+        return (0.0, 0.0)
+    t, role = float(fade[0]), int(fade[1])
+    if role not in (FADE_OUT, FADE_IN) or t != t or t in (float("inf"), float("-inf")):
+        raise ValueError(f"DrawBatch.fade: expected (t in [0, 1], +1 or -1), got {fade!r}")
+    return (min(1.0, max(0.0, t)), float(role))
 
 
 @dataclass
@@ -35,6 +50,15 @@ class DrawBatch:
     tint : (4,) float or None
         Debug colouring (VDR-AM Fig. 11): RGB mixed into the vertex colour
         with weight A; None draws the true colours.
+    fade : (t, role) or None
+        Screen-door (dither) transition between two selections of the same
+        instances (Friedrich, Polthier & Schmies §3, applied to discrete
+        representations; see ``lod.keyframed_selection``): ``t`` in [0, 1] is
+        the frame's transition weight and ``role`` is :data:`FADE_OUT` (+1, the
+        outgoing batch: drawn where ``dither(pixel) >= t``) or :data:`FADE_IN`
+        (-1, the incoming batch: drawn where ``dither(pixel) < t``). The two
+        patterns are complementary, so a pixel both cover is drawn by exactly
+        one of them. None (default) draws every fragment.
     """
 
     rep: str
@@ -45,6 +69,7 @@ class DrawBatch:
     points: int = 0
     level: int = 0
     tint: tuple | None = None
+    fade: tuple | None = None
 
     @property
     def representation(self) -> str:

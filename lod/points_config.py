@@ -27,8 +27,10 @@ POINTS_LOOSE_FRACTION = 0.10
 #: or 5"). Accepted > 0.
 POINTS_SAFETY_FACTOR = 3.0
 
-#: Number of equal time intervals per keyframe pair, each with its own
-#: stratified point set (§3.4.2: "say 3 or 4"; §5.1: "between 3 and 5").
+#: Number of time intervals per keyframe pair, each with its own stratified
+#: point set (§3.4.2: "say 3 or 4"; §5.1: "between 3 and 5"). Their boundaries
+#: follow the area change (``lod.points_stratify.choose_interval_times``; equal
+#: for animated characters).
 POINTS_TIME_INTERVALS = 3
 
 #: Density of the filter set F relative to the number of bins n of the node

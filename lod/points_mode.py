@@ -19,8 +19,15 @@ one :class:`PointsBatch` per (character, segment): the instances, and two job
 lists ``(instance row, start, count)``: point ranges into the segment's points
 and triangle ranges into its ``tri_order``. ``render.points`` draws both.
 
-Departures: §3.6 hierarchical instantiation (super-hierarchies over
-instancing groups) is not implemented here; every instance is traversed.
+§3.6 hierarchical instantiation: when the engine hands over the
+simulation's instancing groups (``build(..., instancing=...)``), every group
+whose clip has one triangle list over all its segments gets a super-hierarchy
+per tree depth (``lod.points_instancing``), uploaded as extra point reps; per
+frame the tree is walked top-down (:class:`lod.points_instancing.InstancingPlan`)
+and only the instances of refined nodes go through the per-instance path
+above. Their super-hierarchy draws are ordinary :class:`PointsBatch` es whose
+instances are tree nodes (model matrix of the node, u within the node's
+super-segment; ``instance_ids`` the node's first agent).
 """
 from __future__ import annotations
 
@@ -41,7 +48,7 @@ from lod.points_traverse import _traverse_kernel, traverse, viewport_scale
 from sim.params import Param
 
 #: version of the cached hierarchy format and build; bump when either changes
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
 #: environment variable naming the cache folder (default ``~/.cache/crowd``)
 CACHE_ENV = "CROWD_CACHE_DIR"
 #: renderer paths of the point splats
@@ -241,8 +248,69 @@ def build_points_rep(character, name: str, params: dict, cache: HierarchyCache |
     return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]))
 
 
-def build(characters, names, fps, params, static_reps=(), progress=None, cache: HierarchyCache | None = None):
-    """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character and a :class:`PointsSelector`."""
+def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None):
+    """Super-hierarchies (§3.6) of every instancing group, as an
+    :class:`lod.points_instancing.InstancingPlan`, or None without groups.
+
+    instancing : sim.instancing.Instancing or None; reps : the characters'
+    PointsReps (index = CrowdState.character); names : their names.
+    A group is left to the per-instance path (and named in the plan's
+    ``skipped``) when its clip does not loop, changes triangles between
+    segments, or its period is not a multiple of the clip's duration.
+    Identical trees of the same character share one super-hierarchy.
+    """
+    from lod import points_instancing as pi
+
+    if instancing is None or not getattr(instancing, "groups", None):
+        return None
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    groups, skipped, memo = [], [], {}
+    items = list(enumerate(instancing.groups))
+    if progress is not None:
+        items = progress(items, "super-hierarchies")
+    for gi, (first, h) in items:
+        if not 0 <= h.character < len(reps):
+            skipped.append((gi, "character index out of range"))
+            continue
+        rep = reps[h.character]
+        kf = rep.keyframed
+        surf = pi.clip_surface(kf, h.clip)
+        dur = float(kf.anim_duration[h.clip]) if surf is not None else 0.0
+        ratio = h.period / dur if dur > 0 else 0.0
+        if surf is None or not bool(kf.anim_loop[h.clip]) or ratio < 0.5 or abs(ratio - round(ratio)) > 1e-6:
+            skipped.append((gi, "clip is not a looping one-topology animation with the tree's period"))
+            continue
+        a0, ns = int(kf.anim_first_seg[h.clip]), int(kf.anim_n_segs[h.clip])
+        r_root = max(float(rep.hierarchies[s].spacing[0]) for s in range(a0, a0 + ns))
+        if r_root <= 0.0:  # a character small enough to be one leaf: its own box sets the scale
+            box = kf.seg_aabb[a0:a0 + ns]
+            r_root = float(C.POINTS_SPACING_FRACTION * (box[:, 1] - box[:, 0]).max())
+        supers = []
+        r_stop = r_root * float(np.abs(h.levels[0].scale).max())
+        for d in range(1, h.depth + 1):
+            key = (h.character, h.clip, d,
+                   tuple((lv.translation.tobytes(), lv.yaw.tobytes(), lv.scale.tobytes(), lv.time_offset.tobytes())
+                         for lv in h.levels[:d]), h.period, r_stop)
+            sup = memo.get(key)
+            if sup is None:
+                sup = pi.build_super(surf, h.levels, d, h.period, r_stop, group=gi, name=names[h.character],
+                                     spacing_fraction=float(p["spacing_fraction"]),
+                                     cache=cache, splat_size=int(p["splat_size"]), renderer=str(p["renderer"]))
+                memo[key] = sup
+            supers.append(sup)
+            if d < h.depth:  # (a root of a few coincident sources has spacing 0: keep the finer stop then)
+                r_stop = max(sup.r_root, r_stop) * float(np.abs(h.levels[d].scale).max())
+        groups.append((first, h, supers))
+    plan = pi.InstancingPlan(groups)
+    plan.skipped = skipped
+    return plan
+
+
+def build(characters, names, fps, params, static_reps=(), progress=None, cache: HierarchyCache | None = None,
+          instancing=None):
+    """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character
+    (then one per super-hierarchy, §3.6, when ``instancing`` holds groups)
+    and a :class:`PointsSelector`."""
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     p.pop("mode", None)
     if progress is False:
@@ -254,13 +322,15 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
             return tqdm(it, desc=desc, leave=False, disable=None)
     cache = cache if cache is not None else HierarchyCache()
     reps = [build_points_rep(ch, n, p, cache, progress) for ch, n in zip(characters, names)]
-    return reps, PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]))
+    plan = build_instancing(instancing, reps, list(names), p, cache, progress)
+    sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan)
+    return reps + (plan.reps if plan is not None else []), sel
 
 
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
 def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                               tri_count, intervals, data, planes, vscale, splat, pjobs, tjobs):  # pragma: no cover
+                               tri_count, bounds, data, planes, vscale, splat, pjobs, tjobs):  # pragma: no cover
     k = data.shape[0]
     N = child_start.shape[0]
     out_p = np.empty((N, 2), np.int64)
@@ -283,7 +353,10 @@ def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, po
         if not np.isfinite(u):
             u = 0.0
         u = min(max(u, 0.0), 1.0)
-        j = min(max(int(np.floor(u * intervals)), 0), intervals - 1)
+        intervals = bounds.shape[0] - 1
+        j = 0  # the interval holding u (lod.points_stratify.interval_of)
+        while j < intervals - 1 and bounds[j + 1] <= u:
+            j += 1
         np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
                                    tri_start, tri_count, u, j, planes, model, scale, vscale, splat,
                                    out_p, out_pn, out_t, out_tn)
@@ -308,7 +381,7 @@ def _harrays(h: PointHierarchy) -> tuple:
         arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
                np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
                np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
-               np.ascontiguousarray(h.tri_count))
+               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64))
         h._traverse_arrays = arr
     return arr
 
@@ -335,7 +408,7 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     while True:
         pj = np.empty((cap, 3), np.int64)
         tj = np.empty((cap, 3), np.int64)
-        done, npj, ntj = _traverse_instances_kernel(*arr, int(h.intervals), data, planes, float(vscale),
+        done, npj, ntj = _traverse_instances_kernel(*arr, data, planes, float(vscale),
                                                     float(splat), pj, tj)
         if done == k:
             return pj[:npj].copy(), tj[:ntj].copy()
@@ -365,21 +438,60 @@ class PointsSelector:
     splat_size : pixels (1..3)
     """
 
-    def __init__(self, reps, static_reps=(), splat_size: int = 2):
+    def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None):
         if not 1 <= int(splat_size) <= 3:
             raise ValueError(f"[lod] splat_size: expected 1, 2 or 3 pixels, got {splat_size}")
         self.reps = list(reps)
         self.splat_size = int(splat_size)
         self._base = NoLodSelector([r.keyframed for r in self.reps], static_reps=static_reps)
         self._by_key = {r.key: r for r in self.reps}
+        self.instancing = instancing
+        if instancing is not None:
+            for r in instancing.reps:
+                self._by_key[r.key] = r
+
+    def _super_batches(self, draws, planes, vs):
+        """PointsBatches of the super-hierarchy draws of ``InstancingPlan.select`` (§3.6)."""
+        out = []
+        for sup, seg, data, ids, m in draws:
+            for s in np.unique(seg).tolist():
+                sel = np.flatnonzero(seg == s)
+                pj, tj = traverse_instances(sup.rep.hierarchies[s], data[sel], planes, vs, self.splat_size)
+                npts = int(pj[:, 2].sum()) if pj.size else 0
+                b = PointsBatch(sup.rep.key, int(s), ids[sel], data[sel], triangles=0, points=npts, point_jobs=pj,
+                                tri_jobs=tj)
+                b.represented = int(m[sel].sum())
+                out.append(b)
+        return out
 
     def select(self, state, camera, size, statics=()) -> DrawList:
         """DrawList of :class:`PointsBatch` (plus static batches); stats hold
         "points" and "triangles" actually submitted, "instances", "culled"."""
-        dl = self._base.select(state, camera, size, statics)
-        w, h = dl.size
+        w, h = int(size[0]), int(size[1])
         planes = camera.frustum_planes(w / max(1, h))
         vs = viewport_scale(h, camera.fov_y)
+        supers, represented = [], 0
+        if self.instancing is not None and state.n:
+            origin = np.asarray(camera.position, np.float64)
+            draws, flat = self.instancing.select(state, origin, planes, vs, self.splat_size)
+            supers = self._super_batches(draws, planes, vs)
+            represented = sum(b.represented for b in supers)
+            if not flat.all():
+                from sim.state import CrowdState
+
+                keep = np.flatnonzero(flat)
+                sub = CrowdState(**{k: np.asarray(v)[keep] for k, v in state.arrays().items()})
+                dl = self._base.select(sub, camera, size, statics)
+                for b in dl.batches:
+                    if b.rep in self._by_key:
+                        b.instance_ids = keep[np.asarray(b.instance_ids, np.int64)].astype(np.int32)
+                dl.stats["instances"] += represented
+                dl.stats["culled"] = int(state.n - dl.stats["instances"])
+                dl.stats["super_nodes"] = int(sum(b.n_instances for b in supers))
+            else:
+                dl = self._base.select(state, camera, size, statics)
+        else:
+            dl = self._base.select(state, camera, size, statics)
         out = []
         pts = tris = 0
         for b in dl.batches:
@@ -395,6 +507,9 @@ class PointsSelector:
             tris += nt
             out.append(PointsBatch(b.rep, b.part, b.instance_ids, b.instance_data, triangles=nt, points=np_,
                                    point_jobs=pj, tri_jobs=tj))
+        for b in supers:
+            pts += b.points
+            out.append(b)
         dl.batches = out
         dl.stats["points"] = int(pts)
         dl.options["splat_size"] = self.splat_size  # the drawer splats at the size the traversal assumed

@@ -48,7 +48,11 @@ from numba import njit
 from lod import points_config as C
 from lod.points_filter import filter_points
 from lod.points_sampling import candidate_count, max_area, sample_triangles, triangle_vertices
-from lod.points_stratify import interval_times, stratify
+from lod.points_stratify import choose_interval_times, interval_times, stratify
+
+
+#: storage type of the points' filtered colours and normals (see PointHierarchy)
+ATTR_DTYPE = np.float16
 
 
 @dataclass
@@ -73,8 +77,10 @@ class PointHierarchy:
     Points (P):
 
     pos0, pos1 : (P, 3) float32 positions at u = 0 and u = 1
-    nrm0, nrm1 : (P, 3) float32 filtered unit normals at u = 0 and 1
-    col0, col1 : (P, 4) float32 filtered colours at u = 0 and 1
+    nrm0, nrm1 : (P, 3) float16 filtered unit normals at u = 0 and 1
+    col0, col1 : (P, 4) float16 filtered colours at u = 0 and 1 (float16:
+        ~5e-4 precision, below the GPU's RGBA8 colours; files written before
+        hold float32, which loads as well)
     tri : (P,) int32 triangle the sample lies on; bary : (P, 2) float32
         barycentric weights of its corners 1 and 2
     node : (P,) int32 owning node
@@ -86,6 +92,8 @@ class PointHierarchy:
     indices : (T, 3) int64 the segment's index buffer
     intervals : int, number of time intervals m
     params : dict of the build parameters
+    interval_bounds : (m + 1,) float64 boundaries of the intervals in [0, 1]
+        (``lod.points_stratify.choose_interval_times``); None = equal
     """
 
     child_start: np.ndarray
@@ -112,6 +120,7 @@ class PointHierarchy:
     indices: np.ndarray
     intervals: int
     params: dict = field(default_factory=dict)
+    interval_bounds: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -130,9 +139,16 @@ class PointHierarchy:
         """Slice of the points node ``node`` draws at time u."""
         from lod.points_stratify import interval_of
 
-        j = interval_of(u, self.intervals)
+        j = interval_of(u, self.intervals, self.interval_bounds)
         s = int(self.point_start[node, j])
         return slice(s, s + int(self.point_count[node, j]))
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(m + 1,) float64 interval boundaries (equal when none were chosen)."""
+        if self.interval_bounds is None:
+            return interval_times(self.intervals)
+        return np.asarray(self.interval_bounds, np.float64)
 
     def box_at(self, u: float) -> np.ndarray:
         """(N, 2, 3) float64 interpolated node boxes at time u (§3.3)."""
@@ -209,7 +225,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                     filter_factor: float = C.POINTS_FILTER_FACTOR,
                     filter_sigma: float = C.POINTS_FILTER_SIGMA,
                     max_depth: int = C.POINTS_MAX_DEPTH,
-                    seed: int = 0, progress: bool | None = None) -> PointHierarchy:
+                    seed: int = 0, adaptive_intervals: bool = True,
+                    progress: bool | None = None) -> PointHierarchy:
     """Build the point/triangle octree of one keyframe pair (§3.1, §3.3-3.5).
 
     Parameters
@@ -231,6 +248,9 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     filter_sigma : > 0, Gaussian sigma as a fraction of r
     max_depth : octree depth limit
     seed : int, all randomness derives from it (same seed, same hierarchy)
+    adaptive_intervals : choose the interval boundaries by the area change
+        (``lod.points_stratify.choose_interval_times``; equal when that gains
+        under 1%, as for animated characters) or always equal intervals
     progress : show a tqdm bar (None: only if the build takes over a second)
 
     Returns
@@ -260,7 +280,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     tlo0, thi0 = V0.min(1), V0.max(1)
     tlo1, thi1 = V1.min(1), V1.max(1)
     centre = V0.mean(1)
-    times = interval_times(m)
+    times = choose_interval_times(V0, V1, m) if adaptive_intervals else interval_times(m)
 
     if T:
         root_lo = tlo0.min(0)
@@ -396,11 +416,11 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
         tri_start=col("tri_start", np.int64), tri_count=col("tri_count", np.int64),
         pos0=sample_positions_at(V0, V1, tri_p, bary_p, [0.0])[0].astype(np.float32),
         pos1=sample_positions_at(V0, V1, tri_p, bary_p, [1.0])[0].astype(np.float32),
-        nrm0=cat("nrm0", (0, 3), np.float32), nrm1=cat("nrm1", (0, 3), np.float32),
-        col0=cat("col0", (0, 4), np.float32), col1=cat("col1", (0, 4), np.float32),
+        nrm0=cat("nrm0", (0, 3), ATTR_DTYPE), nrm1=cat("nrm1", (0, 3), ATTR_DTYPE),
+        col0=cat("col0", (0, 4), ATTR_DTYPE), col1=cat("col1", (0, 4), ATTR_DTYPE),
         tri=tri_p.astype(np.int32), bary=bary_p.astype(np.float32), node=cat("node", (0,), np.int32),
         tri_order=(np.concatenate(tri_chunks) if tri_chunks else np.zeros(0, np.int64)).astype(np.int32),
-        indices=idx, intervals=m,
+        indices=idx, intervals=m, interval_bounds=np.asarray(times, np.float64),
         params=dict(spacing_fraction=spacing_fraction, triangle_samples=int(triangle_samples),
                     leaf_triangles=int(leaf_triangles), loose=float(loose), safety=float(safety),
                     intervals=m, filter_factor=float(filter_factor), filter_sigma=float(filter_sigma),
@@ -472,10 +492,18 @@ def load_hierarchy(path) -> PointHierarchy:
             meta = json.loads(bytes(z["__meta__"]).decode())
             if meta.get("format") != _FORMAT:
                 raise ValueError(f"{path}: point hierarchy format {meta.get('format')}, expected {_FORMAT}")
-            names = [f for f in PointHierarchy.__dataclass_fields__ if f not in ("intervals", "params")]
+            names = [f for f in PointHierarchy.__dataclass_fields__
+                     if f not in ("intervals", "params", "interval_bounds")]
             arrays = {k: z[k] for k in names}
+            if "interval_bounds" in z.files:  # files of before the unequal intervals hold none: equal
+                arrays["interval_bounds"] = z["interval_bounds"]
     except Exception as e:  # a damaged file can fail anywhere in zipfile/numpy (EOFError, NotImplementedError, ...)
         if isinstance(e, ValueError) and str(e).startswith(str(path)):
             raise
         raise ValueError(f"{path}: not a readable point hierarchy file ({type(e).__name__}: {e})") from None
-    return PointHierarchy(**arrays, intervals=int(meta["intervals"]), params=dict(meta["params"]))
+    m = int(meta["intervals"])
+    b = arrays.get("interval_bounds")
+    if b is not None and (b.shape != (m + 1,) or not np.isfinite(b).all() or b[0] != 0.0 or b[-1] != 1.0
+                          or (np.diff(b) <= 0).any()):
+        raise ValueError(f"{path}: interval_bounds must be {m + 1} increasing times from 0 to 1")
+    return PointHierarchy(**arrays, intervals=m, params=dict(meta["params"]))

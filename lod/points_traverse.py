@@ -13,7 +13,10 @@ At time u in [0, 1] of the keyframe pair, from the root down:
   points of the current time interval are drawn and the subtree ends there;
   else the children are visited. A box reaching to or behind the camera
   (min depth <= 0) always descends: no division by zero, no projection of a
-  point behind the eye. A leaf has no points and draws only its triangles.
+  point behind the eye. A leaf draws its triangles and, if it has any, its
+  points of the current interval (the octrees of ``lod.points_octree`` keep
+  no points at leaves; the super-hierarchy leaves of ``lod.points_instancing``
+  (§3.6) hold only points, and their owners ensure they are fine enough).
 
 Coordinates: the node boxes are in the model space of the hierarchy; ``model``
 (3, 4) maps model space to camera-relative world space (the camera at the
@@ -85,7 +88,7 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
     model = _model(model)
     scale = float(np.linalg.norm(model[:, :3], axis=0).max())
     fwd = planes[4, :3]
-    j = interval_of(u, h.intervals)
+    j = interval_of(u, h.intervals, getattr(h, "interval_bounds", None))
     box = h.box_at(float(u))
     pr, pn, tr, tn = [], [], [], []
 
@@ -97,6 +100,9 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
             tr.append((h.tri_start[i], h.tri_count[i]))
             tn.append(i)
         if h.child_count[i] == 0:
+            if h.point_count[i, j] > 0:  # a leaf with points (a §3.6 super-hierarchy leaf)
+                pr.append((h.point_start[i, j], h.point_count[i, j]))
+                pn.append(i)
             return
         dmin = float((cs @ fwd).min())
         if dmin > 0.0 and h.spacing[i] * scale / dmin * viewport_scale <= splat_size:
@@ -160,6 +166,11 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
             out_tn[nt] = i
             nt += 1
         if child_count[i] == 0:
+            if point_count[i, j] > 0:  # a leaf with points (a §3.6 super-hierarchy leaf)
+                out_p[np_, 0] = point_start[i, j]
+                out_p[np_, 1] = point_count[i, j]
+                out_pn[np_] = i
+                np_ += 1
             continue
         dmin = np.inf
         for c in range(8):
@@ -218,7 +229,7 @@ def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, mode
     out_tn = np.empty(N, np.int32)
     np_, nt = _traverse_kernel(h.child_start.astype(np.int64), h.child_count.astype(np.int64), h.box0, h.box1,
                                h.spacing, h.point_start, h.point_count, h.tri_start, h.tri_count, u,
-                               interval_of(u, h.intervals), planes, model, scale, float(viewport_scale),
+                               interval_of(u, h.intervals, getattr(h, "interval_bounds", None)), planes, model, scale, float(viewport_scale),
                                float(splat_size), out_p, out_pn, out_t, out_tn)
     return TraversalResult(out_p[:np_].copy(), out_pn[:np_].copy(), out_t[:nt].copy(), out_tn[:nt].copy())
 

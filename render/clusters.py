@@ -43,7 +43,7 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit
 
-from lod.drawlist import INSTANCE_FLOATS
+from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 
 #: bytes of one DrawElementsIndirectCommand (count, instanceCount, firstIndex, baseVertex, baseInstance)
 COMMAND_BYTES = 20
@@ -280,6 +280,13 @@ class Drawer:
         calls :meth:`draw` outside its own samples query (GL allows one at a time)."""
         return any(st.occlusion for st in self._reps.values())
 
+    def set_occlusion(self, on: bool) -> None:
+        """Occlusion culling (VDR-AM §5.2) on or off for every uploaded representation
+        (the fly-through's live toggle). A visible set left from before only orders the
+        draws: every instance outside it is still tested, so nothing visible is lost."""
+        for st in self._reps.values():
+            st.occlusion = bool(on)
+
     def upload(self, rep) -> None:
         """GPU resources of a :class:`lod.clusters_mode.ClustersRep` (re-upload replaces)."""
         old = self._reps.pop(rep.key, None)
@@ -336,16 +343,17 @@ class Drawer:
 
     # ------------------------------------------------------------------ drawing
     def _collect(self, batches) -> list:
-        """Per (representation, tint): instance data (palette slot set), CSR cuts, agent ids, clips."""
+        """Per (representation, tint, fade): instance data (palette slot set), CSR cuts, agent ids, clips."""
         groups: dict = {}
         for b in batches:
             if b.rep not in self._reps:
                 raise KeyError(f"DrawList batch names clusters representation {b.rep!r}, which was not uploaded; "
                                f"uploaded: {sorted(self._reps)}")
             tint = tuple(float(c) for c in b.tint) if b.tint is not None else (0.0, 0.0, 0.0, 0.0)
-            groups.setdefault((b.rep, tint), []).append(b)
+            fade = fade_uniform(getattr(b, "fade", None))  # screen-door transition (lod.keyframed_selection)
+            groups.setdefault((b.rep, tint, fade), []).append(b)
         items = []
-        for (key, tint), bs in groups.items():
+        for (key, tint, fade), bs in groups.items():
             st = self._reps[key]
             n_leaves = st.hierarchy.n_leaves
             offs, cls, data, ids, part = [], [], [], [], []
@@ -363,7 +371,7 @@ class Drawer:
                 continue
             data = np.concatenate(data)
             data[:, PALETTE_SLOT_FLOAT] = np.arange(k, dtype=np.float32)
-            items.append(SimpleNamespace(st=st, key=key, tint=tint, k=k, data=data,
+            items.append(SimpleNamespace(st=st, key=key, tint=tint, fade=fade, k=k, data=data,
                                          offsets=np.concatenate(offs + [np.array([base], np.int64)]),
                                          clusters=np.concatenate(cls), ids=np.concatenate(ids),
                                          part=np.concatenate(part)))
@@ -442,6 +450,8 @@ class Drawer:
             prog["u_palette_stride"].value = 3 * st.skin.n_joints
             if "u_tint" in prog:
                 prog["u_tint"].value = it.tint
+            if "u_fade" in prog:
+                prog["u_fade"].value = getattr(it, "fade", (0.0, 0.0))
             r._bind_instances(vao, st.locs, inst, off * INSTANCE_FLOATS * 4)
             vao.render_indirect(ind, mode=ctx.TRIANGLES, count=nc, first=c0)
             stats["draws"] += 1

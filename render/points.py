@@ -37,6 +37,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from lod.drawlist import fade_uniform
 from render.shaders import load_source, program_sources
 
 #: threads per work group of the splat passes (one group per job); 8 is
@@ -266,6 +267,8 @@ class Drawer:
             prog["u_ambient"].value = AMBIENT
         if "u_tint" in prog:
             prog["u_tint"].value = (0.0, 0.0, 0.0, 0.0)
+        if "u_fade" in prog:
+            prog["u_fade"].value = (0.0, 0.0)
         for k, v in vals.items():
             if k in prog:
                 prog[k].value = v
@@ -293,13 +296,19 @@ class Drawer:
         self._buffer("instances", inst).bind_to_storage_buffer(1)
         w, h = self.r.size
         vp = np.asarray(view_proj, np.float64)
+        # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.keyframed_selection) draw together
+        by_fade: dict = {}
+        for b in batches:
+            by_fade.setdefault(fade_uniform(getattr(b, "fade", None)), []).append(b)
         # 1. triangles selected by the traversal
         tprog = self._program("points_tri")
         self._uniforms(tprog, vp)
-        for key, g in self._reps.items():
-            jobs = job_table(batches, key, g.tbase, "tri_jobs", offs)
+        for fade, key, g in [(f, k, g) for f in by_fade for k, g in self._reps.items()]:
+            jobs = job_table(by_fade[fade], key, g.tbase, "tri_jobs", offs)
             if not jobs.shape[0]:
                 continue
+            if "u_fade" in tprog:
+                tprog["u_fade"].value = fade
             total = int(jobs[-1, 1]) + int(jobs[-1, 3])
             self._buffer("tri_jobs", jobs).bind_to_storage_buffer(2)
             g.verts.bind_to_storage_buffer(5)
@@ -308,11 +317,12 @@ class Drawer:
             self._empty_for(tprog).render(moderngl.TRIANGLES, vertices=3 * total)
             self.last_counts["triangles"] += total
         # 2. points
-        per_rep = []
-        for key, g in self._reps.items():
-            jobs = job_table(batches, key, g.pbase, "point_jobs", offs)
+        per_rep, fades = [], []
+        for fade, key, g in [(f, k, g) for f in by_fade for k, g in self._reps.items()]:
+            jobs = job_table(by_fade[fade], key, g.pbase, "point_jobs", offs)
             if jobs.shape[0]:
                 per_rep.append((g, jobs, int(jobs[-1, 1]) + int(jobs[-1, 3])))
+                fades.append(fade)
         if not per_rep:
             return
         path = self.path or per_rep[0][0].path
@@ -322,9 +332,11 @@ class Drawer:
             prog = self._program("points_gl")
             self._uniforms(prog, vp)
             ctx.enable(ctx.PROGRAM_POINT_SIZE)
-            for g, jobs, total in per_rep:
+            for (g, jobs, total), fade in zip(per_rep, fades):
                 self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
                 g.points.bind_to_storage_buffer(0)
+                if "u_fade" in prog:
+                    prog["u_fade"].value = fade
                 prog["u_splat"].value = float(drawlist.options.get("splat_size", g.splat))
                 self._empty_for(prog).render(moderngl.POINTS, vertices=total)
                 self.last_counts["points"] += total
@@ -343,9 +355,11 @@ class Drawer:
         for defines in ((), ("COLOR_PASS",)):
             cs = self._compute("points_splat", defines + (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}"))
             self._uniforms(cs, vp, u_size=(w, h))
-            for g, jobs, total in per_rep:
+            for (g, jobs, total), fade in zip(per_rep, fades):
                 self._buffer("point_jobs", jobs).bind_to_storage_buffer(2)
                 g.points.bind_to_storage_buffer(0)
+                if "u_fade" in cs:
+                    cs["u_fade"].value = fade
                 cs["u_njobs"].value = int(jobs.shape[0])
                 cs["u_splat"].value = splat
                 self._dispatch(cs, int(jobs.shape[0]), 1)  # one work group per job

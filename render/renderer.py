@@ -27,6 +27,19 @@ of 500 one-triangle instances, a frame took 14 ms this way against 19.5 ms
 when orphaning and writing the buffer once per batch, so the per-frame buffer
 with offsets is the path kept (it is also the layout a real GPU prefers).
 
+Bounded driver memory: Mesa llvmpipe (22.3, ``lp_setup.c``) bins triangles
+into "scenes" of at most 36 MB that its rasterizer threads consume; when the
+binner (this thread) is ahead of them it allocates another scene, up to 64,
+and a rasterized scene keeps its binned data until it is reused. A frame of
+58 M triangles (``scenes/horses.toml``, lod mode none) let the binner run
+ahead whenever the machine was loaded, so resident memory ratcheted from
+0.6 GB to 2.35 GB over ~11 minutes (64 x 36 MB; heap memory in use, not
+freed-but-kept: ``malloc_trim`` did not return it). Large instanced draws are
+therefore split into submissions of at most ``max_triangles_in_flight``
+triangles (whole instances; default :data:`MAX_TRIANGLES_IN_FLIGHT`) with a
+``ctx.finish`` between them, which keeps the driver at a few scenes; the wait
+costs no measurable time on llvmpipe (scripts/soak.md).
+
 Back faces are not culled: imported meshes (glTF) can have inconsistent
 winding, and on llvmpipe the cost is in vertex processing and triangle setup,
 which culling would not save; the fragment shader lights both sides.
@@ -40,7 +53,7 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
-from lod.drawlist import INSTANCE_FLOATS
+from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context
 from render.shaders import program_sources
 
@@ -64,6 +77,11 @@ PALETTE_MAX_TEXELS = 1 << 25
 SKINNING_MODES = ("palette", "direct")
 #: environment variable that turns on debug checks (finite instance data)
 DEBUG_ENV = "CROWD_GL_DEBUG"
+#: most triangles handed to the driver in one instanced draw before the renderer
+#: waits for them (``ctx.finish``): bounds the binned scene data llvmpipe keeps
+#: (see "Bounded driver memory" in the module docstring); at ~300 bytes per
+#: binned triangle, 100,000 triangles fit one 36 MB llvmpipe scene
+MAX_TRIANGLES_IN_FLIGHT = 100_000
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
 
@@ -201,6 +219,10 @@ class Renderer:
         self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
         self._q_time = self._track(ctx.query(time=True), "render.query.time")
         self.last_timings: dict = {}
+        #: most triangles per instanced submission before a ``ctx.finish`` (None: no limit)
+        self.max_triangles_in_flight = MAX_TRIANGLES_IN_FLIGHT
+        #: instanced submissions of the last ``draw`` (> batches when draws were split)
+        self.last_submissions = 0
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -392,6 +414,10 @@ class Renderer:
             if o in self._objects:
                 self._objects.remove(o)
 
+    def uploaded_drawer(self, kind: str):
+        """The plug-in Drawer of representation ``kind`` when one was created, else None."""
+        return self._drawers.get(kind)
+
     def drawer(self, kind: str):
         """The plug-in Drawer of representation ``kind`` (created on first use)."""
         d = self._drawers.get(kind)
@@ -414,6 +440,27 @@ class Renderer:
             if loc is not None:
                 vao.bind(loc, "f", buffer, "4f", offset=offset + 16 * i, stride=INSTANCE_BYTES, divisor=1)
 
+    def _render_instanced(self, g: _GpuRep, prog, palette_base, offset: int, vertices: int, first: int,
+                          k: int) -> None:
+        """Draw ``k`` instances of ``g`` (instance data from byte ``offset`` of
+        the instance buffer, already bound there) in submissions of at most
+        ``max_triangles_in_flight`` triangles, waiting for the driver between
+        them (bounds llvmpipe's binned scenes; see the module docstring). Each
+        later submission re-binds the instance attributes at its first
+        instance and, for palette skinning, moves ``u_palette_base`` by as
+        many palette blocks (the shader indexes both by ``gl_InstanceID``)."""
+        ctx = self.ctx
+        budget = self.max_triangles_in_flight
+        per = k if not budget else max(1, int(budget) // max(1, vertices // 3))
+        for s in range(0, k, per):
+            if s:
+                ctx.finish()
+                self._bind_instances(g.vao, g.locations, self._instances, offset + s * INSTANCE_BYTES)
+                if palette_base is not None:
+                    prog["u_palette_base"].value = palette_base + s * 3 * g.n_joints
+            g.vao.render(ctx.TRIANGLES, vertices=vertices, first=first, instances=min(per, k - s))
+            self.last_submissions += 1
+
     def _set_uniforms(self, prog, view_proj: np.ndarray) -> None:
         prog["u_view_proj"].write(np.ascontiguousarray(view_proj.T, np.float32).tobytes())
         if "u_sun" in prog:
@@ -425,6 +472,8 @@ class Renderer:
             prog["u_joints"].value = 0
         if "u_palette" in prog:
             prog["u_palette"].value = 1
+        if "u_fade" in prog:
+            prog["u_fade"].value = (0.0, 0.0)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
@@ -469,6 +518,7 @@ class Renderer:
         self.fbo.clear(*bg, 1.0, depth=1.0)
         used = set()
         offset = 0
+        self.last_submissions = 0
         with self._q_samples, self._q_time:
             palette = {}
             if self.skinning == "palette":
@@ -499,19 +549,21 @@ class Renderer:
                 if "u_tint" in prog:
                     tint = getattr(b, "tint", None)
                     prog["u_tint"].value = tuple(float(c) for c in tint) if tint is not None else (0.0, 0.0, 0.0, 0.0)
+                if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
+                    prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
                 self._bind_instances(g.vao, g.locations, self._instances, offset)
                 k = b.n_instances
                 if g.kind == "keyframed":
-                    g.vao.render(ctx.TRIANGLES, vertices=int(g.seg_count[b.part]), first=int(g.seg_first[b.part]),
-                                 instances=k)
+                    self._render_instanced(g, prog, palette.get(i), offset, int(g.seg_count[b.part]),
+                                           int(g.seg_first[b.part]), k)
                 elif getattr(b, "index_range", None) is not None:  # one level of a LOD chain
                     first, count = (int(v) for v in b.index_range)
                     if not (0 <= first and 0 <= count and first + count <= g.n_indices):
                         raise ValueError(f"DrawBatch {b.rep!r}: index_range {b.index_range} outside the "
                                          f"{g.n_indices} indices of the representation")
-                    g.vao.render(ctx.TRIANGLES, vertices=count, first=first, instances=k)
+                    self._render_instanced(g, prog, palette.get(i), offset, count, first, k)
                 else:
-                    g.vao.render(ctx.TRIANGLES, vertices=g.default_count, instances=k)
+                    self._render_instanced(g, prog, palette.get(i), offset, g.default_count, 0, k)
                 offset += k * INSTANCE_BYTES
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's

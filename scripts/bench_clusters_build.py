@@ -3,7 +3,8 @@
 Measures, against Table 1 / §6 of Claudio, Kim, Kim, Yoon (VDR-AM):
 
 - build time of a 110,000-triangle procedural humanoid walking (35 poses)
-  (paper: 19 min; target here <= 60 s);
+  (paper: 19 min; target here <= 60 s), wall clock and CPU time of the process
+  (the CPU time is the figure that does not depend on other jobs' load);
 - bytes per triangle of the representation: hierarchy arrays + packed vertex
   buffer, over the original triangle count (paper: 72; target <= 40);
 - CPU time of the §5.1 cut per 1,000 instances at 1280x720, PoE 0.5 (paper:
@@ -108,11 +109,12 @@ def main(argv=None) -> int:
     cluster_cut.cut(h, dense_matrices(4), [0, 1.7, 0], 600.0, 1.0)
 
     c = humanoid(args.triangles, 0)
-    builds = {}
+    builds, cpu = {}, {}
     for m in cluster_dag.CLUSTERINGS:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         builds[m] = cluster_dag.build_cluster_hierarchy(c, ["walk"], clustering_method=m)
         builds[m].build_seconds = time.perf_counter() - t0
+        cpu[m] = time.process_time() - c0
     h = builds["error-aware"]
     bpt = cluster_dag.bytes_per_triangle(h, c.mesh)
 
@@ -145,8 +147,10 @@ def main(argv=None) -> int:
           f"{len(h.representatives)} representative poses\n")
     print("| measure | paper | target | here |")
     print("| --- | --- | --- | --- |")
-    print(f"| build time, error-aware (s) | 1140 | <= 60 | {h.build_seconds:.1f} |")
-    print(f"| build time, octree (s) | - | - | {ho.build_seconds:.1f} |")
+    print(f"| build time, error-aware, wall (CPU) (s) | 1140 | <= 60 | {h.build_seconds:.1f} "
+          f"({cpu['error-aware']:.1f}) |")
+    print(f"| build time, octree, wall (CPU) (s) | - | - | {ho.build_seconds:.1f} ({cpu['octree']:.1f}) |")
+    print(f"| load average during the run (1 min) | - | - | {os.getloadavg()[0]:.1f} |")
     print(f"| leaf clusters / all clusters | 1.8 K / - | - | {h.n_leaves} / {h.n_clusters} |")
     print(f"| stored triangles / original | - | - | {h.indices.shape[0] / c.mesh.n_triangles:.2f} |")
     print(f"| bytes per triangle | 72 | <= 40 | {bpt:.1f} |")

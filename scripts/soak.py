@@ -14,9 +14,17 @@ palette (they grow by doubling).
 Exit code 0 when there was no GL error and the growth after the warm-up is
 at most ``--max-growth`` percent, 1 otherwise, 2 for bad input.
 
+The report also gives the C heap in use (glibc ``mallinfo2``: the GL
+driver's memory is C heap on llvmpipe) and the renderer's instanced
+submissions per frame. ``--max-triangles-in-flight 0`` turns off the
+renderer's split of large draws (render.renderer, "Bounded driver memory"),
+reproducing the driver's scene-pool growth the split prevents.
+
 Run:  .venv/bin/python scripts/soak.py scenes/horses.toml --seconds 1800 [--warmup 60]
       [--warmup-frames 20] [--size 640x360] [--max-growth 2] [--malloc-trim] [--quiet]
+      [--max-triangles-in-flight N]
 Issue 10 asks for 30 minutes on ``horses``: growth under 2% after the first minute, no GL error.
+Results: scripts/soak.md.
 """
 from __future__ import annotations
 
@@ -42,6 +50,25 @@ def resident_bytes() -> int:
         return 0
 
 
+def heap_in_use() -> int:
+    """Bytes of C heap in use (glibc ``mallinfo2``: ``uordblks + hblkhd``), 0
+    where it is unavailable."""
+    try:
+        import ctypes
+
+        class _MallInfo2(ctypes.Structure):
+            _fields_ = [(n, ctypes.c_size_t) for n in
+                        ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks",
+                         "fordblks", "keepcost")]
+
+        fn = ctypes.CDLL("libc.so.6").mallinfo2
+        fn.restype = _MallInfo2
+        m = fn()
+        return int(m.uordblks + m.hblkhd)
+    except (OSError, AttributeError):
+        return 0
+
+
 def malloc_trim():
     """``malloc_trim(0)`` of glibc (returns freed heap pages to the system); a no-op
     function elsewhere. Returns the callable."""
@@ -55,12 +82,15 @@ def malloc_trim():
 
 
 def soak(scene_path: str, seconds: float, warmup: float, size=None, quiet: bool = False,
-         report_every: float = 60.0, trim: bool = False, warmup_frames: int = 0) -> dict:
+         report_every: float = 60.0, trim: bool = False, warmup_frames: int = 0,
+         max_triangles_in_flight: int | None = -1) -> dict:
     """Run ``scene_path`` for ``seconds`` of wall time; returns the figures (dict).
 
     ``trim``: call glibc's ``malloc_trim(0)`` after every frame, so freed heap
     memory the allocator keeps (the GL driver frees and reallocates large
     vertex/binning buffers) does not count as growth.
+    ``max_triangles_in_flight``: the renderer's split of large draws (-1: its
+    default; None or 0: no split).
     """
     do_trim = malloc_trim() if trim else (lambda: None)
     from crowd.engine import Engine
@@ -73,11 +103,17 @@ def soak(scene_path: str, seconds: float, warmup: float, size=None, quiet: bool 
     with Engine(scene, quiet=True) as engine:
         renderer = engine.open_renderer()
         ctx = renderer.ctx
+        if max_triangles_in_flight is None or max_triangles_in_flight >= 0:
+            renderer.max_triangles_in_flight = max_triangles_in_flight or None
+        limit = renderer.max_triangles_in_flight
+        submissions = 0
         size = scene.render.size
         bg = scene.render.background
         build_s = time.perf_counter() - t_build
         errors: dict = {}
         rss_start = resident_bytes()
+        heap_start = heap_in_use()
+        heap_warm = None
         rss_warm = None
         rss_max = rss_start
         samples = []  # (seconds, resident bytes) after the warm-up
@@ -95,22 +131,25 @@ def soak(scene_path: str, seconds: float, warmup: float, size=None, quiet: bool 
             if err != "GL_NO_ERROR":
                 errors[err] = errors.get(err, 0) + 1
             frames += 1
+            submissions += renderer.last_submissions
             do_trim()
             rss = resident_bytes()
             rss_max = max(rss_max, rss)
             el = time.perf_counter() - t0
             if rss_warm is None and el >= warmup and frames >= warmup_frames:
                 rss_warm = rss
+                heap_warm = heap_in_use()
             if rss_warm is not None:
                 samples.append((el, rss))
             if not quiet and now - last_report >= report_every:
                 last_report = now
                 print(f"  {now - t0:7.0f} s  frame {frames:7d}  resident {rss / 1e6:9.1f} MB  "
-                      f"GL errors {sum(errors.values())}", flush=True)
+                      f"heap in use {heap_in_use() / 1e6:8.1f} MB  GL errors {sum(errors.values())}", flush=True)
         rss_end = resident_bytes()
+        heap_end = heap_in_use()
     wall = time.perf_counter() - t0
     if rss_warm is None:  # shorter than the warm-up: compare with the start
-        rss_warm = rss_start
+        rss_warm, heap_warm = rss_start, heap_start
     growth = rss_end - rss_warm
     slope = 0.0  # least-squares trend of the resident memory after the warm-up, bytes per hour
     if len(samples) >= 3:
@@ -124,7 +163,9 @@ def soak(scene_path: str, seconds: float, warmup: float, size=None, quiet: bool 
             "rss_end": rss_end, "rss_max": rss_max, "growth_bytes": growth,
             "growth_percent": 100.0 * growth / rss_warm if rss_warm else 0.0, "trend_bytes_per_hour": slope,
             "gl_errors": sum(errors.values()), "gl_error_kinds": errors, "warmup": warmup, "trim": trim,
-            "warmup_frames": warmup_frames}
+            "warmup_frames": warmup_frames, "heap_start": heap_start, "heap_after_warmup": heap_warm,
+            "heap_end": heap_end, "submissions_per_frame": submissions / frames if frames else 0.0,
+            "max_triangles_in_flight": limit}
 
 
 def format_report(r: dict) -> str:
@@ -138,6 +179,10 @@ def format_report(r: dict) -> str:
         f"{mb(r['rss_after_warmup'])}, end {mb(r['rss_end'])}, max {mb(r['rss_max'])}",
         f"  memory growth after warm-up: {r['growth_bytes'] / 1e6:+.2f} MB ({r['growth_percent']:+.2f}%); "
         f"trend {r['trend_bytes_per_hour'] / 1e6:+.1f} MB/hour",
+        f"  C heap in use: start {mb(r['heap_start'])}, after the warm-up {mb(r['heap_after_warmup'])}, "
+        f"end {mb(r['heap_end'])}",
+        f"  draw submissions per frame: {r['submissions_per_frame']:.1f} (max triangles in flight: "
+        f"{r['max_triangles_in_flight'] if r['max_triangles_in_flight'] else 'no limit'})",
         f"  GL errors: {r['gl_errors']} ({kinds})",
     ])
 
@@ -158,13 +203,15 @@ def main(argv=None) -> int:
     ap.add_argument("--quiet", action="store_true", help="only the final report")
     ap.add_argument("--malloc-trim", action="store_true",
                     help="call glibc malloc_trim(0) after every frame (separates retained free heap from leaks)")
+    ap.add_argument("--max-triangles-in-flight", type=int, default=-1,
+                    help="the renderer's split of large draws in triangles (default: the renderer's; 0: no split)")
     a = ap.parse_args(argv)
     if not a.seconds > 0:
         ap.error(f"--seconds: expected > 0, got {a.seconds}")
     warmup = min(60.0, a.seconds / 4) if a.warmup is None else a.warmup
     try:
         r = soak(a.scene, a.seconds, warmup, size=a.size, quiet=a.quiet, trim=a.malloc_trim,
-                 warmup_frames=a.warmup_frames)
+                 warmup_frames=a.warmup_frames, max_triangles_in_flight=a.max_triangles_in_flight)
     except _user_errors() as e:
         print(f"soak: error: {str(e).splitlines()[0]}", file=sys.stderr)
         return 2

@@ -8,10 +8,12 @@ in vec4 v_color;
 uniform vec3 u_sun;       // unit direction towards the sun, world
 uniform float u_ambient;
 uniform vec4 u_tint;     // debug colouring: rgb mixed in with weight a (0 = true colours)
+#include "fade.glsl"
 
 out vec4 f_color;
 
 void main() {
+    if (fade_discards(ivec2(gl_FragCoord.xy))) discard;
     float ln = dot(v_normal, v_normal);
     vec3 n = ln > 1e-20 ? v_normal * inversesqrt(ln) : vec3(0.0, 1.0, 0.0);
     float lv = dot(v_world, v_world);

@@ -22,6 +22,7 @@
 #endif
 layout(local_size_x = LOCAL_SIZE) in;
 #include "points_common.glsl"
+#include "fade.glsl"
 
 layout(std430, binding = 0) readonly buffer Points { Sample pts[]; };
 layout(std430, binding = 3) buffer Depth { uint depth[]; };
@@ -60,6 +61,8 @@ void main() {
         int x0 = int(ceil(x - half_s - 0.5));
         int y0 = int(ceil(y - half_s - 0.5));
         if (x0 < -MARGIN || y0 < -MARGIN || x0 >= u_size.x || y0 >= u_size.y) continue;
+        // screen-door transition (DrawBatch.fade): decided at the anchor, the same in both passes
+        if (fade_discards(ivec2(x0, y0))) continue;
         uint slot = uint((y0 + MARGIN) * (u_size.x + MARGIN) + x0 + MARGIN);
         uint key = floatBitsToUint(ndc.z * 0.5 + 0.5);
 #ifdef COLOR_PASS

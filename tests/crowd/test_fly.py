@@ -396,3 +396,25 @@ def test_live_poe_and_splat_size_reach_the_selectors(app):
         sizes[size] = dl.stats["points"] + dl.stats["triangles"]
     # a larger splat lets the traversal stop higher up: fewer primitives
     assert sizes[3.0] < sizes[1.0]
+
+
+def test_live_keyframe_interval_and_occlusion_keys_are_applied(app):
+    """`,` / `.` change the keyframe interval and `O` toggles occlusion; both reach
+    the selection (Friedrich et al. keyframes; VDR-AM §5.2) on the next frame."""
+    e, s = app.engine, app.engine.settings
+    e.set_lod_mode("clusters")
+    assert s.keyframe_interval == 1
+    for _ in range(3):
+        press(app, glfw.KEY_PERIOD)
+    assert s.keyframe_interval == 4
+    keys = [bool(app.frame(1 / 30).drawlist.stats.get("keyframe")) for _ in range(5)]
+    assert type(e.selector).__name__ == "KeyframedSelector" and e.selector.n == 4
+    assert keys == [True, False, False, False, True]
+    ids = np.sort(all_ids(app.frame(1 / 30).drawlist))
+    assert ids.size and np.array_equal(np.unique(ids), np.arange(e.world.state.n))  # all four agents drawn
+    press(app, glfw.KEY_O)
+    app.frame(1 / 30)
+    assert s.occlusion and all(r.occlusion for r in e.reps if getattr(r, "kind", "") == "clusters")
+    for _ in range(3):
+        press(app, glfw.KEY_COMMA)
+    assert "keyframe" not in app.frame(1 / 30).drawlist.stats and e.selector.n == 1

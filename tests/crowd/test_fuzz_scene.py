@@ -25,9 +25,25 @@ from crowd.errors import SceneError
 from crowd.memory import estimate_scene
 from crowd.scene import load_scene
 
-FUZZ_EXAMPLES = int(os.environ.get("CROWD_FUZZ_EXAMPLES", "1100"))
+#: generated inputs per strategy in CI: two strategies per loader, >= 2,000 inputs per loader
+FUZZ_EXAMPLES_CI = 1100
+FUZZ_EXAMPLES = int(os.environ.get("CROWD_FUZZ_EXAMPLES", str(FUZZ_EXAMPLES_CI)))
 FUZZ_SETTINGS = settings(max_examples=FUZZ_EXAMPLES, deadline=5000, derandomize=True, database=None,
                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+
+#: examples each fuzz test really ran in this session (checked when the module ends)
+FUZZ_RUNS: dict = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fuzz_examples_really_ran():
+    """Hypothesis may stop before ``max_examples`` (an exhausted search space,
+    too many invalid inputs): fail the module if a fuzz test that ran executed
+    fewer than FUZZ_EXAMPLES inputs."""
+    yield
+    short = {k: v for k, v in FUZZ_RUNS.items() if v < FUZZ_EXAMPLES}
+    assert not short, f"fuzz tests ran fewer than {FUZZ_EXAMPLES} inputs: {short}"
+
 
 BASE = {
     "name": "fuzz", "seed": 3, "dt": 0.05, "substeps": 2, "frames": 10,
@@ -147,6 +163,7 @@ def check_scene(path):
 @FUZZ_SETTINGS
 @given(doc=mutated_doc())
 def test_fuzz_scene_documents(tmp_path, doc):
+    FUZZ_RUNS["test_fuzz_scene_documents"] = FUZZ_RUNS.get("test_fuzz_scene_documents", 0) + 1
     p = tmp_path / "scene.toml"
     p.write_text(to_toml(doc))
     check_scene(p)
@@ -155,6 +172,7 @@ def test_fuzz_scene_documents(tmp_path, doc):
 @FUZZ_SETTINGS
 @given(cut=st.integers(0, 4000), flips=st.lists(st.tuples(st.integers(0, 4000), st.characters()), max_size=4))
 def test_fuzz_scene_text(tmp_path, cut, flips):
+    FUZZ_RUNS["test_fuzz_scene_text"] = FUZZ_RUNS.get("test_fuzz_scene_text", 0) + 1
     text = list(to_toml(BASE))
     for i, c in flips:
         text[i % len(text)] = c

@@ -110,7 +110,7 @@ def test_report_of_a_tiny_scene_with_a_two_value_sweep(write_scene, tmp_path):
     scene = write_scene(REPORT_SCENE)
     out = tmp_path / "rep"
     r = run_cli("report", scene, "--sweep", "lod.mode=none,clusters", "--out", out, "--sample-every", "2",
-                "--quiet")
+                "--cluster", "none", "--quiet")
     assert r.returncode == 0, r.stderr
     page = (out / "index.html").read_text()
     data = json.loads((out / "report.json").read_text())
@@ -150,7 +150,7 @@ def test_reference_run_when_no_setting_is_nolod(write_scene, tmp_path):
     scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 2"))
     out = tmp_path / "rep"
     r = run_cli("report", scene, "--sweep", "lod.mode=clusters", "--sweep", "resolution=64x48,80x60",
-                "--out", out, "--quiet")
+                "--out", out, "--cluster", "none", "--quiet")
     assert r.returncode == 0, r.stderr
     data = json.loads((out / "report.json").read_text())
     (sc,) = data["scenes"]
@@ -200,7 +200,7 @@ def test_report_flicker_from_consecutive_frame_pairs(write_scene, tmp_path):
     scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 7"))
     out = tmp_path / "rep"
     r = run_cli("report", scene, "--sweep", "lod.mode=none,points", "--out", out, "--sample-every", "3",
-                "--quiet")
+                "--cluster", "none", "--quiet")
     assert r.returncode == 0, r.stderr
     data = json.loads((out / "report.json").read_text())
     (sc,) = data["scenes"]
@@ -222,40 +222,153 @@ def test_report_flicker_from_consecutive_frame_pairs(write_scene, tmp_path):
 
 
 # ------------------------------------------------------------------------------------------------ dask.distributed
-def test_report_through_a_local_dask_cluster_matches_the_local_path(write_scene, tmp_path):
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """A real dask LocalCluster on loopback (two single-threaded worker processes), shared by this module."""
     pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install dask distributed)")
     from distributed import LocalCluster
 
-    from crowd.report import MetricsPool, frame_metrics
+    from crowd.report import shutdown_dask
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None)
+    try:
+        yield cluster.scheduler_address
+    finally:
+        shutdown_dask(cluster=cluster)  # tolerates a slow exit of the workers on a loaded machine
+
+
+def _strip_times(entry):
+    """A setting entry without what depends on wall-clock time or the machine that ran it."""
+    return {k: v for k, v in entry.items() if k not in ("frame_ms", "stage_ms", "gpu_ms", "repeat_medians_ms",
+                                                         "host")}
+
+
+def test_sweep_through_a_local_dask_cluster_matches_the_local_path(write_scene, tmp_path, dask_cluster):
     from render.image import read_png
 
-    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 4"))
+    addr = dask_cluster
+    assert addr.startswith("tcp://127.0.0.1:")
+    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 3"))
+    args = ("report", scene, "--sweep", "lod.mode=none,points", "--sample-every", "2", "--quiet")
+    r = run_cli(*args, "--out", tmp_path / "dask", "--cluster", addr)
+    assert r.returncode == 0, r.stderr
+    r = run_cli(*args, "--out", tmp_path / "here", "--cluster", "none")
+    assert r.returncode == 0, r.stderr
+    dd, hd = (json.loads((tmp_path / d / "report.json").read_text()) for d in ("dask", "here"))
+    assert dd["cluster"] == f"dask scheduler {addr}" and dd["hosts"] == {"127.0.0.1": 2}
+    assert hd["cluster"] == "this process"
+    (ds,), (hs,) = dd["scenes"], hd["scenes"]
+    assert [s["label"] for s in ds["settings"]] == [s["label"] for s in hs["settings"]] == [
+        "lod.mode=none", "lod.mode=points"]
+    for a, b in zip(ds["settings"], hs["settings"]):
+        assert a["triangles"] == b["triangles"] and a["points"] == b["points"] and a["instances"] == b["instances"]
+        assert [m["frame"] for m in a["samples"]] == [m["frame"] for m in b["samples"]] == [0, 2]
+        for ma, mb in zip(a["samples"], b["samples"]):
+            for k in ("psnr", "ssim", "flip", "mse", "flicker"):
+                assert (ma[k] is None and mb[k] is None) or ma[k] == pytest.approx(mb[k], rel=1e-9, abs=1e-12), k
+            assert np.array_equal(read_png(tmp_path / "dask" / ma["error"]), read_png(tmp_path / "here" / mb["error"]))
+        assert _strip_times(a)["accuracy"] == pytest.approx(_strip_times(b)["accuracy"])
+    assert ds["settings"][1]["points"] > 0 and not ds["settings"][1]["accuracy"]["identical"]
+    assert ds["settings"][1]["samples"][0]["flicker"] is not None  # the pair (0, 1) came back from the workers
+    # the schedule: timed runs never overlap on the host; nothing else started before the last one ended
+    sched = dd["schedule"]
+    timed = sorted((x["start"], x["end"]) for x in sched if x["kind"] == "timed")
+    assert len(timed) == 2 and all(a[1] <= b[0] for a, b in zip(timed, timed[1:]))
+    assert not [x for x in sched if x["kind"] == "reference"]  # the NoLOD settings are the references
+    # the pages of both paths name the same images
+    pages = [(tmp_path / d / "index.html").read_text() for d in ("dask", "here")]
+    assert re.findall(r"<img src='([^']+)'", pages[0]) == re.findall(r"<img src='([^']+)'", pages[1])
+    assert "one at a time per host" in pages[0]
+
+
+def test_reference_runs_follow_the_timed_runs_on_the_cluster(write_scene, tmp_path, dask_cluster):
+    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 2"))
     out = tmp_path / "rep"
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as cluster:
-        addr = cluster.scheduler_address
-        assert addr.startswith("tcp://127.0.0.1:")
-        rng = np.random.default_rng(9)
-        args = [tuple(rng.integers(0, 256, (20, 24, 3), dtype=np.uint8) for _ in range(4)),
-                (_img(1, (20, 24, 3)), _img(2, (20, 24, 3)), None, None)]
-        with MetricsPool(addr) as pool:
-            remote = pool.map(frame_metrics, args)
-        for a, rm in zip(args, remote):
-            lm = frame_metrics(*a)
-            assert np.array_equal(lm.pop("error_png"), rm.pop("error_png")) and lm == rm
-        r = run_cli("report", scene, "--sweep", "lod.mode=none,points", "--out", out, "--sample-every", "2",
-                    "--cluster", addr, "--quiet")
+    r = run_cli("report", scene, "--sweep", "lod.mode=clusters,points", "--out", out, "--cluster", dask_cluster,
+                "--repeat", "2", "--quiet")
     assert r.returncode == 0, r.stderr
     data = json.loads((out / "report.json").read_text())
-    assert data["cluster"] == f"dask scheduler {addr}"
-    (sc,) = data["scenes"]
-    d = out / "runs" / sc["slug"]
-    png = lambda s, f: read_png(d / s / "frames" / f"frame_{f:05d}.png")  # noqa: E731
-    for st in sc["settings"]:
-        assert [m["frame"] for m in st["samples"]] == [0, 2]
-        for m in st["samples"]:
-            f = m["frame"]
-            want = frame_metrics(png(st["slug"], f), png("s0", f), png(st["slug"], f + 1), png("s0", f + 1))
-            assert np.array_equal(want.pop("error_png"), read_png(out / m["error"]))
-            want["psnr"] = None if math.isinf(want["psnr"]) else want["psnr"]
-            assert {k: m[k] for k in want} == want
+    sched = data["schedule"]
+    timed = sorted((x["start"], x["end"]) for x in sched if x["kind"] == "timed")
+    refs = [x for x in sched if x["kind"] == "reference"]
+    assert len(timed) == 4 and len(refs) == 1 and refs[0]["label"] == "96x72"
+    assert all(a[1] <= b[0] for a, b in zip(timed, timed[1:]))
+    assert refs[0]["start"] >= timed[-1][1]
+    assert all(len(s["repeat_medians_ms"]) == 2 for s in data["scenes"][0]["settings"])
+    assert (out / "runs" / "tiny" / "reference_96x72" / "frames" / "frame_00000.png").is_file()
+    assert sorted(p.name for p in (out / "runs" / "tiny").iterdir()) == ["reference_96x72", "s0", "s0_r1", "s1",
+                                                                          "s1_r1"]
+
+
+def test_metrics_pool_map_on_the_cluster_equals_this_process(dask_cluster):
+    from crowd.report import ClusterPool, frame_metrics
+
+    rng = np.random.default_rng(9)
+    args = [tuple(rng.integers(0, 256, (20, 24, 3), dtype=np.uint8) for _ in range(4)),
+            (_img(1, (20, 24, 3)), _img(2, (20, 24, 3)), None, None)]
+    with ClusterPool(dask_cluster) as pool:
+        assert pool.distributed and pool.hosts() == {"127.0.0.1": sorted(pool.hosts()["127.0.0.1"])}
+        remote = pool.map(frame_metrics, args)
+    for a, rm in zip(args, remote):
+        lm = frame_metrics(*a)
+        assert np.array_equal(lm.pop("error_png"), rm.pop("error_png")) and lm == rm
+
+
+def test_cluster_argument_errors(write_scene, tmp_path):
+    from crowd.report import ClusterPool
+
+    with ClusterPool("none") as pool:
+        assert not pool.distributed and pool.description == "this process" and pool.submit(max, 1, 2).result() == 2
+    with pytest.raises(CrowdError, match="expected 'local'"):
+        ClusterPool("somewhere")
+    from crowd.report import shutdown_dask
+
+    class Slow:  # a cluster whose workers take longer to exit than distributed waits
+        closed = 0
+
+        def close(self):
+            Slow.closed += 1
+            raise TimeoutError
+
+    shutdown_dask(Slow(), Slow())  # the work is complete: a slow shutdown is no error
+    assert Slow.closed == 2
+    scene = write_scene(REPORT_SCENE)
+    r = run_cli("report", scene, "--out", tmp_path / "o", "--cluster", "localhost:8786")
+    assert r.returncode == 2 and "tcp://HOST:PORT" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_sweep_of_a_key_every_mode_takes(write_scene):
+    """``lod.keyframe_every`` (lod.keyframed_selection: a key of every mode) is swept across modes and kept when
+    lod.mode is swept; a NoLOD setting with keyframing is not its own reference."""
+    ks = pytest.importorskip("lod.keyframed_selection", reason="keyframed selection is not in this tree")
+    from crowd.report import _is_reference, _reference_scene
+
+    assert "keyframe_every" in ks.LOD_COMMON_PARAMS
+    p = write_scene(REPORT_SCENE)
+    sets = expand_settings(p, [parse_sweep("lod.mode=none,clusters"), parse_sweep("lod.keyframe_every=1,4")])
+    assert [s.label for s in sets] == ["lod.mode=none, lod.keyframe_every=1", "lod.mode=none, lod.keyframe_every=4",
+                                       "lod.mode=clusters, lod.keyframe_every=1",
+                                       "lod.mode=clusters, lod.keyframe_every=4"]
+    assert [dict(s.scene.lod_common)["keyframe_every"] for s in sets] == [1, 4, 1, 4]
+    assert [_is_reference(s.scene) for s in sets] == [True, False, False, False]
+    assert all(_is_reference(_reference_scene(s.scene)) for s in sets)
+
+
+def test_a_run_that_fails_on_bad_input_is_one_sentence_exit_2(write_scene, tmp_path):
+    """An error only the run finds (an unknown clip, found when the engine builds the placement) comes back from
+    the task as one sentence: exit code 2, nothing written."""
+    from crowd.report import _checked, run_task
+
+    scene = write_scene(REPORT_SCENE.replace('character = "walker"', 'character = "walker"\nclip = "nope"'))
+    out = tmp_path / "rep"
+    r = run_cli("report", scene, "--out", out, "--cluster", "none")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "clip" in lines[0] and "'nope'" in lines[0], r.stderr
+    assert "Traceback" not in r.stderr and not out.exists() and not list(tmp_path.glob(".rep*"))
+    err = {"error": "x.toml: frame 3: NaN in positions", "exit_code": 3}
+    with pytest.raises(CrowdError, match="NaN") as e:
+        _checked(err)
+    assert e.value.exit_code == 3
+    assert run_task.__doc__ and _checked({"a": 1}) == {"a": 1}

@@ -68,15 +68,16 @@ def test_compare_cli_flags_an_artificially_slower_run(write_scene, tmp_path, mon
     scene = write_scene(SCENE)
     base, slow, fast = tmp_path / "base", tmp_path / "slow", tmp_path / "fast"
     monkeypatch.delenv(SLEEP_ENV, raising=False)
-    r = run_cli("report", scene, "--out", base, "--repeat", "3", "--quiet")
+    r = run_cli("report", scene, "--out", base, "--repeat", "3", "--quiet")  # the default: an embedded LocalCluster
     assert r.returncode == 0, r.stderr
     b = json.loads((base / "report.json").read_text())
+    assert b["cluster"].startswith("embedded dask LocalCluster tcp://127.0.0.1:")
     (st,) = b["scenes"][0]["settings"]
     assert len(st["repeat_medians_ms"]) == 3 and all(m > 0 for m in st["repeat_medians_ms"])
     assert "compare" not in b
 
     monkeypatch.setenv(SLEEP_ENV, "60")  # 60 ms inside every timed frame
-    r = run_cli("report", scene, "--out", slow, "--compare", base, "--quiet")
+    r = run_cli("report", scene, "--out", slow, "--compare", base, "--cluster", "none", "--quiet")
     assert r.returncode == 1, r.stderr
     assert "REGRESSION tiny [scene]" in r.stdout and "1 regression(s)" in r.stdout
     s = json.loads((slow / "report.json").read_text())
@@ -87,7 +88,7 @@ def test_compare_cli_flags_an_artificially_slower_run(write_scene, tmp_path, mon
     assert "Comparison with baseline" in page and "<tr class='regressed'>" in page
 
     monkeypatch.delenv(SLEEP_ENV)  # the slow run as baseline: the normal run is no regression
-    r = run_cli("report", scene, "--out", fast, "--compare", slow, "--repeat", "2", "--quiet")
+    r = run_cli("report", scene, "--out", fast, "--compare", slow, "--repeat", "2", "--cluster", "none", "--quiet")
     assert r.returncode == 0, r.stdout + r.stderr
     f = json.loads((fast / "report.json").read_text())
     (row,) = f["compare"]["rows"]
@@ -97,6 +98,7 @@ def test_compare_cli_flags_an_artificially_slower_run(write_scene, tmp_path, mon
 
 def test_compare_with_a_missing_baseline_is_exit_2(write_scene, tmp_path):
     scene = write_scene(SCENE)
-    r = run_cli("report", scene, "--out", tmp_path / "o", "--compare", tmp_path / "nope", "--quiet")
+    r = run_cli("report", scene, "--out", tmp_path / "o", "--compare", tmp_path / "nope", "--cluster", "none",
+                "--quiet")
     assert r.returncode == 2 and "report.json" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "o").exists()

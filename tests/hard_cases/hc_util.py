@@ -3,7 +3,7 @@ import numpy as np
 
 from lod.nolod import NoLodSelector, build_rep
 from lod.view import Camera
-from render.renderer import Renderer
+from render.renderer import INSTANCE_BYTES, Renderer
 from sim.state import CrowdState
 
 
@@ -43,3 +43,19 @@ def render_frames(ctx, characters, state, camera, times, size=(96, 64), step=Non
 
 def look(position, target, near=0.1, far=1000.0, fov=50.0):
     return Camera.look_at(position, target, fov_y=fov, near=near, far=far)
+
+
+def check_frame(r: Renderer, dl) -> None:
+    """The frame's DrawList, the used part of the instance buffer and the
+    vertex shader's outputs of every drawn triangle representation: finite."""
+    batches = [b for b in dl.batches if b.n_instances]
+    for b in batches:
+        assert np.isfinite(np.asarray(b.instance_data, np.float64)).all(), b.rep
+    used = sum(b.n_instances for b in batches if b.rep in r._reps) * INSTANCE_BYTES
+    if used:
+        gpu = np.frombuffer(r._instances.read(size=used), np.float32)
+        assert np.isfinite(gpu).all()
+    for b in batches[:4]:
+        if b.rep in r._reps and r._reps[b.rep].n_vertices:
+            pos, nrm = r.capture(b.rep, np.asarray(b.instance_data, np.float32)[:8])
+            assert np.isfinite(pos).all() and np.isfinite(nrm).all(), b.rep

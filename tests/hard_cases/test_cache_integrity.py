@@ -77,12 +77,6 @@ def test_truncated_cache_files_are_rejected(which, request, tmp_path):
         assert _check(p, data[:n], original, load) == "rejected", n
 
 
-POINTS_CORRUPT_XFAIL = pytest.mark.xfail(
-    strict=True, raises=NotImplementedError,
-    reason="lod.points_octree.load_hierarchy lets zipfile's NotImplementedError (a corrupted compression-method "
-           "field) through; fix: catch every exception while reading, as ClusterHierarchy.load does")
-
-
 @pytest.mark.parametrize("which", ["cluster_file", "points_file"])
 def test_corrupted_cache_files_are_rejected_or_identical(which, request, tmp_path):
     _, data, original, load = request.getfixturevalue(which)

@@ -35,6 +35,21 @@ def test_soak_short_run_reports_memory_and_errors(tmp_path):
     text = soak.format_report(r)
     assert "memory growth after warm-up" in text and "GL errors: 0" in text
     assert soak.resident_bytes() > 10_000_000
+    assert r["heap_start"] > 0 and r["heap_end"] > 0 and "C heap in use" in text
+    assert r["submissions_per_frame"] >= 1 and r["max_triangles_in_flight"] > 0
+    assert soak.heap_in_use() > 1_000_000
+
+
+def test_soak_split_off_and_tiny_limit(tmp_path):
+    """``max_triangles_in_flight``: 0 turns the renderer's split off; a limit
+    below one character's triangles gives one submission per instance."""
+    p = tmp_path / "soaky.toml"
+    p.write_text(SCENE)
+    off = soak.soak(str(p), seconds=0.5, warmup=0.1, quiet=True, max_triangles_in_flight=0)
+    assert off["max_triangles_in_flight"] is None and off["submissions_per_frame"] == 1.0
+    one = soak.soak(str(p), seconds=0.5, warmup=0.1, quiet=True, max_triangles_in_flight=1)
+    assert one["submissions_per_frame"] == 4.0 and one["gl_errors"] == 0  # 2 x 2 grid, one instance each
+    assert "no limit" in soak.format_report(off)
 
 
 def test_soak_cli_bad_scene_exit_2(tmp_path):

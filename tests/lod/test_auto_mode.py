@@ -1,6 +1,8 @@
-"""LOD mode "auto" (lod/auto_mode.py): cheapest level within the bound, equality with NoLOD at a
-zero bound, every visible instance drawn once, the budget controller's convergence without
-oscillation, telemetry, and a `crowd run` with the mode."""
+"""LOD mode "auto" (lod/auto_mode.py, lod/auto_candidates.py): cheapest representation within the
+bound among triangle levels, cluster cuts and point hierarchies, equality with NoLOD at a zero bound,
+every visible instance drawn once with all three candidates in play, the measured image error of each
+representation within the bound, the budget controller's convergence without oscillation, telemetry,
+and a `crowd run` with the mode."""
 import csv
 import os
 import subprocess
@@ -11,6 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from lod import auto_candidates as ac
 from lod import auto_mode as am
 from lod import cost_model, modes, nolod
 from lod import triangles_mode as tm
@@ -33,9 +36,36 @@ def char():
 
 @pytest.fixture(scope="module")
 def built(char):
-    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0}, cache=False, model=MODEL)
+    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
+                         progress=False)
     full, fsel = nolod.build([char], ["h"], [30], {})
-    return SimpleNamespace(rep=reps[0], reps=reps, sel=sel, full=full, fsel=fsel)
+    return SimpleNamespace(rep=reps[0], reps=reps, tri_reps=[reps[0]], sel=sel, full=full, fsel=fsel)
+
+
+class Free(ac.Candidate):
+    """A candidate whose options cost nothing: forces its representation wherever it is admissible."""
+
+    def __init__(self, inner):
+        super().__init__()
+        self.inner, self.name, self.reps = inner, inner.name, inner.reps
+
+    def options(self, frame, group):
+        o = self.inner.options(frame, group)
+        if o is not None:
+            o.cost = np.zeros_like(o.cost)
+        return o
+
+    def emit(self, *a):
+        return self.inner.emit(*a)
+
+    def finish(self, frame, dl):
+        self.inner.finish(frame, dl)
+
+
+def _forced(built, name, poe):
+    """An AutoSelector drawing every admissible instance with candidate ``name``."""
+    inner = next(c for c in built.sel.candidates if c.name == name)
+    return am.AutoSelector(built.tri_reps, poe=poe, model=MODEL, candidates=[Free(inner)])
 
 
 def _state(pos, heading, t):
@@ -59,6 +89,35 @@ def test_registered_with_params():
     assert modes.MODES["auto"] == "lod.auto_mode"
     p = modes.mode_params("auto")
     assert p["poe"].default == 1.0 and p["budget_ms"].default == 0.0 and "levels" in p
+    assert p["candidates"].default == "triangles,clusters,points"
+    assert am.parse_candidates("points, clusters") == ("triangles", "clusters", "points")
+    assert am.parse_candidates("triangles") == ("triangles",)
+    for bad in ("", "meshlets", "points,,x"):
+        with pytest.raises(ValueError, match="candidates"):
+            am.parse_candidates(bad)
+
+
+def test_candidates_and_reps(built):
+    assert [c.name for c in built.sel.candidates] == ["triangles", "clusters", "points"]
+    assert [r.key for r in built.reps] == ["triangles:h", "clusters:h", "points:h"]
+    assert [r.kind for r in built.reps] == ["skinned", "clusters", "points"]
+
+
+def test_splat_for_bound():
+    assert [ac.splat_for_bound(b) for b in (0.0, 0.99, 1.0, 2.5, 3.0, 7.0, float("inf"))] == [0, 0, 1, 2, 3, 3, 3]
+    assert ac.splat_for_bound(float("nan")) == 0 and ac.splat_for_bound(5.0, max_splat=2) == 2
+
+
+def test_sub_csr():
+    off = np.array([0, 2, 2, 5], np.int64)
+    cl = np.array([7, 8, 1, 2, 3], np.int32)
+    o, c = ac.sub_csr(off, cl, np.array([2, 0]))
+    np.testing.assert_array_equal(o, [0, 3, 5])
+    np.testing.assert_array_equal(c, [1, 2, 3, 7, 8])
+    o, c = ac.sub_csr(off, cl, np.array([1], np.int64))
+    np.testing.assert_array_equal(o, [0, 0]) and c.size == 0
+    o, c = ac.sub_csr(off, cl, np.zeros(0, np.int64))
+    np.testing.assert_array_equal(o, [0]) and c.size == 0
 
 
 def test_choose_cheapest_within_bound():
@@ -68,6 +127,19 @@ def test_choose_cheapest_within_bound():
     np.testing.assert_array_equal(am.choose(cost, err, 10.0), [3, 3, 0])
     np.testing.assert_array_equal(am.choose(cost, err, 0.0), [0, 0, 0])
     assert am.choose(cost, np.zeros((0, 4)), 1.0).shape == (0,)
+
+
+def test_projected_errors_kernel_matches_numpy_reference(built):
+    r = built.rep
+    rng = np.random.default_rng(1)
+    rel = np.column_stack([rng.uniform(-5, 5, 50), rng.uniform(-1, 0, 50), rng.uniform(-40, 0.5, 50)])
+    rel[:3] = 0.0  # camera inside the sphere
+    rows = nolod.model_rows(rel, rng.uniform(0, 6, 50), rng.uniform(0.5, 2.0, 50)).astype(np.float64).reshape(-1, 3, 4)
+    got = ac.projected_errors(r.level_error, rows, r.clip_sphere[0], 300.0)
+    want = ac.projected_errors_numpy(r.level_error, rows, r.clip_sphere[0], 300.0)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert np.isinf(got[:3, 1:]).all() and (got[:3, 0] == 0).all()
+    assert ac.projected_errors(r.level_error, np.zeros((0, 3, 4)), r.clip_sphere[0], 300.0).shape == (0, r.n_levels)
 
 
 def test_projected_errors_match_triangles_rule(built):
@@ -98,38 +170,124 @@ def test_zero_bound_draws_exactly_what_nolod_draws(built):
     a = dl.stats["auto"]
     assert a["levels"][0] == ids.size and sum(a["levels"]) == ids.size and a["bound"] == 0.0
     assert a["predicted_ms"] == pytest.approx(1e3 * MODEL.predict(dl)) and a["budget_ms"] == 0.0
+    # the limit bound -> 0 with all three candidates evaluated: full-detail triangles, or a cluster
+    # cut of leaves only (the exact mesh) where frustum culling of its clusters makes it cheaper
+    built.sel.poe = 1e-9
+    dl = built.sel.select(st, CAM, SIZE)
+    reps = dl.stats["auto"]["representations"]
+    assert reps["points"] == 0 and reps["triangles"] + reps["clusters"] == ids.size
+    np.testing.assert_array_equal(np.sort(_ids(dl)), np.sort(ids))
+    assert all(b.level == 0 for b in dl.batches) and dl.stats["triangles"] <= ref.stats["triangles"]
+    h = built.reps[1].hierarchy
+    leaves = np.flatnonzero(np.asarray(h.children)[:, 0] < 0)  # lod.cluster_dag: children -1 for leaves
+    assert leaves.size
+    for b in dl.batches:
+        if b.representation == "clusters":
+            assert np.isin(b.clusters, leaves).all()
+    built.sel.poe = 0.0
+
+
+def _ids(dl):
+    return np.concatenate([b.instance_ids for b in dl.batches if b.n_instances]) if dl.batches else np.zeros(0)
 
 
 def test_every_visible_instance_drawn_once(built):
     st = _crowd(120, 7)
     ref = built.fsel.select(st, CAM, SIZE)
-    ref_ids = np.sort(np.concatenate([b.instance_ids for b in ref.batches]))
+    ref_ids = np.sort(_ids(ref))
     prev = None
     for poe in (0.0, 0.5, 2.0, 10.0, 1e3):
         built.sel.poe = poe
         dl = built.sel.select(st, CAM, SIZE)
-        ids = np.concatenate([b.instance_ids for b in dl.batches])
+        ids = _ids(dl)
         np.testing.assert_array_equal(np.sort(ids), ref_ids)  # none twice, none dropped
-        assert sum(dl.stats["auto"]["levels"]) == ids.size == dl.stats["instances"]
+        a = dl.stats["auto"]
+        assert sum(a["representations"].values()) == ids.size == dl.stats["instances"]
+        assert sum(a["options"].values()) == ids.size and a["levels"][0] <= a["representations"]["triangles"]
         keys = [(b.rep, b.part, b.level) for b in dl.batches]
         assert len(set(keys)) == len(keys) and keys == sorted(keys)
         for b in dl.batches:
-            assert b.index_range == (3 * built.rep.level_first[b.level], 3 * built.rep.level_count[b.level])
-        p = dl.stats["auto"]["predicted_ms"]
+            if isinstance(b, tm.TriangleDrawBatch):
+                assert b.index_range == (3 * built.rep.level_first[b.level], 3 * built.rep.level_count[b.level])
+        p = a["predicted_ms"]
+        assert p == pytest.approx(1e3 * MODEL.predict(dl))
         assert prev is None or p <= prev + 1e-12  # a looser bound never costs more
         prev = p
-    assert dl.stats["auto"]["levels"][-1] > 0
     built.sel.poe = 0.0
 
 
-def test_keyframed_character_at_full_detail(char):
-    reps, sel = am.build([char, tiny_keyframed()], ["h", "flag"], [30, 30], {"poe": 5.0}, cache=False, model=MODEL)
+def test_all_three_candidates_in_play_draw_every_instance_once(built):
+    """A model where the point pass and cluster path are free and splats and clusters cost about as much as the
+    triangles they replace: at some bound instances get triangle levels, cluster cuts and points;
+    at every bound the union is exactly NoLOD's visible set, each instance in one batch, and the point
+    jobs and cuts belong to their own rows."""
+    model = cost_model.CostModel({"points": 1e-7, "clusters": 1e-6, "splat_pixels": 0.0, "splat_area": 0.0,
+                                  "cluster_frames": 0.0})
+    cands = [c for c in built.sel.candidates[1:]]
+    sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=cands)
+    st = _crowd(300, 21, half_width=60.0, depth=500.0)
+    st.clip = np.arange(st.n) % 2
+    ref_ids = np.sort(_ids(built.fsel.select(st, CAM, SIZE)))
+    all_three = False
+    for poe in (0.5, 1.0, 2.0, 3.0, 6.0, 50.0):
+        sel.poe = poe
+        dl = sel.select(st, CAM, SIZE)
+        ids = _ids(dl)
+        np.testing.assert_array_equal(np.sort(ids), ref_ids)
+        reps = dl.stats["auto"]["representations"]
+        all_three |= min(reps.values()) > 0
+        assert reps["points"] == 0 or poe >= 1.0
+        assert dl.options.get("splat_size") == (cands[1].splat_size(poe) if reps["points"] else None)
+        for b in dl.batches:
+            if b.representation == "points":
+                for jobs in (b.point_jobs, b.tri_jobs):
+                    assert jobs.size == 0 or (jobs[:, 0].min() >= 0 and jobs[:, 0].max() < b.n_instances)
+                assert np.all((b.instance_data[:, 12] >= 0) & (b.instance_data[:, 12] <= 1))
+            if b.representation == "clusters":
+                assert b.offsets.shape == (b.n_instances + 1,) and b.offsets[-1] == b.clusters.size
+        assert dl.stats["points"] == sum(b.points for b in dl.batches)
+        assert dl.stats["clusters"] == sum(b.clusters.size for b in dl.batches if b.representation == "clusters")
+    assert all_three
+
+
+def test_cluster_path_used_only_when_it_pays(built):
+    """The cluster drawer's per-frame cost (``cluster_frames``): priced at a second, no instance gets
+    a cluster cut; free, the same crowd uses them."""
+    st = _crowd(200, 4, depth=100.0)
+    cl = built.sel.candidates[1]
+    for cost, used in ((1.0, False), (0.0, True)):
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=cost_model.CostModel({"cluster_frames": cost,
+                                                                                   "clusters": 0.0}),
+                              candidates=[cl])
+        dl = sel.select(st, CAM, SIZE)
+        assert (dl.stats["auto"]["representations"]["clusters"] > 0) == used
+        assert sum(dl.stats["auto"]["representations"].values()) == dl.stats["instances"]
+
+
+def test_point_pass_used_only_when_it_pays(built):
+    """The point candidate adds a per-frame pass (lod.cost_model.pass_cost): with it priced at a
+    second no instance gets points; free, the same crowd uses them."""
+    st = _crowd(200, 4, depth=200.0)
+    pts = built.sel.candidates[2]
+    dear = cost_model.CostModel({"points": 0.0, "splat_pixels": 1.0})
+    cheap = cost_model.CostModel({"points": 0.0, "splat_pixels": 0.0, "splat_area": 0.0})
+    for model, used in ((dear, False), (cheap, True)):
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=[pts])
+        dl = sel.select(st, CAM, SIZE)
+        assert (dl.stats["auto"]["representations"]["points"] > 0) == used
+        assert ("splat_size" in dl.options) == used
+
+
+def test_keyframed_character_at_full_detail_or_points(char):
+    reps, sel = am.build([char, tiny_keyframed()], ["h", "flag"], [30, 30], {"poe": 5.0, "keyframes": 3},
+                         cache=False, model=MODEL, progress=False)
     st = _crowd(40, 1)
     st.character = np.arange(40) % 2
     dl = sel.select(st, CAM, SIZE)
-    kf = [b for b in dl.batches if b.rep == "triangles:flag"]
-    assert kf and all(b.level == 0 for b in kf)
-    assert sum(dl.stats["auto"]["levels"]) == dl.stats["instances"]
+    kf = [b for b in dl.batches if b.rep.endswith(":flag")]
+    assert kf and all(b.level == 0 and b.rep in ("triangles:flag", "points:flag") for b in kf)
+    assert sum(dl.stats["auto"]["representations"].values()) == dl.stats["instances"]
+    assert not any(r.key == "clusters:flag" for r in reps)  # no cluster hierarchy without a skin
 
 
 def test_bad_params():
@@ -158,12 +316,13 @@ def test_budget_converges_without_oscillation(built):
     measured cost = predicted cost, the bound settles within 50 frames and then never changes."""
     st = _crowd(150, 11, depth=60.0)
     full_ms = 1e3 * MODEL.predict(built.fsel.select(st, CAM, SIZE))
-    coarse = am.AutoSelector(built.reps, poe=1e3, model=MODEL)
+    coarse = am.AutoSelector(built.tri_reps, poe=1e3, model=MODEL, candidates=built.sel.candidates[1:])
     floor_ms = coarse.select(st, CAM, SIZE).stats["auto"]["predicted_ms"]
     assert full_ms > 3 * floor_ms
     for factor in np.linspace(0.02, 0.98, 12):
         budget = floor_ms + factor * (full_ms - floor_ms)
-        sel = am.AutoSelector(built.reps, poe=1.0, budget_ms=budget, model=MODEL)
+        sel = am.AutoSelector(built.tri_reps, poe=1.0, budget_ms=budget, model=MODEL,
+                              candidates=built.sel.candidates[1:])
         bounds, costs = _run_budget(sel, st)
         tail = bounds[-15:]
         assert np.all(tail == tail[0]), (factor, bounds)  # settled: no change over the last 15 frames
@@ -174,16 +333,38 @@ def test_budget_converges_without_oscillation(built):
 def test_budget_with_measured_cost_and_extremes(built):
     st = _crowd(150, 11, depth=60.0)
     # measured = predicted, reported through observe(): same convergence
-    sel = am.AutoSelector(built.reps, poe=1.0, budget_ms=3.0, model=MODEL)
+    sel = am.AutoSelector(built.tri_reps, poe=1.0, budget_ms=3.0, model=MODEL, candidates=built.sel.candidates[1:])
     bounds, _ = _run_budget(sel, st, measured=MODEL.predict)
     assert np.all(bounds[-15:] == bounds[-1])
     # a huge budget refines to the smallest bound and stays; an impossible one coarsens to the largest
-    sel = am.AutoSelector(built.reps, poe=4.0, budget_ms=1e4, model=MODEL)
+    sel = am.AutoSelector(built.tri_reps, poe=4.0, budget_ms=1e4, model=MODEL)
     bounds, _ = _run_budget(sel, st, frames=60)
     assert bounds[-1] == am.BOUND_MIN and np.all(bounds[-5:] == bounds[-1])
-    sel = am.AutoSelector(built.reps, poe=4.0, budget_ms=1e-3, model=MODEL)
+    sel = am.AutoSelector(built.tri_reps, poe=4.0, budget_ms=1e-3, model=MODEL)
     bounds, _ = _run_budget(sel, st, frames=60)
     assert bounds[-1] == am.BOUND_MAX and np.all(bounds[-5:] == bounds[-1])
+
+
+def test_observe_refits_the_cost_model_when_adapting(built):
+    """With ``adapt`` every observed frame rescales the model (lod.cost_model.refine) so that the
+    prediction of a static view follows the measured time and the choice does not change; without
+    it the model never changes."""
+    st = _crowd(100, 2)
+    for adapt in (False, True):
+        sel = am.AutoSelector(built.tri_reps, poe=1.0, model=MODEL, candidates=built.sel.candidates[1:],
+                              adapt=adapt)
+        dl0 = sel.select(st, CAM, SIZE)
+        first = dl0.stats["auto"]["predicted_ms"]
+        for _ in range(6):
+            sel.observe(3e-3 * first)  # the machine is 3x slower than the model says
+            dl = sel.select(st, CAM, SIZE)
+            p = dl.stats["auto"]["predicted_ms"]
+        assert dl.stats["auto"]["options"] == dl0.stats["auto"]["options"]
+        if adapt:
+            assert sel.model is not MODEL and p == pytest.approx(3 * first) and sel.prior is MODEL
+        else:
+            assert sel.model is MODEL and p == pytest.approx(first)
+    assert am.PARAMS["adapt"].default is True
 
 
 def test_controller_holds_when_cost_jumps_across_the_band():
@@ -261,7 +442,7 @@ def gl(built):
     rs = {}
     for ss in (1, 4):
         r = Renderer((SIZE[0] * ss, SIZE[1] * ss), ctx=ctx)
-        for rep in [built.rep, *built.full]:
+        for rep in [*built.reps, *built.full]:
             r.upload(rep)
         rs[ss] = r
     yield rs
@@ -292,29 +473,77 @@ def test_zero_bound_is_pixel_identical_to_nolod(built, gl):
     built.sel.poe = 0.0
 
 
-@pytest.mark.parametrize("poe", [1.0, 3.0])
-def test_silhouette_error_within_bound(built, gl, poe):
+@pytest.mark.parametrize("name,poe", [("triangles", 1.0), ("triangles", 3.0), ("clusters", 1.0),
+                                      ("clusters", 3.0), ("auto", 2.0)])
+def test_silhouette_error_within_bound(built, gl, name, poe):
     """One instance at distances where the bound picks coarse levels: rendered at 4x the selection
-    resolution, the chosen level's silhouette stays within ``poe`` (+1 pixel of rasterisation) of
-    full detail's (the measure of tests/lod/test_triangles_mode.py)."""
-    
+    resolution, the chosen representation's silhouette stays within ``poe`` (+1 pixel of
+    rasterisation) of full detail's (the measure of tests/lod/test_triangles_mode.py). ``name``
+    forces a candidate (its options made free) or lets auto choose."""
     r = gl[4]
-    sel = built.sel
+    sel = built.sel if name == "auto" else _forced(built, name, poe)
+    if name == "triangles":
+        sel = am.AutoSelector(built.tri_reps, poe=poe, model=MODEL)
     seen = set()
     for z, t, heading in ((-4.0, 0.3, 0.4), (-10.0, 0.9, 1.2), (-25.0, 0.1, 2.0), (-60.0, 0.6, 0.0)):
         st = _state([[0.0, 0.0, z]], [heading], [t])
         cam = Camera.look_at((0, 1.0, 3.0), (0, 0.9, z))
-        sel.poe = 0.0
-        full = _mask(_draw(r, sel.select(st, cam, SIZE)))
+        full = _mask(_draw(r, built.fsel.select(st, cam, SIZE)))
         sel.poe = poe
         dl = sel.select(st, cam, SIZE)
         (b,) = dl.batches
-        seen.add(b.level)
-        a = _mask(_draw(r, dl))
-        err = silhouette_error(full, a) / 4.0
-        assert err <= poe + 1.0, (z, b.level, err)
-    sel.poe = 0.0
-    assert max(seen) > 0
+        rep_name = b.representation if b.representation != "triangles" else f"L{b.level}"
+        seen.add(rep_name)
+        if b.representation == "points":  # splats are sized for the selection resolution: compare there
+            err = silhouette_error(_mask(_draw(gl[1], built.fsel.select(st, cam, SIZE))), _mask(_draw(gl[1], dl)))
+        else:
+            err = silhouette_error(full, _mask(_draw(r, dl))) / 4.0
+        assert err <= poe + 1.0, (z, rep_name, err)
+    built.sel.poe = 0.0
+    if name == "triangles":
+        assert seen - {"L0"}
+    elif name == "clusters":
+        assert "clusters" in seen
+
+
+def test_keyframe_deviation(char):
+    """The point candidate's keyframe interpolation error: > 0 for a skinned walker, shrinking with
+    more keyframes, 0 for a keyframed character; projected, it is added to the splat size."""
+    d3, d9 = ac.keyframe_deviation(char, 3), ac.keyframe_deviation(char, 9)
+    assert 0.0 < d9 < d3 < 2.0
+    assert ac.keyframe_deviation(tiny_keyframed(), 3) == 0.0
+    pts = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3}, progress=False)[1].candidates
+               if c.name == "points")
+    assert pts.deviation[0] == pytest.approx(d3)
+    assert [pts.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0, 6.0, 9.0)] == [0, 1, 1, 2, 3, 3]
+    loose = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3, "points_error": "splat"},
+                                     progress=False)[1].candidates if c.name == "points")
+    assert loose.deviation == [0.0] and [loose.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0)] == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("bound", [8.0, 12.0])
+def test_points_image_error_within_bound(built, gl, bound):
+    """Forced point hierarchies at ``bound`` pixels (the splat size takes half, at most 3 px, the
+    projected keyframe deviation of the coarse 3-keyframe bake, 0.7 m, the rest): selected and
+    drawn at 1280x960, the silhouette stays within the bound (+1 pixel) of full detail's; the near
+    instance, whose interpolated pose would show, is not given points, far ones are."""
+    r = gl[4]
+    size = r.size
+    sel = _forced(built, "points", bound)
+    kinds = []
+    for z, t, heading in ((-6.0, 0.3, 0.4), (-110.0, 0.9, 1.2), (-160.0, 0.1, 2.0)):
+        st = _state([[0.0, 0.0, z]], [heading], [t])
+        cam = Camera.look_at((0, 1.0, 3.0), (0, 0.9, z))
+        full = _mask(_draw(r, built.fsel.select(st, cam, size)))
+        dl = sel.select(st, cam, size)
+        (b,) = dl.batches
+        kinds.append(b.representation)
+        if b.representation == "points":
+            assert dl.options["splat_size"] == sel.candidates[1].inner.splat_size(bound)
+        assert full.sum() > 10
+        err = silhouette_error(full, _mask(_draw(r, dl)))
+        assert err <= bound + 1.0, (z, b.representation, err)
+    assert kinds[0] == "triangles" and "points" in kinds, kinds
 
 
 def test_controller_ignores_a_single_noisy_frame():

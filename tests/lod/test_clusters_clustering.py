@@ -103,3 +103,79 @@ def test_clustering_degenerate_inputs():
     assert np.bincount(clustering.error_aware_clusters(P, tris, np.zeros(3), s=100)).max() <= 100
     with pytest.raises(ValueError, match="s"):
         clustering.octree_clusters(P, tris, s=0)
+
+
+def test_split_disconnected_gives_connected_clusters():
+    # two separate triangles and a connected pair share label 0
+    tris = np.array([[0, 1, 2], [3, 4, 5], [3, 5, 6], [7, 8, 9]])
+    ptr, nbr = clustering.triangle_adjacency(tris, 10)
+    lab = clustering.split_disconnected(np.zeros(4, np.int64), ptr, nbr)
+    assert lab.tolist() == [0, 1, 1, 2]
+    assert clustering.split_disconnected(np.zeros(0, np.int64), *clustering.triangle_adjacency(
+        np.zeros((0, 3), int), 0)).size == 0
+
+
+def test_error_aware_leaves_are_connected(human):
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    c, lv = human
+    tri = np.asarray(c.mesh.indices, np.int64).reshape(-1, 3)
+    lab = clustering.error_aware_clusters(c.mesh.positions, tri, lv, s=100)
+    ptr, nbr = clustering.triangle_adjacency(tri, c.mesh.n_vertices)
+    src = np.repeat(np.arange(len(tri)), np.diff(ptr))
+    k = lab[src] == lab[nbr]
+    n, _ = connected_components(coo_matrix((np.ones(k.sum()), (src[k], nbr[k])), shape=(len(tri),) * 2),
+                                directed=False)
+    assert n == lab.max() + 1
+    assert np.bincount(lab).max() <= 100
+
+
+def test_compact_partition_kernel_matches_reference_and_bounds_size(human):
+    c, lv = human
+    tri = np.asarray(c.mesh.indices, np.int64).reshape(-1, 3)
+    ptr, nbr = clustering.triangle_adjacency(tri, c.mesh.n_vertices)
+    group = (clustering.triangle_levels(tri, lv) > np.median(lv)).astype(np.int64)  # two groups
+    order = np.arange(len(tri))
+    a = clustering.compact_partition(group, ptr, nbr, order, 50)
+    b = clustering.compact_partition(group, ptr, nbr, order, 50, use_numba=False)
+    assert np.array_equal(a, b)
+    assert a.min() == 0 and np.bincount(a).max() <= 50
+    for k in range(a.max() + 1):  # patches never cross groups
+        assert np.unique(group[a == k]).size == 1
+    # patches are connected
+    assert np.array_equal(clustering.split_disconnected(a, ptr, nbr), a)
+
+
+def test_compact_leaves_have_shorter_borders_than_median_splits(human):
+    c, lv = human
+    tri = np.asarray(c.mesh.indices, np.int64).reshape(-1, 3)
+
+    def border(lab):
+        inc = np.zeros((c.mesh.n_vertices, lab.max() + 1), bool)
+        inc[tri.reshape(-1), np.repeat(lab, 3)] = True
+        k = inc.sum(1)
+        return int(k[k > 1].sum())
+
+    grow = clustering.error_aware_clusters(c.mesh.positions, tri, lv, s=100)
+    med = clustering.error_aware_clusters(c.mesh.positions, tri, lv, s=100, partition="median")
+    assert np.bincount(med).max() <= 100 and np.bincount(grow).max() <= 100
+    assert border(grow) < border(med)
+    with pytest.raises(ValueError, match="partition"):
+        clustering.error_aware_clusters(c.mesh.positions, tri, lv, partition="kmeans")
+
+
+def test_unwelded_mesh_clusters_like_the_welded_one(human):
+    """A mesh split at every vertex (glTF flat shading) has no shared edges; clustering welds by position
+    for adjacency, so it still forms the same multi-triangle clusters instead of one per triangle."""
+    c, lv = human
+    tri = np.asarray(c.mesh.indices, np.int64).reshape(-1, 3)
+    P = np.asarray(c.mesh.positions)
+    split_P = P[tri.reshape(-1)]
+    split_t = np.arange(3 * len(tri)).reshape(-1, 3)
+    w = clustering.welded_indices(split_P, split_t)
+    assert np.array_equal(split_P[w], split_P[split_t])  # same geometry
+    assert np.unique(w).size == np.unique(tri).size
+    a = clustering.error_aware_clusters(P, tri, lv, s=100)
+    b = clustering.error_aware_clusters(split_P, split_t, lv[tri.reshape(-1)], s=100)
+    assert np.array_equal(a, b)
+    assert clustering.welded_indices(np.zeros((0, 3)), np.zeros((0, 3), int)).shape == (0, 3)

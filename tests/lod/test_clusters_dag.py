@@ -249,3 +249,50 @@ def test_empty_mesh_and_character_without_clips():
     assert h.representatives.tolist() == [0] and h.roots.size == 1
     off, cl = cluster_cut.cut(h, np.eye(4)[None], [0, 1, 20], 500.0, 0.0)
     assert sorted(cl.tolist()) == list(range(h.n_leaves))
+
+
+def test_geomorph_targets(human):
+    """Every vertex an internal cluster removed came from its children's geometry, is gone from the
+    cluster and collapsed onto a vertex the cluster still draws; leaves carry none; they survive save/load."""
+    _, h = human
+    assert h.morph_ptr.shape == (h.n_clusters + 1,) and h.morph_ptr[-1] == h.morph_vertex.size
+    n_morph = 0
+    for i in range(h.n_clusters):
+        v = h.morph_vertex[h.morph_ptr[i]:h.morph_ptr[i + 1]]
+        t = h.morph_target[h.morph_ptr[i]:h.morph_ptr[i + 1]]
+        if h.children[i, 0] < 0:
+            assert v.size == 0
+            continue
+        kids = np.unique(np.concatenate([h.cluster_triangles(int(c)).reshape(-1) for c in h.children[i]]))
+        own = np.unique(h.cluster_triangles(i))
+        assert np.isin(v, kids).all() and not np.isin(v, own).any()
+        assert np.isin(t, own).all()
+        n_morph += v.size
+    assert n_morph > 0
+
+
+def test_geomorph_targets_saved(human, tmp_path):
+    _, h = human
+    h.save(tmp_path / "h.npz")
+    g = cluster_dag.ClusterHierarchy.load(tmp_path / "h.npz")
+    assert np.array_equal(g.morph_ptr, h.morph_ptr) and np.array_equal(g.morph_target, h.morph_target)
+
+
+def test_errors_are_measured_against_the_original_surface(human):
+    """Each internal cluster's error bounds the distance of the original vertices of its region to its
+    simplified triangles (forward Hausdorff, exact) in the quadric poses, and the errors are not
+    compounded: they stay within a small factor of that distance for most clusters."""
+    from lod import qem
+    c, h = human
+    from lod import poses as lp
+    mats, _, _ = lp.representative_poses(c, ["walk"], 16, h.params["d_fraction"])
+    X = cluster_dag.skin_poses(c.mesh, mats[h.representatives])
+    L = h.n_leaves
+    ratios = []
+    for i in range(L, h.n_clusters, 7):
+        orig = h.cut_triangles(np.arange(h.leaf_lo[i], h.leaf_hi[i]))
+        d = float(qem.vertex_surface_distance(X, orig, h.cluster_triangles(i)).max())
+        assert h.error[i] >= d - 1e-5, (i, h.error[i], d)
+        if d > 1e-4:
+            ratios.append(h.error[i] / d)
+    assert np.median(ratios) < 1.5

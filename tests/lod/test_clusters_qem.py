@@ -152,3 +152,36 @@ def test_collapse_kernel_matches_python_reference():
         assert np.array_equal(remap_a, remap_b)
         assert err_a == pytest.approx(err_b, rel=1e-9)
         np.testing.assert_allclose(Qa, Qb, rtol=1e-9, atol=1e-12)
+
+
+def _bumpy_sphere_case(n=5):
+    P, t = sphere_mesh(n)
+    X = np.stack([P, P * [1.0, 1.3, 0.9]])  # two "poses"
+    simp, remap, _ = qem.simplify(X, t, len(t) // 3)
+    return X, t, simp, remap
+
+
+def test_cluster_hausdorff_matches_numpy_reference():
+    X, t, simp, remap = _bumpy_sphere_case()
+    rv = np.unique(t)
+    mask = np.ones(len(t), bool)
+    f, b = qem.cluster_hausdorff(X, simp, rv, remap, t, mask)
+    fr, br = qem.cluster_hausdorff_numpy(X, simp, rv, t, mask)
+    assert f == pytest.approx(fr, rel=1e-9, abs=1e-12)
+    assert fr > 1e-3  # really simplified
+    assert b >= br - 1e-12 and b <= 2.0 * br + 1e-9  # conservative, not loose
+    # unsimplified: zero both ways
+    f0, b0 = qem.cluster_hausdorff(X, t, rv, np.arange(X.shape[1]), t, mask)
+    assert f0 == 0.0 and b0 == pytest.approx(0.0, abs=1e-12)
+
+
+def test_cluster_hausdorff_degenerate_inputs():
+    X, t, simp, remap = _bumpy_sphere_case()
+    rv = np.unique(t)
+    mask = np.ones(len(t), bool)
+    assert qem.cluster_hausdorff(X, np.zeros((0, 3), int), rv, remap, t, mask)[0] == np.inf
+    assert qem.cluster_hausdorff(X, simp, np.zeros(0, int), remap, t, mask)[0] == 0.0
+    with pytest.raises(ValueError, match="region_mask"):
+        qem.cluster_hausdorff(X, simp, rv, remap, t, mask[:-1])
+    with pytest.raises(ValueError, match="simplified"):
+        qem.cluster_hausdorff(X, simp + 10 ** 6, rv, remap, t, mask)

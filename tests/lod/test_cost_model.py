@@ -1,6 +1,5 @@
 """lod/cost_model.py: NNLS fit, prediction from draw lists, per-machine storage, defaults."""
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -8,13 +7,17 @@ import pytest
 from lod import cost_model as cm
 from lod.drawlist import DrawBatch, DrawList
 
-TRUE = {"frame": 2e-3, "triangles": 1.3e-7, "points": 4e-8, "batches": 6e-5, "instances": 2e-6, "clusters": 3e-7}
+TRUE = {"frame": 2e-3, "triangles": 1.3e-7, "points": 4e-8, "batches": 6e-5, "instances": 2e-6, "clusters": 3e-7,
+        "splat_pixels": 2e-8, "splat_area": 3e-9, "point_instances": 5e-6, "cluster_frames": 4e-3}
 
 
 def _samples(n=40, seed=0):
     rng = np.random.default_rng(seed)
+    px = rng.choice([0.0, 1280 * 720, 640 * 360], n)
     X = np.stack([rng.integers(0, 2_000_000, n), rng.integers(0, 5_000_000, n), rng.integers(1, 200, n),
-                  rng.integers(1, 5000, n), rng.integers(0, 20000, n)], axis=1).astype(float)
+                  rng.integers(1, 5000, n), rng.integers(0, 20000, n), px,
+                  px * rng.choice([1.0, 4.0, 9.0], n), rng.integers(0, 3000, n), rng.integers(0, 2, n)],
+                 axis=1).astype(float)
     y = cm.CostModel(TRUE).predict_counts(*X.T)
     return X, y
 
@@ -50,11 +53,13 @@ def test_fit_is_non_negative_and_unused_features_keep_defaults():
 
 def test_fit_rejects_degenerate_input():
     with pytest.raises(ValueError, match="non-empty"):
-        cm.fit(np.zeros((0, 5)), np.zeros(0))
+        cm.fit(np.zeros((0, 9)), np.zeros(0))
     with pytest.raises(ValueError, match="finite"):
-        cm.fit(np.ones((2, 5)), np.array([1.0, np.nan]))
+        cm.fit(np.ones((2, 9)), np.array([1.0, np.nan]))
     with pytest.raises(ValueError, match="finite"):
-        cm.fit(np.ones((2, 5)), np.array([1.0, 0.0]))
+        cm.fit(np.ones((2, 9)), np.array([1.0, 0.0]))
+    with pytest.raises(ValueError, match="non-empty"):
+        cm.relative_error(cm.CostModel(), np.ones((1, 9)), np.array([0.0]))
     with pytest.raises(ValueError, match="unknown coefficient"):
         cm.CostModel({"bogus": 1.0})
     with pytest.raises(ValueError, match=">= 0"):
@@ -64,10 +69,24 @@ def test_fit_rejects_degenerate_input():
 def test_features_and_predict_from_drawlist():
     m = cm.CostModel(TRUE)
     dl = _dl(tri=(1000, 500), inst=(3, 2), points=700, clusters=11)
-    np.testing.assert_array_equal(cm.features(dl), [1500, 700, 3, 6, 11])
+    dl.options["splat_size"] = 3
+    np.testing.assert_array_equal(cm.features(dl), [1500, 700, 3, 6, 11, 64 * 48, 64 * 48 * 9, 0, 0])
     want = TRUE["frame"] + 1500 * TRUE["triangles"] + 700 * TRUE["points"] + 3 * TRUE["batches"] + \
-        6 * TRUE["instances"] + 11 * TRUE["clusters"]
+        6 * TRUE["instances"] + 11 * TRUE["clusters"] + 64 * 48 * (TRUE["splat_pixels"] + 9 * TRUE["splat_area"])
     assert m.predict(dl) == pytest.approx(want, rel=1e-12)
+    assert cm.pass_cost(m, (64, 48), 3) == pytest.approx(64 * 48 * (TRUE["splat_pixels"] + 9 * TRUE["splat_area"]))
+    nopts = _dl(tri=(1000,), inst=(3,))
+    assert cm.features(nopts)[5:].tolist() == [0.0, 0.0, 0.0, 0.0]  # no points: no splat pass
+    pb = DrawBatch("points:a", 0, np.arange(4, dtype=np.int32), np.zeros((4, 16), np.float32), points=9)
+    pb.point_jobs = np.zeros((0, 3), np.int64)  # a PointsBatch: its instances are point instances
+    f = cm.features(DrawList(np.zeros(3), np.eye(4), np.eye(4), (8, 8), batches=[pb, *nopts.batches]))
+    assert f[7] == 4 and f[3] == 3 and f[8] == 0  # instances: the triangle paths' only
+    cb = DrawBatch("clusters:a", 0, np.arange(2, dtype=np.int32), np.zeros((2, 16), np.float32), triangles=5)
+    cb.offsets = np.array([0, 1, 2])
+    assert cm.features(DrawList(np.zeros(3), np.eye(4), np.eye(4), (8, 8), batches=[cb]))[8] == 1
+    X = np.stack([cm.features(dl), cm.features(nopts)])
+    y = np.array([m.predict(dl), 2 * m.predict(nopts)])
+    assert cm.relative_error(m, X, y) == pytest.approx(0.25)  # errors 0 and 0.5
     empty = DrawList(np.zeros(3), np.eye(4), np.eye(4), (64, 48))
     assert m.predict(empty) == pytest.approx(TRUE["frame"])
 
@@ -116,7 +135,9 @@ def test_unknown_machine_or_damaged_file_falls_back_to_defaults(tmp_path, monkey
 
 
 def test_crowd_calibrate_quick_stores_a_model(tmp_path):
-    """`crowd calibrate --quick` (crowd/calibrate.py) measures headless, fits and stores this machine's model."""
+    """`crowd calibrate --quick` (crowd/calibrate.py) measures headless full-detail, cluster and point
+    draw lists (12 + 4 + 4 + 3 frames), fits and stores this machine's model, with its error on held-out
+    mixed lists of mode auto."""
     import os
     import subprocess
     import sys
@@ -128,12 +149,32 @@ def test_crowd_calibrate_quick_stores_a_model(tmp_path):
     p = subprocess.run([sys.executable, "-m", "crowd", "calibrate", "--quick", "--size", "320x240"],
                        capture_output=True, text=True, cwd=repo, env=env, timeout=300)
     assert p.returncode == 0, p.stderr
-    assert "fit median relative error" in p.stdout and "per triangle" in p.stdout
+    assert "fit median relative error" in p.stdout and "per triangle" in p.stdout and "held out" in p.stdout
     m = cm.load_any(tmp_path)
-    assert not m.is_default and m.samples == 12 and "llvmpipe" in m.key.lower()
+    assert not m.is_default and m.samples == 23 and "llvmpipe" in m.key.lower()
     assert np.isfinite(m.vector).all() and (m.vector >= 0).all() and m.median_rel_error is not None
-    assert m.coefficients["points"] == cm.DEFAULTS["points"]  # not measured: default kept
+    assert m.validation_rel_error is not None and np.isfinite(m.validation_rel_error)
     assert m.coefficients["triangles"] > 0 or m.coefficients["instances"] > 0
     q = subprocess.run([sys.executable, "-m", "crowd", "calibrate", "--quick", "--size", "0x0"],
                        capture_output=True, text=True, cwd=repo, env=env, timeout=60)
     assert q.returncode == 2 and "--size" in q.stderr
+
+
+def test_refine_rescales_the_prior_to_observed_frames():
+    """lod.cost_model.refine: a calibration 3x too optimistic, rescaled with frames of the true model,
+    predicts them exactly and keeps the relative costs; one wild frame among several does not move
+    it (median); no usable frame returns the prior; non-finite rows are ignored."""
+    true = cm.CostModel(TRUE)
+    prior = cm.CostModel({k: v / 3 for k, v in TRUE.items()}, key="k")
+    X, y = _samples(12, seed=5)
+    m = cm.refine(prior, X, y)
+    assert m.key == "k" and m.samples == 12 and m.median_rel_error < 1e-9
+    for k in cm.COEFFICIENTS:
+        assert m.coefficients[k] == pytest.approx(true.coefficients[k], rel=1e-9)
+    y2 = y.copy()
+    y2[0] *= 50.0
+    assert cm.relative_error(cm.refine(prior, X, y2), X, y) < 0.05
+    assert cm.refine(prior, np.zeros((0, len(cm.FEATURES))), np.zeros(0)) is prior
+    bad = np.vstack([X[:2], np.full((1, len(cm.FEATURES)), np.nan)])
+    m2 = cm.refine(prior, bad, np.array([y[0], y[1], 1.0]))
+    assert m2.samples == 2 and np.isfinite(m2.vector).all() and (m2.vector >= 0).all()

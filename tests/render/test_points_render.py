@@ -239,3 +239,77 @@ def test_sample_packing_and_job_tables():
     np.testing.assert_array_equal(jobs, [[105, 3, 0, 0], [107, 2, 1, 3], [1, 4, 2, 5]])
     np.testing.assert_array_equal(expand_jobs(jobs), [[105, 0], [106, 0], [107, 0], [107, 1], [108, 1],
                                                       [1, 2], [2, 2], [3, 2], [4, 2]])
+
+
+# ---------------------------------------------------------------------------- hierarchical instantiation (§3.6)
+def _walker():
+    """Looping 3-keyframe walker (an ellipsoid 1.8 m tall that sways; as in
+    tests/lod/test_points_instancing.py)."""
+    from sim.keyframes import Keyframe as K
+
+    n_lat, n_lon = 12, 16
+    th = np.linspace(0, np.pi, n_lat + 1)
+    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    nrm = np.stack([np.sin(T) * np.cos(P), np.cos(T), np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
+    idx = np.array([t for i in range(n_lat) for j in range(n_lon)
+                    for t in ([(i * n_lon + j, i * n_lon + (j + 1) % n_lon, (i + 1) * n_lon + (j + 1) % n_lon)]
+                              if i > 0 else []) + ([(i * n_lon + j, (i + 1) * n_lon + (j + 1) % n_lon,
+                                                      (i + 1) * n_lon + j)] if i < n_lat - 1 else [])], np.uint32)
+    base = nrm * [0.3, 0.9, 0.3] + [0, 0.9, 0]
+    keys = []
+    for sway, col in ((0.0, (0.8, 0.3, 0.2)), (0.35, (0.2, 0.6, 0.3)), (-0.35, (0.2, 0.3, 0.8))):
+        p = base.copy()
+        p[:, 0] += sway * (p[:, 1] / 1.8) ** 2
+        keys.append(K(p.astype(np.float32), nrm.astype(np.float32),
+                      np.tile([*col, 1.0], (len(p), 1)).astype(np.float32), idx))
+    ident = np.arange(len(base), dtype=np.int32)
+    anim = KeyframeAnimation("walk", np.array([0.0, 0.4, 0.8]), keys, [Segment(ident, ident, idx.copy())] * 3,
+                             duration=1.2, loop=True)
+    return KeyframedCharacter("walker", {"walk": anim})
+
+
+def test_hierarchical_instantiation_renders_a_block_within_the_flat_instances_error(gl_ctx, tmp_path):
+    """A 10 x 10 block drawn from its super-hierarchy (§3.6) against the same
+    block drawn instance by instance (points) and as triangles."""
+    from image_checks import silhouette_error
+    from sim.instancing import Hierarchy, Instancing, parse_levels
+
+    levels = parse_levels([{"layout": "grid", "nx": 10, "nz": 10, "spacing": [2.0, 2.0], "phase_step": 0.13}])
+    h = Hierarchy(levels, character=0, clip=0, period=1.2)
+    reps, sel = pm.build([_walker()], ["w"], [30], {"splat_size": 1}, progress=False,
+                         cache=pm.HierarchyCache(tmp_path / "c"), instancing=Instancing([(0, h)]))
+    flat = pm.PointsSelector(reps[:1], splat_size=1)
+    ref = dataclasses.replace(reps[0].keyframed, key="none:w")
+    r = Renderer((320, 240), ctx=gl_ctx)
+    try:
+        for rep in (*reps, ref):
+            r.upload(rep)
+        st = h.flatten(copy=True)
+        st.anim_time[:] += 0.5
+        checked = 0
+        for splat, dist in ((1, 150.0), (2, 60.0), (2, 90.0), (3, 90.0)):
+            sel.splat_size = flat.splat_size = splat
+            cam = Camera.look_at((0.0, 0.5 * dist, dist), (0.0, 0.5, 0.0), fov_y=40.0, far=1000.0)
+            dls = [s.select(st, cam, r.size) for s in (sel, flat, NoLodSelector([ref]))]
+            assert dls[0].stats.get("super_nodes") == 1  # the whole block from its super-hierarchy
+            assert dls[0].stats["points"] < 0.7 * dls[1].stats["points"]
+            imgs = [_render(r, dl) for dl in dls]
+            bg = imgs[2][0, 0]
+            sup, fl, tri = (_mask(i, bg) for i in imgs)
+            assert tri.sum() > 150
+            # no holes: as much of the triangle silhouette covered as by the flat instances
+            assert (sup & tri).sum() / tri.sum() >= min(0.97, (fl & tri).sum() / tri.sum() - 0.01)
+            # silhouette distance to the triangles within a pixel of the flat instances'
+            assert silhouette_error(sup, tri) <= silhouette_error(fl, tri) + 1.0
+            assert silhouette_error(sup, fl) <= splat + 0.5
+            both = sup & tri
+            # mean colour difference (RGB sum) to the triangles on the shared pixels
+            ce = np.abs(imgs[0][both].astype(float) - imgs[2][both].astype(float)).mean()
+            bf = fl & tri
+            cf = np.abs(imgs[1][bf].astype(float) - imgs[2][bf].astype(float)).mean()
+            assert ce <= cf + 5.0  # colours (filtered over weighted sources) as close as the instances'
+            checked += 1
+        assert checked == 4
+    finally:
+        r.release()

@@ -27,10 +27,24 @@ from sim.errors import AssetError
 from sim.gltf_io import load_gltf
 
 REPO = Path(__file__).resolve().parents[2]
-#: generated inputs per strategy (two strategies: >= 2,000 inputs per run)
-FUZZ_EXAMPLES = int(os.environ.get("CROWD_FUZZ_EXAMPLES", "1100"))
+#: generated inputs per strategy in CI: two strategies per loader, >= 2,000 inputs per loader
+FUZZ_EXAMPLES_CI = 1100
+FUZZ_EXAMPLES = int(os.environ.get("CROWD_FUZZ_EXAMPLES", str(FUZZ_EXAMPLES_CI)))
 FUZZ_SETTINGS = settings(max_examples=FUZZ_EXAMPLES, deadline=5000, derandomize=True, database=None,
                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+#: examples each fuzz test really ran in this session (checked when the module ends)
+FUZZ_RUNS: dict = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fuzz_examples_really_ran():
+    """Hypothesis may stop before ``max_examples`` (an exhausted search space,
+    too many invalid inputs): fail the module if a fuzz test that ran executed
+    fewer than FUZZ_EXAMPLES inputs."""
+    yield
+    short = {k: v for k, v in FUZZ_RUNS.items() if v < FUZZ_EXAMPLES}
+    assert not short, f"fuzz tests ran fewer than {FUZZ_EXAMPLES} inputs: {short}"
 
 
 def _base() -> tuple[dict, bytes]:
@@ -198,6 +212,7 @@ def check_outcome(path: Path):
 @FUZZ_SETTINGS
 @given(g=mutated_json())
 def test_fuzz_json_mutations(tmp_path_factory, g):
+    FUZZ_RUNS["test_fuzz_json_mutations"] = FUZZ_RUNS.get("test_fuzz_json_mutations", 0) + 1
     d = tmp_path_factory.mktemp("fz", numbered=True)
     p = d / "fuzz.glb"
     p.write_bytes(glb_bytes(g, BASE_BLOB))
@@ -226,6 +241,7 @@ def corrupted_glb(draw):
 @FUZZ_SETTINGS
 @given(data=corrupted_glb())
 def test_fuzz_truncated_and_corrupted_bytes(tmp_path_factory, data):
+    FUZZ_RUNS["test_fuzz_truncated_and_corrupted_bytes"] = FUZZ_RUNS.get("test_fuzz_truncated_and_corrupted_bytes", 0) + 1
     p = tmp_path_factory.mktemp("fb", numbered=True) / "bytes.glb"
     p.write_bytes(data)
     check_outcome(p)
@@ -247,8 +263,27 @@ def test_each_special_mutation(tmp_path, i):
     check_outcome(p)
 
 
+_CLI_INFO_CHILD = """
+import contextlib, io, json, sys
+from crowd.cli import main
+out = []
+for path in sys.argv[1:]:
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = main(["info", path])
+        except SystemExit as e:
+            code = e.code
+    out.append([path, code, err.getvalue()])
+print(json.dumps(out))
+"""
+
+
 def test_cli_info_exit_2_on_a_sample(tmp_path):
-    """A sample of bad files through ``python -m crowd info``: exit 2, one line, no traceback."""
+    """A sample of bad files through ``crowd info`` (its ``main``, in one child
+    process for all files): exit 2, one line naming the file, no traceback."""
+    import json
+
     cases = []
     for i in (0, 2, 3, 4, 6, 10, 13, 18):
         g = copy.deepcopy(BASE_JSON)
@@ -256,6 +291,7 @@ def test_cli_info_exit_2_on_a_sample(tmp_path):
         cases.append(glb_bytes(g, BASE_BLOB))
     cases += [BASE_GLB[:11], BASE_GLB[:40], BASE_GLB[: len(BASE_GLB) // 2], b"", b"glTF" + b"\xff" * 30]
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    bad = []
     for k, data in enumerate(cases):
         p = tmp_path / f"case{k}.glb"
         p.write_bytes(data)
@@ -263,10 +299,15 @@ def test_cli_info_exit_2_on_a_sample(tmp_path):
             load_gltf(p)
             continue  # still loadable (a mutation the importer tolerates)
         except AssetError:
-            pass
-        r = subprocess.run([sys.executable, "-m", "crowd", "info", str(p)], capture_output=True, text=True,
-                           cwd=REPO, env=env, timeout=120)
-        err = [ln for ln in r.stderr.splitlines() if "Warning" not in ln and not ln.startswith("  ")]
-        assert r.returncode == 2, (k, r.stderr)
-        assert "Traceback" not in r.stderr and len(err) == 1, (k, r.stderr)
-        assert f"case{k}.glb" in err[0]
+            bad.append(str(p))
+    assert len(bad) >= 8
+    r = subprocess.run([sys.executable, "-c", _CLI_INFO_CHILD, *bad], capture_output=True, text=True,
+                       cwd=REPO, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    results = json.loads(r.stdout.strip().splitlines()[-1])
+    assert [p for p, _, _ in results] == bad
+    for path, code, stderr in results:
+        err = [ln for ln in stderr.splitlines() if "Warning" not in ln and not ln.startswith("  ")]
+        assert code == 2, (path, stderr)
+        assert "Traceback" not in stderr and len(err) == 1, (path, stderr)
+        assert Path(path).name in err[0]

@@ -1,0 +1,533 @@
+"""Candidates of LOD mode ``"auto"``: one plug-in per representation family.
+
+Mode "auto" (:mod:`lod.auto_mode`) culls and packs instances once, as the
+full-detail mode does (the *master* draw list: one batch per (character,
+clip) or (character, segment), the instances inside the view frustum), and
+then asks every candidate, per master batch, what each of its options would
+cost and how much error it would show for every instance of the batch. The
+selector picks per instance the cheapest option within the bound and hands
+every candidate the instances it won, which the candidate turns into its own
+draw batches. A candidate never sees another one, so a new representation
+plugs in by adding a class here, without touching the others (the per-object
+cost/benefit choice of Funkhouser & Séquin, SIGGRAPH 1993, §4, with the
+accuracy as a hard bound).
+
+The protocol (:class:`Candidate`):
+
+``name`` : str, for telemetry
+``reps`` : representations to upload to the renderer (their keys are their own)
+``options(frame, group)`` -> :class:`Options` or None
+    per instance of ``group`` (a master batch) the predicted cost (seconds)
+    and projected error (pixels) of each of the candidate's ``m`` options,
+    plus an opaque ``plan`` the candidate may reuse in ``emit``. None: the
+    candidate has nothing for this group (no representation of the
+    character, or the bound excludes it).
+``emit(frame, group, options, rows, choice)`` -> list of DrawBatch
+    the batches drawing instances ``rows`` (indices into the group) with
+    their chosen option ``choice`` (indices into the candidate's options).
+``finish(frame, drawlist)``
+    frame-wide settings after all batches exist (e.g. the splat size).
+``frame_cost(frame)`` -> float
+    seconds the candidate adds to the frame once, when it draws anything
+    (the point splatting pass, the cluster drawer's pre-pass); the selector drops a candidate for the whole
+    frame when the per-instance savings it brings do not pay for it.
+
+Costs come from :class:`lod.cost_model.CostModel` (per triangle, splat,
+cluster and instance; the per-draw-call cost is shared by a batch and left
+out of the per-instance choice). Errors are in pixels: the projected
+geometric error for triangle levels (Luebke et al. 2003, §4.1) and cluster
+cuts (VDR-AM §5.1), the splat size for point hierarchies (Wand & Straßer
+2002, §3.2: a node is drawn as points when its sample spacing projects to at
+most the splat size).
+
+Three candidates exist:
+
+- :class:`TrianglesCandidate` (mandatory, first): the levels of a
+  character's discrete chain (:mod:`lod.triangles_mode`); option 0 is the
+  full mesh and is the fallback of every instance. Characters without a
+  chain have only option 0: their full-detail batch unchanged.
+- :class:`ClustersCandidate`: the character's VDR-AM cut at the bound
+  (:func:`lod.cluster_cut.cut`, then :func:`lod.clusters_mode.cull_clusters`),
+  computed for every instance so that its cost is exact.
+- :class:`PointsCandidate`: the Wand & Straßer point/triangle octree of the
+  instance's keyframe segment traversed at the largest splat size (1 to 3
+  pixels) not above the bound (half the bound when a keyframe deviation
+  must fit too, :meth:`PointsCandidate.splat_size`) (:func:`lod.points_mode.traverse_instances`),
+  so that its cost is exact too. A skinned character's point hierarchies
+  are built over poses baked at a few keyframes (Wand & Straßer §3:
+  keyframe animations) and interpolated linearly between them, which
+  departs from the skinned pose; that departure
+  (:func:`keyframe_deviation`, metres) is projected like a geometric error
+  and added to the splat size, so near instances whose interpolated pose
+  would show are not given points.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from lod import cluster_cut
+from lod import triangles_mode as tm
+from lod.drawlist import DrawBatch
+
+
+@dataclass
+class Frame:
+    """What every candidate may read about the frame being selected.
+
+    state : the CrowdState (``anim_time``, ``clip`` are read)
+    camera : lod.view.Camera; size : (w, h) pixels
+    planes : (6, 4) float64 camera-relative frustum planes
+    scale_px : float, pixels per metre at unit distance
+    bound : float >= 0, pixels of error allowed this frame
+    model : lod.cost_model.CostModel
+    cull : bool, frustum culling on
+    """
+
+    state: object
+    camera: object
+    size: tuple
+    planes: np.ndarray
+    scale_px: float
+    bound: float
+    model: object
+    cull: bool = True
+
+
+@dataclass
+class Group:
+    """One master batch: instances of one character at one clip (skinned) or
+    segment (keyframed), all inside the frustum.
+
+    char : int, index into CrowdState.character (and every candidate's rep list)
+    batch : lod.drawlist.DrawBatch of the master (full-detail) selection
+    rows : (k, 3, 4) float64 camera-relative model rows
+    """
+
+    char: int
+    batch: DrawBatch
+    rows: np.ndarray
+
+    @property
+    def k(self) -> int:
+        return int(self.rows.shape[0])
+
+
+@dataclass
+class Options:
+    """A candidate's options for one group.
+
+    cost : (k, m) float64 predicted seconds, finite >= 0
+    error : (k, m) float64 pixels (inf: not usable)
+    plan : anything the candidate needs again in ``emit``
+    labels : (m,) str names of the options for telemetry (e.g. "L3", "cut", "splat2")
+    """
+
+    cost: np.ndarray
+    error: np.ndarray
+    plan: object = None
+    labels: tuple = ()
+
+
+class Candidate:
+    """Base class of the protocol (module docstring); subclasses override."""
+
+    name = "candidate"
+
+    def __init__(self):
+        self.reps: list = []
+
+    def options(self, frame: Frame, group: Group) -> Options | None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def emit(self, frame: Frame, group: Group, options: Options, rows: np.ndarray, choice: np.ndarray) -> list:
+        raise NotImplementedError  # pragma: no cover - interface
+
+    def finish(self, frame: Frame, drawlist) -> None:
+        return None
+
+    def frame_cost(self, frame: Frame) -> float:
+        return 0.0
+
+
+def _sub(batch: DrawBatch, rows: np.ndarray):
+    return batch.instance_ids[rows], batch.instance_data[rows]
+
+
+# ---------------------------------------------------------------------------- triangles
+class TrianglesCandidate(Candidate):
+    """Levels of the discrete triangle chains (:mod:`lod.triangles_mode`).
+
+    Parameters
+    ----------
+    reps : the master reps, aligned with CrowdState.character:
+        :class:`lod.triangles_mode.TrianglesRep` (chained) or full-detail reps
+    """
+
+    name = "triangles"
+
+    def __init__(self, reps):
+        super().__init__()
+        self.reps = list(reps)
+        self._chains = {r.key: r for r in self.reps if isinstance(r, tm.TrianglesRep)}
+
+    def options(self, frame, group):
+        r = self._chains.get(group.batch.rep)
+        c = frame.model.coefficients
+        if r is None:  # no chain: full detail only
+            tri = float(group.batch.triangles) / max(group.k, 1)
+            cost = np.full((group.k, 1), c["triangles"] * tri + c["instances"])
+            return Options(cost, np.zeros((group.k, 1)), None, ("L0",))
+        err = projected_errors(r.level_error, group.rows, r.clip_sphere[group.batch.part], frame.scale_px)
+        cost = c["triangles"] * r.level_count.astype(np.float64) + c["instances"]
+        return Options(np.broadcast_to(cost, err.shape).copy(), err, r,
+                       tuple(f"L{i}" for i in range(r.n_levels)))
+
+    def emit(self, frame, group, options, rows, choice):
+        b = group.batch
+        r = options.plan
+        if r is None:
+            ids, data = _sub(b, rows)
+            return [DrawBatch(b.rep, b.part, ids, data, triangles=int(b.triangles // max(group.k, 1)) * rows.size,
+                              points=0, level=0, tint=b.tint)]
+        out = []
+        order = np.argsort(choice, kind="stable")
+        ls = choice[order]
+        for L in np.unique(ls).tolist():
+            sel = rows[order[ls == L]]
+            n_t = int(r.level_count[L])
+            ids, data = _sub(b, sel)
+            out.append(tm.TriangleDrawBatch(b.rep, b.part, ids, data, triangles=n_t * int(sel.size), level=int(L),
+                                            tint=b.tint, index_range=(3 * int(r.level_first[L]), 3 * n_t)))
+        return out
+
+
+def projected_errors_numpy(errors, rows, sphere, scale_px: float) -> np.ndarray:
+    """Reference of :func:`projected_errors` (plain numpy)."""
+    rows = np.asarray(rows, np.float64).reshape(-1, 3, 4)
+    e = np.asarray(errors, np.float64)
+    s = np.linalg.norm(rows[:, :, :3], axis=1).max(axis=1)
+    c = rows[:, :, :3] @ np.asarray(sphere[:3], np.float64) + rows[:, :, 3]
+    d = np.linalg.norm(c, axis=1) - float(sphere[3]) * s
+    inside = ~(d > 0.0)
+    px = e[None, :] * (s * scale_px / np.where(inside, 1.0, d))[:, None]
+    px[inside] = np.where(e > 0.0, np.inf, 0.0)[None, :]
+    return px
+
+
+@njit(cache=True)
+def _projected_errors_kernel(e, rows, sphere, scale_px, out):  # pragma: no cover - compiled
+    for i in range(rows.shape[0]):
+        s = 0.0
+        for b in range(3):
+            n = np.sqrt(rows[i, 0, b] ** 2 + rows[i, 1, b] ** 2 + rows[i, 2, b] ** 2)
+            if n > s:
+                s = n
+        d2 = 0.0
+        for a in range(3):
+            c = rows[i, a, 0] * sphere[0] + rows[i, a, 1] * sphere[1] + rows[i, a, 2] * sphere[2] + rows[i, a, 3]
+            d2 += c * c
+        d = np.sqrt(d2) - sphere[3] * s
+        if d > 0.0:
+            f = s * scale_px / d
+            for k in range(e.shape[0]):
+                out[i, k] = e[k] * f
+        else:
+            for k in range(e.shape[0]):
+                out[i, k] = np.inf if e[k] > 0.0 else 0.0
+
+
+def projected_errors(errors, rows, sphere, scale_px: float) -> np.ndarray:
+    """(k, L) float64 pixels of error of each chain level per instance (numba).
+
+    Same rule as :func:`lod.triangles_mode.choose_levels` (Luebke et al.
+    2003, §4.1): ``error_l * s * scale_px / d`` with s the largest axis scale
+    and d the distance to the scaled clip sphere; inside the sphere (d <= 0)
+    level 0 projects 0 and every other level +inf.
+    :func:`projected_errors_numpy` is the reference.
+
+    Parameters
+    ----------
+    errors : (L,) float64 metres, model space; rows : (k, 3, 4) float64
+        camera-relative model rows; sphere : (4,) float64 model-space
+        centre and radius; scale_px : pixels per metre at unit distance
+    """
+    rows = np.ascontiguousarray(np.asarray(rows, np.float64).reshape(-1, 3, 4))
+    e = np.ascontiguousarray(errors, np.float64).reshape(-1)
+    out = np.empty((rows.shape[0], e.shape[0]), np.float64)
+    _projected_errors_kernel(e, rows, np.ascontiguousarray(sphere, np.float64).reshape(4), float(scale_px), out)
+    return out
+
+
+# ---------------------------------------------------------------------------- clusters
+def sub_csr(offsets: np.ndarray, clusters: np.ndarray, rows: np.ndarray):
+    """The CSR cuts of instances ``rows`` (in that order).
+
+    Parameters
+    ----------
+    offsets : (k+1,) int64; clusters : (offsets[-1],) int32; rows : (n,) int64
+
+    Returns
+    -------
+    offsets (n+1,) int64, clusters int32
+    """
+    rows = np.asarray(rows, np.int64)
+    a, e = offsets[rows], offsets[rows + 1]
+    n = e - a
+    off = np.concatenate([[0], np.cumsum(n)]).astype(np.int64)
+    if off[-1] == 0:
+        return off, np.zeros(0, np.int32)
+    idx = np.repeat(a - off[:-1], n) + np.arange(off[-1])
+    return off, np.asarray(clusters, np.int32)[idx]
+
+
+class ClustersCandidate(Candidate):
+    """VDR-AM cluster cuts (:mod:`lod.clusters_mode`) at the frame's bound.
+
+    Parameters
+    ----------
+    reps : list aligned with CrowdState.character: a
+        :class:`lod.clusters_mode.ClustersRep` or None per character
+    """
+
+    name = "clusters"
+
+    def __init__(self, reps):
+        super().__init__()
+        self.by_char = {i: r for i, r in enumerate(reps) if r is not None and getattr(r, "kind", "") == "clusters"}
+        self.reps = list(self.by_char.values())
+        self._ws = cluster_cut.CutWorkspace()
+        self.clusters_drawn = 0
+
+    def options(self, frame, group):
+        r = self.by_char.get(group.char)
+        if r is None or not frame.bound > 0.0 or group.k == 0:
+            return None
+        from lod.clusters_mode import cull_clusters
+
+        h = r.hierarchy
+        offsets, clusters = cluster_cut.cut(h, group.rows, np.zeros(3), frame.scale_px, frame.bound, self._ws)
+        if frame.cull:
+            offsets, clusters = cull_clusters(r.sphere64, group.rows, offsets, clusters, frame.planes)
+        tris = cluster_cut.cut_triangle_count(h, offsets, clusters).astype(np.float64)
+        ncl = np.diff(offsets).astype(np.float64)
+        c = frame.model.coefficients
+        cost = c["triangles"] * tris + c["clusters"] * ncl + c["instances"]
+        # every drawn cluster's error projects strictly below the bound (§5.1)
+        err = np.full(group.k, frame.bound)
+        return Options(cost[:, None], err[:, None], (r, offsets, clusters, tris), ("cut",))
+
+    def emit(self, frame, group, options, rows, choice):
+        from lod.clusters_mode import ClusterDrawBatch
+
+        r, offsets, clusters, tris = options.plan
+        off, cl = sub_csr(offsets, clusters, rows)
+        ids, data = _sub(group.batch, rows)
+        self.clusters_drawn += int(cl.shape[0])
+        return [ClusterDrawBatch(r.key, group.batch.part, ids, data, triangles=int(tris[rows].sum()), points=0,
+                                 level=0, tint=group.batch.tint, offsets=off, clusters=cl)]
+
+    def frame_cost(self, frame):
+        return float(frame.model.coefficients["cluster_frames"])
+
+    def finish(self, frame, drawlist):
+        drawlist.stats["clusters"] = int(drawlist.stats.get("clusters", 0) or 0) + self.clusters_drawn
+        self.clusters_drawn = 0
+
+
+# ---------------------------------------------------------------------------- points
+#: splat sizes the point renderer accepts (pixels)
+SPLAT_SIZES = (1, 2, 3)
+
+
+def splat_for_bound(bound: float, max_splat: int = 3) -> int:
+    """The largest splat size (pixels, 1..``max_splat``) not above ``bound``; 0 when bound < 1."""
+    if not bound >= 1.0:  # also NaN
+        return 0
+    return int(max_splat) if math.isinf(bound) else int(min(max_splat, math.floor(bound)))
+
+
+class PointsCandidate(Candidate):
+    """Wand & Straßer point/triangle octrees (:mod:`lod.points_mode`) at a
+    splat size within the bound.
+
+    Parameters
+    ----------
+    reps : list aligned with CrowdState.character: a
+        :class:`lod.points_mode.PointsRep` or None per character
+    master_kinds : list aligned with it: the master rep's kind per character
+        ("skinned": the instance's segment and u come from its clip and
+        animation time; "keyframed": the master batch part is the segment)
+    max_splat : int 1..3, the largest splat size used
+    deviation : list aligned with it of metres (model space), the keyframe
+        interpolation's departure from the skinned pose (:func:`keyframe_deviation`;
+        default 0)
+    spheres : list aligned with it of (clips, 4) float64 clip bounding spheres
+        (model space) the deviation is projected with (None: not needed)
+    """
+
+    name = "points"
+
+    def __init__(self, reps, master_kinds, max_splat: int = 3, deviation=None, spheres=None):
+        super().__init__()
+        if int(max_splat) not in SPLAT_SIZES:
+            raise ValueError(f"[lod] max_splat: expected 1, 2 or 3 pixels, got {max_splat}")
+        self.by_char = {i: r for i, r in enumerate(reps) if r is not None and getattr(r, "kind", "") == "points"}
+        self.reps = list(self.by_char.values())
+        self.kinds = list(master_kinds)
+        self.max_splat = int(max_splat)
+        self.deviation = [0.0] * len(self.kinds) if deviation is None else [float(d) for d in deviation]
+        self.spheres = [None] * len(self.kinds) if spheres is None else list(spheres)
+        self._used = 0
+        self.points_drawn = 0
+
+    def splat_size(self, bound: float) -> int:
+        """The frame's splat size at ``bound`` pixels: the largest within the
+        bound, or within half of it when some character's keyframe deviation
+        must fit in the other half (at least 1 when bound >= 1); 0 = none."""
+        if not bound >= 1.0:
+            return 0
+        share = 0.5 if any(d > 0.0 for d in self.deviation) else 1.0
+        return max(1, splat_for_bound(bound * share, self.max_splat))
+
+    def options(self, frame, group):
+        from lod.points_mode import traverse_instances
+        from lod.points_traverse import viewport_scale
+
+        r = self.by_char.get(group.char)
+        p = self.splat_size(frame.bound)
+        if r is None or p == 0 or group.k == 0:
+            return None
+        b = group.batch
+        data = np.asarray(b.instance_data, np.float64).copy()
+        if self.kinds[group.char] == "keyframed":
+            seg = np.full(group.k, int(b.part), np.int64)
+        else:
+            t = np.asarray(frame.state.anim_time, np.float64)[np.asarray(b.instance_ids, np.int64)]
+            seg, u = r.keyframed.locate(int(b.part), t)
+            data[:, 12] = u
+        vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
+        pts = np.zeros(group.k)
+        tris = np.zeros(group.k)
+        jobs = {}
+        for s in np.unique(seg).tolist():
+            m = np.flatnonzero(seg == s)
+            pj, tj = traverse_instances(r.hierarchies[s], data[m], frame.planes, vs, p)
+            pj[:, 0] = m[pj[:, 0]]  # rows of the group
+            tj[:, 0] = m[tj[:, 0]]
+            pts += np.bincount(pj[:, 0], weights=pj[:, 2], minlength=group.k)
+            tris += np.bincount(tj[:, 0], weights=tj[:, 2], minlength=group.k)
+            jobs[s] = (m, pj, tj)
+        c = frame.model.coefficients
+        cost = c["points"] * pts + c["triangles"] * tris + c["point_instances"]
+        err = np.full(group.k, float(p))
+        dev = self.deviation[group.char] if group.char < len(self.deviation) else 0.0
+        if dev > 0.0 and self.spheres[group.char] is not None:
+            err = err + projected_errors(np.array([dev]), group.rows, self.spheres[group.char][b.part],
+                                         frame.scale_px)[:, 0]
+        return Options(cost[:, None], err[:, None], (r, data, jobs, pts, tris, p), (f"splat{p}",))
+
+    def emit(self, frame, group, options, rows, choice):
+        from lod.points_mode import PointsBatch
+
+        r, data, jobs, pts, tris, p = options.plan
+        b = group.batch
+        take = np.zeros(group.k, bool)
+        take[rows] = True
+        out = []
+        for s, (m, pj, tj) in sorted(jobs.items()):
+            mine = m[take[m]]  # group rows of this segment that chose points
+            if mine.size == 0:
+                continue
+            local = np.full(group.k, -1, np.int64)
+            local[mine] = np.arange(mine.size)
+            pj = pj[take[pj[:, 0]]].copy()
+            tj = tj[take[tj[:, 0]]].copy()
+            pj[:, 0] = local[pj[:, 0]]
+            tj[:, 0] = local[tj[:, 0]]
+            n_p = int(pj[:, 2].sum()) if pj.size else 0
+            n_t = int(tj[:, 2].sum()) if tj.size else 0
+            self.points_drawn += n_p
+            out.append(PointsBatch(r.key, int(s), b.instance_ids[mine], data[mine].astype(np.float32), triangles=n_t,
+                                   points=n_p, level=0, tint=b.tint, point_jobs=pj, tri_jobs=tj))
+        self._used = max(self._used, int(p))
+        return out
+
+    def frame_cost(self, frame):
+        from lod.cost_model import pass_cost
+
+        p = self.splat_size(frame.bound)
+        return pass_cost(frame.model, frame.size, p) if p else 0.0
+
+    def finish(self, frame, drawlist):
+        if self._used:
+            drawlist.options["splat_size"] = self._used
+        drawlist.stats["points"] = int(drawlist.stats.get("points", 0) or 0) + self.points_drawn
+        self._used = 0
+        self.points_drawn = 0
+
+
+def keyframe_deviation(character, keyframes: int, between: int = 3) -> float:
+    """Metres (model space) by which linear interpolation between ``keyframes``
+    poses baked per clip (``sim.keyframes.bake_skinned``, as mode "points"
+    bakes them) departs from the skinned pose: the largest vertex distance
+    over ``between`` times inside every keyframe interval of every clip.
+
+    Parameters
+    ----------
+    character : sim.character.SkinnedCharacter (0.0 for any other kind)
+    keyframes : int >= 2, poses baked per clip
+    between : int >= 1, sample times per interval
+
+    Returns
+    -------
+    float >= 0, finite
+    """
+    if getattr(character, "kind", "") != "skinned" or not character.mesh.is_skinned:
+        return 0.0
+    from sim.keyframes import bake_skinned
+    from sim.skinning import skin
+
+    sk = character.skeleton
+    worst = 0.0
+    for name in character.clips:
+        clip = character.clip(name)
+        anim = bake_skinned(character, name, int(keyframes))
+        times = np.asarray(anim.times, np.float64)
+        pos = [np.asarray(k.positions, np.float64) for k in anim.keyframes]
+        ends = list(times[1:]) + ([times[0] + float(anim.duration)] if anim.loop else [])
+        for k, t1 in enumerate(ends):
+            t0 = float(times[k])
+            a, b = pos[k], pos[(k + 1) % len(pos)]
+            if a.shape != b.shape:
+                continue
+            for j in range(1, int(between) + 1):
+                u = j / (int(between) + 1)
+                t = t0 + u * (float(t1) - t0)
+                if anim.loop and t >= float(anim.duration):
+                    t -= float(anim.duration)
+                true = skin(character.mesh, clip.skinning_matrices(sk, np.array([t]))[0])[0]
+                d = np.linalg.norm((1 - u) * a + u * b - np.asarray(true, np.float64), axis=1)
+                if d.size:
+                    worst = max(worst, float(d.max()))
+    return worst if np.isfinite(worst) else 0.0
+
+
+@dataclass
+class Telemetry:
+    """Per-frame counts: instances per (candidate, option label)."""
+
+    counts: dict = field(default_factory=dict)
+
+    def add(self, name: str, label: str, n: int) -> None:
+        if n:
+            key = f"{name}:{label}"
+            self.counts[key] = self.counts.get(key, 0) + int(n)
+
+
+__all__ = ["Candidate", "ClustersCandidate", "Frame", "Group", "Options", "PointsCandidate", "SPLAT_SIZES",
+           "Telemetry", "TrianglesCandidate", "keyframe_deviation", "projected_errors", "projected_errors_numpy",
+           "splat_for_bound", "sub_csr"]

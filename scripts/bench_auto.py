@@ -1,0 +1,205 @@
+"""Benchmark: LOD mode "auto" against full detail and each single representation (issue 7).
+
+For each scene at 1280x720, in ONE run with one renderer, on the same simulated
+frames along the scene's camera path: the frame time (select + upload + draw +
+``ctx.finish``) of NoLOD (``lod.nolod``), of each single representation
+(triangle chains at ``--poe``, cluster cuts at ``--poe``, point hierarchies at
+splat size ``--splat``) and of auto at the fixed bound ``--poe`` twice: "auto"
+(a point hierarchy's error = splat size + projected keyframe deviation, the
+default) and "auto-splat" (``points_error = "splat"``: the splat size alone,
+issue 7's definition), with the image
+error of each against NoLOD (PSNR, dB) and, for auto, the cost model's
+predicted render time against the measured one. NoLOD frames whose predicted
+render time exceeds ``--nolod-max`` seconds are not drawn (their time is the
+prediction, marked ``~``; the image error then has no reference).
+
+``--budget SCENE`` then runs auto in budget mode on that scene with a budget
+of 3x the best fixed-bound frame time measured there, for ``--budget-frames``
+frames (the engine's observe loop), and prints the p95 frame time against the
+budget.
+
+Point hierarchies of both points and auto use ``--keyframes`` (default 3) and
+``--intervals`` (default 1): cold builds at the modes' defaults (9, 3) take
+minutes per segment of a 100k-triangle character on the shared machine.
+
+Run:  .venv/bin/python scripts/bench_auto.py [--scenes grid office] [--frames 1] [--warmup 1]
+      [--poe 1.0] [--splat 2] [--keyframes 3] [--intervals 1] [--size 1280 720] [--nolod-max 20]
+      [--budget stampede] [--budget-frames 16]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from crowd.engine import Engine  # noqa: E402
+from crowd.image_metrics import psnr  # noqa: E402
+from crowd.scene import load_scene  # noqa: E402
+from lod import auto_mode, clusters_mode, cost_model, nolod, points_mode, triangles_mode  # noqa: E402
+from render.context import gl_info  # noqa: E402
+from render.renderer import Renderer  # noqa: E402
+
+SCENES = ("poser4", "horses", "stadium", "grid", "office", "exhibition", "stampede")
+CASES = ("nolod", "triangles", "clusters", "points", "auto", "auto-splat")
+
+
+def build_cases(eng, args, model):
+    sc = eng.scene
+    chars, names, fps = eng.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters]
+    st = eng.statics
+    q = False
+    out = {}
+    t0 = time.perf_counter()
+    reps, sel = nolod.build(chars, names, fps, {}, static_reps=st)
+    out["nolod"] = (reps, sel)
+    out["triangles"] = triangles_mode.build(chars, names, fps, {"poe": args.poe}, static_reps=st, progress=q)
+    out["clusters"] = clusters_mode.build(chars, names, fps, {"poe": args.poe}, static_reps=st, progress=q)
+    pp = {"keyframes": args.keyframes, "intervals": args.intervals}
+    out["points"] = points_mode.build(chars, names, fps, {"splat_size": args.splat, **pp}, static_reps=st, progress=q)
+    out["auto"] = auto_mode.build(chars, names, fps, {"poe": args.poe, "keyframes": args.keyframes}, static_reps=st,
+                                  progress=q, model=model, points_params={"intervals": args.intervals})
+    out["auto-splat"] = auto_mode.build(chars, names, fps, {"poe": args.poe, "keyframes": args.keyframes,
+                                                            "points_error": "splat"}, static_reps=st, progress=q,
+                                        model=model, points_params={"intervals": args.intervals})
+    print(f"  representations built or loaded in {time.perf_counter() - t0:.1f} s", flush=True)
+    return out
+
+
+def bench_scene(path: Path, args, model) -> dict:
+    size = tuple(args.size)
+    eng = Engine(load_scene(path), overrides={"size": size}, quiet=True)
+    sc = eng.scene
+    cases = build_cases(eng, args, model)
+    r = Renderer(size)
+    for reps, _ in cases.values():
+        for rep in reps:
+            if rep.key not in r.reps:
+                r.upload(rep)
+    for rep in eng.statics:
+        r.upload(rep)
+    for _ in range(args.steps):
+        eng.step()
+    statics = [(s.key, np.eye(4)) for s in eng.statics]
+    times = {n: [] for n in CASES}
+    est = {n: False for n in CASES}
+    err = {n: [] for n in CASES}
+    pred, meas = [], []
+    info = {}
+    for k in range(args.warmup + args.frames):
+        cam = eng.camera_at(eng.world.frame * sc.dt)
+        ref = None
+        for name in CASES:
+            sel = cases[name][1]
+            a = time.perf_counter()
+            dl = sel.select(eng.world.state, cam, size, statics=statics)
+            if name == "nolod" and model.predict(dl) > args.nolod_max:
+                times[name].append(time.perf_counter() - a + model.predict(dl))
+                est[name] = True
+                print(f"    frame {k} nolod: not drawn, predicted {model.predict(dl):.1f} s "
+                      f"({dl.stats['triangles']:,} triangles)", flush=True)
+                continue
+            t = r.draw(dl)
+            b = time.perf_counter()
+            img = r.read_pixels()
+            if name == "nolod":
+                ref = img
+            elif ref is not None and k >= args.warmup:
+                err[name].append(psnr(img, ref))
+            measured = sum(float(t.get(s) or 0.0) for s in ("upload", "draw", "finish"))
+            if name.startswith("auto"):
+                sel.observe(measured)  # as crowd.engine does: budget mode and the online cost-model refit
+            if k >= args.warmup:
+                times[name].append(b - a)
+                if name.startswith("auto"):
+                    pred.append(dl.stats["auto"]["predicted_ms"] * 1e-3)
+                    meas.append(measured)
+                    info[name] = dl.stats["auto"]["representations"]
+            extra = (f", predicted {dl.stats['auto']['predicted_ms']:.1f} ms vs measured {1e3 * measured:.1f} ms, "
+                     f"{dl.stats['auto']['options']}") if name.startswith("auto") else ""
+            print(f"    frame {k} {name}: {b - a:.3f} s (render {measured:.3f}), {dl.stats['triangles']:,} tris, "
+                  f"{dl.stats.get('points', 0):,} points, {dl.stats['instances']} inst{extra}", flush=True)
+        eng.step()
+    out = {"scene": path.stem, "agents": int(eng.world.state.n),
+           "t": {n: statistics.median(v) for n, v in times.items() if v}, "est": est,
+           "psnr": {n: (statistics.median(v) if v else None) for n, v in err.items()},
+           "pred_err": [abs(p - m) / m for p, m in zip(pred, meas) if m > 0], "reps": info}
+    if args.budget and path.stem == args.budget:
+        best = min(out["t"][n] for n in ("triangles", "clusters", "points", "auto", "auto-splat"))
+        budget = 3.0 * best
+        chars = eng.plan.characters
+        _, bsel = auto_mode.build(chars, [c.name for c in sc.characters], [c.fps for c in sc.characters],
+                                  {"poe": args.poe, "budget_ms": 1e3 * budget, "keyframes": args.keyframes},
+                                  static_reps=eng.statics, progress=False, model=model,
+                                  points_params={"intervals": args.intervals})
+        ft, bounds = [], []
+        for k in range(args.budget_frames):
+            cam = eng.camera_at(eng.world.frame * sc.dt)
+            a = time.perf_counter()
+            dl = bsel.select(eng.world.state, cam, size, statics=statics)
+            t = r.draw(dl)
+            ft.append(time.perf_counter() - a)
+            bsel.observe(ft[-1])  # the budget is on the whole frame: selection + rendering
+            bounds.append(dl.stats["auto"]["bound"])
+            print(f"    budget frame {k}: {ft[-1]:.3f} s (budget {budget:.3f}), bound {bounds[-1]:.2f}", flush=True)
+            eng.step()
+        out["budget"] = {"budget": budget, "p95": float(np.percentile(ft[len(ft) // 2:], 95)), "bounds": bounds}
+    r.release()
+    eng.close()
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", nargs="+", default=list(SCENES))
+    ap.add_argument("--frames", type=int, default=1, help="timed frames per case (median)")
+    ap.add_argument("--warmup", type=int, default=1)
+    ap.add_argument("--steps", type=int, default=5, help="simulation steps before the first frame")
+    ap.add_argument("--poe", type=float, default=1.0, help="pixels of error of triangles, clusters and auto")
+    ap.add_argument("--splat", type=int, default=2, help="splat size of mode points")
+    ap.add_argument("--keyframes", type=int, default=3, help="poses baked per clip for the point hierarchies "
+                    "(points and auto; few: cold builds of 100k-triangle characters take minutes per segment)")
+    ap.add_argument("--intervals", type=int, default=1, help="stratification time intervals of the point "
+                    "hierarchies (points and auto)")
+    ap.add_argument("--size", type=int, nargs=2, default=[1280, 720])
+    ap.add_argument("--nolod-max", type=float, default=20.0, help="seconds; NoLOD frames predicted slower are "
+                    "not drawn")
+    ap.add_argument("--budget", default="", help="scene to run budget mode on (e.g. stampede)")
+    ap.add_argument("--budget-frames", type=int, default=16)
+    args = ap.parse_args(argv)
+    with Renderer((64, 64)) as probe:
+        model = cost_model.load(gl_info(probe.ctx).get("GL_RENDERER") or "")
+    print(f"cost model: {model.key or 'defaults'}", flush=True)
+    rows = []
+    for s in args.scenes:
+        p = Path(s) if s.endswith(".toml") else ROOT / "scenes" / f"{s}.toml"
+        print(f"# {p.stem}", flush=True)
+        rows.append(bench_scene(p, args, model))
+    print(f"\n{'scene':<11} " + " ".join(f"{n + ' s':>12}" for n in CASES) + "  auto/best  splat/best"
+          "  PSNR dB (tri clu pts auto auto-splat)  pred err  auto reps")
+    for o in rows:
+        t = o["t"]
+        best = min(t[n] for n in ("triangles", "clusters", "points"))
+        cells = " ".join(f"{('~' if o['est'][n] else '') + format(t[n], '.3f'):>12}" for n in CASES)
+        ps = " ".join(f"{o['psnr'][n]:.1f}" if o["psnr"][n] is not None else "-" for n in CASES[1:])
+        pe = f"{100 * statistics.median(o['pred_err']):.0f} %" if o["pred_err"] else "-"
+        print(f"{o['scene']:<11} {cells}  {t['auto'] / best:9.2f}  {t['auto-splat'] / best:10.2f}  {ps:>37}  "
+              f"{pe:>8}  {o['reps']}")
+        if "budget" in o:
+            b = o["budget"]
+            print(f"  budget mode: budget {b['budget']:.3f} s, p95 {b['p95']:.3f} s "
+                  f"({100 * (b['p95'] / b['budget'] - 1):+.0f} %), final bound {b['bounds'][-1]:.2f}")
+    allp = [e for o in rows for e in o["pred_err"]]
+    if allp:
+        print(f"median |predicted - measured| / measured over all auto frames: {100 * statistics.median(allp):.0f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,332 @@
+"""Keyframed view-dependent selection (Friedrich, Polthier & Schmies §3-4): popping and selection cost.
+
+Two parts, each comparing per-frame selection with selection every n-th frame
+blended in between:
+
+1. The crowd of ``scenes/horses.toml`` (fewer horses and a smaller image than the
+   scene, for run time; both printed) in LOD mode "triangles", rendered along
+   the scene's camera path next to the full-detail reference (mode "none").
+   Per setting: selection time per displayed frame (the view-dependent part,
+   i.e. the mode's ``select`` calls, and the whole ``select`` call including the
+   per-frame pack of current transforms), triangles drawn, image error against
+   the reference (mean |difference| per frame, mean and max over frames) and
+   the LOD flicker: :func:`crowd.image_metrics.flicker`, the mean image change
+   between consecutive frames that the reference does not have, and its peak,
+   ``max |G * ((F_t - F_t-1) - (R_t - R_t-1))|`` with G a Gaussian of sigma
+   ``--blur`` pixels (the eye integrates a screen-door pattern; a pop is a
+   large local change, a blend spreads it over n frames).
+2. The bisection terrain (lod/temporal.py) over a 513 x 513 grid: 2^19 leaf
+   triangles, 2^20 triangles in its binary hierarchy, on the fly-through of
+   ``scripts/bench_terrain_lod.py``: the same figures in screen-space pixels
+   of vertex deviation, for per-frame selection and keyframed selection with
+   linear blending, and the three §4.1 extrapolation modes' error terms.
+
+Usage: ``python scripts/bench_temporal.py [--frames 40] [--horses 300] [--size 480 270] [--n 8]``.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+#: repetitions of the selection-only timing pass
+REPEATS = 5
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
+
+
+def popping(prev, cur, ref_prev, ref_cur, sigma: float) -> float:
+    """Peak local LOD flicker: max over pixels of the Gaussian-blurred (sigma px)
+    temporal change the reference does not have (grey level, images in [0, 1])."""
+    from scipy.ndimage import gaussian_filter
+
+    from crowd.image_metrics import as_float
+
+    d = (as_float(cur) - as_float(prev)) - (as_float(ref_cur) - as_float(ref_prev))
+    return float(np.abs(gaussian_filter(d.mean(axis=2), sigma)).max())
+
+
+def _levels(dl) -> dict:
+    """agent id -> (rep, part, level) of a DrawList's unfaded agent batches."""
+    out = {}
+    for b in dl.batches:
+        if b.fade is None:
+            for i in np.asarray(b.instance_ids).tolist():
+                if i >= 0:
+                    out[i] = (b.rep, b.part, b.level)
+    return out
+
+
+def restage(prev, cur):
+    """``prev``'s representations (batches, levels, fades) drawn with ``cur``'s
+    transforms and camera: the frame ``cur`` would be had the selection not
+    changed since ``prev``. Agents ``prev`` did not draw keep ``cur``'s batches;
+    agents ``cur`` does not draw are left out."""
+    import dataclasses
+
+    from lod.keyframed_selection import take_rows
+
+    rows, part = {}, {}
+    for b in cur.batches:
+        for i, d in zip(np.asarray(b.instance_ids).tolist(), np.asarray(b.instance_data)):
+            if i >= 0:
+                rows[i] = d
+                part[i] = (b.representation, b.part)  # a clip change is not a LOD switch: keep cur's
+    seen = set()
+    out = []
+    for b in prev.batches:
+        ids = np.asarray(b.instance_ids)
+        if ids.size and ids[0] < 0:
+            continue
+        keep = np.array([i in rows and part[i] == (b.representation, b.part) for i in ids.tolist()], bool)
+        if keep.any():
+            r = np.flatnonzero(keep)
+            out.append(take_rows(b, r, ids[r], np.stack([rows[i] for i in ids[r].tolist()]), fade=b.fade,
+                                 triangles=b.triangles, points=b.points))
+            seen.update(ids[r].tolist())
+    for b in cur.batches:
+        ids = np.asarray(b.instance_ids)
+        if ids.size and ids[0] < 0:
+            out.append(b)
+            continue
+        keep = np.array([i not in seen for i in ids.tolist()], bool)
+        if keep.any():
+            r = np.flatnonzero(keep)
+            out.append(take_rows(b, r, ids[r], np.asarray(b.instance_data)[r], fade=b.fade))
+    return dataclasses.replace(cur, batches=out)
+
+
+#: ``--path close``: a low dolly into the herd (replaces the scene's camera keys)
+CLOSE_PATH = """[camera]
+fov = 50.0
+near = 0.5
+far = 1500.0
+keys = [
+  { time = 0.0, position = [-150.0, 10.0, 70.0], target = [-120.0, 2.0, 0.0] },
+  { time = 2.0, position = [-125.0, 5.0, 20.0], target = [-110.0, 1.5, -10.0] },
+]
+"""
+
+
+def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float, speed: float,
+               still: bool = False, path: str = "scene") -> None:
+    from crowd.engine import Engine
+    from crowd.image_metrics import as_float, flicker
+    from crowd.scene import load_scene
+    from lod import triangles_mode as tm
+    from lod.keyframed_selection import KeyframedSelector, subset_state
+    from scipy.ndimage import gaussian_filter
+
+    text = (REPO / "scenes" / "horses.toml").read_text()
+    text = re.sub(r"count = \d+", f"count = {horses}", text)
+    text = text.replace('mode = "none"', f'mode = "triangles"\npoe = {poe}')
+    if path == "close":
+        a, b = text.index("[camera]"), text.index("[render]")
+        text = text[:a] + CLOSE_PATH + "\n" + text[b:]
+    text = re.sub(r"time = ([0-9.]+)", lambda m: f"time = {float(m.group(1)) / speed}", text)  # path speed-up
+    with tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / "horses_bench.toml"
+        p.write_text(text)
+        scene = load_scene(p)
+        e = Engine(scene, overrides={"size": tuple(size), "frames": frames}, quiet=True)
+    reps = e.reps
+    ref = e._build_mode("none")[1]
+    settings = [("full detail (reference)", ref, None), ("per-frame selection", e.selector, None)]
+    for mode in ("current", "extrapolated", "delayed"):
+        k = KeyframedSelector(tm.TrianglesSelector(reps, static_reps=e.statics, poe=poe), n=n, mode=mode)
+        settings.append((f"keyframed n={n}, {mode}", k, k))
+    r = e.open_renderer(tuple(size))
+    statics = [(s.key, np.eye(4)) for s in e.statics]
+    bg = scene.render.background
+    acc = {name: {"sel": [], "call": [], "tri": [], "err": [], "fl": [], "pop": [], "trans": [], "changes": [],
+                  "sw": [], "swl1": []}
+           for name, _, _ in settings}
+    prev = {}
+    print(f"# crowd: scenes/horses.toml with {horses} horses (scene: 2500) of "
+          f"{e.plan.triangles(0)} triangles, {size[0]}x{size[1]} (scene: 1280x720), {frames} frames, "
+          f"camera path {'of the scene' if path == 'scene' else '`--path close` (a dolly into the herd)'} "
+          f"{speed:g}x as fast, mode triangles poe = {poe} px, n = {n}"
+          + ("; herd frozen (no simulation step: only the camera moves)" if still else ""))
+    last_levels = {}
+    last_dl = {}
+    if still:
+        e.step()  # one step places the herd on the terrain (terrain_follow); then it stays frozen
+    cam0 = e.camera_at(0.0)
+    for _, sel, k in settings:  # warm-up (JIT, caches): not timed
+        sel.select(e.world.state, cam0, tuple(size), statics=statics)
+        if k is not None:
+            k.reset()
+    replay = []  # (state copy, camera) per frame, for the selection-only timing passes
+    for f in range(frames):
+        if still:
+            t_sim = (f + 1) * scene.dt
+        else:
+            e.step()
+            t_sim = e.world.time
+        cam = e.camera_at(t_sim)
+        replay.append((subset_state(e.world.state, np.arange(e.world.state.n)), cam))
+        imgs = {}
+        for name, sel, k in settings:
+            t0 = time.perf_counter()
+            dl = sel.select(e.world.state, cam, tuple(size), statics=statics)
+            call = time.perf_counter() - t0
+            r.draw(dl, bg)
+            imgs[name] = r.read_pixels()
+            a = acc[name]
+            if name in last_dl and name != settings[0][0]:  # the image change due to the selection alone
+                r.draw(restage(last_dl[name], dl), bg)
+                same_sel = r.read_pixels()
+                d = as_float(imgs[name]).mean(axis=2) - as_float(same_sel).mean(axis=2)
+                a["swl1"].append(float(np.abs(d).mean()))
+                a["sw"].append(float(np.abs(gaussian_filter(d, sigma)).max()))
+            last_dl[name] = dl
+            a["call"].append(call)
+            a["sel"].append(k.last_selection_seconds if k is not None else call)
+            a["tri"].append(dl.stats.get("triangles", dl.triangles))
+            a["trans"].append(dl.stats.get("transitions", 0))
+            lv = _levels(dl)
+            if name in last_levels:  # instances drawn unfaded in both frames whose representation switched
+                old = last_levels[name]
+                a["changes"].append(sum(1 for i, v in lv.items() if i in old and old[i] != v))
+            last_levels[name] = lv
+        R = imgs[settings[0][0]]
+        for name, _, _ in settings:
+            a = acc[name]
+            a["err"].append(float(np.abs(as_float(imgs[name]) - as_float(R)).mean()))
+            if prev:
+                a["fl"].append(flicker(prev[name], imgs[name], prev[settings[0][0]], R))
+                a["pop"].append(popping(prev[name], imgs[name], prev[settings[0][0]], R, sigma))
+        prev = imgs
+    e.close()
+    base = acc["per-frame selection"]
+    print()
+    print("| setting | selection ms/frame | select call ms/frame | triangles/frame | err mean | err max "
+          "| flicker mean (L1) | flicker / per-frame | popping mean (peak) | popping / per-frame "
+          "| transitions/frame | pops/frame | switch flicker mean (L1) | switch popping (peak) | / per-frame |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for name, _, _ in settings:
+        a = acc[name]
+        fl_ratio = np.mean(a["fl"]) / np.mean(base["fl"]) if np.mean(base["fl"]) > 0 else float("nan")
+        pop_ratio = np.mean(a["pop"]) / np.mean(base["pop"]) if np.mean(base["pop"]) > 0 else float("nan")
+        print(f"| {name} | {1e3 * np.median(a['sel']):.2f} (mean {1e3 * np.mean(a['sel']):.2f}) "
+              f"| {1e3 * np.median(a['call']):.2f} | {np.mean(a['tri']):,.0f} | {np.mean(a['err']):.5f} "
+              f"| {np.max(a['err']):.5f} | {np.mean(a['fl']):.5f} | {fl_ratio:.2f} | {np.mean(a['pop']):.4f} "
+              f"| {pop_ratio:.2f} | {np.mean(a['trans']):.1f} | {np.mean(a['changes'] or [0]):.1f} "
+              f"| {np.mean(a['swl1'] or [0]):.6f} | {np.mean(a['sw'] or [0]):.4f} "
+              f"| {np.mean(a['sw'] or [0]) / max(np.mean(base['sw']), 1e-12):.2f} |")
+    # selection cost per displayed frame, timed again without rendering: the same states and cameras
+    # replayed REPEATS times (fresh selectors each time), median of the totals (the machine is shared)
+    totals = {name: [] for name, _, _ in settings[1:]}
+    calls = {name: [] for name, _, _ in settings[1:]}
+    for _ in range(REPEATS):
+        for name, _, k in settings[1:]:
+            sel = (KeyframedSelector(tm.TrianglesSelector(reps, static_reps=e.statics, poe=poe), n=n, mode=k.mode)
+                   if k is not None else e.selector)
+            sel_t = call_t = 0.0
+            for st, cam in replay:
+                t0 = time.perf_counter()
+                sel.select(st, cam, tuple(size), statics=statics)
+                dt = time.perf_counter() - t0
+                call_t += dt
+                sel_t += sel.last_selection_seconds if k is not None else dt
+            totals[name].append(sel_t)
+            calls[name].append(call_t)
+    pf = float(np.median(totals["per-frame selection"]))
+    print(f"\n| selection cost (replayed {REPEATS}x without drawing, median) | selection ms/frame "
+          f"| / per-frame | select call ms/frame | / per-frame |")
+    print("|---|---:|---:|---:|---:|")
+    for name in totals:
+        t, c = float(np.median(totals[name])), float(np.median(calls[name]))
+        print(f"| {name} | {1e3 * t / len(replay):.3f} | {t / pf:.3f} | {1e3 * c / len(replay):.3f} "
+              f"| {c / float(np.median(calls['per-frame selection'])):.3f} |")
+    print(f"# target: keyframed selection per displayed frame <= 2/n = {2 / n:.3f} of per-frame selection's")
+
+
+def terrain_part(frames: int, size, n: int, tau: float, resolution: int) -> None:
+    from bench_terrain_lod import camera_path
+
+    from lod.temporal import TEMPORAL_MODES, TemporalTerrainLOD, pixel_deviation
+    from lod.terrain_lod import TerrainHierarchy
+    from sim.terrain import Terrain
+
+    import tomllib
+
+    with open(REPO / "scenes" / "horses.toml", "rb") as fh:
+        table = dict(tomllib.load(fh)["terrain"])
+    table["resolution"] = resolution
+    terrain = Terrain.from_config(table, str(REPO / "scenes"))
+    t0 = time.perf_counter()
+    hier = TerrainHierarchy(terrain)
+    print(f"\n# terrain: horses terrain at {resolution}^2 samples, grid {hier.n_side}^2, "
+          f"{hier.n_full_triangles} leaf triangles ({2 * hier.n_full_triangles} in the hierarchy), "
+          f"built in {time.perf_counter() - t0:.2f} s; {frames} frames at {size[0]}x{size[1]}, n = {n}")
+    cams = camera_path(terrain, frames)
+    full_y = hier.positions[:, 1]
+    hier.select(cams[0], size, tau)  # warm the kernels
+    print("\n| method | tau px | triangles/frame | LOD ms/frame | selections | err mean px | err max px "
+          "| flicker mean px | flicker / per-frame |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    base_fl = None
+    for label, nn, tt in (("per-frame selection", 1, tau), (f"keyframed n={n}", n, tau),
+                          (f"keyframed n={n}, tau matched", n, tau * 0.85),
+                          (f"keyframed n={2 * n}, tau matched", 2 * n, tau * 0.8)):
+        lod = TemporalTerrainLOD(hier, size, n=nn, tau=tt, mode="delayed")
+        tris, times, err, flick = [], [], [], []
+        prev = None
+        for cam in cams:
+            t0 = time.perf_counter()
+            fr = lod.frame(cam)
+            mesh = fr.mesh()
+            times.append(time.perf_counter() - t0)
+            tris.append(mesh.n_triangles)
+            err.append(pixel_deviation(hier, full_y, fr.grid_heights, fr.camera, size))
+            if prev is not None:
+                flick.append(pixel_deviation(hier, fr.grid_heights, prev, fr.camera, size))
+            prev = fr.grid_heights
+        fl = float(np.mean(flick))
+        base_fl = fl if base_fl is None else base_fl
+        print(f"| {label} | {tt:.2f} | {np.mean(tris):.0f} | {1e3 * np.median(times):.2f} | {lod.n_selections} "
+              f"| {np.mean(err):.3f} | {np.max(err):.3f} | {fl:.3f} | {fl / base_fl:.2f} |")
+    print("\n| extrapolation mode | err_inter mean/max px | err_view mean/max px | err_extra mean/max px | delay s |")
+    print("|---|---:|---:|---:|---:|")
+    for mode in TEMPORAL_MODES:
+        lod = TemporalTerrainLOD(hier, size, n=n, tau=tau, mode=mode, measure_errors=True)
+        fr = [lod.frame(c) for c in cams][2 * n:]
+        ei, ev, ee = ([getattr(x, k) for x in fr] for k in ("err_inter", "err_view", "err_extra"))
+        print(f"| {mode} | {np.mean(ei):.3f} / {np.max(ei):.3f} | {np.mean(ev):.3f} / {np.max(ev):.3f} "
+              f"| {np.mean(ee):.3f} / {np.max(ee):.3f} | {max(x.delay for x in fr):.3f} |")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=40)
+    ap.add_argument("--horses", type=int, default=300)
+    ap.add_argument("--size", type=int, nargs=2, default=[480, 270])
+    ap.add_argument("--n", type=int, default=8)
+    ap.add_argument("--poe", type=float, default=1.0)
+    ap.add_argument("--blur", type=float, default=2.0, help="sigma, pixels, of the popping measure")
+    ap.add_argument("--speed", type=float, default=4.0, help="camera path speed-up (key times divided by it)")
+    ap.add_argument("--still", action="store_true", help="freeze the herd: only the camera moves")
+    ap.add_argument("--path", choices=("scene", "close"), default="scene",
+                    help="camera: the scene's path, or a low dolly into the herd")
+    ap.add_argument("--terrain-frames", type=int, default=96)
+    ap.add_argument("--terrain-resolution", type=int, default=513)
+    ap.add_argument("--tau", type=float, default=1.0)
+    ap.add_argument("--part", choices=("both", "crowd", "terrain"), default="both")
+    a = ap.parse_args(argv)
+    if a.frames < 2 or a.horses < 1 or a.n < 2 or not a.speed > 0:
+        ap.error("--frames must be >= 2, --horses >= 1, --n >= 2, --speed > 0")
+    if a.part in ("both", "crowd"):
+        crowd_part(a.frames, a.horses, tuple(a.size), a.n, a.poe, a.blur, a.speed, a.still, a.path)
+    if a.part in ("both", "terrain"):
+        terrain_part(a.terrain_frames, (1280, 720), a.n, a.tau, a.terrain_resolution)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,139 @@
+"""``crowd build``: LOD hierarchies built ahead of time on a dask cluster, found warm by a later run."""
+import dataclasses
+
+import pytest
+from crowd_testutil import REPO, run_cli, tiny_scene
+
+from crowd.build import CACHED_MODES, expand_assets, parse_modes
+from crowd.errors import CrowdError
+
+SCENE = tiny_scene(replace={"mode = \"none\"": "mode = \"clusters\"\npoe = 2.0"}, append="""
+[[characters]]
+name = "runner"
+generator = "humanoid"
+triangles = 500
+seed = 3
+fps = 24
+
+[[placement]]
+kind = "grid"
+character = "runner"
+rows = 1
+cols = 1
+spacing = [1.0, 1.0]
+""")
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """A real dask LocalCluster on loopback (two single-threaded worker processes), shared by this module."""
+    pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install dask distributed)")
+    from distributed import LocalCluster
+
+    from crowd.report import shutdown_dask
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None)
+    try:
+        yield cluster.scheduler_address
+    finally:
+        shutdown_dask(cluster=cluster)  # tolerates a slow exit of the workers on a loaded machine
+
+
+def test_modes_and_jobs_of_a_scene(write_scene):
+    assert parse_modes("all") == CACHED_MODES
+    assert parse_modes("clusters, points,clusters") == ("clusters", "points")
+    for bad in ("none", "bogus", "", "all,points"):
+        with pytest.raises(CrowdError, match="expected one of"):
+            parse_modes(bad)
+    p = write_scene(SCENE)
+    jobs = expand_assets([p, "generator:humanoid:700"], ("clusters", "points"))
+    assert [(j.spec.name, j.mode, j.fps) for j in jobs] == [
+        ("walker", "clusters", 30), ("walker", "points", 30), ("runner", "clusters", 24), ("runner", "points", 24),
+        ("humanoid", "clusters", 30), ("humanoid", "points", 30)]
+    # the scene's own mode is built with its [lod] keys, the others with their defaults (as crowd run does)
+    assert dict(jobs[0].params)["poe"] == 2.0 and jobs[1].params == () and jobs[4].params == ()
+    assert jobs[5].spec.triangles == 700
+    # a scene with hierarchical instancing: one more job per mode that caches per-group data, after the characters
+    from crowd.build import _takes_instancing
+
+    jobs = expand_assets([REPO / "scenes" / "stadium.toml"], ("points", "clusters"))
+    scene_jobs = [j for j in jobs if j.spec is None]
+    assert [j.mode for j in scene_jobs] == [m for m in ("points", "clusters") if _takes_instancing(m)]
+    assert jobs[-len(scene_jobs) or len(jobs):] == scene_jobs and all("instancing" in j.label for j in scene_jobs)
+
+
+def _cache_entries(folder):
+    return {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} if folder.is_dir() else {}
+
+
+class _Rebuilt(Exception):
+    pass
+
+
+def _forbid_builds(monkeypatch):
+    """Make every hierarchy build of the three cached modes raise: a run that finds its cache warm never calls
+    one."""
+    import lod.clusters_mode
+    import lod.points_mode
+    import lod.triangles_mode
+
+    def fail(*a, **k):
+        raise _Rebuilt
+
+    monkeypatch.setattr(lod.clusters_mode, "build_cluster_hierarchy", fail)
+    monkeypatch.setattr(lod.points_mode, "build_hierarchy", fail)
+    monkeypatch.setattr(lod.triangles_mode, "build_chain", fail)
+
+
+def _engine_scenes(scene):
+    """The scene in each cached mode: its own mode with its [lod] keys, the others with their defaults."""
+    return [scene] + [dataclasses.replace(scene, lod_mode=m, lod_params=()) for m in CACHED_MODES
+                      if m != scene.lod_mode]
+
+
+def test_build_on_the_cluster_then_the_run_finds_the_cache_warm(write_scene, tmp_path, monkeypatch, dask_cluster):
+    from crowd.engine import Engine
+    from crowd.scene import load_scene
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(cache))  # a cold cache of its own (workers are told the path)
+    p = write_scene(SCENE)
+    scene = load_scene(p)
+    with monkeypatch.context() as m:  # cold: a run would build (the check below can fail)
+        _forbid_builds(m)
+        with pytest.raises(_Rebuilt):
+            Engine(dataclasses.replace(scene, lod_mode="triangles", lod_params=()), quiet=True)
+    r = run_cli("build", p, "--mode", "all", "--cluster", dask_cluster)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().splitlines()
+    assert len(lines) == 2 * len(CACHED_MODES) + 1 and "walker [clusters]" in r.stdout and "runner [auto]" in r.stdout
+    assert f"on dask scheduler {dask_cluster}" in lines[-1] and str(cache) in lines[-1]
+    built = _cache_entries(cache)
+    npz = [n for n in built if n.endswith(".npz")]
+    assert npz and not [n for n in built if n.endswith(".tmp")]  # atomic writes leave no temporary file
+    assert f"{len(npz)} new cache entries" in lines[-1]
+    _forbid_builds(monkeypatch)
+    for sc in _engine_scenes(scene):
+        with Engine(sc, quiet=True) as eng:  # builds every representation: from the cache only
+            assert len(eng.reps) >= 2
+    assert _cache_entries(cache) == built  # nothing rewritten
+    r = run_cli("build", p, "--mode", "clusters", "--cluster", "none", "--quiet")  # warm: nothing new
+    assert r.returncode == 0 and r.stdout == "" and _cache_entries(cache) == built
+
+
+@pytest.mark.parametrize("asset, msg", [
+    ("missing.glb", "missing.glb: file not found"),
+    ("missing.toml", "missing.toml: file not found"),
+    ("model.obj", "expected a glTF file"),
+    ("bad.glb", "bad.glb"),
+    ("generator:nope", "generator:NAME"),
+])
+def test_bad_assets_are_one_sentence_exit_2(tmp_path, asset, msg):
+    (tmp_path / "bad.glb").write_bytes(b"glTF\x02\x00\x00\x00")  # a truncated GLB header
+    (tmp_path / "model.obj").write_text("v 0 0 0\n")
+    arg = asset if asset.startswith("generator:") else tmp_path / asset
+    r = run_cli("build", arg, "--mode", "clusters", "--cluster", "none", cwd=tmp_path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and msg in lines[0] and "Traceback" not in r.stderr, r.stderr
+    assert r.stdout == ""
