@@ -3,10 +3,17 @@
 Hierarchy caches (points, clusters) go to a fresh folder per test session, so
 tests never read or fill the user's ``~/.cache/crowd`` and always exercise a
 cold cache first. Subprocesses inherit it through the environment.
+
+The shared test helpers of ``tests/fixtures`` (tiny characters, image checks)
+are importable from every test folder.
 """
 import os
+import sys
+from pathlib import Path
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
 
 
 @pytest.fixture(scope="session", autouse=True)

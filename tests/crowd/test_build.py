@@ -24,22 +24,6 @@ spacing = [1.0, 1.0]
 """)
 
 
-@pytest.fixture(scope="module")
-def dask_cluster():
-    """A real dask LocalCluster on loopback (two single-threaded worker processes), shared by this module."""
-    pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install dask distributed)")
-    from distributed import LocalCluster
-
-    from crowd.report import shutdown_dask
-
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None)
-    try:
-        yield cluster.scheduler_address
-    finally:
-        shutdown_dask(cluster=cluster)  # tolerates a slow exit of the workers on a loaded machine
-
-
 def test_modes_and_jobs_of_a_scene(write_scene):
     assert parse_modes("all") == CACHED_MODES
     assert parse_modes("clusters, points,clusters") == ("clusters", "points")

@@ -222,22 +222,6 @@ def test_report_flicker_from_consecutive_frame_pairs(write_scene, tmp_path):
 
 
 # ------------------------------------------------------------------------------------------------ dask.distributed
-@pytest.fixture(scope="module")
-def dask_cluster():
-    """A real dask LocalCluster on loopback (two single-threaded worker processes), shared by this module."""
-    pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install dask distributed)")
-    from distributed import LocalCluster
-
-    from crowd.report import shutdown_dask
-
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None)
-    try:
-        yield cluster.scheduler_address
-    finally:
-        shutdown_dask(cluster=cluster)  # tolerates a slow exit of the workers on a loaded machine
-
-
 def _strip_times(entry):
     """A setting entry without what depends on wall-clock time or the machine that ran it."""
     return {k: v for k, v in entry.items() if k not in ("frame_ms", "stage_ms", "gpu_ms", "repeat_medians_ms",

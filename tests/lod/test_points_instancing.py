@@ -11,25 +11,14 @@ from lod.view import Camera
 from sim.character import KeyframedCharacter
 from sim.instancing import Hierarchy, Instancing, parse_levels
 from sim.keyframes import Keyframe, KeyframeAnimation, Segment
+from tiny_characters import uv_sphere
 
 
 def walker_character(n_lat=12, n_lon=16, name="walker") -> KeyframedCharacter:
     """A looping 3-keyframe 'walker': an ellipsoid 1.8 m tall, 0.6 m wide,
     swaying left and right and changing colour (about 350 triangles, one
     triangle list for every segment)."""
-    th = np.linspace(0, np.pi, n_lat + 1)
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    nrm = np.stack([np.sin(T) * np.cos(P), np.cos(T), np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
-    idx = []
-    for i in range(n_lat):
-        for j in range(n_lon):
-            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
-            if i > 0:
-                idx.append((a, b, b + n_lon))
-            if i < n_lat - 1:
-                idx.append((a, b + n_lon, a + n_lon))
-    idx = np.array(idx, np.uint32)
+    nrm, idx = uv_sphere(n_lat, n_lon)
     base = nrm * [0.3, 0.9, 0.3] + [0, 0.9, 0]
     keys = []
     for sway, col in ((0.0, (0.8, 0.3, 0.2)), (0.35, (0.2, 0.6, 0.3)), (-0.35, (0.2, 0.3, 0.8))):

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from tiny_characters import tiny_skinned
+from tiny_characters import tiny_skinned, uv_sphere
 
 from lod import clusters_mode, nolod
 from lod import points_mode as pm
@@ -26,20 +26,7 @@ BG = (0.0, 0.0, 0.0)
 
 def ball_character(n_lat=30, n_lon=48) -> KeyframedCharacter:
     """A UV sphere (radius 1 at y = 1), one non-looping keyframe segment."""
-    th = np.linspace(0, np.pi, n_lat + 1)
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    nrm = np.stack([np.sin(T) * np.cos(P), np.cos(T), np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
-    idx = []
-    for i in range(n_lat):
-        for j in range(n_lon):
-            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
-            c, d = a + n_lon, b + n_lon
-            if i > 0:
-                idx.append((a, b, d))
-            if i < n_lat - 1:
-                idx.append((a, d, c))
-    idx = np.array(idx, np.uint32)
+    nrm, idx = uv_sphere(n_lat, n_lon)
     col = np.tile([0.8, 0.5, 0.2, 1.0], (nrm.shape[0], 1)).astype(np.float32)
     k0 = Keyframe((nrm + [0, 1, 0]).astype(np.float32), nrm.astype(np.float32), col, idx)
     k1 = Keyframe((1.1 * nrm + [0, 1, 0]).astype(np.float32), nrm.astype(np.float32), col, idx)

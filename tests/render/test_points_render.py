@@ -16,6 +16,7 @@ from sim.character import KeyframedCharacter
 from sim.keyframes import Keyframe, KeyframeAnimation, Segment
 from sim.mesh import Mesh
 from sim.state import CrowdState
+from tiny_characters import uv_sphere
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "crowd"))
 
@@ -24,20 +25,7 @@ def sphere_character(n_lat=60, n_lon=100, name="ball") -> KeyframedCharacter:
     """A UV sphere (radius 1 centred at y = 1) that swells by 20% and shifts
     its colour over one non-looping segment: a compact, dense keyframed
     character (about 12,000 triangles)."""
-    th = np.linspace(0, np.pi, n_lat + 1)
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    nrm = np.stack([np.sin(T) * np.cos(P), np.cos(T), np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
-    idx = []
-    for i in range(n_lat):
-        for j in range(n_lon):
-            a, b = i * n_lon + j, i * n_lon + (j + 1) % n_lon
-            c, d = a + n_lon, b + n_lon
-            if i > 0:
-                idx.append((a, b, d))
-            if i < n_lat - 1:
-                idx.append((a, d, c))
-    idx = np.array(idx, np.uint32)
+    nrm, idx = uv_sphere(n_lat, n_lon)
     col0 = np.tile([0.8, 0.3, 0.2, 1.0], (nrm.shape[0], 1)).astype(np.float32)
     col1 = np.tile([0.2, 0.5, 0.9, 1.0], (nrm.shape[0], 1)).astype(np.float32)
     k0 = Keyframe((nrm + [0, 1, 0]).astype(np.float32), nrm.astype(np.float32), col0, idx)
