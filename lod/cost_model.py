@@ -40,11 +40,12 @@ from __future__ import annotations
 import json
 import os
 import platform
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from lod.atomic_io import atomic_open
 
 #: feature names, in the order of :attr:`CostModel.coefficients` (after ``frame``)
 FEATURES = ("triangles", "points", "batches", "instances", "clusters", "splat_pixels", "splat_area",
@@ -306,15 +307,8 @@ def save(model: CostModel, directory: Path | None = None) -> Path:
     path = d / FILE_NAME
     data = _read(path) or {"format": FORMAT_VERSION, "machines": {}}
     data["machines"][model.key] = model.to_dict()
-    fd, tmp = tempfile.mkstemp(prefix=FILE_NAME + ".", suffix=".tmp", dir=d)
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=1, sort_keys=True)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_open(path, "w") as f:
+        json.dump(data, f, indent=1, sort_keys=True)
     return path
 
 
