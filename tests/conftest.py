@@ -25,3 +25,24 @@ def _isolated_cache(tmp_path_factory):
         os.environ.pop("CROWD_CACHE_DIR", None)
     else:
         os.environ["CROWD_CACHE_DIR"] = old
+
+
+@pytest.fixture(scope="module")
+def display():
+    """An Xvfb server for the tests of one module that open windows (render.window,
+    crowd fly); ``DISPLAY`` names it while the module runs. A missing Xvfb fails
+    the tests (CI installs the Debian package ``xvfb``), never skips them."""
+    from render.window import VirtualDisplay
+
+    try:
+        vd = VirtualDisplay().start()
+    except FileNotFoundError as e:
+        pytest.fail(f"{e}: tests that open a window need Xvfb (Debian package xvfb)")
+    old = os.environ.get("DISPLAY")
+    os.environ["DISPLAY"] = vd.display
+    yield vd.display
+    if old is None:
+        os.environ.pop("DISPLAY", None)
+    else:
+        os.environ["DISPLAY"] = old
+    vd.stop()

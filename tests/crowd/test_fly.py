@@ -1,6 +1,6 @@
 """crowd fly: the interactive fly-through, driven by scripted input under Xvfb.
 
-The module starts its own Xvfb server (Debian package ``xvfb``); a missing
+The ``display`` fixture (tests/conftest.py) starts an Xvfb server (Debian package ``xvfb``); a missing
 binary fails the tests with a message saying to install it. Input goes
 through the window's glfw callbacks (the functions glfw calls) or the
 controller's methods (what those callbacks call).
@@ -17,26 +17,10 @@ from crowd_testutil import run_cli, tiny_scene
 from crowd.engine import Engine
 from crowd.fly import FLY_SCROLL_FACTOR, FLY_SPEED, HELP_TEXT, FlyApp, no_display_message, reframe
 from crowd.scene import load_scene
-from render.window import VirtualDisplay, Window
+from render.window import Window
 
 SIZE = (96, 72)
 BACKGROUND = np.array([0.1, 0.1, 0.12]) * 255
-
-
-@pytest.fixture(scope="module")
-def display():
-    try:
-        vd = VirtualDisplay().start()
-    except FileNotFoundError as e:
-        pytest.fail(f"{e}: the fly-through tests need Xvfb")
-    old = os.environ.get("DISPLAY")
-    os.environ["DISPLAY"] = vd.display
-    yield vd.display
-    if old is None:
-        os.environ.pop("DISPLAY", None)
-    else:
-        os.environ["DISPLAY"] = old
-    vd.stop()
 
 
 @pytest.fixture(scope="module")

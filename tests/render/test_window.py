@@ -1,31 +1,14 @@
 """render.window: glfw window under Xvfb, blit of the renderer's frame, HUD text, font layout.
 
-The module starts its own Xvfb server (Debian package ``xvfb``); a missing
+The ``display`` fixture (tests/conftest.py) starts an Xvfb server (Debian package ``xvfb``); a missing
 binary fails the tests with a message saying to install it.
 """
-import os
 
 import numpy as np
 import pytest
 
 from render.window import (FONT_FIRST, FONT_LAST, GL_VERSIONS, HUD_PADDING, FontAtlas, Hud, VirtualDisplay, Window,
                            WindowError, display_available, glyph_indices, rasterize_text)
-
-
-@pytest.fixture(scope="module")
-def display():
-    try:
-        vd = VirtualDisplay().start()
-    except FileNotFoundError as e:
-        pytest.fail(f"{e}: the window tests need Xvfb")
-    old = os.environ.get("DISPLAY")
-    os.environ["DISPLAY"] = vd.display
-    yield vd.display
-    if old is None:
-        os.environ.pop("DISPLAY", None)
-    else:
-        os.environ["DISPLAY"] = old
-    vd.stop()
 
 
 @pytest.fixture(scope="module")
