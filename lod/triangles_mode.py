@@ -38,22 +38,21 @@ the full-detail mode and grouped into batches by (character, clip, level).
 Cache: chains are stored under ``$CROWD_CACHE_DIR`` (default ``~/.cache/crowd``,
 :func:`lod.clusters_mode.cache_dir`) as ``triangles-<sha256>.npz``; the key
 extends :func:`lod.clusters_mode.cache_key` with this module's source, the
-chain parameters and :data:`FORMAT_VERSION`. Writes are atomic (temp file +
-rename); a file that fails to load is rebuilt.
+chain parameters and :data:`FORMAT_VERSION`. Writes are atomic
+(:func:`lod.atomic_io.atomic_open`); a file that fails to load is rebuilt.
 
 Keyframed characters fall back to their full-detail representation.
 """
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from lod import poses, qem
+from lod.atomic_io import atomic_open
 from lod.cluster_cut import viewport_scale
 from lod.cluster_dag import skin_poses
 from lod.clusters_mode import cache_dir, cache_key
@@ -182,16 +181,9 @@ def _chain_key(skinned: SkinnedRep, levels: int, ratio: float) -> str:
 
 
 def _save(path: Path, chain, errors) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, indices=np.concatenate(chain).astype(np.uint32),
-                     count=np.asarray([c.shape[0] for c in chain], np.int64), error=np.asarray(errors, np.float64))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_open(path, "wb") as f:
+        np.savez(f, indices=np.concatenate(chain).astype(np.uint32),
+                 count=np.asarray([c.shape[0] for c in chain], np.int64), error=np.asarray(errors, np.float64))
 
 
 def _load(path: Path, n_vertices: int):
