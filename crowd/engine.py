@@ -274,6 +274,9 @@ class Engine:
             if "instancing" in inspect.signature(module.build).parameters:
                 # hierarchical instantiation (Wand & Strasser §3.6): the simulation's instancing groups
                 extra["instancing"] = self.world.resources.get("instancing")
+            if "clips" in inspect.signature(module.build).parameters:
+                # build only what the scene can play (point hierarchies of unplayed clips are most of grid's data)
+                extra["clips"] = self._played_clips()
             built = module.build(
                 self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
                 params, static_reps=self.statics, progress=progress, **extra)
@@ -281,6 +284,32 @@ class Engine:
             built = (reps, self._keyframed(selector, self.keyframe_every))
             self._modes[mode] = built
         return built
+
+    def _played_clips(self) -> list:
+        """Per character, the names (in clip order) of the clips its agents can play in this
+        run: the clips they start with, plus walk and run of characters whose agents
+        the boids gait switches between the two (``sim.boids``); instancing groups'
+        clips are added by the mode itself. A character without agents plays none.
+
+        Returns
+        -------
+        list (one entry per character) of lists of clip names
+        """
+        st = self.plan.state
+        ch = np.asarray(st.character, np.int64)
+        cl = np.asarray(st.clip, np.int64)
+        gait = self.world.resources.get("boids")
+        gait = getattr(gait, "clips", None)
+        out = []
+        for ci, character in enumerate(self.plan.characters):
+            names = character.clip_names()
+            played = {int(c) for c in np.unique(cl[ch == ci]) if 0 <= c < len(names)}
+            if gait is not None and ci < len(gait.walk):
+                walk, run = int(gait.walk[ci]), int(gait.run[ci])
+                if walk >= 0 and run >= 0 and played & {walk, run}:
+                    played |= {walk, run}
+            out.append([names[i] for i in sorted(played)])
+        return out
 
     @property
     def keyframe_every(self) -> int:

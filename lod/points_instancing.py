@@ -67,6 +67,7 @@ import json
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from lod import points_config as C
 from lod.nolod import KeyframedRep, model_rows
@@ -508,6 +509,40 @@ def _corners(box):
                       lo[2] if k & 1 == 0 else hi[2]] for k in range(8)])
 
 
+@njit(cache=True)
+def _check_kernel(character, clip, position, scale, heading, anim_time, t_character, t_clip, t_position, t_scale,
+                  t_heading, t_anim_time, period, tol):  # pragma: no cover - numba (check_reference is the reference)
+    """True when n agents match a tree's n instances (InstancingPlan.check):
+    same character and clip (the tree's ints), positions
+    (n, 3) and scales within ``tol``, headings within ``tol`` modulo 2 pi, and
+    the relative phase pattern anim_time - t_anim_time constant within ``tol``
+    modulo ``period``. Non-finite values fail."""
+    n = position.shape[0]
+    two_pi = 2.0 * np.pi
+    rel0 = 0.0
+    for i in range(n):
+        if character[i] != t_character or clip[i] != t_clip:
+            return False
+        for c in range(3):
+            d = abs(np.float64(position[i, c]) - np.float64(t_position[i, c]))
+            if not d <= tol:
+                return False
+        if not abs(np.float64(scale[i]) - np.float64(t_scale[i])) <= tol:
+            return False
+        dh = np.float64(heading[i]) - np.float64(t_heading[i]) + np.pi
+        dh = dh - two_pi * np.floor(dh / two_pi) - np.pi
+        if not abs(dh) <= tol:
+            return False
+        rel = np.float64(anim_time[i]) - np.float64(t_anim_time[i])
+        if i == 0:
+            rel0 = rel
+        d = rel - rel0 + 0.5 * period
+        d = d - period * np.floor(d / period) - 0.5 * period
+        if not abs(d) <= tol:
+            return False
+    return True
+
+
 class InstancingPlan:
     """The super-hierarchies of a scene's instancing groups and the per-frame
     top-down choice between them and the instances (§3.6).
@@ -534,7 +569,24 @@ class InstancingPlan:
         return [s.rep for g in self.groups for s in g.supers]
 
     def check(self, g: _Group, state) -> bool:
-        """True when the group's agents still are the tree's instances (see the module docstring)."""
+        """True when the group's agents still are the tree's instances (see the
+        module docstring); one pass of the numba kernel :func:`_check_kernel`
+        (the same answer as :meth:`check_reference`)."""
+        a, n = g.first, g.hier.n_instances
+        if a + n > state.n:
+            return False
+        f = g.flat
+        sl = slice(a, a + n)
+        return bool(_check_kernel(np.ascontiguousarray(state.character[sl]), np.ascontiguousarray(state.clip[sl]),
+                                  np.ascontiguousarray(state.position[sl]), np.ascontiguousarray(state.scale[sl]),
+                                  np.ascontiguousarray(state.heading[sl]), np.ascontiguousarray(state.anim_time[sl]),
+                                  int(g.hier.character), int(g.hier.clip),
+                                  np.ascontiguousarray(f.position), np.ascontiguousarray(f.scale),
+                                  np.ascontiguousarray(f.heading), np.ascontiguousarray(f.anim_time),
+                                  float(g.hier.period), CHECK_TOL))
+
+    def check_reference(self, g: _Group, state) -> bool:
+        """numpy reference of :meth:`check`."""
         a, n = g.first, g.hier.n_instances
         if a + n > state.n:
             return False
@@ -552,7 +604,8 @@ class InstancingPlan:
             return False
         P = g.hier.period
         rel = np.asarray(state.anim_time[sl], np.float64) - f.anim_time
-        d = np.mod(rel - rel[0] + 0.5 * P, P) - 0.5 * P
+        with np.errstate(invalid="ignore"):  # non-finite times fail below
+            d = np.mod(rel - rel[0] + 0.5 * P, P) - 0.5 * P
         return bool(np.isfinite(d).all() and (np.abs(d) <= CHECK_TOL).all())
 
     def select(self, state, origin, planes, vscale: float, splat: float):

@@ -228,23 +228,60 @@ def segment_arrays(kf: KeyframedRep, s: int) -> tuple:
             kf.normals1[sl])
 
 
+def triangle_hierarchy(p0, p1, indices) -> PointHierarchy:
+    """A one-node hierarchy holding every triangle of a segment and no points
+    (``build_hierarchy`` with a leaf as large as the segment): the traversal
+    draws it as triangles at every distance, like mode "none". Stands in for
+    the segments of clips a scene does not play (:func:`build_points_rep`)."""
+    idx = np.asarray(indices).reshape(-1, 3)
+    return build_hierarchy(p0, p1, idx, leaf_triangles=max(1, idx.shape[0]), progress=False)
+
+
+def played_segments(kf: KeyframedRep, clips) -> np.ndarray:
+    """(n_parts,) bool, the segments of the clips in ``clips`` (None: all).
+
+    clips : None or an iterable of clip indices (int) or names (str)
+    Raises ValueError naming the clip for an unknown name or index.
+    """
+    if clips is None:
+        return np.ones(kf.n_parts, bool)
+    out = np.zeros(kf.n_parts, bool)
+    for c in clips:
+        if isinstance(c, str):
+            if c not in kf.anim_names:
+                raise ValueError(f"points mode: unknown clip {c!r}; accepted: {', '.join(map(repr, kf.anim_names))}")
+            c = kf.anim_names.index(c)
+        c = int(c)
+        if not 0 <= c < kf.n_clips:
+            raise ValueError(f"points mode: clip index {c} out of range 0..{kf.n_clips - 1}")
+        a0 = int(kf.anim_first_seg[c])
+        out[a0:a0 + int(kf.anim_n_segs[c])] = True
+    return out
+
+
 def build_points_rep(character, name: str, params: dict, cache: HierarchyCache | None = None,
-                     progress=None) -> PointsRep:
+                     progress=None, clips=None) -> PointsRep:
     """Bake (if skinned), then build or load one hierarchy per segment.
 
     params : validated ``[lod]`` table (see :data:`PARAMS`); cache : default
     :class:`HierarchyCache` at :func:`cache_dir`; progress : None or
     ``progress(iterable, description)``.
+    clips : None (every clip) or the clips (indices or names) the scene
+        plays: only their segments get point hierarchies; the others get a
+        :func:`triangle_hierarchy` (drawn as full-detail triangles if an agent
+        switches to them after all), so the data structure holds what is used.
     """
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     cache = cache if cache is not None else HierarchyCache()
     kfc = keyframed_character(character, int(p["keyframes"]))
     kf = build_keyframed_rep(kfc, key=f"points:{name}")
     bp = dict(intervals=int(p["intervals"]), spacing_fraction=float(p["spacing_fraction"]))
-    segs = range(kf.n_parts)
+    played = played_segments(kf, clips)
+    segs = [s for s in range(kf.n_parts) if played[s]]
     if progress is not None:
         segs = progress(segs, f"point hierarchies {name}")
-    hs = [cache.get_or_build(segment_arrays(kf, s), bp) for s in segs]
+    built = {s: cache.get_or_build(segment_arrays(kf, s), bp) for s in segs}
+    hs = [built[s] if s in built else triangle_hierarchy(*segment_arrays(kf, s)[:3]) for s in range(kf.n_parts)]
     return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]))
 
 
@@ -307,10 +344,16 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: HierarchyCache | None = None,
-          instancing=None):
+          instancing=None, clips=None):
     """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character
     (then one per super-hierarchy, §3.6, when ``instancing`` holds groups)
-    and a :class:`PointsSelector`."""
+    and a :class:`PointsSelector`.
+
+    clips : None (every clip of every character gets point hierarchies) or a
+        sequence aligned with ``characters``, each None (all clips) or the
+        clip indices / names the scene can play (see :func:`build_points_rep`;
+        the clips of ``instancing`` groups are always added).
+    """
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     p.pop("mode", None)
     if progress is False:
@@ -321,7 +364,15 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         def progress(it, desc):
             return tqdm(it, desc=desc, leave=False, disable=None)
     cache = cache if cache is not None else HierarchyCache()
-    reps = [build_points_rep(ch, n, p, cache, progress) for ch, n in zip(characters, names)]
+    if clips is None:
+        clips = [None] * len(characters)
+    clips = [None if c is None else list(c) for c in clips]
+    if len(clips) != len(characters):
+        raise ValueError(f"points mode: clips must list one entry per character ({len(characters)}), got {len(clips)}")
+    for _, h in (getattr(instancing, "groups", None) or []):  # super-hierarchies sample the group's clip
+        if 0 <= h.character < len(clips) and clips[h.character] is not None:
+            clips[h.character].append(int(h.clip))
+    reps = [build_points_rep(ch, n, p, cache, progress, clips=c) for ch, n, c in zip(characters, names, clips)]
     plan = build_instancing(instancing, reps, list(names), p, cache, progress)
     sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan)
     return reps + (plan.reps if plan is not None else []), sel
@@ -403,7 +454,9 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     data = np.ascontiguousarray(data, np.float64).reshape(-1, 16)
     planes = np.ascontiguousarray(planes, np.float64)
     k = data.shape[0]
-    cap = max(16, 4 * k)
+    # job capacity per instance: what this hierarchy needed before (a retry doubles it)
+    per = int(getattr(h, "_jobs_per_instance", 4))
+    cap = max(16, per * k)
     arr = _harrays(h)
     while True:
         pj = np.empty((cap, 3), np.int64)
@@ -411,6 +464,7 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
         done, npj, ntj = _traverse_instances_kernel(*arr, data, planes, float(vscale),
                                                     float(splat), pj, tj)
         if done == k:
+            h._jobs_per_instance = max(per, -(-max(npj, ntj) // max(k, 1)))
             return pj[:npj].copy(), tj[:ntj].copy()
         cap *= 2
 

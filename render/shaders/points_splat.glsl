@@ -1,7 +1,7 @@
 #version 430
 // Compute-shader point splatting (Schuetz, Kerbl, Wimmer, "Rendering Point
 // Clouds with Compute Shaders"), two passes over the frame's selected points.
-// One work group per job (an instance and a range of its segment's points):
+// One work group per JOBS_PER_GROUP consecutive jobs (a job: an instance and a range of its segment's points):
 // its LOCAL_SIZE threads stride over the range (8, llvmpipe's SIMD width,
 // measured 2x faster than 64 there; render/points.py SPLAT_GROUP), so no search is needed to find the
 // instance, and the instance's matrix and u are read once per thread.
@@ -32,9 +32,24 @@ uniform mat4 u_view_proj;
 uniform ivec2 u_size;
 uniform int u_splat;
 
+#ifndef JOBS_PER_GROUP
+#define JOBS_PER_GROUP 1
+#endif
+
+void splat_job(uint j);
+
 void main() {
-    uint j = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
-    if (j >= u_njobs) return;
+    uint g = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
+    // JOBS_PER_GROUP consecutive jobs per work group: far views have many
+    // short jobs, and each work group has a fixed cost on llvmpipe
+    for (uint q = 0u; q < uint(JOBS_PER_GROUP); ++q) {
+        uint j = g * uint(JOBS_PER_GROUP) + q;
+        if (j >= u_njobs) return;
+        splat_job(j);
+    }
+}
+
+void splat_job(uint j) {
     uvec4 job = jobs[j];
     uint i = job.z;
     float u = inst_u(i);

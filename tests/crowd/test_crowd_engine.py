@@ -300,3 +300,16 @@ def test_output_path_that_is_a_file_is_a_one_line_error(tmp_path, write_scene):
     r = run_cli("run", scene, "--out", tmp_path / "out")
     assert r.returncode == 2 and "not a directory" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert (tmp_path / "out").read_text() == "a file"
+
+
+@pytest.mark.parametrize("effects, expected", [('["animation"]', [["walk"], []]),
+                                               ('["boids", "animation"]', [["walk", "run"], []])])
+def test_played_clips_are_the_placed_clips_plus_the_boids_gait_pair(tmp_path, write_scene, effects, expected):
+    """The points mode builds hierarchies only for these (Wand & Straßer data size): the clips agents start
+    with, walk and run where the boids gait switches them, nothing for a character without agents."""
+    from crowd.engine import Engine
+
+    extra = '\n[[characters]]\nname = "unused"\ngenerator = "humanoid"\ntriangles = 600\n'
+    text = tiny_scene(effects=effects, replace={'[[placement]]': extra + '\n[[placement]]'})
+    with Engine(load_scene(write_scene(text)), quiet=True) as e:
+        assert e._played_clips() == expected

@@ -269,3 +269,39 @@ def test_groups_that_cannot_share_a_super_hierarchy_are_skipped():
     # no instancing: no plan
     _, sel3 = pm.build([walker_character()], ["w"], [30], {}, progress=False, instancing=None)
     assert sel3.instancing is None
+
+
+def test_check_kernel_agrees_with_the_numpy_reference(built):
+    h, reps, sel, _ = built
+    plan, g = sel.instancing, sel.instancing.groups[0]
+    rng = np.random.default_rng(7)
+    answers = []
+    for case in range(12):
+        st = _state(h)
+        i = int(rng.integers(h.n_instances))
+        if case == 1:
+            st.position[i, 2] += 2e-3
+        elif case == 2:
+            st.position[i, 0] += 5e-4  # within the tolerance
+        elif case == 3:
+            st.heading[i] += 2 * np.pi  # a full turn is the same heading
+        elif case == 4:
+            st.heading[i] += 0.01
+        elif case == 5:
+            st.scale[i] *= 1.01
+        elif case == 6:
+            st.anim_time[:] += 3 * h.period  # whole periods: the same pattern
+        elif case == 7:
+            st.anim_time[i] += 0.05
+        elif case == 8:
+            st.clip[i] += 1
+        elif case == 9:
+            st.character[i] += 1
+        elif case == 10:
+            st.position[i, 1] = np.nan
+        elif case == 11:
+            st.anim_time[i] = np.inf
+        want = plan.check_reference(g, st)
+        assert plan.check(g, st) == want, case
+        answers.append(want)
+    assert answers == [True, False, True, True, False, False, True, False, False, False, False, False]

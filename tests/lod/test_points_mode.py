@@ -136,3 +136,35 @@ def test_selector_stats_and_camera_inside_bounds(skinned, cache):
     for b in near.batches:
         assert np.isfinite(b.instance_data).all()
         assert (b.point_jobs[:, 2] > 0).all() and (b.tri_jobs[:, 2] > 0).all()
+
+
+def test_only_the_played_clips_get_point_hierarchies(skinned, cache):
+    full, _ = pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=cache, progress=False)
+    c2 = pm.HierarchyCache(cache.folder)
+    reps, sel = pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=c2, progress=False, clips=[["bend"]])
+    rep, ref = reps[0], full[0]
+    kf = rep.keyframed
+    played = pm.played_segments(kf, ["bend"])
+    assert played.tolist() == [True] * 4 + [False] * 3  # "bend": 4 segments, "twist": 3
+    assert c2.hits == 4 and c2.misses == 0  # the played segments are the same cached hierarchies
+    for s in range(rep.n_parts):
+        h = rep.hierarchies[s]
+        if played[s]:
+            np.testing.assert_array_equal(h.pos0, ref.hierarchies[s].pos0)
+        else:  # one node with every triangle, no points
+            assert h.n_nodes == 1 and h.n_points == 0 and h.child_count[0] == 0
+            assert np.array_equal(np.sort(h.tri_order), np.arange(h.indices.shape[0]))
+    assert rep.nbytes < ref.nbytes
+    # an agent on the unbuilt clip is still drawn, as triangles, at any distance
+    st = CrowdState.empty(1)
+    st.clip[:] = 1
+    st.anim_time[:] = 0.3
+    dl = sel.select(st, Camera.look_at((0, 1.5, 400), (0, 1.5, 0), fov_y=40), (64, 48))
+    assert dl.stats["points"] == 0 and dl.stats["triangles"] == rep.hierarchies[4].indices.shape[0]
+    assert pm.played_segments(kf, [1]).tolist() == [False] * 4 + [True] * 3
+    with pytest.raises(ValueError, match="unknown clip 'jump'"):
+        pm.played_segments(kf, ["jump"])
+    with pytest.raises(ValueError, match="clip index 5"):
+        pm.played_segments(kf, [5])
+    with pytest.raises(ValueError, match="one entry per character"):
+        pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=c2, progress=False, clips=[None, None])

@@ -301,3 +301,23 @@ def test_hierarchical_instantiation_renders_a_block_within_the_flat_instances_er
         assert checked == 4
     finally:
         r.release()
+
+
+@pytest.mark.parametrize("per_group", [3, 16])
+def test_several_jobs_per_work_group_splat_the_same_image(renderer, ball, monkeypatch, per_group):
+    import render.points as rp
+
+    _, sel = ball
+    st = CrowdState.empty(7)  # several instances: a job count that is not a multiple of the group's jobs
+    st.position[:, 0] = np.linspace(-6.0, 6.0, 7)
+    st.position[:, 2] = np.linspace(0.0, -12.0, 7)
+    st.anim_time[:] = np.linspace(0.1, 0.9, 7)
+    dl = sel.select(st, FARTHER, renderer.size)
+    jobs = sum(b.point_jobs.shape[0] for b in dl.batches if hasattr(b, "point_jobs"))
+    assert jobs > per_group and jobs % per_group != 0
+    monkeypatch.setattr(rp, "SPLAT_JOBS_PER_GROUP", 1)
+    one = _render(renderer, dl)
+    monkeypatch.setattr(rp, "SPLAT_JOBS_PER_GROUP", per_group)
+    many = _render(renderer, dl)
+    assert _mask(one, one[0, 0]).sum() > 500
+    np.testing.assert_array_equal(one, many)
