@@ -175,8 +175,8 @@ def measure_hierarchies(renderer, quick: bool = False, repeats: int | None = Non
     rng = np.random.default_rng(seed)
     repeats = int(repeats or (2 if quick else 3))
     sels = sels or hierarchy_selectors()
-    if model is not None:
-        sels["auto"].model = model
+    if model is not None:  # mode auto chooses with its prior (the stored calibration), reports with model
+        sels["auto"].model = sels["auto"].prior = model
     for rep in sels["reps"]:
         if rep.key not in renderer.reps:
             renderer.upload(rep)

@@ -30,7 +30,11 @@ The protocol (:class:`Candidate`):
 ``frame_cost(frame)`` -> float
     seconds the candidate adds to the frame once, when it draws anything
     (the point splatting pass, the cluster drawer's pre-pass); the selector drops a candidate for the whole
-    frame when the per-instance savings it brings do not pay for it.
+    frame when the per-instance savings it brings do not pay for it, and prices it in every frame plan
+    that uses it (:mod:`lod.auto_mode`, "Plans").
+``cost_lower_bound(frame, group)`` -> (k,) float64 or None (optional)
+    seconds none of the candidate's options can undercut, cheap to compute; the selector then asks
+    ``options(frame, group, need)`` only for the instances where the bound could win (the cluster cut).
 
 Costs come from :class:`lod.cost_model.CostModel` (per triangle, splat,
 cluster and instance; the per-draw-call cost is shared by a batch and left
@@ -151,6 +155,16 @@ class Candidate:
 
     def frame_cost(self, frame: Frame) -> float:
         return 0.0
+
+    def cost_lower_bound(self, frame: Frame, group: Group):
+        """(k,) float64 seconds no option of this candidate can undercut for
+        the group's instances, computed without the candidate's expensive
+        per-instance work; None (default): no bound, :meth:`options` is
+        always called for every instance. A candidate that returns a bound
+        must accept ``options(frame, group, need)`` with ``need`` a (k,) bool
+        mask: only those instances need exact options; the others get
+        ``cost`` = the bound and ``error`` = inf."""
+        return None
 
 
 def _sub(batch: DrawBatch, rows: np.ndarray):
@@ -291,33 +305,63 @@ class ClustersCandidate(Candidate):
     ----------
     reps : list aligned with CrowdState.character: a
         :class:`lod.clusters_mode.ClustersRep` or None per character
+    error_scale : float >= 1, the cut is taken at ``bound / error_scale``
+        pixels (default 1: VDR-AM's own measure). Measured here, a cut at
+        PoE p shows silhouette errors up to about 2-3 p against the skinned
+        full-detail mesh (scripts/bench_auto.md, "Image error"), while the
+        triangle chains stay at 0.25-0.8 p; a scale of 2-3 makes the
+        cluster candidate's image error comparable to its bound.
     """
 
     name = "clusters"
 
-    def __init__(self, reps):
+    def __init__(self, reps, error_scale: float = 1.0):
         super().__init__()
+        if not (math.isfinite(error_scale) and error_scale >= 1.0):
+            raise ValueError(f"[lod] cluster_error_scale: expected a finite number >= 1, got {error_scale}")
+        self.error_scale = float(error_scale)
         self.by_char = {i: r for i, r in enumerate(reps) if r is not None and getattr(r, "kind", "") == "clusters"}
         self.reps = list(self.by_char.values())
         self._ws = cluster_cut.CutWorkspace()
         self.clusters_drawn = 0
 
-    def options(self, frame, group):
+    def cost_lower_bound(self, frame, group):
+        """Seconds of the cheapest conceivable cut: one skinned instance and
+        one cluster record (a partly visible instance may cull every
+        triangle, so no triangle term)."""
+        if self.by_char.get(group.char) is None or not frame.bound > 0.0 or group.k == 0:
+            return None
+        c = frame.model.coefficients
+        return np.full(group.k, c["instances"] + c["clusters"])
+
+    def options(self, frame, group, need=None):
         r = self.by_char.get(group.char)
         if r is None or not frame.bound > 0.0 or group.k == 0:
             return None
         from lod.clusters_mode import cull_clusters
 
         h = r.hierarchy
-        offsets, clusters = cluster_cut.cut(h, group.rows, np.zeros(3), frame.scale_px, frame.bound, self._ws)
-        if frame.cull:
-            offsets, clusters = cull_clusters(r.sphere64, group.rows, offsets, clusters, frame.planes)
+        c = frame.model.coefficients
+        sub = np.arange(group.k) if need is None else np.flatnonzero(need)
+        rows = group.rows[sub]
+        offsets, clusters = cluster_cut.cut(h, rows, np.zeros(3), frame.scale_px, frame.bound / self.error_scale,
+                                            self._ws)
+        if frame.cull and sub.size:
+            offsets, clusters = cull_clusters(r.sphere64, rows, offsets, clusters, frame.planes)
+        if sub.size != group.k:  # instances not asked for get an empty cut (never emitted: their error is inf)
+            n = np.zeros(group.k, np.int64)
+            n[sub] = np.diff(offsets)
+            offsets = np.concatenate([[0], np.cumsum(n)]).astype(np.int64)
         tris = cluster_cut.cut_triangle_count(h, offsets, clusters).astype(np.float64)
         ncl = np.diff(offsets).astype(np.float64)
-        c = frame.model.coefficients
         cost = c["triangles"] * tris + c["clusters"] * ncl + c["instances"]
         # every drawn cluster's error projects strictly below the bound (§5.1)
         err = np.full(group.k, frame.bound)
+        if sub.size != group.k:
+            skip = np.ones(group.k, bool)
+            skip[sub] = False
+            cost[skip] = self.cost_lower_bound(frame, group)[skip]
+            err[skip] = np.inf
         return Options(cost[:, None], err[:, None], (r, offsets, clusters, tris), ("cut",))
 
     def emit(self, frame, group, options, rows, choice):

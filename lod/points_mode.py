@@ -232,9 +232,13 @@ def triangle_hierarchy(p0, p1, indices) -> PointHierarchy:
     """A one-node hierarchy holding every triangle of a segment and no points
     (``build_hierarchy`` with a leaf as large as the segment): the traversal
     draws it as triangles at every distance, like mode "none". Stands in for
-    the segments of clips a scene does not play (:func:`build_points_rep`)."""
+    the segments of clips a scene does not play (:func:`build_points_rep`).
+    Not cached (no sampling: one node), so it is called through the module
+    rather than as this module's cached-build entry point ``build_hierarchy``."""
+    from lod import points_octree
+
     idx = np.asarray(indices).reshape(-1, 3)
-    return build_hierarchy(p0, p1, idx, leaf_triangles=max(1, idx.shape[0]), progress=False)
+    return points_octree.build_hierarchy(p0, p1, idx, leaf_triangles=max(1, idx.shape[0]), progress=False)
 
 
 def played_segments(kf: KeyframedRep, clips) -> np.ndarray:

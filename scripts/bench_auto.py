@@ -90,6 +90,8 @@ def bench_scene(path: Path, args, model) -> dict:
     times = {n: [] for n in CASES}
     est = {n: False for n in CASES}
     err = {n: [] for n in CASES}
+    sels = {n: [] for n in CASES}
+    plans = {n: [] for n in CASES}
     pred, meas = [], []
     info = {}
     for k in range(args.warmup + args.frames):
@@ -105,6 +107,7 @@ def bench_scene(path: Path, args, model) -> dict:
                 print(f"    frame {k} nolod: not drawn, predicted {model.predict(dl):.1f} s "
                       f"({dl.stats['triangles']:,} triangles)", flush=True)
                 continue
+            s_sel = time.perf_counter() - a
             t = r.draw(dl)
             b = time.perf_counter()
             img = r.read_pixels()
@@ -114,22 +117,30 @@ def bench_scene(path: Path, args, model) -> dict:
                 err[name].append(psnr(img, ref))
             measured = sum(float(t.get(s) or 0.0) for s in ("upload", "draw", "finish"))
             if name.startswith("auto"):
-                sel.observe(measured)  # as crowd.engine does: budget mode and the online cost-model refit
+                # as crowd.engine does: selection + rendering; the selector refits its model with the rendering
+                # share (lod.auto_mode.AutoSelector.observe) and budget mode adapts to the whole
+                sel.observe(s_sel + measured)
             if k >= args.warmup:
                 times[name].append(b - a)
+                sels[name].append(s_sel)
                 if name.startswith("auto"):
                     pred.append(dl.stats["auto"]["predicted_ms"] * 1e-3)
                     meas.append(measured)
                     info[name] = dl.stats["auto"]["representations"]
-            extra = (f", predicted {dl.stats['auto']['predicted_ms']:.1f} ms vs measured {1e3 * measured:.1f} ms, "
-                     f"{dl.stats['auto']['options']}") if name.startswith("auto") else ""
-            print(f"    frame {k} {name}: {b - a:.3f} s (render {measured:.3f}), {dl.stats['triangles']:,} tris, "
+                    plans[name].append(dl.stats["auto"]["plan"])
+            extra = (f", plan {dl.stats['auto']['plan']}, predicted {dl.stats['auto']['predicted_ms']:.1f} ms vs "
+                     f"measured {1e3 * measured:.1f} ms, {dl.stats['auto']['options']}, plans (ms) "
+                     f"{ {n: round(v, 1) for n, v in dl.stats['auto']['plans_ms'].items()} }"
+                     if name.startswith("auto") else "")
+            print(f"    frame {k} {name}: {b - a:.3f} s (select {s_sel:.3f}, render {measured:.3f}), "
+                  f"{dl.stats['triangles']:,} tris, "
                   f"{dl.stats.get('points', 0):,} points, {dl.stats['instances']} inst{extra}", flush=True)
         eng.step()
     out = {"scene": path.stem, "agents": int(eng.world.state.n),
            "t": {n: statistics.median(v) for n, v in times.items() if v}, "est": est,
            "psnr": {n: (statistics.median(v) if v else None) for n, v in err.items()},
-           "pred_err": [abs(p - m) / m for p, m in zip(pred, meas) if m > 0], "reps": info}
+           "pred_err": [abs(p - m) / m for p, m in zip(pred, meas) if m > 0], "reps": info,
+           "sel": {n: statistics.median(v) for n, v in sels.items() if v}, "plans": plans}
     if args.budget and path.stem == args.budget:
         best = min(out["t"][n] for n in ("triangles", "clusters", "points", "auto", "auto-splat"))
         budget = 3.0 * best
@@ -159,7 +170,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--frames", type=int, default=1, help="timed frames per case (median)")
-    ap.add_argument("--warmup", type=int, default=1)
+    ap.add_argument("--warmup", type=int, default=3, help="untimed frames first (auto measures and corrects "
+                    "its frame plans over them)")
     ap.add_argument("--steps", type=int, default=5, help="simulation steps before the first frame")
     ap.add_argument("--poe", type=float, default=1.0, help="pixels of error of triangles, clusters and auto")
     ap.add_argument("--splat", type=int, default=2, help="splat size of mode points")
@@ -191,6 +203,8 @@ def main(argv=None) -> int:
         pe = f"{100 * statistics.median(o['pred_err']):.0f} %" if o["pred_err"] else "-"
         print(f"{o['scene']:<11} {cells}  {t['auto'] / best:9.2f}  {t['auto-splat'] / best:10.2f}  {ps:>37}  "
               f"{pe:>8}  {o['reps']}")
+        print("  selection s (median): " + " ".join(f"{n} {v:.3f}" for n, v in o["sel"].items())
+              + f"; auto plans {o['plans'].get('auto')}, auto-splat plans {o['plans'].get('auto-splat')}")
         if "budget" in o:
             b = o["budget"]
             print(f"  budget mode: budget {b['budget']:.3f} s, p95 {b['p95']:.3f} s "

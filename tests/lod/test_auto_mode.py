@@ -352,11 +352,11 @@ def test_observe_refits_the_cost_model_when_adapting(built):
     st = _crowd(100, 2)
     for adapt in (False, True):
         sel = am.AutoSelector(built.tri_reps, poe=1.0, model=MODEL, candidates=built.sel.candidates[1:],
-                              adapt=adapt)
+                              adapt=adapt, explore=False)
         dl0 = sel.select(st, CAM, SIZE)
         first = dl0.stats["auto"]["predicted_ms"]
         for _ in range(6):
-            sel.observe(3e-3 * first)  # the machine is 3x slower than the model says
+            sel.observe(3e-3 * first, select_seconds=0.0)  # the machine is 3x slower than the model says
             dl = sel.select(st, CAM, SIZE)
             p = dl.stats["auto"]["predicted_ms"]
         assert dl.stats["auto"]["options"] == dl0.stats["auto"]["options"]
@@ -554,3 +554,129 @@ def test_controller_ignores_a_single_noisy_frame():
     assert c.update(0.060) == 2.0 and c.update(0.060) > 2.0  # persisting: coarsen
     b = c.bound
     assert c.update(0.200) > b  # far over budget: at once
+
+
+# ------------------------------------------------------------------------------------------ frame plans
+FREE_PASSES = cost_model.CostModel({"points": 1e-7, "clusters": 1e-6, "splat_pixels": 0.0, "splat_area": 0.0,
+                                    "cluster_frames": 0.0})
+
+
+def test_chosen_plan_is_the_cheapest_predicted_plan(built):
+    """Without measurements the frame plan drawn is the cheapest of the mixed plan and every pure plan
+    (all instances on one representation, with its per-frame pass), and it is what the draw list costs."""
+    st = _crowd(200, 4, depth=200.0)
+    for model in (MODEL, FREE_PASSES, cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0})):
+        for poe in (1.0, 2.0, 6.0):
+            sel = am.AutoSelector(built.tri_reps, poe=poe, model=model, candidates=built.sel.candidates[1:])
+            a = sel.select(st, CAM, SIZE).stats["auto"]
+            plans = a["plans_ms"]
+            assert set(plans) == {"triangles", "clusters", "points", "mixed"}
+            assert plans[a["plan"]] == pytest.approx(min(plans.values()), rel=1e-9), (poe, plans, a["plan"])
+            assert np.isfinite(list(plans.values())).all() and a["select_ms"] > 0.0
+            if a["plan"] in ("triangles", "clusters", "points"):
+                assert all(n == a["plan"] or n == "triangles" or v == 0 for n, v in a["representations"].items())
+
+
+def test_measured_plan_costs_steer_the_choice(built):
+    """Frames drawing points are measured 3x slower than predicted, the others as predicted: the
+    selector tries the plans predicted within EXPLORE_MARGIN of the best once, learns each plan's
+    factor, and settles on a plan without points; without ``adapt`` nothing is learnt."""
+    st = _crowd(200, 4, depth=200.0)
+    model = cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0})
+    for adapt in (True, False):
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=built.sel.candidates[1:],
+                              adapt=adapt)
+        seen = []
+        for _ in range(8):
+            dl = sel.select(st, CAM, SIZE)
+            a = dl.stats["auto"]
+            seen.append((a["plan"], a["representations"]["points"]))
+            sel.observe(model.predict(dl) * (3.0 if a["representations"]["points"] else 1.0), select_seconds=0.0)
+        if adapt:
+            assert seen[0][1] > 0  # the calibration prefers points here
+            assert all(p == 0 for _, p in seen[-3:]), seen
+            assert sel.plan_factor(seen[0][0]) == pytest.approx(3.0)
+            assert sel.plan_factor(seen[-1][0]) == pytest.approx(1.0)
+            assert dl.stats["auto"]["predicted_ms"] == pytest.approx(1e3 * model.predict(dl))
+        else:
+            assert len(set(seen)) == 1 and sel.plan_factor("points") == 1.0
+
+
+class NoBound(ac.ClustersCandidate):
+    """The cluster candidate without its cost lower bound: every cut computed."""
+
+    def __init__(self, inner):
+        ac.Candidate.__init__(self)
+        self.__dict__.update(inner.__dict__)
+
+    cost_lower_bound = ac.Candidate.cost_lower_bound
+
+
+def test_cost_lower_bound_skips_work_but_not_choices(built):
+    """Cluster cuts are computed only where their lower bound undercuts the best option found so far;
+    the draw lists equal those of a selector computing every cut; skipped rows are priced at the bound
+    (never above the exact cost) and cannot be chosen."""
+    cl, pts = built.sel.candidates[1], built.sel.candidates[2]
+    st = _crowd(300, 21, half_width=60.0, depth=500.0)
+    for model in (MODEL, FREE_PASSES):
+        for poe in (1.0, 2.0, 6.0):
+            dls = []
+            for c in (cl, NoBound(cl)):
+                sel = am.AutoSelector(built.tri_reps, poe=poe, model=model, candidates=[c, pts])
+                dls.append(sel.select(st, CAM, SIZE))
+            a, b = dls
+            assert a.stats["auto"]["plan"] == b.stats["auto"]["plan"]
+            assert a.stats["auto"]["options"] == b.stats["auto"]["options"]
+            assert [(x.rep, x.part, x.level, tuple(x.instance_ids)) for x in a.batches] == \
+                [(x.rep, x.part, x.level, tuple(x.instance_ids)) for x in b.batches]
+    sel = am.AutoSelector(built.tri_reps, poe=2.0, model=MODEL, candidates=[cl])
+    dl = sel._inner.select(st, CAM, SIZE)
+    bt = dl.batches[0]
+    g = ac.Group(0, bt, np.asarray(bt.instance_data, np.float64)[:, :12].reshape(-1, 3, 4))
+    frame = ac.Frame(st, CAM, SIZE, CAM.frustum_planes(SIZE[0] / SIZE[1]),
+                     am.viewport_scale(SIZE[1], CAM.fov_y), 2.0, MODEL)
+    need = np.arange(g.k) % 3 == 0
+    full, part = cl.options(frame, g), cl.options(frame, g, need)
+    np.testing.assert_allclose(part.cost[need], full.cost[need])
+    assert np.all(part.cost[~need] <= full.cost[~need]) and np.all(np.isinf(part.error[~need]))
+    off = part.plan[1]
+    assert off.shape == (g.k + 1,) and np.all(np.diff(off)[~need] == 0)
+
+
+def test_observe_takes_the_rendering_share(built):
+    """observe() gets selection + rendering (as crowd.engine measures); the refit uses the rendering only,
+    by default minus the selector's own timing of its last select()."""
+    st = _crowd(60, 2)
+    sel = am.AutoSelector(built.tri_reps, poe=1.0, model=MODEL, adapt=True, explore=False)
+    dl = sel.select(st, CAM, SIZE)
+    p = MODEL.predict(dl)
+    assert sel.last_select_seconds > 0.0
+    sel.observe(2 * p + sel.last_select_seconds)
+    assert sel.plan_factor(dl.stats["auto"]["plan"]) == pytest.approx(2.0, rel=1e-6)
+    sel.select(st, CAM, SIZE)
+    sel.observe(float("nan"))  # ignored
+    sel.observe(0.5 * sel.last_select_seconds)  # no rendering share left: ignored by the refit
+    assert sel.plan_factor(dl.stats["auto"]["plan"]) == pytest.approx(2.0, rel=1e-6)
+
+
+def test_cluster_error_scale_cuts_at_a_tighter_bound(built):
+    """``cluster_error_scale`` k: the cluster candidate's cut at bound b is VDR-AM's cut at b / k (more
+    triangles, the same admissibility); k < 1 or non-finite is rejected naming the key."""
+    cl = built.sel.candidates[1]
+    st = _crowd(80, 9)
+    sel = am.AutoSelector(built.tri_reps, poe=2.0, model=MODEL, candidates=[cl])
+    bt = sel._inner.select(st, CAM, SIZE).batches[0]
+    g = ac.Group(0, bt, np.asarray(bt.instance_data, np.float64)[:, :12].reshape(-1, 3, 4))
+
+    def frame(bound):
+        return ac.Frame(st, CAM, SIZE, CAM.frustum_planes(SIZE[0] / SIZE[1]), am.viewport_scale(SIZE[1], CAM.fov_y),
+                        bound, MODEL)
+
+    scaled = ac.ClustersCandidate(list(cl.by_char.values()), error_scale=2.0)
+    a, b = scaled.options(frame(2.0), g), cl.options(frame(1.0), g)
+    np.testing.assert_array_equal(a.plan[1], b.plan[1])
+    np.testing.assert_array_equal(a.plan[2], b.plan[2])
+    assert np.all(a.error == 2.0) and a.plan[3].sum() > cl.options(frame(2.0), g).plan[3].sum()
+    for bad in (0.5, float("nan")):
+        with pytest.raises(ValueError, match="cluster_error_scale"):
+            ac.ClustersCandidate([], error_scale=bad)
