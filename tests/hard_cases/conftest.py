@@ -2,12 +2,9 @@
 skipped: llvmpipe through EGL exists on every machine), debug renderers that
 refuse NaN/Inf instance data, and the tiny hand-made characters."""
 import os
-import sys
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 os.environ.setdefault("CROWD_GL_DEBUG", "1")
 
 

@@ -4,10 +4,6 @@ every visible instance drawn once with all three candidates in play, the measure
 representation within the bound, the budget controller's convergence without oscillation, telemetry,
 and a `crowd run` with the mode."""
 import csv
-import os
-import subprocess
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -20,11 +16,10 @@ from lod import triangles_mode as tm
 from lod.view import Camera
 from sim.procedural import humanoid
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
-from image_checks import silhouette_error  # noqa: E402
-from tiny_characters import tiny_keyframed  # noqa: E402
+from crowd_testutil import run_cli, tiny_scene
+from image_checks import silhouette_error
+from tiny_characters import tiny_keyframed
 
-REPO = Path(__file__).resolve().parents[2]
 SIZE = (320, 240)
 MODEL = cost_model.CostModel()  # the defaults: independent of any stored calibration
 
@@ -379,50 +374,13 @@ def test_controller_holds_when_cost_jumps_across_the_band():
 
 
 # ------------------------------------------------------------------------------------------ crowd run
-SCENE = """\
-name = "tiny"
-seed = 1
-dt = 0.05
-frames = 3
-effects = ["animation"]
-
-[[characters]]
-name = "walker"
-generator = "humanoid"
-triangles = 600
-
-[[placement]]
-kind = "grid"
-character = "walker"
-rows = 2
-cols = 2
-spacing = [1.5, 1.5]
-
-[camera]
-position = [1.0, 2.0, 30.0]
-target = [1.0, 0.8, 1.0]
-
-[render]
-size = [64, 48]
-png_every = 1
-
-[lod]
-mode = "auto"
-poe = 1.0
-budget_ms = %s
-levels = 5
-"""
-
-
 @pytest.mark.parametrize("budget", ["0.0", "50.0"])
-def test_crowd_run_with_mode_auto(tmp_path, budget):
+def test_crowd_run_with_mode_auto(tmp_path, monkeypatch, budget):
     scene = tmp_path / "tiny.toml"
-    scene.write_text(SCENE % budget)
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    env["CROWD_CACHE_DIR"] = str(tmp_path / "cache")
-    p = subprocess.run([sys.executable, "-m", "crowd", "run", str(scene), "--out", str(tmp_path / "out"), "--quiet"],
-                       capture_output=True, text=True, cwd=REPO, env=env, timeout=300)
+    scene.write_text(tiny_scene(replace={'mode = "none"': f'mode = "auto"\npoe = 1.0\nbudget_ms = {budget}\nlevels = 5',
+                                         "position = [1.0, 2.0, 7.0]": "position = [1.0, 2.0, 30.0]"}))
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    p = run_cli("run", scene, "--out", tmp_path / "out", "--quiet")
     assert p.returncode == 0, p.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "frames.csv")))
     assert len(rows) == 3

@@ -294,12 +294,8 @@ def test_points_segment_change_is_selected_on_the_spot(tmp_path):
     """Point jobs index one keyframe segment's octree (part-dependent): an instance
     whose segment changed between keyframes is selected again, never drawn with
     the old segment's jobs, never dropped."""
-    import sys
-    from pathlib import Path
-
     from lod import points_mode as pm
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
     from tiny_characters import tiny_keyframed
 
     reps, sel = pm.build([tiny_keyframed()], ["q"], [30], {"splat_size": 2}, cache=pm.HierarchyCache(tmp_path),

@@ -2,10 +2,6 @@
 per-instance level selection, equality with NoLOD at a zero bound, measured
 silhouette error within the bound, and a `crowd run` with the mode."""
 import csv
-import os
-import subprocess
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,11 +12,10 @@ from lod import triangles_mode as tm
 from lod.view import Camera
 from sim.procedural import humanoid
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
-from image_checks import silhouette_error  # noqa: E402
-from tiny_characters import tiny_keyframed  # noqa: E402
+from crowd_testutil import run_cli, tiny_scene
+from image_checks import silhouette_error
+from tiny_characters import tiny_keyframed
 
-REPO = Path(__file__).resolve().parents[2]
 SIZE = (320, 240)
 BG = (0.1, 0.1, 0.12)
 
@@ -267,47 +262,11 @@ def test_index_range_is_checked(built, gl):
 
 
 # ------------------------------------------------------------------------------------------ crowd run
-SCENE = """\
-name = "tiny"
-seed = 1
-dt = 0.05
-frames = 3
-effects = ["animation"]
-
-[[characters]]
-name = "walker"
-generator = "humanoid"
-triangles = 600
-
-[[placement]]
-kind = "grid"
-character = "walker"
-rows = 2
-cols = 2
-spacing = [1.5, 1.5]
-
-[camera]
-position = [1.0, 2.0, 30.0]
-target = [1.0, 0.8, 1.0]
-
-[render]
-size = [64, 48]
-png_every = 1
-
-[lod]
-mode = "triangles"
-poe = 1.0
-levels = 5
-"""
-
-
 def test_crowd_run_with_mode_triangles(tmp_path):
     scene = tmp_path / "tiny.toml"
-    scene.write_text(SCENE)
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    p = subprocess.run([sys.executable, "-m", "crowd", "run", str(scene), "--out", str(tmp_path / "out"), "--quiet"],
-                       capture_output=True, text=True, cwd=REPO, env=env, timeout=300)
+    scene.write_text(tiny_scene(replace={'mode = "none"': 'mode = "triangles"\npoe = 1.0\nlevels = 5',
+                                         "position = [1.0, 2.0, 7.0]": "position = [1.0, 2.0, 30.0]"}))
+    p = run_cli("run", scene, "--out", tmp_path / "out", "--quiet")
     assert p.returncode == 0, p.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "frames.csv")))
     assert len(rows) == 3
