@@ -298,16 +298,13 @@ class Engine:
         st = self.plan.state
         ch = np.asarray(st.character, np.int64)
         cl = np.asarray(st.clip, np.int64)
-        gait = self.world.resources.get("boids")
-        gait = getattr(gait, "clips", None)
+        gait = getattr(self.world.resources.get("boids"), "clips", None)  # sim.boids' walk/run switch
         out = []
         for ci, character in enumerate(self.plan.characters):
             names = character.clip_names()
             played = {int(c) for c in np.unique(cl[ch == ci]) if 0 <= c < len(names)}
-            if gait is not None and ci < len(gait.walk):
-                walk, run = int(gait.walk[ci]), int(gait.run[ci])
-                if walk >= 0 and run >= 0 and played & {walk, run}:
-                    played |= {walk, run}
+            if gait is not None:
+                played = gait.reachable(ci, played)
             out.append([names[i] for i in sorted(played)])
         return out
 

@@ -107,6 +107,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -275,6 +276,23 @@ class BudgetController:
         return self.bound
 
 
+@dataclass
+class _Plan:
+    """One frame plan (module docstring, "Plans"): per group the chosen option
+    column of each instance, the predicted seconds under the stored
+    calibration, whether that price is exact (no instance priced at a lower
+    bound), and ``alias``: the pure plan a mixed plan coincides with."""
+
+    choices: list
+    seconds: float
+    exact: bool
+    alias: str | None = None
+
+    def measured_as(self, name: str) -> str:
+        """The name the plan's measurements are kept under."""
+        return self.alias or name
+
+
 class AutoSelector:
     """Cull and pack as the full-detail mode, then choose per instance among
     the candidates (module docstring).
@@ -424,8 +442,7 @@ class AutoSelector:
         return type(c).cost_lower_bound is not ac.Candidate.cost_lower_bound
 
     def _plans(self, frame, groups, bound):
-        """The frame plans (module docstring, "Plans"): name -> [choices per group (k,) int64 columns,
-        predicted seconds under the stored calibration, exact, (alias)].
+        """The frame plans (module docstring, "Plans"): name -> :class:`_Plan`.
 
         Vectorised per group over the candidates' column blocks: each block's cheapest admissible
         option per instance (``bmin``, ``barg``) is computed once, and every plan is an argmin over
@@ -487,7 +504,7 @@ class AutoSelector:
                         used.add(n)
                         total += c["batches"] * k
                 choices.append(ch)
-            return [choices, total + sum(fc.get(n, 0.0) for n in used), exact]
+            return _Plan(choices, total + sum(fc.get(n, 0.0) for n in used), exact)
 
         plans = {n: evaluate(None, pure=n) for n in names}
         # the mixed plan: per instance the cheapest option; a candidate with a per-frame cost is dropped
@@ -512,11 +529,12 @@ class AutoSelector:
         plans["mixed"] = evaluate(use)
         # a plan whose choices equal a pure plan's is that plan (its measurements are shared)
         for name in names:
-            if all(np.array_equal(x, y) for x, y in zip(plans[name][0], plans["mixed"][0])):
-                plans["mixed"][2] = plans["mixed"][2] and plans[name][2]
-                if plans[name][2] or not plans["mixed"][2]:
-                    plans["mixed"][1] = plans[name][1]
-                plans["mixed"].append(name)
+            pure, mixed = plans[name], plans["mixed"]
+            if all(np.array_equal(x, y) for x, y in zip(pure.choices, mixed.choices)):
+                mixed.exact = mixed.exact and pure.exact
+                if pure.exact or not mixed.exact:
+                    mixed.seconds = pure.seconds
+                mixed.alias = name
                 break
         return plans
 
@@ -555,11 +573,10 @@ class AutoSelector:
         plans = self._plans(frame, groups, bound)
 
         def corrected(name):
-            p = plans[name]
-            return p[1] * self.plan_factor(p[3] if len(p) > 3 else name)
+            return plans[name].seconds * self.plan_factor(plans[name].measured_as(name))
 
         best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
-        if not plans[best][2]:  # priced optimistically: price every skipped instance exactly, then decide again
+        if not plans[best].exact:  # priced optimistically: price every skipped instance exactly, then decide again
             for gi, (g, opts, cost, err) in enumerate(groups):
                 if any(sk is not None for _, _, _, sk in opts):
                     full = []
@@ -572,12 +589,12 @@ class AutoSelector:
             best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
         if self.explore and self.controller is None and self.adapt and self._frames < EXPLORE_FRAMES:
             # a plan never measured whose prediction is within the model's error of the best is tried once
-            cands = [n for n in plans if n != best and n not in self._plan_ratio and len(plans[n]) <= 3
+            cands = [n for n in plans if n != best and n not in self._plan_ratio and plans[n].alias is None
                      and corrected(n) <= (1.0 + EXPLORE_MARGIN) * corrected(best)]
-            if cands and (len(plans[best]) > 3 and plans[best][3] or best) in self._plan_ratio:
+            if cands and plans[best].measured_as(best) in self._plan_ratio:
                 best = min(cands, key=corrected)
-        plan_name = plans[best][3] if len(plans[best]) > 3 else best
-        for (g, opts, cost, err), choice in zip(groups, plans[best][0]):
+        plan_name = plans[best].measured_as(best)
+        for (g, opts, cost, err), choice in zip(groups, plans[best].choices):
             for c, o, a, sk in opts:
                 m = o.cost.shape[1]
                 mine = np.flatnonzero((choice >= a) & (choice < a + m))

@@ -529,6 +529,16 @@ class _ClipTable:
         self.run_speed = float(cfg.get("run_speed", 2.5))
         self.hyst = float(cfg.get("run_hysteresis", 0.3))
 
+    def reachable(self, character: int, clips: set) -> set:
+        """The clip indices agents of ``character`` starting with ``clips`` can
+        play under :meth:`update`: walk and run both once either is among them."""
+        clips = set(clips)
+        if 0 <= character < len(self.walk):
+            walk, run = int(self.walk[character]), int(self.run[character])
+            if walk >= 0 and run >= 0 and clips & {walk, run}:
+                clips |= {walk, run}
+        return clips
+
     def update(self, st, dt: float, advance_time: bool) -> None:
         """Walk/run switch (keeping phase fraction) and anim_rate = speed / clip.speed.
 
