@@ -1,6 +1,9 @@
 #version 430
-// Full-screen triangle of the splat resolve pass.
+// Geometry of the splat resolve pass (render/points.py): the pixel rectangles
+// (in NDC) whose footprints reach anchor tiles the depth pass filled, or one
+// full-screen triangle when most of the screen is touched.
+in vec2 in_pos;
+
 void main() {
-    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+    gl_Position = vec4(in_pos, 0.0, 1.0);
 }

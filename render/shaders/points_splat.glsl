@@ -8,6 +8,8 @@
 // DEPTH_PASS (default): atomicMin of the window depth (float bits, positive,
 // so ordered as uint) into the point's anchor slot (the lowest corner of its
 // s x s footprint, on a grid with a MARGIN-pixel border below and left);
+// The first point of an anchor marks the anchor's TILE x TILE tile
+// (render/points.py clears and resolves only marked tiles).
 // COLOR_PASS: the point whose depth won its anchor writes its lit RGBA8
 // colour there. The resolve pass takes, per pixel, the nearest of the s x s
 // anchors whose footprints cover it: the same minimum as scattering into the
@@ -16,6 +18,9 @@
 // one 64-bit atomicMin.)
 #ifndef MARGIN
 #define MARGIN 2
+#endif
+#ifndef TILE
+#define TILE 8
 #endif
 #ifndef LOCAL_SIZE
 #define LOCAL_SIZE 8
@@ -27,10 +32,15 @@ layout(local_size_x = LOCAL_SIZE) in;
 layout(std430, binding = 0) readonly buffer Points { Sample pts[]; };
 layout(std430, binding = 3) buffer Depth { uint depth[]; };
 layout(std430, binding = 4) buffer Color { uint color[]; };
+#ifndef COLOR_PASS
+// filled-tile flags, one per TILE x TILE anchor slots
+layout(std430, binding = 8) buffer Tiles { uint tiles[]; };
+#endif
 
 uniform mat4 u_view_proj;
 uniform ivec2 u_size;
 uniform int u_splat;
+uniform int u_tiles_x;  // slot tiles per row: ceil((width + MARGIN) / TILE)
 
 #ifndef JOBS_PER_GROUP
 #define JOBS_PER_GROUP 1
@@ -61,10 +71,9 @@ void splat_job(uint j) {
     mat4 mvp = u_view_proj * model;
     float half_s = 0.5 * float(u_splat);
     for (uint k = gl_LocalInvocationID.x; k < job.y; k += uint(LOCAL_SIZE)) {
-        vec3 p;
-        vec3 n;
-        vec4 c;
-        sample_at(pts[job.x + k], u, p, n, c);
+        // positions only: the colour pass loads a point's normal and colour
+        // once it has won its anchor (most points of a far view lose)
+        vec3 p = mix(pts[job.x + k].p0.xyz, pts[job.x + k].p1.xyz, u);
         vec4 clip = mvp * vec4(p, 1.0);
         if (!(clip.w > 0.0)) continue;
         vec3 ndc = clip.xyz / clip.w;
@@ -78,17 +87,24 @@ void splat_job(uint j) {
         if (x0 < -MARGIN || y0 < -MARGIN || x0 >= u_size.x || y0 >= u_size.y) continue;
         // screen-door transition (DrawBatch.fade): decided at the anchor, the same in both passes
         if (fade_discards(ivec2(x0, y0))) continue;
-        uint slot = uint((y0 + MARGIN) * (u_size.x + MARGIN) + x0 + MARGIN);
+        int sx = x0 + MARGIN;
+        int sy = y0 + MARGIN;
+        uint slot = uint(sy * (u_size.x + MARGIN) + sx);
         uint key = floatBitsToUint(ndc.z * 0.5 + 0.5);
 #ifdef COLOR_PASS
         if (depth[slot] == key) {
+            vec3 n;
+            vec4 c;
+            sample_at(pts[job.x + k], u, p, n, c);
             vec4 h = vec4(p, 1.0);
             vec3 world = vec3(dot(m0, h), dot(m1, h), dot(m2, h));
             vec3 nw = vec3(dot(m0.xyz, n), dot(m1.xyz, n), dot(m2.xyz, n));
             color[slot] = packUnorm4x8(vec4(shade(world, nw, c.rgb), 1.0));
         }
 #else
-        atomicMin(depth[slot], key);
+        // the first point of an anchor marks its tile (every writer stores the
+        // same value: no atomic needed)
+        if (atomicMin(depth[slot], key) == 0xFFFFFFFFu) tiles[(sy / TILE) * u_tiles_x + sx / TILE] = 1u;
 #endif
     }
 }
