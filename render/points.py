@@ -72,27 +72,64 @@ FULL_CLEAR_SHARE = 0.5
 CLEAR_GROUP = 256
 #: largest work-group count per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS_X = 65535
-#: bytes per sample (point or vertex): vec4 p0, vec4 p1, uvec4 attr
-SAMPLE_BYTES = 48
+#: bytes per sample (point or vertex): uvec4 geo, uvec4 attr (points_common.glsl)
+SAMPLE_BYTES = 32
+#: 32-bit words per sample
+SAMPLE_WORDS = SAMPLE_BYTES // 4
 #: point splat paths
 PATHS = ("compute", "gl_points")
 
 
-def pack_samples(p0, p1, n0, n1, c0, c1) -> np.ndarray:
-    """(n, 12) uint32 words of samples in the ``Sample`` layout (positions and
-    normals' z as float bits, colours RGBA8, normals' xy snorm16x2).
+def sample_box(*positions) -> tuple[np.ndarray, float]:
+    """(lo (3,) float64, scale float > 0): the cube [lo, lo + scale]^3 holding
+    every finite row of the given (n, 3) position arrays, in which
+    :func:`pack_samples` quantises them (uniform scale, so normals transformed
+    by the folded instance matrix keep their directions)."""
+    ps = [np.asarray(p, np.float64).reshape(-1, 3) for p in positions]
+    ps = [p[np.isfinite(p).all(axis=1)] for p in ps]
+    ps = [p for p in ps if p.shape[0]]
+    if not ps:
+        return np.zeros(3), 1.0
+    lo = np.min([p.min(axis=0) for p in ps], axis=0)
+    hi = np.max([p.max(axis=0) for p in ps], axis=0)
+    ext = float((hi - lo).max())
+    return lo, (ext if ext > 0.0 and np.isfinite(ext) else 1.0)
+
+
+def oct_encode(n: np.ndarray) -> np.ndarray:
+    """(n, 2) float64 octahedral coordinates in [-1, 1] of (n, 3) directions
+    (zero or non-finite ones give +z); decoded by ``oct_decode`` in
+    points_common.glsl."""
+    v = np.nan_to_num(np.asarray(n, np.float64).reshape(-1, 3), nan=0.0, posinf=0.0, neginf=0.0)
+    l1 = np.abs(v).sum(axis=1)
+    zero = l1 <= 1e-30
+    v = np.where(zero[:, None], [0.0, 0.0, 1.0], v) / np.where(zero, 1.0, l1)[:, None]
+    e = v[:, :2].copy()
+    neg = v[:, 2] < 0.0
+    sgn = np.where(e[neg] >= 0.0, 1.0, -1.0)
+    e[neg] = (1.0 - np.abs(v[neg][:, [1, 0]])) * sgn
+    return np.clip(e, -1.0, 1.0)
+
+
+def pack_samples(p0, p1, n0, n1, c0, c1, lo=(0.0, 0.0, 0.0), scale=1.0) -> np.ndarray:
+    """(n, 8) uint32 words of samples in the ``Sample`` layout: positions as
+    unorm16 of ``(p - lo) / scale`` (:func:`sample_box`; error at most
+    scale / 131070 per axis), colours RGBA8, normals octahedral snorm16x2.
 
     Non-finite inputs are replaced by 0 (nothing non-finite reaches the GPU).
     """
     n = np.asarray(p0).shape[0]
-    f = np.zeros((n, 8), np.float32)
-    f[:, 0:3] = p0
-    f[:, 3] = np.asarray(n0)[:, 2]
-    f[:, 4:7] = p1
-    f[:, 7] = np.asarray(n1)[:, 2]
-    f = np.where(np.isfinite(f), f, 0.0).astype(np.float32)
-    out = np.zeros((n, 12), np.uint32)
-    out[:, :8] = f.view(np.uint32)
+    out = np.zeros((n, 8), np.uint32)
+
+    def unorm16(p):
+        q = (np.asarray(p, np.float64).reshape(-1, 3) - np.asarray(lo, np.float64)) / float(scale)
+        q = np.clip(np.nan_to_num(q, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        return np.rint(q * 65535.0).astype(np.uint32)
+
+    a, b = unorm16(p0), unorm16(p1)
+    out[:, 0] = a[:, 0] | (a[:, 1] << 16)
+    out[:, 1] = a[:, 2] | (b[:, 0] << 16)
+    out[:, 2] = b[:, 1] | (b[:, 2] << 16)
 
     def rgba8(c):
         c = np.nan_to_num(np.clip(np.asarray(c, np.float64), 0.0, 1.0))
@@ -100,15 +137,53 @@ def pack_samples(p0, p1, n0, n1, c0, c1) -> np.ndarray:
         return b[:, 0] | (b[:, 1] << 8) | (b[:, 2] << 16) | (b[:, 3] << 24)
 
     def snorm2(v):
-        v = np.nan_to_num(np.clip(np.asarray(v, np.float64)[:, :2], -1.0, 1.0))
-        q = np.rint(v * 32767.0).astype(np.int16).view(np.uint16).astype(np.uint32)
+        q = np.rint(oct_encode(v) * 32767.0).astype(np.int16).view(np.uint16).astype(np.uint32)
         return q[:, 0] | (q[:, 1] << 16)
 
-    out[:, 8] = rgba8(c0)
-    out[:, 9] = rgba8(c1)
-    out[:, 10] = snorm2(n0)
-    out[:, 11] = snorm2(n1)
+    out[:, 4] = rgba8(c0)
+    out[:, 5] = rgba8(c1)
+    out[:, 6] = snorm2(n0)
+    out[:, 7] = snorm2(n1)
     return out
+
+
+def unpack_samples(words: np.ndarray, lo=(0.0, 0.0, 0.0), scale=1.0) -> dict:
+    """Numpy decoding of :func:`pack_samples` words, as ``sample_at`` in
+    points_common.glsl reads them: dict of p0, p1 (model frame), n0, n1
+    (unit), c0, c1 (RGBA in [0, 1])."""
+    w = np.asarray(words, np.uint32).reshape(-1, SAMPLE_WORDS)
+    lo16 = (w & 0xFFFF).astype(np.float64) / 65535.0
+    hi16 = (w >> 16).astype(np.float64) / 65535.0
+    lo, scale = np.asarray(lo, np.float64), float(scale)
+    p0 = np.stack([lo16[:, 0], hi16[:, 0], lo16[:, 1]], axis=1) * scale + lo
+    p1 = np.stack([hi16[:, 1], lo16[:, 2], hi16[:, 2]], axis=1) * scale + lo
+
+    def octd(col):
+        e = np.stack([(w[:, col] & 0xFFFF).astype(np.uint16).view(np.int16),
+                      (w[:, col] >> 16).astype(np.uint16).view(np.int16)], axis=1) / 32767.0
+        e = np.clip(e, -1.0, 1.0)
+        v = np.concatenate([e, 1.0 - np.abs(e).sum(axis=1, keepdims=True)], axis=1)
+        neg = v[:, 2] < 0.0
+        v[neg, :2] = (1.0 - np.abs(v[neg][:, [1, 0]])) * np.where(v[neg, :2] >= 0.0, 1.0, -1.0)
+        return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+    def rgba(col):
+        return np.stack([(w[:, col] >> (8 * k)) & 0xFF for k in range(4)], axis=1) / 255.0
+
+    return {"p0": p0, "p1": p1, "n0": octd(6), "n1": octd(7), "c0": rgba(4), "c1": rgba(5)}
+
+
+def fold_box(rows: np.ndarray, lo, scale: float) -> np.ndarray:
+    """(k, 16) float32 instance rows whose model part also maps the box
+    coordinates of :func:`pack_samples` to the model frame:
+    M' = M · [scale I | lo]."""
+    r = np.array(rows, np.float64).reshape(-1, 16)
+    lo = np.asarray(lo, np.float64)
+    for i in range(3):
+        m = r[:, 4 * i:4 * i + 3]
+        r[:, 4 * i + 3] += m @ lo
+        r[:, 4 * i:4 * i + 3] = m * float(scale)
+    return r.astype(np.float32)
 
 
 def job_table(batches, key: str, bases: np.ndarray, which: str, inst_offsets: dict) -> np.ndarray:
@@ -212,10 +287,10 @@ def rect_vertices(rects: np.ndarray, size) -> np.ndarray:
 
 
 class _GpuPoints:
-    def __init__(self, key, objects, points, verts, corners, pbase, tbase, splat, path):
+    def __init__(self, key, objects, box, verts, corners, pbase, tbase, splat, path):
         self.key = key
         self.objects = objects
-        self.points = points
+        self.box = box  # (lo, scale) of the quantised positions (sample_box)
         self.verts = verts
         self.corners = corners
         self.pbase = pbase
@@ -257,7 +332,7 @@ class Drawer:
         self._dirty = None  # anchor tiles to clear before the next splat (None: all)
         self._points = None  # the samples of every uploaded rep (upload, _append_points)
         self._points_used = 0
-        self._append_points(np.zeros((1, 12), np.uint32))  # never empty
+        self._append_points(np.zeros((1, SAMPLE_WORDS), np.uint32))  # never empty
         self._color = self._track(self.ctx.buffer(reserve=4 * self._pixels), "points.colors")
 
     # ------------------------------------------------------------------ resources
@@ -316,17 +391,18 @@ class Drawer:
         pcount = np.array([h.n_points for h in hs], np.int64)
         pbase = np.zeros(len(hs), np.int64)
         np.cumsum(pcount[:-1], out=pbase[1:])
-        pts = [pack_samples(h.pos0, h.pos1, h.nrm0, h.nrm1, h.col0, h.col1) for h in hs]
-        pbase += self._append_points(np.concatenate(pts) if pts else np.zeros((0, 12), np.uint32))
         kf = rep.keyframed
-        verts = buf(pack_samples(kf.positions0, kf.positions1, kf.normals0, kf.normals1, kf.colors0, kf.colors1),
-                    "vertices")
+        lo, scale = sample_box(kf.positions0, kf.positions1, *[p for h in hs for p in (h.pos0, h.pos1)])
+        pts = [pack_samples(h.pos0, h.pos1, h.nrm0, h.nrm1, h.col0, h.col1, lo, scale) for h in hs]
+        pbase += self._append_points(np.concatenate(pts) if pts else np.zeros((0, SAMPLE_WORDS), np.uint32))
+        verts = buf(pack_samples(kf.positions0, kf.positions1, kf.normals0, kf.normals1, kf.colors0, kf.colors1,
+                                 lo, scale), "vertices")
         tris = [rep.segment_triangles(s) for s in range(len(hs))]
         tcount = np.array([t.shape[0] for t in tris], np.int64)
         tbase = np.zeros(len(hs), np.int64)
         np.cumsum(tcount[:-1], out=tbase[1:])
         corners = buf(np.concatenate(tris).astype(np.uint32) if tris else np.zeros((0, 3), np.uint32), "corners")
-        self._reps[rep.key] = _GpuPoints(rep.key, objs, None, verts, corners, pbase, tbase,
+        self._reps[rep.key] = _GpuPoints(rep.key, objs, (lo, scale), verts, corners, pbase, tbase,
                                          int(getattr(rep, "splat_size", 2)), getattr(rep, "renderer", "compute"))
 
     def _append_points(self, packed: np.ndarray) -> int:
@@ -406,7 +482,8 @@ class Drawer:
         for b in batches:
             offs[id(b)] = rows
             rows += b.n_instances
-        inst = np.concatenate([np.asarray(b.instance_data, np.float32).reshape(-1, 16) for b in batches])
+        # the model matrices also dequantise their rep's positions (pack_samples)
+        inst = np.concatenate([fold_box(b.instance_data, *self._reps[b.rep].box) for b in batches])
         if not np.isfinite(inst).all():
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
         self._buffer("instances", inst).bind_to_storage_buffer(1)
@@ -426,10 +503,10 @@ class Drawer:
             if "u_fade" in tprog:
                 tprog["u_fade"].value = fade
             total = int(jobs[-1, 1]) + int(jobs[-1, 3])
-            self._buffer("tri_jobs", jobs).bind_to_storage_buffer(2)
+            # one (triangle, instance) item per triangle: no search for a vertex's job
+            self._buffer("tri_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
             g.verts.bind_to_storage_buffer(5)
             g.corners.bind_to_storage_buffer(6)
-            tprog["u_njobs"].value = int(jobs.shape[0])
             self._empty_for(tprog).render(moderngl.TRIANGLES, vertices=3 * total)
             self.last_counts["triangles"] += total
         # 2. points: one job table per fade over every rep (their samples share one buffer)

@@ -2,12 +2,15 @@
 // Wand & Strasser 2002, section 3): storage buffers, job lookup, attribute
 // interpolation between the keyframes of a segment and lighting (as lit.frag).
 //
-// A sample (point or triangle-corner vertex) is 3 x 16 bytes:
-//   p0 = (position at u = 0, normal0.z), p1 = (position at u = 1, normal1.z),
-//   attr = (colour0 RGBA8, colour1 RGBA8, normal0.xy snorm16x2, normal1.xy snorm16x2).
+// A sample (point or triangle-corner vertex) is 2 x 16 bytes:
+//   geo = (p0.x | p0.y, p0.z | p1.x, p1.y | p1.z, unused): positions at u = 0 and
+//         u = 1 as unorm16 in the representation's box, whose offset and
+//         uniform scale render/points.py folds into each instance's matrix,
+//   attr = (colour0 RGBA8, colour1 RGBA8, normal0 octahedral snorm16x2,
+//         normal1 octahedral snorm16x2).
+// The splat's depth pass reads three words per point.
 struct Sample {
-    vec4 p0;
-    vec4 p1;
+    uvec4 geo;
     uvec4 attr;
 };
 
@@ -44,11 +47,25 @@ float inst_u(uint i) {
     return clamp(inst[4u * i + 3u].x, 0.0, 1.0);
 }
 
+// position at time u in [0, 1] (box units: the instance matrix maps them to the world)
+vec3 sample_pos(uvec4 geo, float u) {
+    vec2 a = unpackUnorm2x16(geo.x);
+    vec2 b = unpackUnorm2x16(geo.y);
+    vec2 c = unpackUnorm2x16(geo.z);
+    return mix(vec3(a, b.x), vec3(b.y, c), u);
+}
+
+// octahedral normal encoding (Meyer et al. 2010): unit vector from [-1, 1]^2
+vec3 oct_decode(uint w) {
+    vec2 e = unpackSnorm2x16(w);
+    vec3 v = vec3(e, 1.0 - abs(e.x) - abs(e.y));
+    if (v.z < 0.0) v.xy = (1.0 - abs(v.yx)) * vec2(v.x >= 0.0 ? 1.0 : -1.0, v.y >= 0.0 ? 1.0 : -1.0);
+    return v;
+}
+
 void sample_at(Sample s, float u, out vec3 pos, out vec3 nrm, out vec4 col) {
-    pos = mix(s.p0.xyz, s.p1.xyz, u);
-    vec3 n0 = vec3(unpackSnorm2x16(s.attr.z), s.p0.w);
-    vec3 n1 = vec3(unpackSnorm2x16(s.attr.w), s.p1.w);
-    nrm = mix(n0, n1, u);
+    pos = sample_pos(s.geo, u);
+    nrm = mix(oct_decode(s.attr.z), oct_decode(s.attr.w), u);
     col = mix(unpackUnorm4x8(s.attr.x), unpackUnorm4x8(s.attr.y), u);
 }
 

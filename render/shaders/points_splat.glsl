@@ -73,7 +73,7 @@ void splat_job(uint j) {
     for (uint k = gl_LocalInvocationID.x; k < job.y; k += uint(LOCAL_SIZE)) {
         // positions only: the colour pass loads a point's normal and colour
         // once it has won its anchor (most points of a far view lose)
-        vec3 p = mix(pts[job.x + k].p0.xyz, pts[job.x + k].p1.xyz, u);
+        vec3 p = sample_pos(pts[job.x + k].geo, u);
         vec4 clip = mvp * vec4(p, 1.0);
         if (!(clip.w > 0.0)) continue;
         vec3 ndc = clip.xyz / clip.w;

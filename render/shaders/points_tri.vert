@@ -1,10 +1,12 @@
 #version 430
 // Triangles selected by the octree traversal (section 3.2), pulled per vertex:
-// work item = triangle * 3 + corner; the job gives the instance and the
-// first entry of the segment's triangles in tri_order order.
+// work item = triangle * 3 + corner; Items holds one (triangle of the
+// segments' tri_order list, instance) per triangle (render/points.py
+// expand_jobs), so no vertex searches for its job.
 #include "points_common.glsl"
 layout(std430, binding = 5) readonly buffer Verts { Sample verts[]; };
 layout(std430, binding = 6) readonly buffer Corners { uint corners[]; };
+layout(std430, binding = 7) readonly buffer Items { uvec2 items[]; };
 uniform mat4 u_view_proj;
 out vec3 v_world;
 out vec3 v_normal;
@@ -13,9 +15,9 @@ out vec4 v_color;
 void main() {
     uint g = uint(gl_VertexID) / 3u;
     uint corner = uint(gl_VertexID) - 3u * g;
-    uvec4 job = jobs[find_job(g)];
-    uint i = job.z;
-    uint v = corners[3u * (job.x + (g - job.w)) + corner];
+    uvec2 it = items[g];
+    uint i = it.y;
+    uint v = corners[3u * it.x + corner];
     vec3 p;
     vec3 n;
     vec4 c;

@@ -202,22 +202,40 @@ def test_crowd_run_with_points_mode_end_to_end(tmp_path, monkeypatch):
 
 
 def test_sample_packing_and_job_tables():
-    from render.points import expand_jobs, job_table, pack_samples
+    from render.points import expand_jobs, fold_box, job_table, pack_samples, sample_box, unpack_samples
 
     rng = np.random.default_rng(0)
-    p0, p1 = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
-    n0 = rng.normal(size=(5, 3))
+    p0, p1 = rng.normal(size=(64, 3)) + 1e4, rng.normal(size=(64, 3)) + 1e4  # far from the origin
+    n0 = rng.normal(size=(64, 3))
     n0 /= np.linalg.norm(n0, axis=1, keepdims=True)
-    c0 = rng.uniform(size=(5, 4))
+    n0[:6] = [[0, 0, 1], [0, 0, -1], [1, 0, 0], [0, -1, 0], [0.6, 0, -0.8], [0, 0, 0]]  # poles, edges, zero
+    c0 = rng.uniform(size=(64, 4))
+    lo, scale = sample_box(p0, p1)
+    assert (lo <= np.minimum(p0, p1).min(axis=0)).all() and scale >= np.ptp(np.concatenate([p0, p1]), axis=0).max()
     p0[2, 1] = np.nan  # never reaches the GPU
-    w = pack_samples(p0, p1, n0, n0, c0, c0)
-    f = w[:, :8].view(np.float32)
-    assert np.isfinite(f).all() and f[2, 1] == 0.0
-    np.testing.assert_allclose(f[:, 4:7], p1, rtol=1e-6)
-    np.testing.assert_allclose(f[:, 3], n0[:, 2], rtol=1e-6)
-    np.testing.assert_allclose((w[:, 8] & 0xFF) / 255.0, c0[:, 0], atol=0.5 / 255 + 1e-9)
-    xy = (w[:, 10] & 0xFFFF).astype(np.uint16).view(np.int16) / 32767.0
-    np.testing.assert_allclose(xy, n0[:, 0], atol=1e-4)
+    w = pack_samples(p0, p1, n0, n0, c0, c0, lo, scale)
+    assert w.shape == (64, 8) and w.dtype == np.uint32
+    d = unpack_samples(w, lo, scale)
+    assert all(np.isfinite(v).all() for v in d.values())
+    # positions within half a unorm16 step of the box
+    ok = np.isfinite(p0).all(axis=1)
+    assert np.abs(d["p0"][ok] - p0[ok]).max() <= scale / 131070 * 1.001
+    assert np.abs(d["p1"] - p1).max() <= scale / 131070 * 1.001
+    np.testing.assert_allclose(d["c0"], c0, atol=0.5 / 255 + 1e-9)
+    # octahedral normals: unit, within 1e-4 rad; a zero normal decodes to +z
+    cos = (d["n0"][:5] * n0[:5]).sum(axis=1)
+    assert cos.min() > np.cos(1e-4) and np.isfinite(d["n0"]).all()
+    assert (np.einsum("ij,ij->i", d["n0"][6:], n0[6:]) > np.cos(2e-4)).all()
+    np.testing.assert_allclose(d["n0"][5], [0, 0, 1])
+    # the folded instance rows map box coordinates to the same model-frame points as the rows do
+    rows = rng.normal(size=(3, 16))
+    f = fold_box(rows, lo, scale).astype(np.float64)
+    q = (d["p1"] - lo) / scale
+    for i in range(3):
+        m = rows[:, 4 * i:4 * i + 4]
+        want = d["p1"][:3] @ m[:, :3].T + m[:, 3]
+        got = q[:3] @ f[:, 4 * i:4 * i + 3].T + f[:, 4 * i + 3]
+        np.testing.assert_allclose(np.diag(got), np.diag(want), rtol=1e-4, atol=1e-2)
     b1 = pm.PointsBatch("points:a", 1, np.arange(2, dtype=np.int32), np.zeros((2, 16), np.float32),
                         point_jobs=np.array([[0, 5, 3], [1, 0, 0], [1, 7, 2]]))
     b2 = pm.PointsBatch("points:a", 0, np.arange(1, dtype=np.int32), np.zeros((1, 16), np.float32),
