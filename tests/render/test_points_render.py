@@ -339,3 +339,101 @@ def test_several_jobs_per_work_group_splat_the_same_image(renderer, ball, monkey
     many = _render(renderer, dl)
     assert _mask(one, one[0, 0]).sum() > 500
     np.testing.assert_array_equal(one, many)
+
+
+# ---------------------------------------------------------------------------- filled tiles: resolve and clear
+@pytest.mark.parametrize("splat", [1, 2, 3])
+def test_resolve_rects_hold_every_pixel_a_filled_anchor_reaches(splat):
+    from render.points import MARGIN, TILE, resolve_rects
+
+    rng = np.random.default_rng(splat)
+    for w, h in ((64, 40), (61, 37), (8, 8), (9, 1)):
+        sx, sy = w + MARGIN, h + MARGIN
+        tx, ty = -(-sx // TILE), -(-sy // TILE)
+        for trial in range(20):
+            anchors = np.zeros((sy, sx), bool)
+            k = rng.integers(0, 6)
+            anchors[rng.integers(0, sy, k), rng.integers(0, sx, k)] = True
+            if trial == 0:
+                anchors[0, 0] = anchors[-1, -1] = True  # the border slots and the last one
+            flags = np.zeros((ty * TILE, tx * TILE), bool)
+            flags[:sy, :sx] = anchors
+            flags = flags.reshape(ty, TILE, tx, TILE).any(axis=(1, 3))
+            rects = resolve_rects(flags, (w, h), TILE, MARGIN, splat)
+            cover = np.zeros((h, w), int)
+            for x0, y0, x1, y1 in rects:
+                assert 0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h
+                cover[y0:y1, x0:x1] += 1
+            assert cover.max(initial=0) <= 1  # no pixel resolved twice
+            # every pixel a filled anchor's s x s footprint covers is inside a rectangle
+            ys, xs = np.nonzero(anchors)
+            for ay, ax in zip(ys - MARGIN, xs - MARGIN):
+                for dy in range(splat):
+                    for dx in range(splat):
+                        px, py = ax + dx, ay + dy
+                        if 0 <= px < w and 0 <= py < h:
+                            assert cover[py, px] == 1
+            if not anchors.any():
+                assert rects.shape[0] == 0
+
+
+def test_frames_after_a_dense_frame_keep_no_stale_splats(renderer, ball, monkeypatch):
+    """The clear resets only the tiles the last frame filled: a sparse frame
+    after a dense one must equal the sparse frame drawn first, with either
+    clear (tile list or everything) and either resolve (rectangles or one
+    full-screen triangle)."""
+    import render.points as rp
+
+    _, sel = ball
+    dense = CrowdState.empty(9)
+    dense.position[:, 0] = np.linspace(-8.0, 8.0, 9)
+    dense.anim_time[:] = 0.3
+    sparse = _state(1, 0.7)
+    sparse.position[0, 0] = 3.0
+    dl_dense = sel.select(dense, FARTHER, renderer.size)
+    dl_sparse = sel.select(sparse, FARTHER, renderer.size)
+    assert dl_dense.stats["points"] > 3 * dl_sparse.stats["points"] > 0
+    want = _render(renderer, dl_sparse)
+    assert _mask(want, want[0, 0]).sum() > 50
+    for clear_share, resolve_share in ((1.0, 1.0), (0.0, 0.0), (1.0, 0.0), (0.0, 1.0)):
+        monkeypatch.setattr(rp, "FULL_CLEAR_SHARE", clear_share)
+        monkeypatch.setattr(rp, "FULL_RESOLVE_SHARE", resolve_share)
+        for _ in range(2):
+            _render(renderer, dl_dense)
+            np.testing.assert_array_equal(_render(renderer, dl_sparse), want)
+    # a frame with no point at all, then the sparse one again
+    none = CrowdState.empty(1)
+    none.position[0, 0] = 500.0  # outside the view
+    _render(renderer, sel.select(none, FARTHER, renderer.size))
+    np.testing.assert_array_equal(_render(renderer, dl_sparse), want)
+
+
+def test_two_reps_share_the_sample_buffer_and_a_replaced_upload(gl_ctx, ball, tmp_path):
+    """Samples of several reps live in one buffer (uploads append; a rep
+    uploaded again gets a new range): each rep still draws its own points."""
+    cache = pm.HierarchyCache(tmp_path)
+    reps2, sel2 = pm.build([sphere_character(30, 50, name="ball2")], ["ball2"], [30], {"splat_size": 1},
+                           cache=cache, progress=lambda it, d: it)
+    rep1, sel1 = ball
+    r = Renderer((256, 192), ctx=gl_ctx)
+    try:
+        r.upload(reps2[0])
+        alone = _render(r, sel2.select(_state(), FARTHER, r.size))
+        r.upload(rep1)
+        r.upload(reps2[0])  # again: appended, its old range left unused
+        for path in ("compute", "gl_points"):
+            img = _render(r, sel2.select(_state(), FARTHER, r.size), path)
+            m_alone, m = _mask(alone, alone[0, 0]), _mask(img, img[0, 0])
+            assert m.sum() > 100 and _iou(m, m_alone) > 0.97
+        # both reps in one frame: the union of their images
+        st = _state()
+        st.position[0, 0] = -2.5
+        a = sel1.select(st, FARTHER, r.size)
+        b = sel2.select(_state(), FARTHER, r.size)
+        both = dataclasses.replace(a, batches=list(a.batches) + list(b.batches))
+        img = _render(r, both)
+        ia, ib = _render(r, a), _render(r, b)
+        ma, mb, m = _mask(ia, ia[0, 0]), _mask(ib, ib[0, 0]), _mask(img, img[0, 0])
+        assert _iou(m, ma | mb) > 0.97
+    finally:
+        r.release()
