@@ -222,6 +222,60 @@ def _merge_jobs(parts) -> np.ndarray:
     return j.astype(np.uint32)
 
 
+#: triangle ranges whose (unique vertices, local corners) a rep keeps (render/points.py
+#: indexed_triangle_jobs); past it the cache is emptied (ranges are octree nodes: a few thousand)
+TRI_RANGE_CACHE = 200_000
+
+
+def indexed_triangle_jobs(jobs: np.ndarray, corners: np.ndarray, cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Indexed form of triangle jobs (first triangle, count, instance, prefix).
+
+    Returns (items (V, 2) uint32 (vertex, instance) — each vertex a job's
+    triangles use once, in job order — and index (3 T,) uint32 into items,
+    the triangles in job order). ``corners`` (T_all, 3) are the rep's
+    triangles' global vertex indices; ``cache`` maps a (first, count) range
+    to its unique vertices and local corner indices (filled here)."""
+    j = np.asarray(jobs, np.int64).reshape(-1, 4)
+    if not j.shape[0]:
+        return np.zeros((0, 2), np.uint32), np.zeros(0, np.uint32)
+    keys = (j[:, 0] << 32) | j[:, 1]
+    uk, inv = np.unique(keys, return_inverse=True)
+    if len(cache) > TRI_RANGE_CACHE:
+        cache.clear()
+    verts, local = [], []
+    for k in uk.tolist():
+        e = cache.get(k)
+        if e is None:
+            f, c = k >> 32, k & 0xFFFFFFFF
+            u, li = np.unique(corners[f:f + c].reshape(-1), return_inverse=True)
+            e = cache[k] = (u.astype(np.uint32), li.astype(np.uint32))
+        verts.append(e[0])
+        local.append(e[1])
+    nv = np.array([v.shape[0] for v in verts], np.int64)
+    ni = np.array([v.shape[0] for v in local], np.int64)
+    pv = np.concatenate(verts)
+    pi = np.concatenate(local)
+    ov = np.zeros(nv.shape[0], np.int64)
+    np.cumsum(nv[:-1], out=ov[1:])
+    oi = np.zeros(ni.shape[0], np.int64)
+    np.cumsum(ni[:-1], out=oi[1:])
+
+    def gather(off, n):  # the concatenated ranges [off[k], off[k] + n[k]) of every job
+        nj = n[inv]
+        tot = int(nj.sum())
+        start = np.zeros(nj.shape[0], np.int64)
+        np.cumsum(nj[:-1], out=start[1:])
+        return np.repeat(off[inv] - start, nj) + np.arange(tot), nj, start
+
+    gv, njv, vbase = gather(ov, nv)
+    items = np.empty((gv.shape[0], 2), np.uint32)
+    items[:, 0] = pv[gv]
+    items[:, 1] = np.repeat(j[:, 2], njv)
+    gi, nji, _ = gather(oi, ni)
+    index = (pi[gi].astype(np.int64) + np.repeat(vbase, nji)).astype(np.uint32)
+    return items, index
+
+
 def expand_jobs(jobs: np.ndarray) -> np.ndarray:
     """(total, 2) uint32 (sample, instance) per work item of a job table
     (the GL_POINTS path draws one vertex per item)."""
@@ -401,9 +455,12 @@ class Drawer:
         tcount = np.array([t.shape[0] for t in tris], np.int64)
         tbase = np.zeros(len(hs), np.int64)
         np.cumsum(tcount[:-1], out=tbase[1:])
-        corners = buf(np.concatenate(tris).astype(np.uint32) if tris else np.zeros((0, 3), np.uint32), "corners")
+        tri_corners = np.concatenate(tris).astype(np.uint32) if tris else np.zeros((0, 3), np.uint32)
+        corners = buf(tri_corners, "corners")
         self._reps[rep.key] = _GpuPoints(rep.key, objs, (lo, scale), verts, corners, pbase, tbase,
                                          int(getattr(rep, "splat_size", 2)), getattr(rep, "renderer", "compute"))
+        self._reps[rep.key].tri_corners = tri_corners
+        self._reps[rep.key].tri_ranges = {}  # (first, count) -> (unique vertices, local corner indices)
 
     def _append_points(self, packed: np.ndarray) -> int:
         """Append packed samples to the buffer all reps share (grown by
@@ -503,11 +560,21 @@ class Drawer:
             if "u_fade" in tprog:
                 tprog["u_fade"].value = fade
             total = int(jobs[-1, 1]) + int(jobs[-1, 3])
-            # one (triangle, instance) item per triangle: no search for a vertex's job
-            self._buffer("tri_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
+            # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
+            # vertex shared by several triangles is transformed once
+            items, index = indexed_triangle_jobs(jobs, g.tri_corners, g.tri_ranges)
+            self._buffer("tri_items", items).bind_to_storage_buffer(7)
             g.verts.bind_to_storage_buffer(5)
-            g.corners.bind_to_storage_buffer(6)
-            self._empty_for(tprog).render(moderngl.TRIANGLES, vertices=3 * total)
+            ibo = self._buffer("tri_index", index)
+            key_vao = ("tri_vao", id(ibo))
+            if key_vao not in self._progs:
+                for k in [k for k in self._progs if isinstance(k, tuple) and k[0] == "tri_vao"]:
+                    old = self._progs.pop(k)
+                    self._objects.remove(old)
+                    old.release()
+                self._progs[key_vao] = self._track(self.ctx.vertex_array(tprog, [], index_buffer=ibo,
+                                                                         index_element_size=4), "points.tri_vao")
+            self._progs[key_vao].render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += total
         # 2. points: one job table per fade over every rep (their samples share one buffer)
         groups = []

@@ -437,3 +437,25 @@ def test_two_reps_share_the_sample_buffer_and_a_replaced_upload(gl_ctx, ball, tm
         assert _iou(m, ma | mb) > 0.97
     finally:
         r.release()
+
+
+def test_indexed_triangle_jobs_give_every_jobs_triangles_in_order():
+    from render.points import expand_jobs, indexed_triangle_jobs
+
+    rng = np.random.default_rng(5)
+    corners = rng.integers(0, 40, size=(60, 3)).astype(np.uint32)
+    jobs = np.array([[0, 5, 0], [3, 7, 1], [0, 5, 2], [50, 10, 0], [20, 1, 3]], np.int64)
+    pre = np.concatenate([[0], np.cumsum(jobs[:-1, 1])])
+    jobs = np.concatenate([jobs, pre[:, None]], axis=1).astype(np.uint32)
+    cache = {}
+    for _ in range(2):  # the second call from the cache
+        items, index = indexed_triangle_jobs(jobs, corners, cache)
+        per_tri = expand_jobs(jobs)  # (triangle, instance) per triangle, job order
+        tri = items[index].reshape(-1, 3, 2)
+        np.testing.assert_array_equal(tri[:, :, 0], corners[per_tri[:, 0]])
+        np.testing.assert_array_equal(tri[:, :, 1], np.repeat(per_tri[:, 1:], 3, axis=1))
+        # each job's vertices once: no (vertex, instance) pair twice within a job
+        assert items.shape[0] == sum(np.unique(corners[f:f + c]).shape[0] for f, c in jobs[:, :2])
+    assert len(cache) == 4
+    e_items, e_index = indexed_triangle_jobs(np.zeros((0, 4), np.uint32), corners, cache)
+    assert e_items.shape == (0, 2) and e_index.shape == (0,)
