@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 
 from lod import points_config as C
+from lod.atomic_io import write_atomic
 from lod.drawlist import DrawBatch, DrawList
 from lod.nolod import KeyframedRep, NoLodSelector, build_keyframed_rep
 from lod.points_octree import PointHierarchy, build_hierarchy, load_hierarchy, save_hierarchy
@@ -151,7 +152,7 @@ class HierarchyCache:
 
     Entry ``<key>.npz`` (written atomically by ``save_hierarchy``) and
     ``<key>.sha256``, the digest of the npz bytes, written after it
-    (temp file + rename). An entry is used only if the digest matches and the
+    (``lod.atomic_io``). An entry is used only if the digest matches and the
     file loads; anything else (truncated, corrupt, missing digest) is rebuilt
     and overwritten. ``hits``/``misses`` count lookups.
     """
@@ -178,9 +179,7 @@ class HierarchyCache:
         self.folder.mkdir(parents=True, exist_ok=True)
         npz, sha = self.paths(key)
         save_hierarchy(h, npz)
-        tmp = sha.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(_file_sha(npz) + "\n")
-        os.replace(tmp, sha)
+        write_atomic(sha, _file_sha(npz) + "\n")
 
     def get_or_build(self, arrays, params: dict) -> PointHierarchy:
         """Cached hierarchy of ``build_hierarchy(*arrays, **params)``, built and stored on a miss."""

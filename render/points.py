@@ -2,36 +2,42 @@
 2002, §3.2 rendering; splatting after Schütz, Kerbl and Wimmer, *Rendering
 Point Clouds with Compute Shaders*).
 
-GPU storage per representation (uploaded once): all points of all segment
-octrees in one storage buffer (start/end position, colour and normal, 48
-bytes each, see ``shaders/points_common.glsl``), the keyframed vertices of
-all segments in the same layout, and every segment's triangles as corner
-vertex indices in ``tri_order`` order. Per frame, the instance data of all
-point batches go into one buffer and the traversal's (instance, range) jobs
-into two (points, triangles), each job with the exclusive prefix sum of the
-counts. The compute splat runs one work group per SPLAT_JOBS_PER_GROUP
-consecutive point jobs; the triangle
-draw finds a vertex's job by binary search over the prefix sums; the
-GL_POINTS reference gets one (point, instance) item per vertex.
+GPU storage: the points of every uploaded representation in one storage
+buffer (32 bytes each: start/end position as unorm16 in the representation's
+box, colours RGBA8, octahedral normals; ``shaders/points_common.glsl``), and
+per representation its keyframed vertices in the same layout and every
+segment's triangles as corner vertex indices in ``tri_order`` order. The box
+(:func:`sample_box`) is folded into each instance's model matrix
+(:func:`fold_box`), so no shader dequantises. Per frame, the instance data of
+all point batches go into one buffer, the traversal's (instance, range) point
+jobs of all representations into one table per screen-door fade (exclusive
+prefix sums of the counts), and its triangle jobs into an indexed draw list of
+(vertex, instance) items (:func:`indexed_triangle_jobs`).
 
 Drawing, after the built-in triangle batches:
 
-1. the selected triangles, one non-indexed draw pulling their vertices
-   (``points_tri.vert``), depth-tested and lit like every other triangle;
-2. the points. ``"compute"`` (main path): clear a per-pixel uint depth-key
-   buffer, a compute pass projecting every selected point (interpolated
-   between the keyframes at the instance's u, transformed by its model
-   matrix) and doing ``atomicMin`` of its window depth into the anchor slot
-   of its s x s pixel footprint (s = splat size 1..3; the footprint is the
-   GL point rule's), a second compute pass where the point that won an anchor
-   writes its lit colour there, then a full-screen resolve taking per pixel
-   the nearest of the s x s anchors whose footprints cover it (the same
-   result as scattering into every footprint pixel, with one atomic per point
-   instead of s * s) and writing colour and ``gl_FragDepth``, so the fixed-function depth test
-   compares points with the triangles already in the depth buffer (no depth
-   texture needed). llvmpipe offers no 64-bit atomics, hence two passes
-   instead of one packed (depth, index) atomicMin. ``"gl_points"``
-   (reference): the same points as ``GL_POINTS`` of size s.
+1. the selected triangles, one indexed draw per representation pulling their
+   vertices (``points_tri.vert``), depth-tested and lit like every other
+   triangle;
+2. the points. ``"compute"`` (main path): a compute pass projecting every
+   selected point (interpolated between the keyframes at the instance's u,
+   transformed by its model matrix) and doing ``atomicMin`` of its window
+   depth into the anchor slot of its s x s pixel footprint (s = splat size
+   1..3; the footprint is the GL point rule's); the first point of an anchor
+   marks its TILE x TILE tile. A second pass where the point that won an
+   anchor loads its normal and colour and writes its lit colour there. Then a
+   resolve over the pixels the marked tiles reach (merged into runs per tile
+   row, or one full-screen triangle when they cover most of the screen)
+   takes per pixel the nearest of the s x s anchors whose footprints cover it
+   (the same result as scattering into every footprint pixel, with one atomic
+   per point instead of s * s) and writes colour and ``gl_FragDepth``, so the
+   fixed-function depth test compares points with the triangles already in
+   the depth buffer (no depth texture needed). The next frame's clear resets
+   only the marked tiles. llvmpipe offers no 64-bit atomics, hence two passes
+   instead of one packed (depth, index) atomicMin. One work group takes
+   SPLAT_JOBS_PER_GROUP consecutive jobs. ``"gl_points"`` (reference): the
+   same points as ``GL_POINTS`` of size s, one (point, instance) item per
+   vertex.
 """
 from __future__ import annotations
 
@@ -54,10 +60,10 @@ MARGIN = 2
 #: measured 1.2x faster than 1 on the grid's draw (20.0 vs 25.9 ms at 640x480,
 #: 42.5 vs 49.7 ms at 1280x720) and no slower on long jobs
 SPLAT_JOBS_PER_GROUP = 16
-#: side (pixels and anchor slots) of the resolve's tiles: the depth pass marks the
-#: tile of every anchor it fills first, and the resolve draws only the blocks of
-#: pixels whose footprints reach a marked tile (points_resolve.vert); a far view
-#: fills few of them (the 400-instance splat benchmark: 9 % of the 8 x 8 tiles)
+#: side (anchor slots) of the tiles the depth pass marks: the resolve draws only
+#: the blocks of pixels whose footprints reach a marked tile and the next clear
+#: resets only marked tiles; a far view fills few of them (the 400-instance splat
+#: benchmark: 9 % of the 8 x 8 tiles; its resolve 0.9 ms instead of 5.8 ms)
 TILE = 8
 #: consecutive tiles of the filled-tile list per work group of the clear pass
 TILES_PER_GROUP = 4
