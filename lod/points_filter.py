@@ -39,7 +39,7 @@ from numba import njit
 from lod.points_stratify import _grid
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bary_kernel(a, tri, bary, out):  # pragma: no cover - compiled
     for i in range(tri.shape[0]):
         k = tri[i]
@@ -99,13 +99,15 @@ def gaussian_filter_numpy(rep_pos, f_pos, f_col, f_nrm, f_w, sigma, fb_col, fb_n
     return _finish(w @ f_col, w @ f_nrm, w.sum(1), fb_col, fb_nrm)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _filter_kernel(rep_pos, f_pos, f_col, f_nrm, f_w, sigma, col_sum, nrm_sum, wsum):  # pragma: no cover
     cut = 2.0 * sigma
     cut2 = cut * cut
     inv = 1.0 / (2.0 * sigma * sigma)
     lo, dims, start, ids, cell, _ = _grid(f_pos, cut)
     C = f_col.shape[1]
+    near = np.empty(f_pos.shape[0] + 1, np.int64)  # + 1: the slot written after the last hit
+    dist = np.empty(f_pos.shape[0] + 1)
     for i in range(rep_pos.shape[0]):
         px = rep_pos[i, 0]
         py = rep_pos[i, 1]
@@ -118,6 +120,9 @@ def _filter_kernel(rep_pos, f_pos, f_col, f_nrm, f_w, sigma, col_sum, nrm_sum, w
         ix = int(math.floor(fx))
         iy = int(math.floor(fy))
         iz = int(math.floor(fz))
+        # the F points within the cut-off, in scan order (branch-free: the
+        # test outcome is unpredictable), then their weighted sums in that order
+        cnt = 0
         for x in range(max(ix - 1, 0), min(ix + 2, dims[0])):
             for y in range(max(iy - 1, 0), min(iy + 2, dims[1])):
                 for z in range(max(iz - 1, 0), min(iz + 2, dims[2])):
@@ -128,16 +133,19 @@ def _filter_kernel(rep_pos, f_pos, f_col, f_nrm, f_w, sigma, col_sum, nrm_sum, w
                         d1 = py - f_pos[j, 1]
                         d2 = pz - f_pos[j, 2]
                         dd = d0 * d0 + d1 * d1 + d2 * d2
-                        if dd > cut2:
-                            continue
-                        w = math.exp(-dd * inv) * f_w[j]
-                        if w <= 0.0:
-                            continue
-                        for c in range(C):
-                            col_sum[i, c] += w * f_col[j, c]
-                        for c in range(3):
-                            nrm_sum[i, c] += w * f_nrm[j, c]
-                        wsum[i] += w
+                        near[cnt] = j
+                        dist[cnt] = dd
+                        cnt += dd <= cut2
+        for q in range(cnt):
+            j = near[q]
+            w = math.exp(-dist[q] * inv) * f_w[j]
+            if w <= 0.0:
+                continue
+            for c in range(C):
+                col_sum[i, c] += w * f_col[j, c]
+            for c in range(3):
+                nrm_sum[i, c] += w * f_nrm[j, c]
+            wsum[i] += w
 
 
 def gaussian_filter(rep_pos, f_pos, f_col, f_nrm, f_w, sigma, fb_col, fb_nrm):
@@ -161,8 +169,16 @@ def gaussian_filter(rep_pos, f_pos, f_col, f_nrm, f_w, sigma, fb_col, fb_nrm):
     return _finish(col_sum, nrm_sum, wsum, np.asarray(fb_col, np.float64), np.asarray(fb_nrm, np.float64))
 
 
+def filter_set(areas: np.ndarray, filter_count: int, rng: np.random.Generator):
+    """The filter set F of a node: ``filter_count`` samples by maximum area
+    (``lod.points_sampling.sample_triangles``), (tri, bary)."""
+    from lod.points_sampling import sample_triangles
+
+    return sample_triangles(areas, int(filter_count), rng)
+
+
 def filter_points(v0, v1, col0, col1, nrm0, nrm1, areas, rep_tri, rep_bary, spacing, rng,
-                  filter_count: int, sigma_fraction: float, gaussian=gaussian_filter):
+                  filter_count: int, sigma_fraction: float, gaussian=gaussian_filter, f_set=None):
     """Filtered start and end attributes of a node's kept points (§3.5).
 
     Parameters
@@ -173,19 +189,22 @@ def filter_points(v0, v1, col0, col1, nrm0, nrm1, areas, rep_tri, rep_bary, spac
     areas : (T,) float64 maximum areas (sampling weights of F)
     rep_tri : (R,) int, rep_bary : (R, 2) float64 the kept points
     spacing : float, node spacing r; sigma = ``sigma_fraction * r``
-    rng : numpy Generator (draws F)
+    rng : numpy Generator (draws F; unused when ``f_set`` is given)
     filter_count : int, size of F
     gaussian : the filter implementation (numba default; tests pass the
         numpy reference)
+    f_set : None or F drawn beforehand by :func:`filter_set` (the octree
+        draws every node's randomness in one thread, then filters in
+        parallel; the kernels release the GIL)
 
     Returns
     -------
     (col_start (R, C), col_end (R, C), nrm_start (R, 3), nrm_end (R, 3)),
     float64, normals unit length.
     """
-    from lod.points_sampling import sample_triangles, triangle_area_at
+    from lod.points_sampling import triangle_area_at
 
-    f_tri, f_bary = sample_triangles(areas, int(filter_count), rng)
+    f_tri, f_bary = filter_set(areas, filter_count, rng) if f_set is None else f_set
     sigma = float(sigma_fraction) * float(spacing)
     out = []
     safe = np.where(areas > 0.0, areas, 1.0)

@@ -20,6 +20,14 @@ Build, top-down, for the vertices moving linearly from ``p0`` (u = 0) to
 5. Every node keeps its start and end axis-aligned bounding box (of all the
    triangles of its subtree), interpolated linearly at render time (§3.3).
 
+Nodes are finished one by one in breadth-first order (the node numbering),
+and drawn ahead of that in the same order (boxes, spacing, every random
+draw), so the random numbers are those of a plain node-by-node build; the
+stratification (one work item per time interval,
+``lod.points_stratify.stratify_async``) and the filtering of the drawn nodes
+run meanwhile in worker threads, which release the GIL. The hierarchy is the
+same for any thread count.
+
 Departures:
 
 * Spacing: ``r = min(fraction * max side, r_parent / 2)``. The paper takes the
@@ -39,6 +47,7 @@ and one range into ``tri_order``.
 """
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -46,13 +55,16 @@ import numpy as np
 from numba import njit
 
 from lod import points_config as C
-from lod.points_filter import filter_points
+from lod.points_filter import filter_points, filter_set
 from lod.points_sampling import candidate_count, max_area, sample_triangles, triangle_vertices
-from lod.points_stratify import choose_interval_times, interval_times, stratify
+from lod.points_stratify import choose_interval_times, interval_times, stratify_async, worker_count
 
 
 #: storage type of the points' filtered colours and normals (see PointHierarchy)
 ATTR_DTYPE = np.float16
+#: candidates of the nodes drawn ahead of the one being finished (their
+#: stratification runs in the worker threads meanwhile); bounds the memory
+PIPELINE_CANDIDATES = 1_000_000
 
 
 @dataclass
@@ -157,7 +169,7 @@ class PointHierarchy:
 
 # --------------------------------------------------------------------------- kernels
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _positions_kernel(v0, v1, tri, bary, times, out):  # pragma: no cover - compiled
     n = tri.shape[0]
     for t in range(times.shape[0]):
@@ -187,6 +199,45 @@ def sample_positions_at(v0, v1, tri, bary, times) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- build
+
+class _Node:
+    """Work record of one node during :func:`build_hierarchy`."""
+
+    def __init__(self, tris, cube_lo, cube_side, depth, r_parent, parent):
+        self.tris = tris  # (t,) int64 the node's triangles (rows of the index buffer)
+        self.cube_lo, self.cube_side = cube_lo, cube_side  # octree cube (§3.1)
+        self.depth, self.r_parent, self.parent = depth, r_parent, parent
+        self.box0 = self.box1 = None
+        self.r = 0.0
+        self.leaf = True
+        self.ctri = self.cbary = None  # candidates (§3.4.1)
+        self.fcount, self.fset = 0, None  # filter set F (§3.5)
+        self.pending = None  # lod.points_stratify.stratify_async handle
+        self.pos = self.keep = self.anyk = self.filtered = None
+
+    def positions(self, V0, V1, times):
+        """``at(j)``: (2, N, 3) candidate positions at the ends of interval j,
+        computed for all the boundaries by the first work item that asks
+        (thread-safe) and dropped by :meth:`filter`."""
+        lock = threading.Lock()
+
+        def at(j):
+            with lock:
+                if self.pos is None:
+                    self.pos = sample_positions_at(V0[self.tris], V1[self.tris], self.ctri, self.cbary, times)
+                return self.pos[j:j + 2]
+        return at
+
+    def filter(self, keep, V0, V1, CC0, CC1, NN0, NN1, areas, sigma):
+        """Store the stratification ``keep`` and filter the kept points (§3.5)."""
+        self.keep = keep
+        self.pos = None
+        t = self.tris
+        self.anyk = np.flatnonzero(self.keep.any(0))
+        self.filtered = filter_points(V0[t], V1[t], CC0[t], CC1[t], NN0[t], NN1[t], areas[t],
+                                      self.ctri[self.anyk], self.cbary[self.anyk], self.r, None,
+                                      self.fcount, sigma, f_set=self.fset)
+
 
 def _check_inputs(p0, p1, indices, c0, c1, n0, n1):
     p0 = np.asarray(p0, np.float64)
@@ -226,7 +277,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                     filter_sigma: float = C.POINTS_FILTER_SIGMA,
                     max_depth: int = C.POINTS_MAX_DEPTH,
                     seed: int = 0, adaptive_intervals: bool = True,
-                    progress: bool | None = None) -> PointHierarchy:
+                    progress: bool | None = None, threads: int | None = None) -> PointHierarchy:
     """Build the point/triangle octree of one keyframe pair (§3.1, §3.3-3.5).
 
     Parameters
@@ -252,6 +303,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
         (``lod.points_stratify.choose_interval_times``; equal when that gains
         under 1%, as for animated characters) or always equal intervals
     progress : show a tqdm bar (None: only if the build takes over a second)
+    threads : worker threads of the stratification and filtering (None:
+        ``lod.points_stratify.worker_count``); the result does not depend on it
 
     Returns
     -------
@@ -293,74 +346,84 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     nodes = []  # dicts in BFS order
     pts = {k: [] for k in ("tri", "bary", "col0", "col1", "nrm0", "nrm1", "node")}
     tri_chunks = []
-    queue = [(np.arange(T, dtype=np.int64), root_lo.astype(np.float64), root_side, 0, np.inf, -1)]
-    head = 0
+    queue = [_Node(np.arange(T, dtype=np.int64), root_lo.astype(np.float64), root_side, 0, np.inf, -1)]
+    drawn = 0  # queue[:drawn] have their boxes and random draws, and are being stratified
+    ahead = 0  # candidates of the drawn nodes not finished yet
     n_points = 0
     n_tris = 0
+    workers = worker_count(threads)
 
     bar = None
     t_start = time.perf_counter()
     show = progress
 
-    while head < len(queue):
-        tris, cube_lo, cube_side, depth, r_parent, parent = queue[head]
-        me = head
-        head += 1
+    def filtered(nd):  # in the thread that stratified the node's last interval
+        return lambda keep: nd.filter(keep, V0, V1, CC0, CC1, NN0, NN1, areas, filter_sigma)
+
+    # The nodes are finished in breadth-first order (the node numbering) in
+    # this thread, and drawn ahead of that in the same order, so the random
+    # draws are those of a plain node-by-node build; the stratification and
+    # filtering of the drawn nodes run meanwhile in the worker threads
+    me = 0
+    while me < len(queue):
+        # 1. boxes, spacing and the random draws of §3.4.1/§3.5 of the next
+        #    nodes, then their stratification (§3.4.2) and filtering (§3.5)
+        while drawn < len(queue) and (drawn == me or ahead < PIPELINE_CANDIDATES):
+            nd = queue[drawn]
+            drawn += 1
+            tris = nd.tris
+            if tris.size:
+                nd.box0 = np.stack([tlo0[tris].min(0), thi0[tris].max(0)])
+                nd.box1 = np.stack([tlo1[tris].min(0), thi1[tris].max(0)])
+            else:
+                nd.box0 = np.stack([nd.cube_lo, nd.cube_lo])
+                nd.box1 = nd.box0.copy()
+            maxside = float(max((nd.box0[1] - nd.box0[0]).max(), (nd.box1[1] - nd.box1[0]).max()))
+            nd.r = min(spacing_fraction * maxside, 0.5 * nd.r_parent)
+            nd.leaf = tris.size <= leaf_triangles or nd.depth >= max_depth or nd.r <= eps_len
+            if nd.leaf:
+                continue
+            a = areas[tris]
+            ctri, cbary = sample_triangles(a, candidate_count(float(a.sum()), nd.r, safety), rng)
+            if ctri.size:
+                nd.ctri, nd.cbary = ctri, cbary
+                order = rng.permutation(ctri.size)
+                h = nd.r * C.POINTS_BIN_RATIO
+                nd.fcount = int(min(filter_factor * int(np.ceil(a.sum() / (h * h))), C.POINTS_MAX_CANDIDATES))
+                nd.fset = filter_set(a, nd.fcount, rng)
+                ahead += ctri.size
+                nd.pending = stratify_async((m, nd.positions(V0, V1, times)), nd.r, order, workers,
+                                            on_done=filtered(nd))
+        # 2. stored triangles, children and points of node me
         if bar is None and (show or (show is None and time.perf_counter() - t_start > 1.0)):
             from tqdm.auto import tqdm
 
             bar = tqdm(total=T, desc="point hierarchy", unit="tri", initial=n_tris, leave=False)
-        nd = dict(parent=parent, depth=depth, child_start=0, child_count=0,
-                  point_start=np.zeros(m, np.int64), point_count=np.zeros(m, np.int64))
-        if tris.size:
-            b0 = np.stack([tlo0[tris].min(0), thi0[tris].max(0)])
-            b1 = np.stack([tlo1[tris].min(0), thi1[tris].max(0)])
-        else:
-            b0 = np.stack([cube_lo, cube_lo])
-            b1 = b0.copy()
-        nd["box0"], nd["box1"] = b0, b1
-        maxside = float(max((b0[1] - b0[0]).max(), (b1[1] - b1[0]).max()))
-        r = min(spacing_fraction * maxside, 0.5 * r_parent)
+        nd = queue[me]
+        if nd.pending is not None:
+            nd.pending.result()
+            nd.pending = None
+            ahead -= nd.ctri.size
+        tris = nd.tris
+        rec = dict(parent=nd.parent, depth=nd.depth, child_start=0, child_count=0,
+                   point_start=np.zeros(m, np.int64), point_count=np.zeros(m, np.int64),
+                   box0=nd.box0, box1=nd.box1, spacing=0.0 if nd.leaf else nd.r)
         stored = np.zeros(tris.size, bool)
-        leaf = tris.size <= leaf_triangles or depth >= max_depth or r <= eps_len
-        if leaf:
+        if nd.leaf:
             stored[:] = True
-            nd["spacing"] = 0.0
         else:
-            nd["spacing"] = r
-            v0, v1 = V0[tris], V1[tris]
-            a = areas[tris]
-            pending = []
-            ncand = candidate_count(float(a.sum()), r, safety)
-            ctri, cbary = sample_triangles(a, ncand, rng)
-            if ctri.size:
-                pos = sample_positions_at(v0, v1, ctri, cbary, times)
-                order = rng.permutation(ctri.size)
-                keep = stratify(pos, r, order)
+            if nd.keep is not None:
                 got = np.zeros(tris.size, np.int64)
                 for j in range(m):
-                    got = np.maximum(got, np.bincount(ctri[keep[j]], minlength=tris.size))
+                    got = np.maximum(got, np.bincount(nd.ctri[nd.keep[j]], minlength=tris.size))
                 stored = got > triangle_samples
-                anyk = np.flatnonzero(keep.any(0))
-                h = r * C.POINTS_BIN_RATIO
-                nbins = int(np.ceil(a.sum() / (h * h)))
-                fc0, fc1, fn0, fn1 = filter_points(v0, v1, CC0[tris], CC1[tris], NN0[tris], NN1[tris], a,
-                                                   ctri[anyk], cbary[anyk], r, rng,
-                                                   int(min(filter_factor * nbins, C.POINTS_MAX_CANDIDATES)),
-                                                   filter_sigma)
-                slot = np.full(ctri.size, -1, np.int64)
-                slot[anyk] = np.arange(anyk.size)
-                for j in range(m):
-                    sel = np.flatnonzero(keep[j])
-                    s = slot[sel]
-                    pending.append((j, sel.size, tris[ctri[sel]], cbary[sel], fc0[s], fc1[s], fn0[s], fn1[s]))
             # distribute the rest among the children (§3.1)
             rest = np.flatnonzero(~stored)
-            half = 0.5 * cube_side
-            mid = cube_lo + half
+            half = 0.5 * nd.cube_side
+            mid = nd.cube_lo + half
             oct_ = ((centre[tris[rest]] >= mid) * np.array([4, 2, 1])).sum(1)
             tol = loose * half
-            clo = cube_lo + half * np.array([(oct_ >> 2) & 1, (oct_ >> 1) & 1, oct_ & 1]).T
+            clo = nd.cube_lo + half * np.array([(oct_ >> 2) & 1, (oct_ >> 1) & 1, oct_ & 1]).T
             fits = ((tlo0[tris[rest]] >= clo - tol) & (thi0[tris[rest]] <= clo + half + tol)).all(1)
             stored[rest[~fits]] = True
             rest, oct_, clo = rest[fits], oct_[fits], clo[fits]
@@ -368,28 +431,38 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
             for o in range(8):
                 sel = oct_ == o
                 if sel.any():
-                    children.append((tris[rest[sel]], clo[sel][0], half, depth + 1, r, me))
+                    children.append(_Node(tris[rest[sel]], clo[sel][0], half, nd.depth + 1, nd.r, me))
             if children:
-                nd["child_start"] = len(queue)
-                nd["child_count"] = len(children)
+                rec["child_start"] = len(queue)
+                rec["child_count"] = len(children)
                 queue.extend(children)
                 # the points represent the subtree; a node whose triangles all
                 # stay here is drawn as triangles only and keeps no points
-                for j, cnt, ptri, pbary, pc0, pc1, pn0, pn1 in pending:
-                    nd["point_start"][j] = n_points
-                    nd["point_count"][j] = cnt
-                    n_points += cnt
-                    for key, val in (("tri", ptri), ("bary", pbary), ("col0", pc0), ("col1", pc1),
-                                     ("nrm0", pn0), ("nrm1", pn1), ("node", np.full(cnt, me, np.int32))):
-                        pts[key].append(val)
+                if nd.keep is not None:
+                    slot = np.full(nd.ctri.size, -1, np.int64)
+                    slot[nd.anyk] = np.arange(nd.anyk.size)
+                    fc0, fc1, fn0, fn1 = nd.filtered
+                    for j in range(m):
+                        sel = np.flatnonzero(nd.keep[j])
+                        s = slot[sel]
+                        cnt = sel.size
+                        rec["point_start"][j] = n_points
+                        rec["point_count"][j] = cnt
+                        n_points += cnt
+                        for key, val in (("tri", tris[nd.ctri[sel]]), ("bary", nd.cbary[sel]),
+                                         ("col0", fc0[s]), ("col1", fc1[s]), ("nrm0", fn0[s]), ("nrm1", fn1[s]),
+                                         ("node", np.full(cnt, me, np.int32))):
+                            pts[key].append(val)
             else:
-                nd["spacing"] = 0.0
+                rec["spacing"] = 0.0
         mine = tris[stored]
-        nd["tri_start"] = n_tris
-        nd["tri_count"] = mine.size
+        rec["tri_start"] = n_tris
+        rec["tri_count"] = mine.size
         tri_chunks.append(mine)
         n_tris += mine.size
-        nodes.append(nd)
+        nodes.append(rec)
+        queue[me] = None  # its arrays are no longer needed
+        me += 1
         if bar is not None:
             bar.update(mine.size)
     if bar is not None:

@@ -238,6 +238,11 @@ def grid_section(frames, with_none=True):
         print(f"  {size[0]}x{size[1]}: 90,000 / 1,000 instances = {med(a, 'total') / med(b, 'total'):.2f}x "
               f"(per interleaved pair: {', '.join(f'{v:.2f}' for v in ratios)}; target <= 2x); "
               f"engines set up in {built:.0f} s")
+        # what grows with what: the selection with the instances (hierarchical instantiation keeps
+        # it sub-linear), the drawing with the points (the output: pixels covered)
+        print(f"  {size[0]}x{size[1]}: selection 90,000 / 1,000 = {med(a, 'select') / med(b, 'select'):.2f}x "
+              f"for 90x the instances; points 90,000 / 1,000 = {med(a, 'points') / max(med(b, 'points'), 1):.0f}x, "
+              f"draw {med(a, 'draw') / med(b, 'draw'):.2f}x")
     if with_none:
         with make_engine("grid", "none", (640, 480)) as eng:
             rows = run_frames(eng, (640, 480), [0.0, 0.0])[1:]

@@ -10,11 +10,13 @@ walking character with one time interval on a 2 GHz Pentium 4; target here
 <= 3 s).
 
 Run:  .venv/bin/python scripts/bench_points_build.py [--triangles 30000]
-      [--pairs 1] [--intervals 3] [--fraction 0.125] [--k 2] [--compare-threads]
+      [--pairs 1] [--intervals 3] [--fraction 0.125] [--k 2] [--threads N] [--compare-threads]
 
-``--compare-threads`` also times each pair with its time intervals stratified
-in parallel threads (``lod.points_stratify.STRATIFY_THREADS`` = core count;
-off by default because the shared machines here are overloaded).
+The build stratifies (one work item per node and time interval) and filters
+the octree nodes in parallel threads (``lod.points_stratify.worker_count``:
+the usable cores by default; ``--threads N`` sets it). ``--compare-threads``
+also times each pair in one thread, in the same run, and checks that both
+builds are identical.
 """
 from __future__ import annotations
 
@@ -42,8 +44,9 @@ def main(argv=None) -> int:
     ap.add_argument("--pairs", type=int, default=1, help="keyframe pairs to build and time")
     ap.add_argument("--intervals", type=int, default=POINTS_TIME_INTERVALS)
     ap.add_argument("--fraction", type=float, default=POINTS_SPACING_FRACTION, help="spacing / node side")
+    ap.add_argument("--threads", type=int, default=None, help="worker threads (default: the usable cores)")
     ap.add_argument("--compare-threads", action="store_true",
-                    help="also build each pair with the intervals stratified in parallel threads (same run)")
+                    help="also build each pair in one thread (same run) and check the results are identical")
     ap.add_argument("--k", type=int, default=POINTS_TRIANGLE_SAMPLES,
                     help="a triangle with more than k kept samples is stored as a triangle")
     args = ap.parse_args(argv)
@@ -57,32 +60,32 @@ def main(argv=None) -> int:
           f"intervals={args.intervals}, spacing fraction={args.fraction:.4g}, k={args.k}")
     import os
 
-    from lod import points_stratify
+    from lod.points_stratify import worker_count
 
-    print(f"cores: {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}")
+    workers = worker_count(args.threads)
+    print(f"cores: {os.cpu_count()}, threads: {workers}, load average {os.getloadavg()[0]:.1f}")
+    kw = dict(intervals=args.intervals, spacing_fraction=args.fraction, triangle_samples=args.k, progress=False)
     times = []
-    threaded = []
+    serial = []
     for k in range(min(args.pairs, len(anim.segments))):
-        if args.compare_threads:  # the same build with the intervals stratified in parallel threads, same run
-            old = points_stratify.STRATIFY_THREADS
-            points_stratify.STRATIFY_THREADS = os.cpu_count() or 1
-            t0 = time.perf_counter()
-            build_segment(anim, k, intervals=args.intervals, spacing_fraction=args.fraction,
-                          triangle_samples=args.k, seed=k, progress=False)
-            threaded.append(time.perf_counter() - t0)
-            points_stratify.STRATIFY_THREADS = old
         t0 = time.perf_counter()
-        h = build_segment(anim, k, intervals=args.intervals, spacing_fraction=args.fraction,
-                          triangle_samples=args.k, seed=k, progress=False)
+        h = build_segment(anim, k, seed=k, threads=workers, **kw)
         dt = time.perf_counter() - t0
         times.append(dt)
         print(f"pair {k}: {dt:6.2f} s  nodes={h.n_nodes}  points={h.n_points} "
               f"(per interval {h.point_count.sum(0).tolist()})  stored triangles at inner nodes="
               f"{int(h.tri_count[h.child_count > 0].sum())}  size={h.nbytes / 1e6:.1f} MB")
-    if threaded:
-        print(f"intervals in {os.cpu_count()} threads: median {np.median(threaded):.2f} s; threaded / one thread = "
-              f"{np.median(threaded) / np.median(times):.2f}")
-    print(f"build time per keyframe pair: median {np.median(times):.2f} s "
+        if args.compare_threads:  # the same build in one thread, same run
+            t0 = time.perf_counter()
+            h1 = build_segment(anim, k, seed=k, threads=1, **kw)
+            serial.append(time.perf_counter() - t0)
+            same = all(np.array_equal(v, getattr(h1, n)) for n, v in h.__dict__.items() if isinstance(v, np.ndarray))
+            print(f"pair {k} in one thread: {serial[-1]:6.2f} s, identical: {same}")
+    print(f"load average {os.getloadavg()[0]:.1f}")
+    if serial:
+        print(f"one thread: median {np.median(serial):.2f} s; {workers} threads / one thread = "
+              f"{np.median(times) / np.median(serial):.2f}")
+    print(f"build time per keyframe pair ({workers} threads): median {np.median(times):.2f} s "
           f"(paper: 20-25 s, 1 interval, P4 2 GHz; target <= 3 s)")
     return 0
 

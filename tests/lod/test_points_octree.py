@@ -163,6 +163,23 @@ def test_same_seed_same_hierarchy(blob):
     assert np.array_equal(h.bary, h2.bary) and np.array_equal(h.point_count, h2.point_count)
 
 
+def test_threads_do_not_change_the_hierarchy(monkeypatch):
+    """The level-parallel build (stratification and filtering in threads) is bit-identical to one thread."""
+    from sim.keyframes import bake_skinned
+    from sim.procedural import humanoid
+
+    from lod import points_stratify
+
+    monkeypatch.setattr(points_stratify, "PARALLEL_MIN_CANDIDATES", 0)
+    anim = bake_skinned(humanoid(1200, 4), "walk", 3)
+    a = build_segment(anim, 0, seed=2, progress=False, threads=1)
+    b = build_segment(anim, 0, seed=2, progress=False, threads=2)
+    assert a.n_points > 0
+    for k, v in a.__dict__.items():
+        if isinstance(v, np.ndarray):
+            assert np.array_equal(getattr(b, k), v) and getattr(b, k).dtype == v.dtype, k
+
+
 def test_degenerate_meshes_build_without_nan():
     """Zero-area, sliver, duplicated and coincident triangles (acceptance: coverage holds, no NaN)."""
     from scipy.spatial import cKDTree

@@ -249,3 +249,32 @@ def test_threaded_intervals_equal_serial():
     a = stratify(pos, 0.2, order, threads=1)
     b = stratify(pos, 0.2, order, threads=3)
     np.testing.assert_array_equal(a, b)
+
+
+def test_jobs_in_parallel_equal_serial_and_single_calls(monkeypatch):
+    """stratify_jobs/stratify_async: several candidate sets, (set, interval) items on 1 or 2 threads, array or
+    lazy per-interval positions: bit-identical to one stratify call per set (and to the reference)."""
+    from lod import points_stratify
+
+    monkeypatch.setattr(points_stratify, "PARALLEL_MIN_CANDIDATES", 0)
+    rng = np.random.default_rng(21)
+    jobs, lazy = [], []
+    for n, m, r in ((1500, 3, 0.12), (40, 2, 0.3), (0, 3, 0.1), (900, 1, 0.2), (2500, 4, 0.08)):
+        pos = _moving_cloud(rng, n, m)
+        order = rng.permutation(n)
+        jobs.append((pos, r, order))
+        lazy.append(((m, lambda j, pos=pos: pos[j:j + 2]), r, order))
+    single = [stratify(p, r, o, threads=1) for p, r, o in jobs]
+    for threads in (1, 2):
+        for js in (jobs, lazy):
+            done = {}
+            got = points_stratify.stratify_jobs(js, threads=threads, on_done=lambda b, k: done.setdefault(b, k.copy()))
+            assert all(np.array_equal(a, b) and a.shape == b.shape for a, b in zip(got, single))
+            assert sorted(done) == list(range(len(jobs)))  # once per job, the empty one too, when complete
+            assert all(np.array_equal(done[b], single[b]) for b in done)
+        pend = [points_stratify.stratify_async(p, r, o, threads=threads) for p, r, o in lazy]
+        assert all(np.array_equal(h.result(), b) for h, b in zip(pend, single))
+    p, r, o = jobs[1]
+    assert np.array_equal(single[1], stratify_numpy(p, r, o))
+    with pytest.raises(ValueError, match="finite"):
+        points_stratify.stratify_jobs([((1, lambda j: np.full((2, 40, 3), np.nan)), 0.3, jobs[1][2])])
