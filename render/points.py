@@ -381,6 +381,7 @@ class Drawer:
         self._objects: list = []
         self._bufs: dict = {}
         self._progs: dict = {}
+        self._vaos: dict = {}  # kind -> (buffer, vertex array) of the per-frame buffers (_vao_of)
         self.last_counts = {"points": 0, "triangles": 0}
         w, h = renderer.size
         self._pixels = (w + MARGIN) * (h + MARGIN)  # anchor slots
@@ -508,6 +509,7 @@ class Drawer:
         self._points = None
         self._points_used = 0
         self._progs.clear()
+        self._vaos.clear()
 
     # ------------------------------------------------------------------ drawing
     def _uniforms(self, prog, view_proj, **vals):
@@ -572,15 +574,9 @@ class Drawer:
             self._buffer("tri_items", items).bind_to_storage_buffer(7)
             g.verts.bind_to_storage_buffer(5)
             ibo = self._buffer("tri_index", index)
-            key_vao = ("tri_vao", id(ibo))
-            if key_vao not in self._progs:
-                for k in [k for k in self._progs if isinstance(k, tuple) and k[0] == "tri_vao"]:
-                    old = self._progs.pop(k)
-                    self._objects.remove(old)
-                    old.release()
-                self._progs[key_vao] = self._track(self.ctx.vertex_array(tprog, [], index_buffer=ibo,
-                                                                         index_element_size=4), "points.tri_vao")
-            self._progs[key_vao].render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
+            vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
+                                                                                index_element_size=4))
+            vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += total
         # 2. points: one job table per fade over every rep (their samples share one buffer)
         groups = []
@@ -647,15 +643,9 @@ class Drawer:
         rprog["u_size"].value = (w, h)
         rprog["u_splat"].value = splat
         vbo = self._buffer("resolve_vertices", verts)
-        key = ("resolve_vao", id(vbo))
-        if key not in self._progs:
-            for k in [k for k in self._progs if isinstance(k, tuple) and k[0] == "resolve_vao"]:
-                old = self._progs.pop(k)
-                self._objects.remove(old)
-                old.release()
-            self._progs[key] = self._track(self.ctx.vertex_array(rprog, [(vbo, "2f", "in_pos")]), "points.resolve_vao")
+        vao = self._vao_of("resolve_vao", vbo, lambda: self.ctx.vertex_array(rprog, [(vbo, "2f", "in_pos")]))
         self.r.fbo.use()
-        self._progs[key].render(moderngl.TRIANGLES, vertices=verts.shape[0])
+        vao.render(moderngl.TRIANGLES, vertices=verts.shape[0])
 
     def _clear(self) -> None:
         """Reset the anchor slots (and tile flags) the last frame filled: all
@@ -678,6 +668,18 @@ class Drawer:
             clear["u_tiles_x"].value = tx
             self._dispatch(clear, int(dirty.shape[0]), TILES_PER_GROUP)
         self._dirty = np.zeros(0, np.uint32)
+
+    def _vao_of(self, kind: str, buffer, make):
+        """The vertex array ``make()`` reading the per-frame ``buffer``: kept
+        while that buffer object is the current one; when the buffer was
+        outgrown (replaced), the old vertex array is released."""
+        entry = self._vaos.get(kind)
+        if entry is None or entry[0] is not buffer:
+            if entry is not None:
+                self._objects.remove(entry[1])
+                entry[1].release()
+            entry = self._vaos[kind] = (buffer, self._track(make(), f"points.{kind}"))
+        return entry[1]
 
     def _empty_for(self, prog):
         k = ("vao", id(prog))
