@@ -37,7 +37,12 @@ Departures and choices:
   and the ORIGINAL leaf triangles of its region (:func:`lod.qem.cluster_hausdorff`:
   exact from every original vertex, sampled at triangle centroids and edge
   midpoints the other way), so errors do not compound with depth; the stored
-  error is max(own, children's), monotone as §5.1 needs.
+  error is max(own, children's), monotone as §5.1 needs. The distance from an
+  original vertex counts only simplified triangles facing its way (normal
+  within 65 degrees in that pose, :data:`lod.qem.HAUSDORFF_NORMAL_COS`): a limb
+  or foot flattened into a two-sided sheet is close to the original surface but
+  covers no pixel seen edge-on, so the plain distance let the rendered
+  silhouette lose whole features (2-4x PoE, ``scripts/bench_clusters.md``).
 - Pairing (§4.3 "the adjacent cluster of nearest deformation level") compares
   levels in steps of the §4.2 tolerance and, within a step, takes the
   neighbour sharing the longest border. Every locked border stays at leaf
@@ -94,7 +99,8 @@ class ClusterHierarchy:
     height : (N,) int16, 0 for leaves, 1 + max child height otherwise
     leaf_lo, leaf_hi : (N,) int32 leaves under each node
     error : (N,) float32 metres, model space: Hausdorff estimate of the cluster
-        against the original surface over the representative poses; 0 for
+        against the original surface over the representative poses (forward
+        distance normal-compatible, :func:`lod.qem.cluster_hausdorff`); 0 for
         leaves, parent >= children
     sphere : (N, 4) float32 model-space (centre xyz, radius) holding the
         cluster's whole region in every sampled pose
@@ -540,6 +546,7 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
 
     # bottom-up simplification (§4.3)
     Q = qem.plane_quadrics(X_rep, tri)
+    vnorm = qem.vertex_normals(X_rep, tri)  # normal-compatible forward distance (qem.cluster_hausdorff)
     vt_ptr, vt_idx = _vertex_triangles(tri, V)
     vlo, vhi, vc, vr = _vertex_bounds(X_all, pose_clip, CLUSTERS_SPHERE_PAD)
     owner = np.full(T, -1, np.int64)
@@ -588,7 +595,7 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
                 raise RuntimeError(f"cluster hierarchy build: cluster {i} lost track of collapsed vertices")
             rep[rv] = verts[remap[local[cur]]]
             fwd, bwd = qem._cluster_hausdorff_sq(X_rep, np.ascontiguousarray(node_tris[i]), rv, rep, vt_ptr, vt_idx,
-                                                 tri, owner, i)
+                                                 tri, owner, i, vnorm, qem.HAUSDORFF_NORMAL_COS)
             own[i] = max(fwd, bwd)
             error[i] = max(own[i], error[a], error[b])
             height[i] = 1 + max(height[a], height[b])

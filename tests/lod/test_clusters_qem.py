@@ -185,3 +185,25 @@ def test_cluster_hausdorff_degenerate_inputs():
         qem.cluster_hausdorff(X, simp, rv, remap, t, mask[:-1])
     with pytest.raises(ValueError, match="simplified"):
         qem.cluster_hausdorff(X, simp + 10 ** 6, rv, remap, t, mask)
+
+
+def test_cluster_hausdorff_normal_compatible():
+    """The normal-compatible forward distance is never below the plain one, is 0 for an
+    unsimplified mesh, and charges a vertex no simplified triangle faces (a sphere replaced by
+    its upper half: the lower half's vertices face away from every kept triangle)."""
+    X, t, simp, remap = _bumpy_sphere_case()
+    rv = np.unique(t)
+    mask = np.ones(len(t), bool)
+    f, b = qem.cluster_hausdorff(X, simp, rv, remap, t, mask)
+    fn, bn = qem.cluster_hausdorff(X, simp, rv, remap, t, mask, normal_cos=qem.HAUSDORFF_NORMAL_COS)
+    assert fn >= f - 1e-12 and bn == pytest.approx(b)
+    f0, _ = qem.cluster_hausdorff(X, t, rv, np.arange(X.shape[1]), t, mask, normal_cos=qem.HAUSDORFF_NORMAL_COS)
+    assert f0 == 0.0
+    c = X[0][t].mean(axis=1)
+    top = t[c[:, 2] > 0.2]
+    plain, _ = qem.cluster_hausdorff(X, top, rv, np.arange(X.shape[1]), t, mask)
+    compat, _ = qem.cluster_hausdorff(X, top, rv, np.arange(X.shape[1]), t, mask,
+                                      normal_cos=qem.HAUSDORFF_NORMAL_COS)
+    assert compat > plain + 0.1
+    n = qem.vertex_normals(X, t)
+    assert np.allclose(np.linalg.norm(n[:, rv], axis=2), 1.0)
