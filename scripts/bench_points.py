@@ -21,13 +21,15 @@ Prints:
      at 640x480, to mode "none" (one frame: full detail is slow);
    * the data structure size in MB (every point rep: the characters' segment
      octrees and the super-hierarchies; paper: 123 MB for grid);
+   * (``--complexity``) the same grid with 4x the triangles per character
+     (§6: rendering time independent of the input meshes' complexity);
    * the paper's Tables 1 and 2: frame time, points and triangles drawn at
      splat 1, 2, 3 for poser4, horses, stadium and grid at 640x480, median over
      frames at camera times spread over each scene's camera path, beside the
      paper's numbers.
 
 Run:  .venv/bin/python scripts/bench_points.py [--size 1280x720] [--frames 3] [--instances 400]
-      [--scenes] [--table-frames 3] [--grid-frames 3] [--skip-build] [--skip-splat] [--skip-none]
+      [--scenes] [--table-frames 3] [--grid-frames 3] [--skip-build] [--skip-splat] [--skip-none] [--complexity]
 """
 from __future__ import annotations
 
@@ -254,6 +256,43 @@ def grid_section(frames, with_none=True):
     return res
 
 
+#: the grid's characters with 4x the triangles (2.3 G triangles in all)
+GRID_DETAILED = (("triangles = 6396", "triangles = 25584"),)
+
+
+def complexity_section(frames, sizes=((640, 480), (1280, 720))):
+    """§6 "the rendering time is independent of the complexity of the input
+    meshes": the 90,000-instance grid with its characters at 6,396 and at
+    25,584 triangles (576 M and 2.3 G triangles), same view, frames of both
+    interleaved; median frame time and their ratio."""
+    print("\n== grid: model complexity (characters of 6,396 vs 25,584 triangles, 90,000 instances, splat 2) ==")
+    from render.context import create_context
+
+    for size in sizes:
+        t0 = time.perf_counter()
+        ctx = create_context()
+        with make_engine("grid", "points", size, 2) as base, make_engine("grid", "points", size, 2,
+                                                                          GRID_DETAILED) as fine:
+            base.open_renderer(size, ctx=ctx)
+            fine.open_renderer(size, ctx=ctx)
+            built = time.perf_counter() - t0
+            rows = {"6,396": [], "25,584": []}
+            for it in range(frames + 1):
+                for label, eng in (("6,396", base), ("25,584", fine)):
+                    row = run_frames(eng, size, [0.0])[0]
+                    if it:
+                        rows[label].append(row)
+        ctx.release()
+        for label, r_ in rows.items():
+            print(f"  {size[0]}x{size[1]} {label:>6}-triangle characters: frame {med(r_, 'total') * 1e3:7.1f} ms "
+                  f"(select {med(r_, 'select') * 1e3:.1f}, draw {med(r_, 'draw') * 1e3:.1f}), "
+                  f"{med(r_, 'points'):,.0f} points, {med(r_, 'triangles'):,.0f} triangles")
+        a, b = rows["25,584"], rows["6,396"]
+        pairs = ", ".join("%.2f" % (x["total"] / y["total"]) for x, y in zip(a, b))
+        print(f"  {size[0]}x{size[1]}: 4x the triangles per character = {med(a, 'total') / med(b, 'total'):.2f}x "
+              f"the frame time (per interleaved pair: {pairs}); engines set up in {built:.0f} s")
+
+
 def tables_section(frames, size=(640, 480)):
     print(f"\n== Tables 1 and 2 at {size[0]}x{size[1]}: frame time, points / triangles drawn "
           f"(median of {frames} frames over the camera path; paper in brackets) ==")
@@ -295,6 +334,8 @@ def main(argv=None):
     ap.add_argument("--skip-splat", action="store_true")
     ap.add_argument("--skip-tables", action="store_true")
     ap.add_argument("--skip-none", action="store_true", help="no full-detail grid frame (about 2-3 min here)")
+    ap.add_argument("--complexity", action="store_true",
+                    help="also the grid with 4x the triangles per character (builds its hierarchies once: minutes)")
     a = ap.parse_args(argv)
     size = tuple(int(v) for v in a.size.lower().split("x"))
     cache = pm.HierarchyCache()
@@ -317,6 +358,8 @@ def main(argv=None):
                   f"({P} points, {N} nodes, {nb / 1e6:.1f} MB; paper 20-25 s with 1 interval; target <= 3 s)")
     if a.scenes:
         grid_section(a.grid_frames, not a.skip_none)
+        if a.complexity:
+            complexity_section(a.grid_frames)
         if not a.skip_tables:
             tables_section(a.table_frames)
 
