@@ -39,7 +39,7 @@ Departures and choices:
   midpoints the other way), so errors do not compound with depth; the stored
   error is max(own, children's), monotone as §5.1 needs. The distance from an
   original vertex counts only simplified triangles facing its way (normal
-  within 65 degrees in that pose, :data:`lod.qem.HAUSDORFF_NORMAL_COS`): a limb
+  within 80 degrees in that pose, :data:`lod.qem.HAUSDORFF_NORMAL_COS`): a limb
   or foot flattened into a two-sided sheet is close to the original surface but
   covers no pixel seen edge-on, so the plain distance let the rendered
   silhouette lose whole features (2-4x PoE, ``scripts/bench_clusters.md``).
