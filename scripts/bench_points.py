@@ -202,6 +202,19 @@ def camera_times(eng, n):
     return [t_end * (i + 0.5) / n for i in range(n)] if t_end > 0 else [0.0] * n
 
 
+def interleaved_frames(engines: dict, size, frames: int) -> dict:
+    """label -> ``frames`` rows of :func:`run_frames` at camera time 0, the
+    engines' frames taken in turn (so all see the same machine load) after
+    one warm-up frame each."""
+    rows = {label: [] for label in engines}
+    for it in range(frames + 1):
+        for label, eng in engines.items():
+            row = run_frames(eng, size, [0.0])[0]
+            if it:
+                rows[label].append(row)
+    return rows
+
+
 def grid_section(frames, with_none=True):
     """Frame times of the 90,000- and the 1,000-instance grid from the same
     view, their frames interleaved (both engines open at once) so that both
@@ -221,12 +234,7 @@ def grid_section(frames, with_none=True):
                 res["mb"] = data_mb(big)
                 res["played_mb"] = played_mb(big)
                 res["n_reps"] = sum(1 for r in big.reps if getattr(r, "kind", "") == "points")
-            rows = {"90,000": [], "1,000": []}
-            for it in range(frames + 1):
-                for label, eng in (("90,000", big), ("1,000", small)):
-                    row = run_frames(eng, size, [0.0])[0]
-                    if it:
-                        rows[label].append(row)
+            rows = interleaved_frames({"90,000": big, "1,000": small}, size, frames)
         ctx.release()
         for label in ("90,000", "1,000"):
             r_ = rows[label]
@@ -276,12 +284,7 @@ def complexity_section(frames, sizes=((640, 480), (1280, 720))):
             base.open_renderer(size, ctx=ctx)
             fine.open_renderer(size, ctx=ctx)
             built = time.perf_counter() - t0
-            rows = {"6,396": [], "25,584": []}
-            for it in range(frames + 1):
-                for label, eng in (("6,396", base), ("25,584", fine)):
-                    row = run_frames(eng, size, [0.0])[0]
-                    if it:
-                        rows[label].append(row)
+            rows = interleaved_frames({"6,396": base, "25,584": fine}, size, frames)
         ctx.release()
         for label, r_ in rows.items():
             print(f"  {size[0]}x{size[1]} {label:>6}-triangle characters: frame {med(r_, 'total') * 1e3:7.1f} ms "
