@@ -592,6 +592,8 @@ class Drawer:
         path = self.path or first.path
         if path not in PATHS:
             raise ValueError(f"points drawer: path must be one of {PATHS}, got {path!r}")
+        # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
+        # the [lod] splat_size
         splat = int(drawlist.options.get("splat_size", first.splat))
         self.last_counts["points"] = sum(t for _, _, t in groups)
         self._points.bind_to_storage_buffer(0)
@@ -613,8 +615,6 @@ class Drawer:
         ctx.memory_barrier()  # the last frame's resolve has read the keys
         self._clear()
         ctx.memory_barrier()
-        # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
-        # the [lod] splat_size
         common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
                   f"TILE {TILE}")
         for defines in ((), ("COLOR_PASS",)):

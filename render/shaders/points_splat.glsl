@@ -7,11 +7,11 @@
 // instance, and the instance's matrix and u are read once per thread.
 // DEPTH_PASS (default): atomicMin of the window depth (float bits, positive,
 // so ordered as uint) into the point's anchor slot (the lowest corner of its
-// s x s footprint, on a grid with a MARGIN-pixel border below and left);
-// The first point of an anchor marks the anchor's TILE x TILE tile
+// s x s footprint, on a grid with a MARGIN-pixel border below and left); the
+// first point of an anchor marks the anchor's TILE x TILE tile
 // (render/points.py clears and resolves only marked tiles).
-// COLOR_PASS: the point whose depth won its anchor writes its lit RGBA8
-// colour there. The resolve pass takes, per pixel, the nearest of the s x s
+// COLOR_PASS: the point whose depth won its anchor loads its normal and
+// colour (only then) and writes its lit RGBA8 colour there. The resolve pass takes, per pixel, the nearest of the s x s
 // anchors whose footprints cover it: the same minimum as scattering into the
 // whole footprint, with one atomic per point instead of s * s.
 // (llvmpipe has no 64-bit atomics, so depth and index cannot be packed into
