@@ -40,7 +40,7 @@ Eurographics 2002, §3.4.2 and Figure 5:
   decisions only depend on its inputs, so the result does not depend on the
   thread count.
 
-``stratify``, ``stratify_jobs`` and ``stratify_async`` are the public entry
+``stratify`` and ``stratify_async`` are the public entry
 points (numba kernels); ``stratify_numpy`` is the O(N^2) reference the tests
 compare against.
 """
@@ -539,35 +539,7 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray, threads: 
     ------
     ValueError on bad shapes, a non-positive spacing or non-finite positions.
     """
-    return stratify_jobs([(positions, spacing, order)], threads)[0]
-
-
-def stratify_jobs(jobs, threads: int | None = None, on_done=None) -> list:
-    """:func:`stratify` of several independent candidate sets, their
-    (set, interval) work items spread over a thread pool, largest set first.
-
-    Parameters
-    ----------
-    jobs : sequence of (positions, spacing, order) as for :func:`stratify`;
-        ``positions`` may also be a pair (m, at), see :func:`stratify_async`
-    threads : None (:func:`worker_count`) or a thread count; serial below
-        :data:`PARALLEL_MIN_CANDIDATES` candidate-intervals in all. The
-        result does not depend on it.
-    on_done : None or ``on_done(b, keep)``, called once per job b when all
-        its intervals are stratified
-
-    Returns
-    -------
-    list of (m, N) bool keep arrays, one per job.
-    """
-    checked = [_checked_job(*job) for job in jobs]
-    work = sum(m * order.shape[0] for m, _, _, order in checked)
-    workers = worker_count(threads) if work >= PARALLEL_MIN_CANDIDATES else 1
-    pending = [None] * len(checked)
-    for b in sorted(range(len(checked)), key=lambda b: -checked[b][3].shape[0]):
-        done = None if on_done is None else (lambda keep, b=b: on_done(b, keep))
-        pending[b] = _submit(checked[b], workers, done)
-    return [p.result() for p in pending]
+    return stratify_async(positions, spacing, order, threads).result()
 
 
 def stratify_async(positions, spacing: float, order: np.ndarray, threads: int | None = None, on_done=None):

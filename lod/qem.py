@@ -652,14 +652,21 @@ def _point_tri_d2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):  # pragma: no
     return qx * qx + qy * qy + qz * qz
 
 
+@njit(cache=True, inline="always")
+def _face_normal(X, p, tris, f):  # pragma: no cover - compiled
+    """Area-weighted (unnormalised) normal of triangle f in pose p."""
+    a, b, c = tris[f, 0], tris[f, 1], tris[f, 2]
+    ux, uy, uz = X[p, b, 0] - X[p, a, 0], X[p, b, 1] - X[p, a, 1], X[p, b, 2] - X[p, a, 2]
+    wx, wy, wz = X[p, c, 0] - X[p, a, 0], X[p, c, 1] - X[p, a, 1], X[p, c, 2] - X[p, a, 2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
 @njit(cache=True)
 def _vertex_normals(X, tris, out):  # pragma: no cover - compiled
     for p in range(X.shape[0]):
         for f in range(tris.shape[0]):
             a, b, c = tris[f, 0], tris[f, 1], tris[f, 2]
-            ux, uy, uz = X[p, b, 0] - X[p, a, 0], X[p, b, 1] - X[p, a, 1], X[p, b, 2] - X[p, a, 2]
-            wx, wy, wz = X[p, c, 0] - X[p, a, 0], X[p, c, 1] - X[p, a, 1], X[p, c, 2] - X[p, a, 2]
-            nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx  # area-weighted
+            nx, ny, nz = _face_normal(X, p, tris, f)
             for v in (a, b, c):
                 out[p, v, 0] += nx
                 out[p, v, 1] += ny
@@ -873,10 +880,7 @@ def _cluster_hausdorff(X, tris, region_verts, rep, vt_ptr, vt_idx, orig_tris, tr
     if use_n:
         for p in range(P):
             for f in range(m):
-                a, b, c = tris[f, 0], tris[f, 1], tris[f, 2]
-                ux, uy, uz = X[p, b, 0] - X[p, a, 0], X[p, b, 1] - X[p, a, 1], X[p, b, 2] - X[p, a, 2]
-                wx, wy, wz = X[p, c, 0] - X[p, a, 0], X[p, c, 1] - X[p, a, 1], X[p, c, 2] - X[p, a, 2]
-                nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+                nx, ny, nz = _face_normal(X, p, tris, f)
                 ln = np.sqrt(nx * nx + ny * ny + nz * nz)
                 if ln > 0.0:  # a degenerate triangle covers no pixel: compatible with nothing
                     fnrm[p, f, 0], fnrm[p, f, 1], fnrm[p, f, 2] = nx / ln, ny / ln, nz / ln

@@ -205,27 +205,25 @@ def job_table(batches, key: str, bases: np.ndarray, which: str, inst_offsets: di
         j = j[j[:, 2] > 0]
         if j.size:
             parts.append(np.stack([bases[b.part] + j[:, 1], j[:, 2], inst_offsets[id(b)] + j[:, 0]], axis=1))
-    if not parts:
-        return np.zeros((0, 4), np.uint32)
-    j = np.concatenate(parts)
-    pre = np.zeros(j.shape[0], np.int64)
-    np.cumsum(j[:-1, 1], out=pre[1:])
-    if pre[-1] + j[-1, 1] >= 2 ** 32:
-        raise ValueError(f"points drawer: {pre[-1] + j[-1, 1]} work items in one frame exceed 2**32")
-    return np.concatenate([j, pre[:, None]], axis=1).astype(np.uint32)
+    return _with_prefix(np.concatenate(parts) if parts else np.zeros((0, 3), np.int64))
 
 
 def _merge_jobs(parts) -> np.ndarray:
     """One job table of several (their prefixes continued)."""
     if len(parts) == 1:
         return parts[0]
-    j = np.concatenate(parts).astype(np.int64)
+    return _with_prefix(np.concatenate([p[:, :3] for p in parts]).astype(np.int64))
+
+
+def _with_prefix(j: np.ndarray) -> np.ndarray:
+    """(J, 4) uint32 jobs: the (J, 3) rows (first, count, instance) and the exclusive prefix of the counts."""
+    if not j.shape[0]:
+        return np.zeros((0, 4), np.uint32)
     pre = np.zeros(j.shape[0], np.int64)
     np.cumsum(j[:-1, 1], out=pre[1:])
     if pre[-1] + j[-1, 1] >= 2 ** 32:
         raise ValueError(f"points drawer: {pre[-1] + j[-1, 1]} work items in one frame exceed 2**32")
-    j[:, 3] = pre
-    return j.astype(np.uint32)
+    return np.concatenate([j, pre[:, None]], axis=1).astype(np.uint32)
 
 
 #: triangle ranges whose (unique vertices, local corners) a rep keeps (render/points.py

@@ -252,7 +252,7 @@ def test_threaded_intervals_equal_serial():
 
 
 def test_jobs_in_parallel_equal_serial_and_single_calls(monkeypatch):
-    """stratify_jobs/stratify_async: several candidate sets, (set, interval) items on 1 or 2 threads, array or
+    """stratify_async: several candidate sets, (set, interval) items on 1 or 2 threads, array or
     lazy per-interval positions: bit-identical to one stratify call per set (and to the reference)."""
     from lod import points_stratify
 
@@ -268,7 +268,10 @@ def test_jobs_in_parallel_equal_serial_and_single_calls(monkeypatch):
     for threads in (1, 2):
         for js in (jobs, lazy):
             done = {}
-            got = points_stratify.stratify_jobs(js, threads=threads, on_done=lambda b, k: done.setdefault(b, k.copy()))
+            pend = [points_stratify.stratify_async(p, r, o, threads=threads,
+                                                   on_done=lambda k, b=b: done.setdefault(b, k.copy()))
+                    for b, (p, r, o) in enumerate(js)]
+            got = [h.result() for h in pend]
             assert all(np.array_equal(a, b) and a.shape == b.shape for a, b in zip(got, single))
             assert sorted(done) == list(range(len(jobs)))  # once per job, the empty one too, when complete
             assert all(np.array_equal(done[b], single[b]) for b in done)
@@ -277,4 +280,4 @@ def test_jobs_in_parallel_equal_serial_and_single_calls(monkeypatch):
     p, r, o = jobs[1]
     assert np.array_equal(single[1], stratify_numpy(p, r, o))
     with pytest.raises(ValueError, match="finite"):
-        points_stratify.stratify_jobs([((1, lambda j: np.full((2, 40, 3), np.nan)), 0.3, jobs[1][2])])
+        points_stratify.stratify_async((1, lambda j: np.full((2, 40, 3), np.nan)), 0.3, jobs[1][2]).result()
