@@ -124,7 +124,7 @@ class Group:
 class Options:
     """A candidate's options for one group.
 
-    cost : (k, m) float64 predicted seconds, finite >= 0
+    cost : (k, m) float64 predicted seconds, finite >= 0 (may be a read-only broadcast view)
     error : (k, m) float64 pixels (inf: not usable)
     plan : anything the candidate needs again in ``emit``
     labels : (m,) str names of the options for telemetry (e.g. "L3", "cut", "splat2")
@@ -197,7 +197,7 @@ class TrianglesCandidate(Candidate):
             return Options(cost, np.zeros((group.k, 1)), None, ("L0",))
         err = projected_errors(r.level_error, group.rows, r.clip_sphere[group.batch.part], frame.scale_px)
         cost = c["triangles"] * r.level_count.astype(np.float64) + c["instances"]
-        return Options(np.broadcast_to(cost, err.shape).copy(), err, r,
+        return Options(np.broadcast_to(cost, err.shape), err, r,
                        tuple(f"L{i}" for i in range(r.n_levels)))
 
     def emit(self, frame, group, options, rows, choice):
@@ -298,6 +298,40 @@ def sub_csr(offsets: np.ndarray, clusters: np.ndarray, rows: np.ndarray):
     return off, np.asarray(clusters, np.int32)[idx]
 
 
+@njit(cache=True)
+def _spheres_inside_kernel(rows, sph, planes, out):  # pragma: no cover - compiled
+    for i in range(rows.shape[0]):
+        s = 0.0
+        for b in range(3):
+            n = np.sqrt(rows[i, 0, b] ** 2 + rows[i, 1, b] ** 2 + rows[i, 2, b] ** 2)
+            if n > s:
+                s = n
+        ok = True
+        for q in range(sph.shape[0]):
+            rad = sph[q, 3] * s
+            c0 = rows[i, 0, 0] * sph[q, 0] + rows[i, 0, 1] * sph[q, 1] + rows[i, 0, 2] * sph[q, 2] + rows[i, 0, 3]
+            c1 = rows[i, 1, 0] * sph[q, 0] + rows[i, 1, 1] * sph[q, 1] + rows[i, 1, 2] * sph[q, 2] + rows[i, 1, 3]
+            c2 = rows[i, 2, 0] * sph[q, 0] + rows[i, 2, 1] * sph[q, 1] + rows[i, 2, 2] * sph[q, 2] + rows[i, 2, 3]
+            for p in range(planes.shape[0]):
+                if not (planes[p, 0] * c0 + planes[p, 1] * c1 + planes[p, 2] * c2 + planes[p, 3] >= rad):
+                    ok = False
+        out[i] = ok
+
+
+def spheres_inside(rows, spheres, planes) -> np.ndarray:
+    """(k,) bool: every one of ``spheres`` (model space, (R, 4) centre and
+    radius, scaled by the largest axis scale) lies wholly inside every
+    plane (inside: n.x + d >= radius) for each instance's rows (numba).
+
+    rows : (k, 3, 4) float64 camera-relative model rows; planes : (P, 4) float64
+    """
+    rows = np.ascontiguousarray(rows, np.float64).reshape(-1, 3, 4)
+    out = np.empty(rows.shape[0], np.bool_)
+    _spheres_inside_kernel(rows, np.ascontiguousarray(spheres, np.float64).reshape(-1, 4),
+                           np.ascontiguousarray(planes, np.float64), out)
+    return out
+
+
 class ClustersCandidate(Candidate):
     """VDR-AM cluster cuts (:mod:`lod.clusters_mode`) at the frame's bound.
 
@@ -324,15 +358,37 @@ class ClustersCandidate(Candidate):
         self.reps = list(self.by_char.values())
         self._ws = cluster_cut.CutWorkspace()
         self.clusters_drawn = 0
+        self._lb = None  # (frame, group, bound) of the last cost_lower_bound call (held: identity-compared)
 
     def cost_lower_bound(self, frame, group):
-        """Seconds of the cheapest conceivable cut: one skinned instance and
-        one cluster record (a partly visible instance may cull every
-        triangle, so no triangle term)."""
-        if self.by_char.get(group.char) is None or not frame.bound > 0.0 or group.k == 0:
+        """Seconds no cut of an instance can undercut: one skinned instance
+        and one cluster record; when the spheres of the hierarchy's roots
+        lie wholly inside the frustum, the roots' clusters and triangles too.
+
+        Why the root cut bounds every cut (VDR-AM §4.3): a parent never has
+        more triangles than its children together (it is their merge,
+        simplified), so by induction every cut covering the mesh has at
+        least the roots' triangles and one cluster per root; and no cluster
+        of an instance whose root spheres are inside every plane is culled,
+        since each cluster's sphere meets its root's. A partly visible
+        instance may cull every triangle, hence no triangle term there."""
+        r = self.by_char.get(group.char)
+        if r is None or not frame.bound > 0.0 or group.k == 0:
             return None
+        if self._lb is not None and self._lb[0] is frame and self._lb[1] is group:
+            return self._lb[2]  # options() asks again for the same frame and group
         c = frame.model.coefficients
-        return np.full(group.k, c["instances"] + c["clusters"])
+        lb = np.full(group.k, c["instances"] + c["clusters"])
+        h = r.hierarchy
+        roots = np.asarray(h.roots, np.int64)
+        if roots.size == 0:
+            return lb
+        inside = spheres_inside(group.rows, r.sphere64[roots], frame.planes)
+        # one cluster record is in the base already
+        root_cost = c["clusters"] * (roots.size - 1) + c["triangles"] * float(h.triangle_counts()[roots].sum())
+        lb[inside] += root_cost
+        self._lb = (frame, group, lb)
+        return lb
 
     def options(self, frame, group, need=None):
         r = self.by_char.get(group.char)
@@ -380,6 +436,7 @@ class ClustersCandidate(Candidate):
     def finish(self, frame, drawlist):
         drawlist.stats["clusters"] = int(drawlist.stats.get("clusters", 0) or 0) + self.clusters_drawn
         self.clusters_drawn = 0
+        self._lb = None
 
 
 # ---------------------------------------------------------------------------- points
@@ -446,7 +503,7 @@ class PointsCandidate(Candidate):
         if r is None or p == 0 or group.k == 0:
             return None
         b = group.batch
-        data = np.asarray(b.instance_data, np.float64).copy()
+        data = np.array(b.instance_data, np.float32)  # a copy: column 12 becomes the segment's u
         if self.kinds[group.char] == "keyframed":
             seg = np.full(group.k, int(b.part), np.int64)
         else:
@@ -454,17 +511,24 @@ class PointsCandidate(Candidate):
             seg, u = r.keyframed.locate(int(b.part), t)
             data[:, 12] = u
         vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
-        pts = np.zeros(group.k)
-        tris = np.zeros(group.k)
-        jobs = {}
-        for s in np.unique(seg).tolist():
-            m = np.flatnonzero(seg == s)
-            pj, tj = traverse_instances(r.hierarchies[s], data[m], frame.planes, vs, p)
-            pj[:, 0] = m[pj[:, 0]]  # rows of the group
-            tj[:, 0] = m[tj[:, 0]]
-            pts += np.bincount(pj[:, 0], weights=pj[:, 2], minlength=group.k)
-            tris += np.bincount(tj[:, 0], weights=tj[:, 2], minlength=group.k)
-            jobs[s] = (m, pj, tj)
+        ids = np.asarray(b.instance_ids)
+        if seg.size and seg[0] == seg[-1] and (seg == seg[0]).all():
+            order, starts, segs = None, np.array([0, group.k]), seg[:1]
+        else:  # the group's rows grouped by segment (stable: each segment's rows in group order)
+            order = np.argsort(seg, kind="stable")
+            data, ids, seg = data[order], ids[order], seg[order]
+            cut = np.flatnonzero(seg[1:] != seg[:-1]) + 1
+            starts = np.concatenate([[0], cut, [group.k]])
+            segs = seg[starts[:-1]]
+        pts, tris = np.empty(group.k, np.int64), np.empty(group.k, np.int64)
+        jobs = {}  # segment -> (first, end) of its rows in the grouped order, point jobs, triangle jobs (local rows)
+        for j, s in enumerate(segs.tolist()):
+            a, e = int(starts[j]), int(starts[j + 1])
+            pj, tj, pts[a:e], tris[a:e] = traverse_instances(r.hierarchies[s], data[a:e], frame.planes, vs, p,
+                                                             totals=True)
+            jobs[s] = (a, e, pj, tj)
+        if order is not None:  # totals back to group rows
+            pts[order], tris[order] = pts.copy(), tris.copy()
         c = frame.model.coefficients
         cost = c["points"] * pts + c["triangles"] * tris + c["point_instances"]
         err = np.full(group.k, float(p))
@@ -472,31 +536,36 @@ class PointsCandidate(Candidate):
         if dev > 0.0 and self.spheres[group.char] is not None:
             err = err + projected_errors(np.array([dev]), group.rows, self.spheres[group.char][b.part],
                                          frame.scale_px)[:, 0]
-        return Options(cost[:, None], err[:, None], (r, data, jobs, pts, tris, p), (f"splat{p}",))
+        return Options(cost[:, None], err[:, None], (r, data, ids, order, jobs, pts, tris, p), (f"splat{p}",))
 
     def emit(self, frame, group, options, rows, choice):
         from lod.points_mode import PointsBatch
 
-        r, data, jobs, pts, tris, p = options.plan
+        r, data, ids, order, jobs, pts, tris, p = options.plan
         b = group.batch
         take = np.zeros(group.k, bool)
         take[rows] = True
+        if order is not None:
+            take = take[order]  # in the grouped order of data and ids
         out = []
-        for s, (m, pj, tj) in sorted(jobs.items()):
-            mine = m[take[m]]  # group rows of this segment that chose points
-            if mine.size == 0:
-                continue
-            local = np.full(group.k, -1, np.int64)
-            local[mine] = np.arange(mine.size)
-            pj = pj[take[pj[:, 0]]].copy()
-            tj = tj[take[tj[:, 0]]].copy()
-            pj[:, 0] = local[pj[:, 0]]
-            tj[:, 0] = local[tj[:, 0]]
+        for s, (a, e, pj, tj) in sorted(jobs.items()):
+            sel = take[a:e]
+            if sel.all():  # every instance of the segment chose points: its rows and jobs as they are
+                d, i = data[a:e], ids[a:e]
+            else:
+                if not sel.any():
+                    continue
+                d, i = data[a:e][sel], ids[a:e][sel]
+                local = np.cumsum(sel) - 1  # segment row -> row among the chosen ones
+                pj = pj[sel[pj[:, 0]]].copy()
+                tj = tj[sel[tj[:, 0]]].copy()
+                pj[:, 0] = local[pj[:, 0]]
+                tj[:, 0] = local[tj[:, 0]]
             n_p = int(pj[:, 2].sum()) if pj.size else 0
             n_t = int(tj[:, 2].sum()) if tj.size else 0
             self.points_drawn += n_p
-            out.append(PointsBatch(r.key, int(s), b.instance_ids[mine], data[mine].astype(np.float32), triangles=n_t,
-                                   points=n_p, level=0, tint=b.tint, point_jobs=pj, tri_jobs=tj))
+            out.append(PointsBatch(r.key, int(s), i, d, triangles=n_t, points=n_p, level=0, tint=b.tint,
+                                   point_jobs=pj, tri_jobs=tj))
         self._used = max(self._used, int(p))
         return out
 

@@ -110,6 +110,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from lod import auto_candidates as ac
 from lod import cost_model
@@ -293,6 +294,105 @@ class _Plan:
         return self.alias or name
 
 
+@njit(cache=True)
+def _block_min_kernel(cost, error, bound, cols, fallback, out_min, out_arg):  # pragma: no cover - compiled
+    for i in range(cost.shape[0]):
+        best = np.inf
+        arg = 0
+        for j in range(cols):
+            c = cost[i, j]
+            if (error[i, j] <= bound or (fallback and j == 0)) and c < best:  # first minimum, as np.argmin
+                best = c
+                arg = j
+        out_min[i] = best
+        out_arg[i] = arg
+
+
+def block_min(cost, error, bound: float, fallback: bool = False, cols: int | None = None):
+    """Per row the cheapest option within the bound (numba, one pass).
+
+    Parameters
+    ----------
+    cost, error : (k, m) float64 seconds and pixels; bound : pixels;
+    fallback : column 0 is admissible whatever its error (the triangle
+        chain's full detail); cols : only the first ``cols`` columns count
+        (default all)
+
+    Returns
+    -------
+    bmin (k,) float64 (inf: no admissible option), barg (k,) int64 column
+    of it (0 when none; ties to the lower column, as ``np.argmin``).
+    """
+    k, m = cost.shape
+    out_min = np.empty(k, np.float64)
+    out_arg = np.empty(k, np.int64)
+    _block_min_kernel(cost, error, float(bound), m if cols is None else int(cols), bool(fallback), out_min, out_arg)
+    return out_min, out_arg
+
+
+@njit(cache=True)
+def _plans_kernel(bmin, barg, opt, sk, pure, use, ch, cost, exact, used):  # pragma: no cover - compiled
+    """One group's plans in one pass (:meth:`AutoSelector._plans`): rows 0..P-1 of the outputs are the
+    pure plans of the blocks ``pure`` (0: the triangle chain; a pure plan draws its block wherever its
+    optimistic price is finite, the chain elsewhere), row P the mixed plan over the blocks ``use``.
+    Outputs: ch (P+1, k) chosen columns, cost (P+1,) summed seconds, exact (P+1,) no instance priced
+    at a lower bound that could matter, used (P+1, columns) the option columns drawn."""
+    nb, k = bmin.shape
+    n_pure = pure.shape[0]
+    for q in range(n_pure + 1):
+        cost[q] = 0.0
+        exact[q] = True
+    for i in range(k):
+        for q in range(n_pure):
+            x = pure[q]
+            if x > 0 and np.isfinite(opt[x, i]):
+                ch[q, i] = barg[x, i]
+                cost[q] += opt[x, i]
+                if sk[x, i]:
+                    exact[q] = False
+            else:
+                ch[q, i] = barg[0, i]
+                cost[q] += bmin[0, i]
+            used[q, ch[q, i]] = True
+        best = np.inf
+        w = 0
+        for j in range(nb):
+            if use[j] and bmin[j, i] < best:  # the first minimum: ties to the lower column
+                best = bmin[j, i]
+                w = j
+        ch[n_pure, i] = barg[w, i]
+        cost[n_pure] += bmin[w, i]
+        used[n_pure, barg[w, i]] = True
+        for j in range(nb):
+            if use[j] and sk[j, i] and opt[j, i] < bmin[w, i]:
+                exact[n_pure] = False  # a skipped option might have been cheaper than what was chosen
+
+
+class _Block:
+    """One candidate's options for one group, reduced once per frame: ``a``
+    its first column, ``m`` its column count, ``bmin``/``barg`` per instance
+    the cheapest admissible option and its absolute column, ``opt`` that
+    price with skipped instances at their lower bound (optimistic),
+    ``skipped`` the instances priced at the bound (None: none)."""
+
+    __slots__ = ("cand", "options", "a", "m", "bmin", "barg", "opt", "skipped")
+
+    @classmethod
+    def of(cls, cand, o, a: int, skipped, bound: float, is_tri: bool):
+        b = cls()
+        b.cand, b.options, b.a, b.m, b.skipped = cand, o, int(a), int(o.cost.shape[1]), skipped
+        if bound > 0.0 or is_tri:
+            bmin, barg = block_min(o.cost, o.error, bound, fallback=is_tri, cols=None if bound > 0.0 else 1)
+        else:
+            bmin, barg = np.full(o.cost.shape[0], np.inf), np.zeros(o.cost.shape[0], np.int64)
+        b.bmin, b.barg = bmin, barg + b.a
+        b.opt = bmin
+        if skipped is not None:  # skipped instances priced at the lower bound (optimistic)
+            b.opt = bmin.copy()
+            b.opt[skipped] = o.cost[skipped].min(axis=1)
+        return b
+
+
 class AutoSelector:
     """Cull and pack as the full-detail mode, then choose per instance among
     the candidates (module docstring).
@@ -405,15 +505,16 @@ class AutoSelector:
         return float(math.exp(float(np.median(r)))) if r else 1.0
 
     def _options(self, frame, g, bound):
-        """Every candidate's options for group ``g``: [(candidate, Options, first column, skipped rows)];
-        a candidate with a cost lower bound is asked only for the instances where that bound is below
-        the cheapest option within the bound found so far (module docstring, "Selection work")."""
+        """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
+        "Selection work": a candidate with a cost lower bound is asked only for the instances where that
+        bound is below the cheapest option within the bound found so far)."""
         opts, a = [], 0
         best = None
-        order = [self.candidates[0]] + [c for c in self.candidates[1:] if not self._has_lb(c)] + \
+        tri = self.candidates[0]
+        order = [tri] + [c for c in self.candidates[1:] if not self._has_lb(c)] + \
             [c for c in self.candidates[1:] if self._has_lb(c)]
         for c in order:
-            if c is not self.candidates[0] and not bound > 0.0:
+            if c is not tri and not bound > 0.0:
                 continue
             skipped = None
             lb = c.cost_lower_bound(frame, g) if best is not None else None
@@ -427,14 +528,10 @@ class AutoSelector:
                 o = c.options(frame, g)
             if o is None or not o.cost.shape[1]:
                 continue
-            opts.append((c, o, a, skipped))
-            a += o.cost.shape[1]
-            ok = o.error <= bound
-            if c is self.candidates[0]:
-                ok = ok.copy()
-                ok[:, 0] = True
-            m = np.where(ok, o.cost, np.inf).min(axis=1)
-            best = m if best is None else np.minimum(best, m)
+            blk = _Block.of(c, o, a, skipped, bound, c is tri)
+            opts.append(blk)
+            a += blk.m
+            best = blk.bmin if best is None else np.minimum(best, blk.bmin)
         return opts
 
     @staticmethod
@@ -444,69 +541,13 @@ class AutoSelector:
     def _plans(self, frame, groups, bound):
         """The frame plans (module docstring, "Plans"): name -> :class:`_Plan`.
 
-        Vectorised per group over the candidates' column blocks: each block's cheapest admissible
-        option per instance (``bmin``, ``barg``) is computed once, and every plan is an argmin over
-        some of those blocks (ties to the lower column, as :func:`choose`)."""
+        Per group, one pass over its instances (:func:`_plans_kernel`) prices every pure plan and the
+        mixed one from the candidates' blocks (:class:`_Block`: each block's cheapest admissible option
+        per instance, computed once); the mixed plan is the argmin over the blocks in use (ties to the
+        lower column, as :func:`choose`)."""
         c = frame.model.coefficients
-        tri = self.candidates[0]
         fc = {cand.name: (cand.frame_cost(frame) if bound > 0.0 else 0.0) for cand in self.candidates[1:]}
         names = [cand.name for cand in self.candidates]
-        info = []  # per group: {name: (a, m, bmin, barg, optimistic bmin, skipped)}
-        for g, opts, cst, err in groups:
-            blocks = {}
-            for cc, o, a, sk in opts:
-                m = o.cost.shape[1]
-                ok = o.error <= bound
-                if cc is tri:
-                    ok = ok.copy()
-                    ok[:, 0] = True
-                oc = np.where(ok, o.cost, np.inf) if bound > 0.0 or cc is tri else np.full(o.cost.shape, np.inf)
-                if cc is tri and not bound > 0.0:
-                    oc[:, 1:] = np.inf
-                barg = np.argmin(oc, axis=1)
-                bmin = oc[np.arange(g.k), barg]
-                opt = bmin
-                if sk is not None:  # skipped instances priced at the lower bound (optimistic)
-                    opt = bmin.copy()
-                    opt[sk] = o.cost[sk].min(axis=1)
-                blocks[cc.name] = (a, m, bmin, a + barg, opt, sk)
-            info.append(blocks)
-
-        def evaluate(use, pure=None):
-            """Choices and predicted seconds of the plan drawing with the candidates ``use`` (pure: the
-            candidate that draws wherever it can, triangles elsewhere)."""
-            choices, total, used, exact = [], c["frame"], set(), True
-            for (g, opts, cst, err), blocks in zip(groups, info):
-                if pure is not None:
-                    ta, tm_, tmin, targ, _, _ = blocks["triangles"]
-                    if pure in blocks and pure != "triangles":
-                        a, m, bmin, barg, opt, sk = blocks[pure]
-                        has = np.isfinite(opt)
-                        ch = np.where(has, barg, targ)
-                        cost = np.where(has, opt, tmin)
-                        exact = exact and sk is None
-                    else:
-                        ch, cost = targ, tmin
-                else:
-                    bl = sorted((blocks[n] for n in names if n in use and n in blocks), key=lambda b: b[0])
-                    stack = np.stack([b[2] for b in bl])
-                    w = np.argmin(stack, axis=0)
-                    cost = stack[w, np.arange(g.k)]
-                    ch = np.stack([b[3] for b in bl])[w, np.arange(g.k)]
-                    for a, m, bmin, barg, opt, sk in bl:
-                        if sk is not None and (opt[sk] < cost[sk]).any():
-                            exact = False  # a skipped option might have been cheaper than what was chosen
-                total += float(cost.sum())
-                cnt = np.bincount(ch, minlength=cst.shape[1])
-                for n, (a, m, *_rest) in blocks.items():
-                    k = int(np.count_nonzero(cnt[a:a + m]))
-                    if k:
-                        used.add(n)
-                        total += c["batches"] * k
-                choices.append(ch)
-            return _Plan(choices, total + sum(fc.get(n, 0.0) for n in used), exact)
-
-        plans = {n: evaluate(None, pure=n) for n in names}
         # the mixed plan: per instance the cheapest option; a candidate with a per-frame cost is dropped
         # for the frame when its instances' savings do not pay for it
         use = set(names)
@@ -514,19 +555,50 @@ class AutoSelector:
             if fc.get(cand.name, 0.0) <= 0.0:
                 continue
             saving = 0.0
-            for blocks in info:
-                if cand.name not in blocks:
+            for g, opts, ncols in groups:
+                mine = next((x.bmin for x in opts if x.cand is cand), None)
+                if mine is None:
                     continue
-                bl = [blocks[n] for n in names if n in use and n in blocks]
-                best = np.min(np.stack([b[2] for b in bl]), axis=0)
-                rest = [blocks[n][2] for n in names if n in use and n in blocks and n != cand.name]
-                other = np.min(np.stack(rest), axis=0)
-                mine = blocks[cand.name][2] <= best
-                mine &= blocks[cand.name][2] < other  # ties go to the lower column: only strict wins count
-                saving += float((other[mine] - best[mine]).sum())
+                rest = [x.bmin for x in opts if x.cand is not cand and x.cand.name in use]
+                other = rest[0] if len(rest) == 1 else np.min(np.stack(rest), axis=0)
+                wins = mine < other  # ties go to the lower column: only strict wins count
+                saving += float((other[wins] - mine[wins]).sum())
             if saving <= fc[cand.name]:
                 use.discard(cand.name)
-        plans["mixed"] = evaluate(use)
+        n_plans = len(names) + 1  # the pure plans in candidate order, then the mixed one
+        totals = np.full(n_plans, float(c["frame"]))
+        exact = np.ones(n_plans, bool)
+        used = [set() for _ in range(n_plans)]
+        choices = [[] for _ in range(n_plans)]
+        for g, opts, ncols in groups:
+            col = {x.cand.name: j for j, x in enumerate(opts)}  # blocks in column order, triangles first
+            bmin = np.stack([x.bmin for x in opts])
+            barg = np.stack([x.barg for x in opts])
+            opt = np.stack([x.opt for x in opts])
+            sk = np.zeros(bmin.shape, np.bool_)
+            for j, x in enumerate(opts):
+                if x.skipped is not None:
+                    sk[j] = x.skipped
+            pure = np.array([col.get(n, 0) for n in names], np.int64)  # 0: the triangle chain
+            ch = np.empty((n_plans, g.k), np.int64)
+            cost = np.empty(n_plans)
+            ex = np.empty(n_plans, np.bool_)
+            opts_used = np.zeros((n_plans, ncols), np.bool_)
+            _plans_kernel(bmin, barg, opt, sk, pure, np.array([x.cand.name in use for x in opts]), ch, cost, ex,
+                          opts_used)
+            totals += cost
+            exact &= ex
+            for q in range(n_plans):
+                choices[q].append(ch[q])
+                for x in opts:
+                    k = int(np.count_nonzero(opts_used[q, x.a:x.a + x.m]))
+                    if k:
+                        used[q].add(x.cand.name)
+                        totals[q] += c["batches"] * k
+        plans = {}
+        for q, name in enumerate(names + ["mixed"]):
+            plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]),
+                                bool(exact[q]))
         # a plan whose choices equal a pure plan's is that plan (its measurements are shared)
         for name in names:
             pure, mixed = plans[name], plans["mixed"]
@@ -558,7 +630,7 @@ class AutoSelector:
         per_cand = {c.name: 0 for c in self.candidates}
         tel = ac.Telemetry()
         out = []
-        groups = []  # (group, [(candidate, options, first column, skipped rows)], cost, err)
+        groups = []  # (group, [_Block per candidate], columns)
         for b in dl.batches:
             ri = self._rep_index.get(b.rep)
             if ri is None or b.n_instances == 0 or int(b.instance_ids[0]) < 0:  # scenery
@@ -567,9 +639,7 @@ class AutoSelector:
             rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
             g = ac.Group(ri, b, rows)
             opts = self._options(frame, g, bound)
-            cost = np.concatenate([o.cost for _, o, _, _ in opts], axis=1)
-            err = np.concatenate([o.error for _, o, _, _ in opts], axis=1)
-            groups.append((g, opts, cost, err))
+            groups.append((g, opts, sum(x.m for x in opts)))
         plans = self._plans(frame, groups, bound)
 
         def corrected(name):
@@ -577,14 +647,12 @@ class AutoSelector:
 
         best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
         if not plans[best].exact:  # priced optimistically: price every skipped instance exactly, then decide again
-            for gi, (g, opts, cost, err) in enumerate(groups):
-                if any(sk is not None for _, _, _, sk in opts):
-                    full = []
-                    for c, o, a, sk in opts:
-                        full.append((c, c.options(frame, g) if sk is not None else o, a, None))
-                    cost = np.concatenate([o.cost for _, o, _, _ in full], axis=1)
-                    err = np.concatenate([o.error for _, o, _, _ in full], axis=1)
-                    groups[gi] = (g, full, cost, err)
+            for gi, (g, opts, ncols) in enumerate(groups):
+                if any(x.skipped is not None for x in opts):
+                    full = [x if x.skipped is None else
+                            _Block.of(x.cand, x.cand.options(frame, g), x.a, None, bound, x.cand is self.candidates[0])
+                            for x in opts]
+                    groups[gi] = (g, full, ncols)
             plans = self._plans(frame, groups, bound)
             best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
         if self.explore and self.controller is None and self.adapt and self._frames < EXPLORE_FRAMES:
@@ -594,10 +662,10 @@ class AutoSelector:
             if cands and plans[best].measured_as(best) in self._plan_ratio:
                 best = min(cands, key=corrected)
         plan_name = plans[best].measured_as(best)
-        for (g, opts, cost, err), choice in zip(groups, plans[best].choices):
-            for c, o, a, sk in opts:
-                m = o.cost.shape[1]
-                mine = np.flatnonzero((choice >= a) & (choice < a + m))
+        for (g, opts, ncols), choice in zip(groups, plans[best].choices):
+            for x in opts:
+                c, o, a, m = x.cand, x.options, x.a, x.m
+                mine = np.flatnonzero(choice == a) if m == 1 else np.flatnonzero((choice >= a) & (choice < a + m))
                 if mine.size:
                     local = choice[mine] - a
                     out.extend(c.emit(frame, g, o, mine, local))

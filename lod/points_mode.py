@@ -384,7 +384,8 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
 def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                               tri_count, bounds, data, planes, vscale, splat, pjobs, tjobs):  # pragma: no cover
+                               tri_count, bounds, data, planes, vscale, splat, pjobs, tjobs, psum,
+                               tsum):  # pragma: no cover
     k = data.shape[0]
     N = child_start.shape[0]
     out_p = np.empty((N, 2), np.int64)
@@ -416,16 +417,22 @@ def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, po
                                    out_p, out_pn, out_t, out_tn)
         if npj + np_ > pjobs.shape[0] or ntj + nt > tjobs.shape[0]:
             return -1 - r, npj, ntj
+        sp = 0
         for q in range(np_):
             pjobs[npj, 0] = r
             pjobs[npj, 1] = out_p[q, 0]
             pjobs[npj, 2] = out_p[q, 1]
+            sp += out_p[q, 1]
             npj += 1
+        st = 0
         for q in range(nt):
             tjobs[ntj, 0] = r
             tjobs[ntj, 1] = out_t[q, 0]
             tjobs[ntj, 2] = out_t[q, 1]
+            st += out_t[q, 1]
             ntj += 1
+        psum[r] = sp
+        tsum[r] = st
     return k, npj, ntj
 
 
@@ -440,7 +447,8 @@ def _harrays(h: PointHierarchy) -> tuple:
     return arr
 
 
-def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: float, splat: float):
+def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: float, splat: float,
+                       totals: bool = False):
     """Traverse ``h`` (§3.2) once per instance (numba).
 
     Parameters
@@ -449,10 +457,13 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     data : (k, 16) float32/64 instance data (camera-relative model rows, u in column 12)
     planes : (6, 4) float64 camera-relative frustum planes; vscale : pixels per
         metre at depth 1; splat : splat size in pixels
+    totals : also return each instance's point and triangle totals
 
     Returns
     -------
-    point_jobs (J, 3) int64 and tri_jobs (Q, 3) int64: (instance row, start, count).
+    point_jobs (J, 3) int64 and tri_jobs (Q, 3) int64: (instance row, start,
+    count); with ``totals`` also points (k,) int64 and triangles (k,) int64
+    per instance (the sums of its jobs' counts).
     """
     data = np.ascontiguousarray(data, np.float64).reshape(-1, 16)
     planes = np.ascontiguousarray(planes, np.float64)
@@ -461,14 +472,19 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     per = int(getattr(h, "_jobs_per_instance", 4))
     cap = max(16, per * k)
     arr = _harrays(h)
+    psum = np.empty(k, np.int64)
+    tsum = np.empty(k, np.int64)
     while True:
         pj = np.empty((cap, 3), np.int64)
         tj = np.empty((cap, 3), np.int64)
         done, npj, ntj = _traverse_instances_kernel(*arr, data, planes, float(vscale),
-                                                    float(splat), pj, tj)
+                                                    float(splat), pj, tj, psum, tsum)
         if done == k:
             h._jobs_per_instance = max(per, -(-max(npj, ntj) // max(k, 1)))
-            return pj[:npj].copy(), tj[:ntj].copy()
+            # a view while the buffer is at most twice what was used (no copy), else a compact copy
+            pj = pj[:npj] if 2 * npj >= cap else pj[:npj].copy()
+            tj = tj[:ntj] if 2 * ntj >= cap else tj[:ntj].copy()
+            return (pj, tj, psum, tsum) if totals else (pj, tj)
         cap *= 2
 
 

@@ -601,6 +601,15 @@ def test_cost_lower_bound_skips_work_but_not_choices(built):
     assert np.all(part.cost[~need] <= full.cost[~need]) and np.all(np.isinf(part.error[~need]))
     off = part.plan[1]
     assert off.shape == (g.k + 1,) and np.all(np.diff(off)[~need] == 0)
+    # the bound never exceeds the exact cut's cost; inside the frustum it counts the root cut (equal to the
+    # exact cost when the bound is so loose that the cut is the roots)
+    base = MODEL.coefficients["instances"] + MODEL.coefficients["clusters"]
+    for poe in (0.5, 2.0, 1e4):
+        fr = ac.Frame(st, CAM, SIZE, frame.planes, frame.scale_px, poe, MODEL)
+        lb, exact = cl.cost_lower_bound(fr, g), cl.options(fr, g).cost[:, 0]
+        assert np.all(lb <= exact * (1 + 1e-12))
+        assert np.all(lb >= base) and (lb > base).sum() > g.k // 4
+    np.testing.assert_allclose(lb[lb > base], exact[lb > base], rtol=1e-12)
 
 
 def test_observe_takes_the_rendering_share(built):
