@@ -156,6 +156,16 @@ class Candidate:
     def frame_cost(self, frame: Frame) -> float:
         return 0.0
 
+    def wholes(self, frame: Frame):
+        """Draws of whole groups of instances chosen before the per-instance
+        choice (Wand & Straßer §3.6: a far block of hierarchical instances
+        drawn from its super-hierarchy for a few points, cheaper than any
+        per-instance option of its members): ``(batches, taken, seconds)``
+        with ``taken`` an (n,) bool mask of the agents they represent (these
+        get no per-instance option) and ``seconds`` their predicted cost;
+        default ``([], None, 0.0)``: none."""
+        return [], None, 0.0
+
     def cost_lower_bound(self, frame: Frame, group: Group):
         """(k,) float64 seconds no option of this candidate can undercut for
         the group's instances, computed without the candidate's expensive
@@ -468,12 +478,19 @@ class PointsCandidate(Candidate):
         default 0)
     spheres : list aligned with it of (clips, 4) float64 clip bounding spheres
         (model space) the deviation is projected with (None: not needed)
+    instancing : :class:`lod.points_instancing.InstancingPlan` or None: the
+        super-hierarchies of the simulation's instancing groups (§3.6); far
+        nodes are drawn from them as a whole (:meth:`wholes`), as mode
+        points does. Only with ``points_error = "splat"`` semantics: a node
+        is used when the splat size alone is within the bound (the keyframe
+        deviation is not projected per node).
     """
 
     name = "points"
 
-    def __init__(self, reps, master_kinds, max_splat: int = 3, deviation=None, spheres=None):
+    def __init__(self, reps, master_kinds, max_splat: int = 3, deviation=None, spheres=None, instancing=None):
         super().__init__()
+        self.instancing = instancing
         if int(max_splat) not in SPLAT_SIZES:
             raise ValueError(f"[lod] max_splat: expected 1, 2 or 3 pixels, got {max_splat}")
         self.by_char = {i: r for i, r in enumerate(reps) if r is not None and getattr(r, "kind", "") == "points"}
@@ -484,6 +501,7 @@ class PointsCandidate(Candidate):
         self.spheres = [None] * len(self.kinds) if spheres is None else list(spheres)
         self._used = 0
         self.points_drawn = 0
+        self.super_nodes = 0
 
     def splat_size(self, bound: float) -> int:
         """The frame's splat size at ``bound`` pixels: the largest within the
@@ -575,12 +593,39 @@ class PointsCandidate(Candidate):
         p = self.splat_size(frame.bound)
         return pass_cost(frame.model, frame.size, p) if p else 0.0
 
+    def wholes(self, frame):
+        """The far nodes of the instancing groups that mode points at this
+        splat size draws from their super-hierarchies (§3.6,
+        :meth:`lod.points_instancing.InstancingPlan.select`)."""
+        from lod.points_mode import super_batches
+        from lod.points_traverse import viewport_scale
+
+        p = self.splat_size(frame.bound)
+        st = frame.state
+        if self.instancing is None or p == 0 or not getattr(st, "n", 0) or any(d > 0.0 for d in self.deviation):
+            return [], None, 0.0
+        vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
+        draws, flat = self.instancing.select(st, np.asarray(frame.camera.position, np.float64), frame.planes, vs, p)
+        if not draws:
+            return [], None, 0.0
+        out = super_batches(draws, frame.planes, vs, p)
+        c = frame.model.coefficients
+        pts = sum(b.points for b in out)
+        self.points_drawn += pts
+        self.super_nodes += sum(b.n_instances for b in out)
+        self._used = max(self._used, int(p))
+        seconds = c["points"] * pts + c["point_instances"] * sum(b.n_instances for b in out) + c["batches"] * len(out)
+        return out, ~np.asarray(flat, bool), float(seconds)
+
     def finish(self, frame, drawlist):
         if self._used:
             drawlist.options["splat_size"] = self._used
         drawlist.stats["points"] = int(drawlist.stats.get("points", 0) or 0) + self.points_drawn
+        if self.super_nodes:
+            drawlist.stats["super_nodes"] = int(self.super_nodes)
         self._used = 0
         self.points_drawn = 0
+        self.super_nodes = 0
 
 
 def keyframe_deviation(character, keyframes: int, between: int = 3) -> float:

@@ -72,9 +72,17 @@ median measured / predicted ratio of the last ``ADAPT_FRAMES`` frames), so
 predictions follow the load the engine really runs under while the relative
 costs that decide the choices stay the calibration's.
 
-Departure: Wand & Straßer's super-hierarchies (§3.6, far groups of
-hierarchical instances chosen as a whole) are not used; every instance is
-chosen on its own.
+Far groups (issue 7; Wand & Straßer §3.6): before the per-instance
+choice, each candidate may draw whole groups of instances
+(:meth:`lod.auto_candidates.Candidate.wholes`). The point candidate draws
+the far nodes of the simulation's instancing groups from their
+super-hierarchies, exactly the nodes mode points draws at the same splat
+size: a node qualifies only when its finest super-hierarchy leaves project
+within the splat size, so its few points undercut any per-instance option
+of its hundreds of members (each costs at least one instance). Those
+agents get no per-instance option; every plan includes the node draws and
+their point pass. With ``points_error = "splat+keyframes"`` no node is
+drawn this way (the keyframe deviation is projected per instance only).
 
 Accuracy is asked for in one of two ways:
 
@@ -116,7 +124,7 @@ from lod import auto_candidates as ac
 from lod import cost_model
 from lod import triangles_mode as tm
 from lod.cluster_cut import viewport_scale
-from lod.drawlist import DrawList
+from lod.drawlist import DrawBatch, DrawList
 from lod.nolod import NoLodSelector
 from sim.params import Param
 
@@ -393,6 +401,19 @@ class _Block:
         return b
 
 
+def _without(b, taken):
+    """Batch ``b`` without the agents ``taken`` ((n,) bool; drawn as whole groups this frame): the same
+    batch when none of its agents is taken, None when all are."""
+    keep = ~taken[np.asarray(b.instance_ids, np.int64)]
+    if keep.all():
+        return b
+    if not keep.any():
+        return None
+    per = int(b.triangles) // max(b.n_instances, 1)
+    return DrawBatch(b.rep, b.part, b.instance_ids[keep], b.instance_data[keep], triangles=per * int(keep.sum()),
+                     points=0, level=b.level, tint=b.tint)
+
+
 class AutoSelector:
     """Cull and pack as the full-detail mode, then choose per instance among
     the candidates (module docstring).
@@ -538,8 +559,9 @@ class AutoSelector:
     def _has_lb(c) -> bool:
         return type(c).cost_lower_bound is not ac.Candidate.cost_lower_bound
 
-    def _plans(self, frame, groups, bound):
-        """The frame plans (module docstring, "Plans"): name -> :class:`_Plan`.
+    def _plans(self, frame, groups, bound, fixed=(0.0, frozenset())):
+        """The frame plans (module docstring, "Plans"): name -> :class:`_Plan`; ``fixed``: (seconds,
+        candidate names) of the whole-group draws every plan includes (:meth:`Candidate.wholes`).
 
         Per group, one pass over its instances (:func:`_plans_kernel`) prices every pure plan and the
         mixed one from the candidates' blocks (:class:`_Block`: each block's cheapest admissible option
@@ -552,7 +574,7 @@ class AutoSelector:
         # for the frame when its instances' savings do not pay for it
         use = set(names)
         for cand in self.candidates[1:]:
-            if fc.get(cand.name, 0.0) <= 0.0:
+            if fc.get(cand.name, 0.0) <= 0.0 or cand.name in fixed[1]:  # no cost, or paid by the wholes
                 continue
             saving = 0.0
             for g, opts, ncols in groups:
@@ -566,9 +588,9 @@ class AutoSelector:
             if saving <= fc[cand.name]:
                 use.discard(cand.name)
         n_plans = len(names) + 1  # the pure plans in candidate order, then the mixed one
-        totals = np.full(n_plans, float(c["frame"]))
+        totals = np.full(n_plans, float(c["frame"]) + float(fixed[0]))
         exact = np.ones(n_plans, bool)
-        used = [set() for _ in range(n_plans)]
+        used = [set(fixed[1]) for _ in range(n_plans)]
         choices = [[] for _ in range(n_plans)]
         for g, opts, ncols in groups:
             col = {x.cand.name: j for j, x in enumerate(opts)}  # blocks in column order, triangles first
@@ -631,16 +653,33 @@ class AutoSelector:
         tel = ac.Telemetry()
         out = []
         groups = []  # (group, [_Block per candidate], columns)
+        # whole groups first (§3.6 super-hierarchies): their agents get no per-instance option
+        wholes, taken, fixed_s, fixed_used = [], None, 0.0, set()
+        if bound > 0.0:
+            for c in self.candidates[1:]:
+                wb, tk, sec = c.wholes(frame)
+                if wb:
+                    wholes.extend(wb)
+                    fixed_s += sec
+                    fixed_used.add(c.name)
+                    taken = tk if taken is None else taken | tk
+                    n_rep = int(sum(getattr(x, "represented", x.n_instances) for x in wb))
+                    per_cand[c.name] += n_rep
+                    tel.add(c.name, "super", n_rep)
         for b in dl.batches:
             ri = self._rep_index.get(b.rep)
             if ri is None or b.n_instances == 0 or int(b.instance_ids[0]) < 0:  # scenery
                 out.append(b)
                 continue
+            if taken is not None:
+                b = _without(b, taken)
+                if b is None:
+                    continue
             rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
             g = ac.Group(ri, b, rows)
             opts = self._options(frame, g, bound)
             groups.append((g, opts, sum(x.m for x in opts)))
-        plans = self._plans(frame, groups, bound)
+        plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
 
         def corrected(name):
             return plans[name].seconds * self.plan_factor(plans[name].measured_as(name))
@@ -653,7 +692,7 @@ class AutoSelector:
                             _Block.of(x.cand, x.cand.options(frame, g), x.a, None, bound, x.cand is self.candidates[0])
                             for x in opts]
                     groups[gi] = (g, full, ncols)
-            plans = self._plans(frame, groups, bound)
+            plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
             best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
         if self.explore and self.controller is None and self.adapt and self._frames < EXPLORE_FRAMES:
             # a plan never measured whose prediction is within the model's error of the best is tried once
@@ -678,6 +717,7 @@ class AutoSelector:
                             levels[:m] += cnt
                         else:
                             levels[0] += int(mine.size)
+        out.extend(wholes)
         out.sort(key=lambda x: (x.rep, x.part, x.level))
         dl.batches = out
         dl.stats["points"] = 0
@@ -704,7 +744,7 @@ class AutoSelector:
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True, model=None,
-          points_params=None):
+          points_params=None, instancing=None, clips=None):
     """Mode "auto" for ``lod.modes``: the "triangles" mode's reps (full-detail
     reps for non-skinned characters), the cluster hierarchies and point
     hierarchies of the characters when those candidates are asked for, and
@@ -718,6 +758,11 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     model : a :class:`lod.cost_model.CostModel` (default: stored calibration or defaults)
     points_params : further ``[lod]`` keys of mode "points" for the point
         candidate's hierarchies (e.g. ``{"intervals": 1}``)
+    instancing : the simulation's ``sim.instancing.Instancing`` (or None):
+        the point candidate draws far nodes of its groups from
+        super-hierarchies (Wand & Straßer §3.6), as mode "points" does
+    clips : the clips the scene can play per character (see
+        ``lod.points_mode.build``): point hierarchies only for those
 
     Returns
     -------
@@ -744,12 +789,14 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         from lod import points_mode
 
         pp = {**dict(points_params or {}), "keyframes": int(params.get("keyframes", PARAMS["keyframes"].default))}
-        preps, _ = points_mode.build(characters, names, fps, pp, static_reps=static_reps, progress=progress)
+        preps, psel = points_mode.build(characters, names, fps, pp, static_reps=static_reps, progress=progress,
+                                        instancing=instancing, clips=clips)
         strict = str(params.get("points_error", PARAMS["points_error"].default)) == "splat+keyframes"
         dev = [ac.keyframe_deviation(ch, pp["keyframes"]) if strict else 0.0 for ch in characters]
         extra.append(ac.PointsCandidate(preps, [r.kind for r in reps],
                                         max_splat=int(params.get("max_splat", PARAMS["max_splat"].default)),
-                                        deviation=dev, spheres=[getattr(r, "clip_sphere", None) for r in reps]))
+                                        deviation=dev, spheres=[getattr(r, "clip_sphere", None) for r in reps],
+                                        instancing=psel.instancing))
     sel = AutoSelector(reps, static_reps=static_reps, poe=poe, budget_ms=budget, model=model, candidates=extra,
                        adapt=bool(params.get("adapt", PARAMS["adapt"].default)))
     return sel.candidate_reps, sel

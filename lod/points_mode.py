@@ -500,6 +500,23 @@ def traverse_instances_reference(h: PointHierarchy, data, planes, vscale: float,
 
 
 # ---------------------------------------------------------------------------- selector
+def super_batches(draws, planes, vscale: float, splat: float) -> list:
+    """PointsBatches of the super-hierarchy draws of ``InstancingPlan.select`` (§3.6): per drawn
+    node, its super-hierarchy traversed at the node's super-segment; ``represented`` on each batch
+    counts the instances its nodes stand for."""
+    out = []
+    for sup, seg, data, ids, m in draws:
+        for s in np.unique(seg).tolist():
+            sel = np.flatnonzero(seg == s)
+            pj, tj = traverse_instances(sup.rep.hierarchies[s], data[sel], planes, vscale, splat)
+            npts = int(pj[:, 2].sum()) if pj.size else 0
+            b = PointsBatch(sup.rep.key, int(s), ids[sel], data[sel], triangles=0, points=npts, point_jobs=pj,
+                            tri_jobs=tj)
+            b.represented = int(m[sel].sum())
+            out.append(b)
+    return out
+
+
 class PointsSelector:
     """Per frame: cull and locate instances (as ``NoLodSelector`` on the
     keyframed form), then traverse each instance's segment octree (§3.2).
@@ -523,20 +540,6 @@ class PointsSelector:
             for r in instancing.reps:
                 self._by_key[r.key] = r
 
-    def _super_batches(self, draws, planes, vs):
-        """PointsBatches of the super-hierarchy draws of ``InstancingPlan.select`` (§3.6)."""
-        out = []
-        for sup, seg, data, ids, m in draws:
-            for s in np.unique(seg).tolist():
-                sel = np.flatnonzero(seg == s)
-                pj, tj = traverse_instances(sup.rep.hierarchies[s], data[sel], planes, vs, self.splat_size)
-                npts = int(pj[:, 2].sum()) if pj.size else 0
-                b = PointsBatch(sup.rep.key, int(s), ids[sel], data[sel], triangles=0, points=npts, point_jobs=pj,
-                                tri_jobs=tj)
-                b.represented = int(m[sel].sum())
-                out.append(b)
-        return out
-
     def select(self, state, camera, size, statics=()) -> DrawList:
         """DrawList of :class:`PointsBatch` (plus static batches); stats hold
         "points" and "triangles" actually submitted, "instances", "culled"."""
@@ -547,7 +550,7 @@ class PointsSelector:
         if self.instancing is not None and state.n:
             origin = np.asarray(camera.position, np.float64)
             draws, flat = self.instancing.select(state, origin, planes, vs, self.splat_size)
-            supers = self._super_batches(draws, planes, vs)
+            supers = super_batches(draws, planes, vs, self.splat_size)
             represented = sum(b.represented for b in supers)
             if not flat.all():
                 from sim.state import CrowdState

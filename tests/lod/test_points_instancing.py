@@ -305,3 +305,55 @@ def test_check_kernel_agrees_with_the_numpy_reference(built):
         assert plan.check(g, st) == want, case
         answers.append(want)
     assert answers == [True, False, True, True, False, False, True, False, False, False, False, False]
+
+
+def test_auto_draws_far_groups_from_the_super_hierarchies_as_mode_points_does(built, tmp_path, monkeypatch):
+    """Mode auto with the point candidate at a bound of 2 px (issue 7, "far groups ... chosen as a whole"):
+    the super-hierarchy nodes it draws are those of mode points at splat size 2, their agents get no
+    per-instance draw, every other visible agent is drawn once, and the far view is a few points."""
+    from lod import auto_mode as am
+    from lod import cost_model
+
+    h, reps, sel, cache = built
+    monkeypatch.setenv(pm.CACHE_ENV, str(cache.folder))  # the fixture's hierarchies
+    _, auto = am.build([walker_character()], ["w"], [30], {"poe": 2.0, "points_error": "splat", "keyframes": 3,
+                                                          "adapt": False, "candidates": "triangles,points"},
+                       progress=False, model=cost_model.CostModel(), instancing=Instancing([(0, h)]),
+                       points_params={"splat_size": 2})
+    seen_super = seen_flat = False
+    for pos, t in (((0.0, 200.0, 400.0), 0.45), ((0.0, 40.0, 80.0), 0.8), ((6.0, 10.0, 30.0), 0.3),
+                   ((9.0, 2.0, 6.0), 0.6)):
+        st = _state(h, t)
+        cam = Camera.look_at(pos, (3.0, 0.0, -2.0), fov_y=50.0, far=5000.0)
+        dl, ref = auto.select(st, cam, (640, 480)), sel.select(st, cam, (640, 480))
+        sup = [b for b in dl.batches if b.rep.startswith("points:super")]
+        sup_ref = [b for b in ref.batches if b.rep.startswith("points:super")]
+        assert [(b.rep, b.part, tuple(b.instance_ids), b.points) for b in sup] == \
+            [(b.rep, b.part, tuple(b.instance_ids), b.points) for b in sup_ref]
+        drawn = np.zeros(h.n_instances, np.int64)
+        for b in sup:  # a node's agents: its first agent id and the instances it stands for
+            m = h.instances_per_node(int(b.rep.rsplit(":d", 1)[1]))
+            for a in b.instance_ids.tolist():
+                drawn[a:a + m] += 1
+        for b in dl.batches:
+            if not b.rep.startswith("points:super"):
+                np.add.at(drawn, np.asarray(b.instance_ids, np.int64), 1)
+        assert drawn.max() <= 1
+        # every agent mode points draws (as a node member or on its own) auto draws too, and no other
+        ref_drawn = np.zeros(h.n_instances, np.int64)
+        for b in ref.batches:
+            if b.rep.startswith("points:super"):
+                m = h.instances_per_node(int(b.rep.rsplit(":d", 1)[1]))
+                for a in b.instance_ids.tolist():
+                    ref_drawn[a:a + m] += 1
+            else:
+                np.add.at(ref_drawn, np.asarray(b.instance_ids, np.int64), 1)
+        np.testing.assert_array_equal(drawn, ref_drawn)
+        n_sup = int(sum(b.represented for b in sup))
+        assert dl.stats["auto"]["options"].get("points:super", 0) == n_sup
+        seen_super |= n_sup > 0
+        seen_flat |= n_sup < drawn.sum()
+        if pos[1] == 200.0:  # far: the whole tree from the root node, a few points
+            assert n_sup == h.n_instances and dl.stats.get("super_nodes") == 1
+            assert 0 < dl.stats["points"] < h.n_instances * 5
+    assert seen_super and seen_flat
