@@ -242,14 +242,21 @@ def projected_errors_numpy(errors, rows, sphere, scale_px: float) -> np.ndarray:
     return px
 
 
+@njit(cache=True, inline="always")
+def _axis_scale(rows, i):  # pragma: no cover - compiled
+    """The largest axis scale (column norm of the 3x3 part) of instance i's model rows."""
+    s = 0.0
+    for b in range(3):
+        n = np.sqrt(rows[i, 0, b] ** 2 + rows[i, 1, b] ** 2 + rows[i, 2, b] ** 2)
+        if n > s:
+            s = n
+    return s
+
+
 @njit(cache=True)
 def _projected_errors_kernel(e, rows, sphere, scale_px, out):  # pragma: no cover - compiled
     for i in range(rows.shape[0]):
-        s = 0.0
-        for b in range(3):
-            n = np.sqrt(rows[i, 0, b] ** 2 + rows[i, 1, b] ** 2 + rows[i, 2, b] ** 2)
-            if n > s:
-                s = n
+        s = _axis_scale(rows, i)
         d2 = 0.0
         for a in range(3):
             c = rows[i, a, 0] * sphere[0] + rows[i, a, 1] * sphere[1] + rows[i, a, 2] * sphere[2] + rows[i, a, 3]
@@ -311,11 +318,7 @@ def sub_csr(offsets: np.ndarray, clusters: np.ndarray, rows: np.ndarray):
 @njit(cache=True)
 def _spheres_inside_kernel(rows, sph, planes, out):  # pragma: no cover - compiled
     for i in range(rows.shape[0]):
-        s = 0.0
-        for b in range(3):
-            n = np.sqrt(rows[i, 0, b] ** 2 + rows[i, 1, b] ** 2 + rows[i, 2, b] ** 2)
-            if n > s:
-                s = n
+        s = _axis_scale(rows, i)
         ok = True
         for q in range(sph.shape[0]):
             rad = sph[q, 3] * s

@@ -39,7 +39,7 @@ from numba import njit
 
 from lod import cluster_cut
 from lod.cluster_dag import ClusterHierarchy, build_cluster_hierarchy
-from lod.clusters_config import CLUSTERS_DEFAULT_POE
+from lod.clusters_config import CLUSTERS_DEFAULT_POE, CLUSTERS_LEAF_TRIANGLES
 from lod.drawlist import DrawBatch, DrawList
 from lod.nolod import NoLodSelector, SkinnedRep, build_rep, build_skinned_rep
 from sim.params import Param
@@ -60,6 +60,10 @@ PARAMS: dict = {
                              doc="frames between rebuilds of the potentially visible set (§5.2)"),
     "clustering": Param("str", "error-aware", choices=("error-aware", "octree"),
                         doc="leaf clustering: error-aware (§4.2) or the octree baseline (§6)"),
+    "leaf_triangles": Param("int", CLUSTERS_LEAF_TRIANGLES, min=8, max=1_000_000,
+                            doc="§4.2 s: clusters of more triangles are split (the paper's default 100); larger "
+                                "leaves leave fewer locked borders, so far cuts keep fewer triangles "
+                                "(scripts/bench_clusters.md)"),
 }
 
 
@@ -334,8 +338,13 @@ class ClustersSelector:
 
 # ---------------------------------------------------------------------------- mode protocol
 def build_params_of(params: dict) -> dict:
-    """Hierarchy build parameters taken from a validated ``[lod]`` table."""
-    return {"clustering_method": str(params.get("clustering", PARAMS["clustering"].default))}
+    """Hierarchy build parameters taken from a validated ``[lod]`` table (the leaf size only when it is
+    not the default, so the cache keys of default hierarchies stay as they were)."""
+    out = {"clustering_method": str(params.get("clustering", PARAMS["clustering"].default))}
+    s = int(params.get("leaf_triangles", PARAMS["leaf_triangles"].default))
+    if s != CLUSTERS_LEAF_TRIANGLES:
+        out["s"] = s
+    return out
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True):

@@ -13,7 +13,7 @@ Hierarchies are built once and cached (``$CROWD_CACHE_DIR``, default
 
 Run:  .venv/bin/python scripts/bench_clusters.py [--scenes office exhibition stampede]
       [--frames 2] [--warmup 1] [--poe 0.5] [--size 1280 720] [--strategy indices]
-      [--no-nolod] [--no-oc] [--occlusion-every 8] [--steps 5]
+      [--no-nolod] [--no-oc] [--occlusion-every 8] [--steps 5] [--leaf-triangles 100]
 """
 from __future__ import annotations
 
@@ -44,8 +44,9 @@ def bench_scene(path: Path, args) -> dict:
     t_setup = time.perf_counter() - t0
     sc = eng.scene
     t0 = time.perf_counter()
+    params = {"poe": args.poe, "leaf_triangles": args.leaf_triangles}
     reps, vsel = clusters_mode.build(eng.plan.characters, [c.name for c in sc.characters],
-                                     [c.fps for c in sc.characters], {"poe": args.poe}, static_reps=eng.statics)
+                                     [c.fps for c in sc.characters], params, static_reps=eng.statics)
     t_build = time.perf_counter() - t0
     for rep in reps:
         if rep.kind == "clusters":
@@ -119,6 +120,8 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=1)
     ap.add_argument("--steps", type=int, default=5, help="simulation steps before the first frame")
     ap.add_argument("--poe", type=float, default=0.5)
+    ap.add_argument("--leaf-triangles", type=int, default=clusters_mode.PARAMS["leaf_triangles"].default,
+                    help="§4.2 s, the largest leaf cluster ([lod] leaf_triangles; the paper's default 100)")
     ap.add_argument("--size", type=int, nargs=2, default=[1280, 720])
     ap.add_argument("--strategy", default="indices", choices=("indices", "ranges"))
     ap.add_argument("--no-nolod", action="store_true", help="skip the (slow) full-detail frames")

@@ -81,6 +81,10 @@ def test_cache_key_depends_on_inputs(human):
     assert clusters_mode.cache_key(a, p) == clusters_mode.cache_key(a, dict(p))
     assert clusters_mode.cache_key(a, p) != clusters_mode.cache_key(b, p)
     assert clusters_mode.cache_key(a, p) != clusters_mode.cache_key(a, {"clustering_method": "octree"})
+    # the leaf size: the default keeps the key of the default build, another size is another hierarchy
+    assert clusters_mode.build_params_of({"leaf_triangles": 100}) == p
+    big = clusters_mode.build_params_of({"leaf_triangles": 1000})
+    assert big["s"] == 1000 and clusters_mode.cache_key(a, big) != clusters_mode.cache_key(a, p)
 
 
 def test_unwritable_cache_still_builds(human, tmp_path, monkeypatch):

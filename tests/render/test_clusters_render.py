@@ -10,7 +10,7 @@ from lod import cluster_cut, clusters_mode, nolod
 from lod.view import Camera
 from render import clusters as rc
 from render.renderer import Renderer
-from sim.procedural import humanoid
+from sim.procedural import humanoid, quadruped
 
 from image_checks import silhouette_error  # tests/fixtures (on sys.path via tests/render/conftest.py)
 
@@ -299,10 +299,15 @@ WALKER_HEADINGS = (1.2, 2.0)
 WALKER_TIMES = 5  # per clip, spread over the whole clip (not only the representative poses)
 
 
-@pytest.fixture(scope="module")
-def walker(gl_ctx):
-    c = humanoid(WALKER_TRIANGLES, 0)
-    reps, sel = clusters_mode.build([c], ["h"], [30], {"poe": 0.0}, cache=False, progress=False)
+@pytest.fixture(scope="module", params=[("humanoid", 100), ("humanoid", 1000), ("quadruped", 1000)],
+                ids=["humanoid-s100", "humanoid-s1000", "quadruped-s1000"])
+def walker(gl_ctx, request):
+    """The walker (or the stampede's quadruped) with leaves of the default 100 triangles and of 1,000
+    (``[lod] leaf_triangles``, the leaf size scripts/bench_clusters.md measures stampede with)."""
+    kind, leaf = request.param
+    c = humanoid(WALKER_TRIANGLES, 0) if kind == "humanoid" else quadruped(WALKER_TRIANGLES, 101)
+    reps, sel = clusters_mode.build([c], ["h"], [30], {"poe": 0.0, "leaf_triangles": leaf}, cache=False,
+                                    progress=False)
     full, fsel = nolod.build([c], ["h"], [30], {})
     r = Renderer((SIZE[0] * SS, SIZE[1] * SS), ctx=gl_ctx)
     for rep in [*reps, *full]:
