@@ -202,6 +202,21 @@ class CutWorkspace:
         return self.stack, self.buf
 
 
+def _constants(h, scale: float, poe: float):
+    """(leaves, depth, node keys) of ``h`` at (scale, poe), kept on the hierarchy: a frame cuts every
+    batch of a character at the same scale and PoE, so the keys are computed once, not per batch or
+    frame (the per-call cost that dominates the cut of a few hundred instances)."""
+    c = h.__dict__.get("_cut_constants")
+    if c is None or c[0] is not h.error or c[1] is not h.sphere:
+        c = (h.error, h.sphere, max(int(np.count_nonzero(h.children[:, 0] < 0)), 1),
+             int(h.height.max()) if h.height.size else 0, None, None)
+        h.__dict__["_cut_constants"] = c
+    if c[4] != (scale, poe):
+        c = c[:4] + ((scale, poe), _node_keys(h, scale, poe))
+        h.__dict__["_cut_constants"] = c
+    return c[2], c[3], c[5]
+
+
 def cut(h, model, eye, scale: float, poe: float, workspace: CutWorkspace | None = None):
     """LOD cut of many instances of one hierarchy (numba, serial over instances: see the module docstring).
 
@@ -222,14 +237,13 @@ def cut(h, model, eye, scale: float, poe: float, workspace: CutWorkspace | None 
     """
     M, e = _check(h, model, eye, scale, poe)
     I = M.shape[0]
-    n_leaves = max(int(np.count_nonzero(h.children[:, 0] < 0)), 1)
-    depth = int(h.height.max()) if h.height.size else 0
+    n_leaves, depth, keys = _constants(h, float(scale), float(poe))
     ws = workspace or CutWorkspace()
     stack, buf = ws.get(I, depth + 2 + int(h.roots.shape[0]), n_leaves)
     counts = np.zeros(I, np.int64)
     if I and h.roots.size:
         bad = np.zeros(I, np.bool_)
-        _cut_kernel(h.children, _node_keys(h, scale, poe), h.roots, M, e, stack, buf, counts, bad)
+        _cut_kernel(h.children, keys, h.roots, M, e, stack, buf, counts, bad)
         if bad.any():
             raise ValueError(f"cluster cut: model matrix {int(np.argmax(bad))} is singular; expected rotation x "
                              f"scale (scale > 0) + translation")

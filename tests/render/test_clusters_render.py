@@ -299,10 +299,10 @@ WALKER_HEADINGS = (1.2, 2.0)
 WALKER_TIMES = 5  # per clip, spread over the whole clip (not only the representative poses)
 
 
-@pytest.fixture(scope="module", params=[("humanoid", 100), ("humanoid", 1000), ("quadruped", 1000)],
-                ids=["humanoid-s100", "humanoid-s1000", "quadruped-s1000"])
+@pytest.fixture(scope="module", params=[("humanoid", 100), ("humanoid", 1000), ("quadruped", 2000)],
+                ids=["humanoid-s100", "humanoid-s1000", "quadruped-s2000"])
 def walker(gl_ctx, request):
-    """The walker (or the stampede's quadruped) with leaves of the default 100 triangles and of 1,000
+    """The walker (or the stampede's quadruped) with leaves of the default 100 triangles and of 1,000-2,000
     (``[lod] leaf_triangles``, the leaf size scripts/bench_clusters.md measures stampede with)."""
     kind, leaf = request.param
     c = humanoid(WALKER_TRIANGLES, 0) if kind == "humanoid" else quadruped(WALKER_TRIANGLES, 101)
