@@ -38,6 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lod import cluster_cut, cluster_dag  # noqa: E402
+from lod.clusters_config import CLUSTERS_LEAF_TRIANGLES  # noqa: E402
 from lod.view import Camera  # noqa: E402
 from sim.procedural import humanoid  # noqa: E402
 
@@ -98,6 +99,8 @@ def main(argv=None) -> int:
     ap.add_argument("--instances", type=int, default=1000, help="instances for the cut timing (default 1,000)")
     ap.add_argument("--poe", type=float, default=0.5, help="pixels of error (default 0.5, as the paper)")
     ap.add_argument("--runs", type=int, default=50, help="cut timing repetitions (median reported)")
+    ap.add_argument("--leaf-triangles", type=int, default=CLUSTERS_LEAF_TRIANGLES,
+                    help="§4.2 s, the largest leaf cluster (default the paper's 100)")
     args = ap.parse_args(argv)
     if args.triangles < 500 or args.instances < 1 or args.poe < 0 or args.runs < 1:
         ap.error("--triangles must be >= 500, --instances >= 1, --poe >= 0, --runs >= 1")
@@ -112,7 +115,7 @@ def main(argv=None) -> int:
     builds, cpu = {}, {}
     for m in cluster_dag.CLUSTERINGS:
         t0, c0 = time.perf_counter(), time.process_time()
-        builds[m] = cluster_dag.build_cluster_hierarchy(c, ["walk"], clustering_method=m)
+        builds[m] = cluster_dag.build_cluster_hierarchy(c, ["walk"], clustering_method=m, s=args.leaf_triangles)
         builds[m].build_seconds = time.perf_counter() - t0
         cpu[m] = time.process_time() - c0
     h = builds["error-aware"]
