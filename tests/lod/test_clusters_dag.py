@@ -125,12 +125,20 @@ def test_poe_zero_is_the_original_mesh(human):
         assert _rows(h.cut_triangles(cut)) == _rows(c.mesh.indices)
 
 
+@pytest.fixture(scope="module")
+def big_leaves(human):
+    """The same humanoid with leaves of up to 800 triangles (``[lod] leaf_triangles``: few, large leaves)."""
+    c, _ = human
+    return cluster_dag.build_cluster_hierarchy(c, ["walk"], samples=16, s=800, progress=False)
+
+
 @pytest.mark.parametrize("poe", [0.25, 0.5, 1.0, 2.0, 8.0, 1e9])
-def test_every_cut_covers_once_without_cracks(human, octree, poe):
+def test_every_cut_covers_once_without_cracks(human, octree, big_leaves, poe):
     c, h = human
     rng = np.random.default_rng(int(poe * 7) % 1000)
     M = _instances(12, rng, spread=12.0)
-    for hh in (h, octree):
+    assert big_leaves.n_leaves < h.n_leaves // 2
+    for hh in (h, octree, big_leaves):
         off, cl = cluster_cut.cut(hh, M, [0, 1.6, 0], cluster_cut.viewport_scale(720, 50), poe)
         for i in range(12):
             _check_cut(hh, c, cl[off[i]:off[i + 1]])
