@@ -124,6 +124,7 @@ from lod import auto_candidates as ac
 from lod import cost_model
 from lod import triangles_mode as tm
 from lod.cluster_cut import viewport_scale
+from lod.clusters_config import CLUSTERS_LEAF_TRIANGLES
 from lod.drawlist import DrawBatch, DrawList
 from lod.nolod import NoLodSelector
 from sim.params import Param
@@ -153,6 +154,8 @@ PARAMS: dict = {
                                      "(lod.cost_model.refine); false keeps the stored calibration"),
     "levels": tm.PARAMS["levels"],
     "ratio": tm.PARAMS["ratio"],
+    "leaf_triangles": Param("int", CLUSTERS_LEAF_TRIANGLES, min=8, max=1_000_000,
+                            doc="§4.2 s of the cluster candidate's hierarchies (mode clusters' leaf_triangles)"),
     "keyframes": Param("int", 9, min=2, max=256,
                        doc="poses baked per clip for the point candidate's hierarchies (mode points' keyframes)"),
 }
@@ -781,7 +784,8 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     if "clusters" in names_c and any(getattr(c, "kind", "") == "skinned" for c in characters):
         from lod import clusters_mode
 
-        creps, _ = clusters_mode.build(characters, names, fps, {}, static_reps=static_reps, progress=progress,
+        cp = {"leaf_triangles": int(params.get("leaf_triangles", PARAMS["leaf_triangles"].default))}
+        creps, _ = clusters_mode.build(characters, names, fps, cp, static_reps=static_reps, progress=progress,
                                        cache=cache)
         extra.append(ac.ClustersCandidate(creps, error_scale=float(params.get(
             "cluster_error_scale", PARAMS["cluster_error_scale"].default))))

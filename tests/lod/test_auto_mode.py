@@ -92,6 +92,15 @@ def test_registered_with_params():
             am.parse_candidates(bad)
 
 
+def test_leaf_triangles_reaches_the_cluster_candidate(built, char):
+    _, sel = am.build([char], ["h"], [30], {"poe": 1.0, "candidates": "triangles,clusters", "leaf_triangles": 600},
+                      cache=False, model=MODEL, progress=False)
+    big = sel.candidates[1].reps[0].hierarchy
+    default = built.sel.candidates[1].reps[0].hierarchy
+    assert modes.mode_params("auto")["leaf_triangles"].default == 100
+    assert big.n_leaves < default.n_leaves
+
+
 def test_candidates_and_reps(built):
     assert [c.name for c in built.sel.candidates] == ["triangles", "clusters", "points"]
     assert [r.key for r in built.reps] == ["triangles:h", "clusters:h", "points:h"]
