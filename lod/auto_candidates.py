@@ -397,8 +397,11 @@ class ClustersCandidate(Candidate):
         if roots.size == 0:
             return lb
         inside = spheres_inside(group.rows, r.sphere64[roots], frame.planes)
+        root_tris = h.__dict__.get("_root_triangles")
+        if root_tris is None:
+            root_tris = h.__dict__["_root_triangles"] = float(h.triangle_counts()[roots].sum())
         # one cluster record is in the base already
-        root_cost = c["clusters"] * (roots.size - 1) + c["triangles"] * float(h.triangle_counts()[roots].sum())
+        root_cost = c["clusters"] * (roots.size - 1) + c["triangles"] * root_tris
         lb[inside] += root_cost
         self._lb = (frame, group, lb)
         return lb

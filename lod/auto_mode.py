@@ -684,8 +684,14 @@ class AutoSelector:
             groups.append((g, opts, sum(x.m for x in opts)))
         plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
 
+        factors = {}  # plan name -> its measured factor, once per selection
+
         def corrected(name):
-            return plans[name].seconds * self.plan_factor(plans[name].measured_as(name))
+            m = plans[name].measured_as(name)
+            f = factors.get(m)
+            if f is None:
+                f = factors[m] = self.plan_factor(m)
+            return plans[name].seconds * f
 
         best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
         if not plans[best].exact:  # priced optimistically: price every skipped instance exactly, then decide again

@@ -220,9 +220,22 @@ class KeyframedRep:
         """Global segment index (N,) int64 and u (N,) float64 in [0, 1] at times t.
 
         Looping animations wrap ``t`` into [t0, t0 + duration); others clamp.
-        Non-finite times map to the start. Vectorised form of (and tested
-        against) ``sim.keyframes.KeyframeAnimation.locate``.
+        Non-finite times map to the start. One numba pass (every frame locates
+        every keyframed instance); :meth:`locate_numpy` is the vectorised
+        reference, tested against ``sim.keyframes.KeyframeAnimation.locate``.
         """
+        t = np.ascontiguousarray(t, np.float64).reshape(-1)
+        a0 = int(self.anim_first_seg[anim])
+        ns = int(self.anim_n_segs[anim])
+        seg = np.empty(t.shape[0], np.int64)
+        u = np.empty(t.shape[0], np.float64)
+        _locate_kernel(t, np.ascontiguousarray(self.seg_start[a0:a0 + ns], np.float64),
+                       np.ascontiguousarray(self.seg_end[a0:a0 + ns], np.float64), float(self.anim_t0[anim]),
+                       float(self.anim_duration[anim]), bool(self.anim_loop[anim]), a0, seg, u)
+        return seg, u
+
+    def locate_numpy(self, anim: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Reference of :meth:`locate` (plain numpy)."""
         t = np.asarray(t, np.float64)
         t = np.where(np.isfinite(t), t, self.anim_t0[anim])
         a0 = int(self.anim_first_seg[anim])
@@ -238,6 +251,30 @@ class KeyframedRep:
         span = ends[s] - starts[s]
         u = np.clip((t - starts[s]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
         return s + a0, u
+
+
+@njit(cache=True)
+def _locate_kernel(t, starts, ends, t0, dur, loop, a0, seg, u):  # pragma: no cover - compiled
+    ns = starts.shape[0]
+    for i in range(t.shape[0]):
+        x = t[i]
+        if not np.isfinite(x):
+            x = t0
+        if loop and dur > 0.0:
+            x = t0 + (x - t0) % dur  # Python's float modulo: the sign of dur, as np.mod
+        x = min(max(x, starts[0]), ends[ns - 1])
+        lo, hi = 0, ns  # searchsorted(starts, x, side="right") - 1
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if starts[mid] <= x:
+                lo = mid + 1
+            else:
+                hi = mid
+        s = min(max(lo - 1, 0), ns - 1)
+        span = ends[s] - starts[s]
+        v = (x - starts[s]) / (span if span > 0.0 else 1.0)
+        seg[i] = s + a0
+        u[i] = min(max(v, 0.0), 1.0)
 
 
 @dataclass

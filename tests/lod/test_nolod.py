@@ -121,6 +121,10 @@ def test_keyframed_rep_segments_and_locate(krep):
     for t, s, uu in zip(ts, seg, u):
         rs, ru = anim.locate(t)
         assert (s, pytest.approx(uu)) == (rs, pytest.approx(ru))
+    # the numba pass equals the numpy reference, also far from the clip and at non-finite times
+    many = np.concatenate([np.random.default_rng(0).uniform(-5, 10, 500), [np.inf, -np.inf, 1e12, -1e12, 0.0]])
+    for a, b in zip(krep.locate(0, many), krep.locate_numpy(0, many)):
+        np.testing.assert_array_equal(a, b)
     # segment bounds contain both ends
     for s in range(3):
         a = slice(int(krep.seg_first[s]), int(krep.seg_first[s] + krep.seg_count[s]))
