@@ -114,6 +114,7 @@ prediction, "select_ms": this selection's own time}.
 from __future__ import annotations
 
 import math
+import statistics
 import time
 from dataclasses import dataclass
 
@@ -526,7 +527,7 @@ class AutoSelector:
         r = self._plan_ratio.get(name)
         if not r:
             r = [v for x in self._plan_ratio.values() for v in x]
-        return float(math.exp(float(np.median(r)))) if r else 1.0
+        return float(math.exp(statistics.median(r))) if r else 1.0  # a few floats: no numpy call
 
     def _options(self, frame, g, bound):
         """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
@@ -615,11 +616,11 @@ class AutoSelector:
             exact &= ex
             for q in range(n_plans):
                 choices[q].append(ch[q])
-                for x in opts:
-                    k = int(np.count_nonzero(opts_used[q, x.a:x.a + x.m]))
-                    if k:
-                        used[q].add(x.cand.name)
-                        totals[q] += c["batches"] * k
+            for x in opts:  # batches: the distinct options of each block a plan draws
+                k = opts_used[:, x.a:x.a + x.m].sum(axis=1)
+                totals += c["batches"] * k
+                for q in np.flatnonzero(k).tolist():
+                    used[q].add(x.cand.name)
         plans = {}
         for q, name in enumerate(names + ["mixed"]):
             plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]),

@@ -122,6 +122,11 @@ def test_sub_csr():
     np.testing.assert_array_equal(o, [0, 0]) and c.size == 0
     o, c = ac.sub_csr(off, cl, np.zeros(0, np.int64))
     np.testing.assert_array_equal(o, [0]) and c.size == 0
+    for rows in (np.arange(3), np.array([0, 2, 1]), np.array([0, 1, 1])):  # all in order, permuted, repeated
+        o, c = ac.sub_csr(off, cl, rows)
+        ref = np.concatenate([cl[off[r]:off[r + 1]] for r in rows])
+        np.testing.assert_array_equal(c, ref)
+        np.testing.assert_array_equal(np.diff(o), [off[r + 1] - off[r] for r in rows])
 
 
 def test_choose_cheapest_within_bound():
