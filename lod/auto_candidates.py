@@ -374,7 +374,7 @@ class ClustersCandidate(Candidate):
         self.reps = list(self.by_char.values())
         self._ws = cluster_cut.CutWorkspace()
         self.clusters_drawn = 0
-        self._lb = None  # (frame, group, bound) of the last cost_lower_bound call (held: identity-compared)
+        self._lb = None  # (frame, group, bound array) of the last cost_lower_bound call (identity-compared)
 
     def cost_lower_bound(self, frame, group):
         """Seconds no cut of an instance can undercut: one skinned instance

@@ -224,9 +224,11 @@ class KeyframedRep:
         every keyframed instance); :meth:`locate_numpy` is the vectorised
         reference, tested against ``sim.keyframes.KeyframeAnimation.locate``.
         """
-        t = np.ascontiguousarray(t, np.float64).reshape(-1)
         a0 = int(self.anim_first_seg[anim])
         ns = int(self.anim_n_segs[anim])
+        if ns == 0 or np.ndim(t) != 1:  # no segment (the reference's error) or another shape: the reference
+            return self.locate_numpy(anim, t)
+        t = np.ascontiguousarray(t, np.float64)
         seg = np.empty(t.shape[0], np.int64)
         u = np.empty(t.shape[0], np.float64)
         _locate_kernel(t, np.ascontiguousarray(self.seg_start[a0:a0 + ns], np.float64),
