@@ -53,8 +53,10 @@ predicted factor (the median over its observed frames, see
 all frames), and the plan with the lowest corrected prediction is drawn.
 During the first ``EXPLORE_FRAMES`` frames, a plan never measured whose
 corrected prediction is within ``EXPLORE_MARGIN`` of the best is drawn once,
-so that the correction is measured rather than assumed. A mixed plan equal
-to a pure plan shares its name and measurements.
+so that the correction is measured rather than assumed. A plan that draws
+what an earlier plan draws (the mixed plan equal to a pure one, or pure plans
+that coincide, e.g. when every agent is in a super node) shares that plan's
+name and measurements.
 
 Selection work: a candidate may give a cost lower bound per instance
 (:meth:`lod.auto_candidates.Candidate.cost_lower_bound`, the cluster cut:
@@ -294,7 +296,7 @@ class _Plan:
     """One frame plan (module docstring, "Plans"): per group the chosen option
     column of each instance, the predicted seconds under the stored
     calibration, whether that price is exact (no instance priced at a lower
-    bound), and ``alias``: the pure plan a mixed plan coincides with."""
+    bound), and ``alias``: the earlier pure plan it coincides with."""
 
     choices: list
     seconds: float
@@ -625,15 +627,25 @@ class AutoSelector:
         for q, name in enumerate(names + ["mixed"]):
             plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]),
                                 bool(exact[q]))
-        # a plan whose choices equal a pure plan's is that plan (its measurements are shared)
-        for name in names:
-            pure, mixed = plans[name], plans["mixed"]
-            if all(np.array_equal(x, y) for x, y in zip(pure.choices, mixed.choices)):
-                mixed.exact = mixed.exact and pure.exact
-                if pure.exact or not mixed.exact:
-                    mixed.seconds = pure.seconds
-                mixed.alias = name
-                break
+        # a plan whose choices equal an earlier plan's is that plan (its measurements are shared): a pure plan
+        # that draws what an earlier pure one draws (e.g. every agent in super nodes: all plans draw the same),
+        # and the mixed plan equal to a pure one
+        def same(x, y):
+            return all(np.array_equal(a_, b_) for a_, b_ in zip(x.choices, y.choices))
+
+        # roots first: a pure plan whose own candidate draws (so the far view drawn from super nodes alone is
+        # "points", not "triangles"), then candidate order
+        order = sorted(names, key=lambda n: (n not in used[names.index(n)], names.index(n)))
+        for i, name in enumerate(order + ["mixed"]):
+            this = plans[name]
+            for other in order[:i]:
+                o = plans[other]
+                if o.alias is None and same(this, o):
+                    this.exact = this.exact and o.exact
+                    if o.exact or not this.exact:
+                        this.seconds = o.seconds
+                    this.alias = other
+                    break
         return plans
 
     def select(self, state, camera, size, statics=()) -> DrawList:

@@ -356,4 +356,6 @@ def test_auto_draws_far_groups_from_the_super_hierarchies_as_mode_points_does(bu
         if pos[1] == 200.0:  # far: the whole tree from the root node, a few points
             assert n_sup == h.n_instances and dl.stats.get("super_nodes") == 1
             assert 0 < dl.stats["points"] < h.n_instances * 5
+            # every plan draws the same list then: one plan, whose measurements all of them share
+            assert dl.stats["auto"]["plan"] == "points" and len(set(dl.stats["auto"]["plans_ms"].values())) == 1
     assert seen_super and seen_flat
