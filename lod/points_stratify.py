@@ -298,6 +298,17 @@ def _neighbour_order() -> np.ndarray:
 _NEIGHBOURS = _neighbour_order()
 
 
+
+@njit(cache=True, inline="always")
+def _neighbour_step(o, i, step, near):  # pragma: no cover - compiled
+    """One axis of a neighbour offset (_NEIGHBOURS code o: 0 same cell, 1 the near neighbour, 2 the far one):
+    the cell index along the axis and the squared distance (in cells) from the point to that cell's side."""
+    if o == 1:
+        return i + step, near * near
+    if o == 2:
+        return i - step, (1.0 - near) * (1.0 - near)
+    return i, 0.0
+
 @njit(cache=True, nogil=True)
 def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - compiled
     """Greedy deletion of §3.4.2 with witnesses instead of neighbour counts.
@@ -409,28 +420,10 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
                 ox = nbr[q, 0]
                 oy = nbr[q, 1]
                 oz = nbr[q, 2]
-                d2 = 0.0
-                x = ix
-                y = iy
-                z = iz
-                if ox == 1:
-                    x += sx
-                    d2 += nx * nx
-                elif ox == 2:
-                    x -= sx
-                    d2 += (1.0 - nx) * (1.0 - nx)
-                if oy == 1:
-                    y += sy
-                    d2 += ny * ny
-                elif oy == 2:
-                    y -= sy
-                    d2 += (1.0 - ny) * (1.0 - ny)
-                if oz == 1:
-                    z += sz
-                    d2 += nz * nz
-                elif oz == 2:
-                    z -= sz
-                    d2 += (1.0 - nz) * (1.0 - nz)
+                x, ex = _neighbour_step(ox, ix, sx, nx)
+                y, ey = _neighbour_step(oy, iy, sy, ny)
+                z, ez = _neighbour_step(oz, iz, sz, nz)
+                d2 = ex + ey + ez
                 if d2 > lim or x < 0 or y < 0 or z < 0 or x >= dx or y >= dy or z >= dz:
                     continue
                 cc = (x * dy + y) * dz + z
