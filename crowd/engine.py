@@ -320,8 +320,9 @@ class Engine:
             return selector
         from lod.keyframed_selection import KEYFRAME_EXTRAPOLATION_DEFAULT, KeyframedSelector
 
-        mode = dict(self.scene.lod_common).get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
-        return KeyframedSelector(selector, int(n), mode)
+        common = dict(self.scene.lod_common)
+        mode = common.get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
+        return KeyframedSelector(selector, int(n), mode, geomorph=bool(common.get("keyframe_geomorph", True)))
 
     def _build_terrain_lod(self):
         """The view-dependent bisection terrain (Friedrich et al.), when the
@@ -512,7 +513,8 @@ class Engine:
                 if "keyframe" in dl.stats:  # keyframed selection (lod.keyframed_selection)
                     metrics = {**metrics, "lod_keyframe": float(bool(dl.stats["keyframe"])),
                                "lod_selection_ms": 1e3 * float(getattr(self.selector, "last_selection_seconds", 0.0)),
-                               "lod_transitions": float(dl.stats.get("transitions", 0))}
+                               "lod_transitions": float(dl.stats.get("transitions", 0)),
+                               "lod_geomorphs": float(dl.stats.get("geomorphs", 0))}
                 r = renderer.draw(dl, bg)
                 # the frame cost a budget covers: LOD selection + rendering (simulation is the scene's own cost)
                 measured = (t2 - t1) + sum(float(r.get(k) or 0.0) for k in ("upload", "draw", "finish"))

@@ -475,6 +475,11 @@ class AutoSelector:
         self._last_prior_pred = 0.0
         self._frames = 0
 
+    def cluster_hierarchies(self) -> dict:
+        """{rep key: ClusterHierarchy} of the cluster candidate's characters (for geomorphs
+        between keyframe cuts, :mod:`lod.keyframed_selection`)."""
+        return {r.key: r.hierarchy for r in self.candidate_reps if getattr(r, "kind", "") == "clusters"}
+
     @property
     def candidate_reps(self) -> list:
         """Every representation the candidates draw (to upload), master reps first."""

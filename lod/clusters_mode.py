@@ -122,10 +122,17 @@ class ClusterDrawBatch(DrawBatch):
     ``clusters[offsets[i]:offsets[i+1]]``.
 
     offsets : (k+1,) int64; clusters : (offsets[-1],) int32 cluster ids
+    morph_height, morph_weight : None, or (offsets[-1],) int32 / float32 per cluster
+        entry: a geomorphed union of two cuts (:mod:`lod.cluster_morph`, drawn by
+        ``render/shaders/clusters_morph.vert``): the entry's vertices are blended
+        with weight ``morph_weight`` towards the vertices they collapse into in
+        the ancestor cluster of height ``morph_height`` (-1: drawn unmoved)
     """
 
     offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     clusters: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    morph_height: np.ndarray | None = None
+    morph_weight: np.ndarray | None = None
 
 
 # ---------------------------------------------------------------------------- cache
@@ -302,6 +309,11 @@ class ClustersSelector:
         self.cull = bool(cull)
         #: seconds spent in the cut (§5.1) during the last ``select``
         self.last_cut_seconds = 0.0
+
+    def cluster_hierarchies(self) -> dict:
+        """{rep key: ClusterHierarchy} of the clustered characters (for geomorphs between
+        keyframe cuts, :mod:`lod.keyframed_selection`)."""
+        return {k: r.hierarchy for k, r in self._clusters.items()}
 
     def select(self, state, camera, size, statics=()) -> DrawList:
         """The frame's DrawList (see :meth:`lod.nolod.NoLodSelector.select`);

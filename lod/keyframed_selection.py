@@ -18,6 +18,13 @@ selections chose for them:
   complementary screen-door (dither) patterns, so every pixel the instance
   covers is drawn by exactly one of the two and the switch is spread evenly
   over the n frames instead of popping;
+- an instance with two different *cluster cuts* of one hierarchy is instead
+  geomorphed (``geomorph``, default; :mod:`lod.cluster_morph`): one batch
+  draws the union of the two cuts, the finer cluster over every part of the
+  mesh, its vertices blended by ``t`` towards the vertices they collapse into
+  in the coarser cut, so the image moves continuously from cut i to cut i+1
+  as the paper's interpolated hierarchies do (an instance whose cuts the
+  frustum clipped so that one lacks part of the other's region is faded);
 - an instance only one keyframe selected (it was culled in the other) is drawn
   with that one, unfaded;
 - an instance neither keyframe selected with a representation valid for its
@@ -48,11 +55,10 @@ Friedrich, Polthier & Schmies, *Smooth View-Dependent Rendering in
 Animations*, §3 (the view-dependent selection at keyframes only, the union of
 two keyframe selections drawn in between with a global per-frame weight) and
 §4.1 (camera extrapolation). Departure: the paper interpolates vertex
-positions of two conforming triangle hierarchies; the crowd's representations
-are discrete (LOD chain levels, point sets, cluster cuts), so the blend is a
-per-pixel choice between the two (screen-door transparency with a global
-weight ``t``), not a geomorph. Cluster geomorphing would need per-vertex
-collapse targets from the cluster hierarchy, which it does not store yet.
+positions of two conforming triangle hierarchies; cluster cuts are geomorphed
+the same way, but LOD chain levels and point sets have no common vertices, so
+their blend is a per-pixel choice between the two (screen-door transparency
+with a global weight ``t``).
 """
 from __future__ import annotations
 
@@ -64,6 +70,7 @@ from dataclasses import dataclass, fields, is_dataclass
 
 import numpy as np
 
+from lod.cluster_morph import morph_batch
 from lod.drawlist import FADE_IN, FADE_OUT, INSTANCE_FLOATS, DrawList
 from lod.nolod import NoLodSelector
 from lod.temporal import TEMPORAL_CULL_MARGIN, TEMPORAL_MODES, extrapolate_camera
@@ -82,6 +89,9 @@ LOD_COMMON_PARAMS: dict = {
                                 "keyframe selections are blended (1 = every frame, off)"),
     "keyframe_extrapolation": Param("str", KEYFRAME_EXTRAPOLATION_DEFAULT, choices=TEMPORAL_MODES,
                                     doc="camera of the keyframe selections (Friedrich et al. §4.1)"),
+    "keyframe_geomorph": Param("bool", True,
+                               doc="blend two keyframe cluster cuts by geomorphing their vertices (else by a "
+                                   "screen-door fade, as points and triangle levels are)"),
 }
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -155,6 +165,8 @@ def part_dependent(b) -> bool:
 
 
 _JOB_FIELDS: dict = {}
+#: optional per-entry arrays of a CSR batch, aligned with ``clusters`` (lod.clusters_mode.ClusterDrawBatch)
+_ENTRY_FIELDS = ("morph_height", "morph_weight")
 
 
 def _job_fields(b) -> tuple:
@@ -227,8 +239,9 @@ def take_rows(b, rows: np.ndarray, ids: np.ndarray, data: np.ndarray, fade=None,
 
     Parameters
     ----------
-    b : DrawBatch (or a subclass: per-row CSR ``offsets``/``clusters`` and
-        ``*_jobs`` arrays are subset and renumbered; other fields are copied)
+    b : DrawBatch (or a subclass: per-row CSR ``offsets``/``clusters`` (with
+        their per-entry ``morph_height``/``morph_weight``) and ``*_jobs`` arrays
+        are subset and renumbered; other fields are copied)
     rows : (m,) int64 rows of ``b``
     ids : (m,) int32 agent ids; data : (m, 16) float32 instance data
     fade : ``DrawBatch.fade`` of the new batch
@@ -258,6 +271,10 @@ def take_rows(b, rows: np.ndarray, ids: np.ndarray, data: np.ndarray, fade=None,
         src = np.repeat(off[rows] - new_off[:-1], lens) + np.arange(int(new_off[-1]))
         kw["offsets"] = new_off
         kw["clusters"] = np.asarray(b.clusters)[src]
+        for name in _ENTRY_FIELDS:  # per-entry arrays aligned with the cut (a geomorphed union's)
+            v = getattr(b, name, None)
+            if v is not None:
+                kw[name] = np.asarray(v)[src]
     if _job_fields(b):
         pos = np.full(b.n_instances, -1, np.int64)
         pos[rows] = np.arange(rows.shape[0])
@@ -323,6 +340,8 @@ class KeyframedSelector:
     cull_margin : degrees the keyframe selections' culling frustum is opened by
         on every side (:class:`MarginCamera`), so that instances entering the
         view between keyframes rarely need a selection on the spot
+    geomorph : blend two cluster cuts of an instance by geomorphing (default) rather
+        than by a screen-door fade (needs ``inner.cluster_hierarchies()``)
 
     Attributes
     ----------
@@ -335,13 +354,14 @@ class KeyframedSelector:
 
     _OWN = frozenset({"inner", "n", "mode", "base", "frame", "history", "keys", "n_selections",
                       "n_fresh_selections", "last_keyframe", "last_selection_seconds", "last_pack_seconds",
-                      "cull_margin", "_groups", "_group_rep", "_group_part", "_reps"})
+                      "cull_margin", "geomorph", "_groups", "_group_rep", "_group_part", "_reps"})
 
     def __init__(self, inner, n: int = KEYFRAME_EVERY_DEFAULT, mode: str = KEYFRAME_EXTRAPOLATION_DEFAULT,
-                 base=None, cull_margin: float = TEMPORAL_CULL_MARGIN):
+                 base=None, cull_margin: float = TEMPORAL_CULL_MARGIN, geomorph: bool = True):
         if not (np.isfinite(cull_margin) and 0.0 <= float(cull_margin) < 60.0):
             raise ValueError(f"keyframed selection cull_margin: expected degrees in [0, 60), got {cull_margin!r}")
         self.cull_margin = float(cull_margin)
+        self.geomorph = bool(geomorph)
         if isinstance(n, bool) or int(n) != n or int(n) < 1:
             raise ValueError(f"[lod] keyframe_every: expected an integer >= 1, got {n!r}")
         if mode not in TEMPORAL_MODES:
@@ -448,9 +468,10 @@ class KeyframedSelector:
 
         ``stats`` hold "instances", "culled", "triangles", "points", "batches",
         "statics" as the inner selector's, plus "keyframe" (bool: a keyframe
-        selection ran this frame), "transitions" (instances drawn twice, faded),
-        "fresh" (instances selected on the spot) and "fade_t" (the frame's
-        transition weight).
+        selection ran this frame), "transitions" (instances between two
+        representations: faded, drawn twice, or geomorphed), "geomorphs" (those
+        geomorphed), "fresh" (instances selected on the spot) and "fade_t" (the
+        frame's transition weight).
         """
         self.last_selection_seconds = 0.0
         self.last_pack_seconds = 0.0
@@ -490,6 +511,43 @@ class KeyframedSelector:
                 draw_cam = self.history[-1 - lag] if lag < len(self.history) else self.history[0]
         return self._blend(state, draw_cam, size, statics, A, B, t)
 
+    def _hierarchies(self) -> dict:
+        """{rep key: ClusterHierarchy} the inner selector's cluster cuts refer to ({} without)."""
+        f = getattr(self.inner, "cluster_hierarchies", None)
+        return f() if callable(f) else {}
+
+    def _geomorphs(self, A: _Key, B: _Key, ids, data, gid, trans, t: float):
+        """Geomorphed batches (:func:`lod.cluster_morph.morph_batch`) of the transitions whose two
+        keyframe rows are cluster cuts of one hierarchy; returns (positions into ``ids`` morphed,
+        batches)."""
+        hier = self._hierarchies()
+        morphed = np.zeros(ids.shape[0], bool)
+        if not hier:
+            return morphed, []
+        p = np.flatnonzero(trans)
+        ab, bb = A.batch[ids[p]], B.batch[ids[p]]
+        nB = max(len(B.drawlist.batches), 1)
+        key = (ab * nB + bb) * (len(self._group_part) + 1) + gid[p]
+        order = np.argsort(key, kind="stable")
+        p, key, ab, bb = p[order], key[order], ab[order], bb[order]
+        cut = np.flatnonzero(np.diff(key)) + 1
+        out = []
+        for lo, hi in zip(np.r_[0, cut], np.r_[cut, p.shape[0]]):
+            ka, kb = A.drawlist.batches[int(ab[lo])], B.drawlist.batches[int(bb[lo])]
+            h = hier.get(ka.rep)
+            if h is None or ka.rep != kb.rep or not (_is_csr(ka) and _is_csr(kb)):
+                continue
+            q = p[lo:hi]
+            agents = ids[q]
+            part = self._group_part[int(gid[q[0]])]
+            a = take_rows(ka, A.row[agents], agents.astype(np.int32), data[q], part=None if part == ka.part else part)
+            b = take_rows(kb, B.row[agents], agents.astype(np.int32), data[q])
+            mb, ok = morph_batch(h, a, b, t)
+            if mb is not None:
+                out.append(mb)
+                morphed[q[ok]] = True
+        return morphed, out
+
     def _blend(self, state, camera, size, statics, A: _Key, B: _Key, t: float) -> DrawList:
         t0 = time.perf_counter()
         cur = self.base.select(state, camera, size, statics)
@@ -527,8 +585,17 @@ class KeyframedSelector:
             eq = A.sig[ids] == B.sig[ids]
         use_a = va & (~vb | eq)  # unfaded from A (same in both, or only A has it)
         use_b = vb & ~va  # unfaded from B
-        trans = va & vb & ~eq  # drawn by both, faded
+        trans = va & vb & ~eq  # drawn by both: geomorphed or faded
         fresh = ~(va | vb)
+        batches = []
+        tri_total = pts_total = 0.0
+        n_morph = 0
+        if self.geomorph and trans.any():
+            morphed, mb = self._geomorphs(A, B, ids, data, gid, trans, t)
+            trans &= ~morphed
+            n_morph = int(morphed.sum())
+            batches.extend(mb)
+            tri_total += sum(b.triangles for b in mb)
         fade_out, fade_in = (float(t), FADE_OUT), (float(t), FADE_IN)
         # (source key, batch, fade) groups of positions into ids
         nA = len(A.drawlist.batches)
@@ -541,8 +608,6 @@ class KeyframedSelector:
         cg = gid[pos]  # current part group: a clip change keeps the representation, drawn with the new part
         order = np.lexsort((pos, cg, src, role))
         src, role, pos, cg = src[order], role[order], pos[order], cg[order]
-        batches = []
-        tri_total = pts_total = 0.0
         if src.shape[0]:
             cut = np.flatnonzero((np.diff(src) != 0) | (np.diff(role) != 0) | (np.diff(cg) != 0)) + 1
             for a, b in zip(np.r_[0, cut], np.r_[cut, src.shape[0]]):
@@ -582,8 +647,8 @@ class KeyframedSelector:
         drawn = int(ids.shape[0])
         stats = {"instances": drawn, "culled": int(N - drawn), "triangles": int(round(tri_total)),
                  "points": int(round(pts_total)), "batches": len(batches), "statics": len(static_batches),
-                 "keyframe": bool(self.last_keyframe), "transitions": int(trans.sum()), "fresh": n_fresh,
-                 "fade_t": float(t)}
+                 "keyframe": bool(self.last_keyframe), "transitions": int(trans.sum()) + n_morph,
+                 "geomorphs": n_morph, "fresh": n_fresh, "fade_t": float(t)}
         return DrawList(origin=cur.origin, view=cur.view, proj=cur.proj, size=cur.size, batches=batches,
                         stats=stats, options=options)
 

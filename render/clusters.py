@@ -40,9 +40,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
 
+import moderngl
 import numpy as np
 from numba import njit
 
+from lod.cluster_morph import collapse_table
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 
 #: bytes of one DrawElementsIndirectCommand (count, instanceCount, firstIndex, baseVertex, baseInstance)
@@ -51,6 +53,15 @@ COMMAND_BYTES = 20
 STRATEGIES = ("indices", "ranges")
 #: float of the instance data holding the instance's palette slot (i_anim.y)
 PALETTE_SLOT_FLOAT = 13
+#: floats of a geomorphed row's instance data: height of the ancestor its vertices blend towards (i_anim.z,
+#: negative = none) and the blend weight (i_anim.w); ``shaders/clusters_morph.vert``
+MORPH_HEIGHT_FLOAT = 14
+MORPH_WEIGHT_FLOAT = 15
+#: texture units of the geomorph chain textures (0 and 1 hold the joint table and the palette)
+MORPH_INT_UNIT = 2
+MORPH_FLOAT_UNIT = 3
+#: width of the geomorph textures (the shader addresses texel t at (t & 4095, t >> 12))
+MORPH_TEXTURE_WIDTH = 4096
 #: occlusion culling: a camera closer to an instance's box than this many
 #: near-plane distances draws the instance without a query (the box could be clipped)
 OCCLUSION_NEAR_MARGIN = 2.0
@@ -186,6 +197,70 @@ def range_commands(tri_start, cut_offsets, cut_clusters, counts, base):
     return out[:n].copy()
 
 
+def split_morph_rows(offsets, clusters, heights, weights):
+    """Split the rows of a geomorphed CSR cut by (morph height, weight) of their entries.
+
+    Parameters
+    ----------
+    offsets : (k+1,) int64; clusters : (E,) int32 the union cuts (``lod.cluster_morph.morph_union``)
+    heights : (E,) int32 morph height per entry (< 0: unmoved); weights : (E,) float32 blend weights
+
+    Returns
+    -------
+    offsets : (m+1,) int64; clusters : (E,) int32 the entries regrouped, one row per distinct
+        (instance, height, weight) in instance order
+    rows : (m,) int64 the instance each new row belongs to
+    heights, weights : (m,) float32 the row's morph height and weight (as the instance data stores them)
+    """
+    offsets = np.asarray(offsets, np.int64)
+    clusters = np.asarray(clusters, np.int32)
+    h = np.asarray(heights, np.int64)
+    w = np.asarray(weights, np.float32)
+    if not (h.shape == w.shape == clusters.shape):
+        raise ValueError(f"geomorphed cut: {clusters.shape[0]} clusters, {h.shape[0]} heights, {w.shape[0]} weights")
+    w = np.where(h < 0, np.float32(0.0), np.nan_to_num(w, nan=0.0, posinf=1.0, neginf=0.0)).astype(np.float32)
+    inst = np.repeat(np.arange(offsets.shape[0] - 1), np.diff(offsets))
+    order = np.lexsort((w, h, inst))
+    inst, h, w, c = inst[order], h[order], w[order], clusters[order]
+    new = np.ones(inst.shape[0], bool)
+    new[1:] = (inst[1:] != inst[:-1]) | (h[1:] != h[:-1]) | (w[1:] != w[:-1])
+    starts = np.flatnonzero(new)
+    out_off = np.append(starts, inst.shape[0]).astype(np.int64)
+    return out_off, c, inst[starts].astype(np.int64), h[starts].astype(np.float32), w[starts]
+
+
+def morph_textures(ctx, hierarchy, skinned, label: str = "clusters") -> tuple:
+    """The two textures ``shaders/clusters_morph.vert`` reads (width :data:`MORPH_TEXTURE_WIDTH`).
+
+    Integer (RGBA32I), 2 texels per vertex: (next vertex of its collapse chain, height of the
+    cluster that removes it, 0, 0) and its joints; float (RGBA32F), 4 texels per vertex:
+    position, normal, colour, weights (``skinned``: the character's ``lod.nolod.SkinnedRep``).
+    """
+    nxt, removed_at = collapse_table(hierarchy)
+    V = int(hierarchy.n_vertices)
+    W = MORPH_TEXTURE_WIDTH
+    ti = np.zeros((V, 2, 4), np.int32)
+    ti[:, 0, 0] = nxt
+    ti[:, 0, 1] = removed_at
+    ti[:, 1, :] = np.asarray(skinned.joints, np.int64)[:V]
+    tf = np.zeros((V, 4, 4), np.float32)
+    tf[:, 0, :3] = skinned.positions[:V]
+    tf[:, 0, 3] = 1.0
+    tf[:, 1, :3] = skinned.normals[:V]
+    tf[:, 2, :] = skinned.colors[:V]
+    tf[:, 3, :] = skinned.weights[:V]
+    out = []
+    for arr, dtype in ((ti.reshape(-1, 4), "i4"), (tf.reshape(-1, 4), "f4")):
+        rows = max(1, -(-arr.shape[0] // W))
+        full = np.zeros((rows * W, 4), arr.dtype)
+        full[:arr.shape[0]] = arr
+        tex = ctx.texture((W, rows), 4, full.tobytes(), dtype=dtype)
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.label = f"{label}.morph_{'int' if dtype == 'i4' else 'float'}"
+        out.append(tex)
+    return tuple(out)
+
+
 def _cut_arrays(b, n_leaves: int):
     """(offsets, clusters) of a batch: its cut, or every leaf (full detail) for a plain DrawBatch."""
     off = getattr(b, "offsets", None)
@@ -203,15 +278,15 @@ class _ClusterGpu:
     skin: object  # the renderer's _GpuRep of the skinned vertex buffer
     hierarchy: object
     flat: np.ndarray
-    vao_ranges: object
+    ibo: object  # the hierarchy's index buffer ("ranges" commands point into it)
+    skinned: object = None  # the lod.nolod.SkinnedRep (vertex arrays of the geomorph textures)
     objects: list = field(default_factory=list)
     content: list = field(default_factory=list)  # the skinned vertex buffers (buffer, format, attribute)
-    locs: dict = field(default_factory=dict)  # instanced attribute locations of the clusters program
     occlusion: bool = False
     occlusion_every: int = 8
     clip_aabb: np.ndarray | None = None  # (C, 2, 3) model-space bounds of each clip over all baked frames
-    vao_frame: object = None  # bound to the drawer's current frame index buffer
-    vao_frame_buffer: object = None
+    vaos: dict = field(default_factory=dict)  # (program, index buffer role) -> (vao, index buffer)
+    morph_tex: tuple | None = None  # (integer texture, float texture) of the geomorph chains, made on first use
 
 
 class Drawer:
@@ -302,27 +377,42 @@ class Drawer:
         es = flat.dtype.itemsize
         ibo = self.ctx.buffer(flat.tobytes() if flat.size else bytes(16))
         ibo.label = f"{rep.key}.cluster_indices"
-        content = [c for c in g.content if c[2] in prog]
-        vao = self.ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=es)
-        vao.label = f"{rep.key}.vao_ranges"
-        st = _ClusterGpu(rep.key, g, h, flat, vao, [ibo, vao], content=content,
-                         locs={a: prog[a].location for a in ("i_m0", "i_m1", "i_m2", "i_anim") if a in prog},
+        st = _ClusterGpu(rep.key, g, h, flat, ibo, skinned=rep.skinned, objects=[ibo], content=list(g.content),
                          occlusion=bool(getattr(rep, "occlusion", False)),
                          occlusion_every=int(getattr(rep, "occlusion_every", 8)),
                          clip_aabb=np.asarray(rep.skinned.clip_aabb, np.float64))
         self._reps[rep.key] = st
 
-    def _frame_vao(self, st: _ClusterGpu):
-        if st.vao_frame is None or st.vao_frame_buffer is not self._ibo:
-            if st.vao_frame is not None:
-                st.vao_frame.release()
-                st.objects.remove(st.vao_frame)
-            st.vao_frame = self.ctx.vertex_array(self.renderer.program("clusters"), st.content,
-                                                 index_buffer=self._ibo, index_element_size=4)
-            st.vao_frame.label = f"{st.key}.vao_frame"
-            st.vao_frame_buffer = self._ibo
-            st.objects.append(st.vao_frame)
-        return st.vao_frame
+    def _vao(self, st: _ClusterGpu, program: str):
+        """Vertex array of ``program`` over the character's vertex buffers, indexed by the
+        hierarchy's index buffer ("ranges") or this frame's gathered one ("indices"), with the
+        program's instanced attribute locations."""
+        prog = self.renderer.program(program)
+        frame = self.strategy == "indices"
+        ibo = self._ibo if frame else st.ibo
+        key = (program, frame)
+        have = st.vaos.get(key)
+        if have is not None and have[1] is ibo:
+            return have[0], have[2]
+        if have is not None:
+            have[0].release()
+            st.objects.remove(have[0])
+        es = 4 if frame else st.flat.dtype.itemsize
+        vao = self.ctx.vertex_array(prog, [c for c in st.content if c[2] in prog], index_buffer=ibo,
+                                    index_element_size=es)
+        vao.label = f"{st.key}.vao_{program}_{'frame' if frame else 'ranges'}"
+        locs = {a: prog[a].location for a in ("i_m0", "i_m1", "i_m2", "i_anim") if a in prog}
+        st.vaos[key] = (vao, ibo, locs)
+        st.objects.append(vao)
+        return vao, locs
+
+    def _morph_textures(self, st: _ClusterGpu) -> tuple:
+        """(integer, float) textures of the geomorph chains (``shaders/clusters_morph.vert``):
+        per vertex (next vertex, removed-at height), joints / position, normal, colour, weights."""
+        if st.morph_tex is None:
+            st.morph_tex = morph_textures(self.ctx, st.hierarchy, st.skinned, st.key)
+            st.objects.extend(st.morph_tex)
+        return st.morph_tex
 
     def _release_rep(self, st: _ClusterGpu) -> None:
         for o in reversed(st.objects):
@@ -343,7 +433,10 @@ class Drawer:
 
     # ------------------------------------------------------------------ drawing
     def _collect(self, batches) -> list:
-        """Per (representation, tint, fade): instance data (palette slot set), CSR cuts, agent ids, clips."""
+        """Per (representation, tint, fade, geomorph or not): instance data (palette slot set), CSR
+        cuts, agent ids, clips. A geomorphed batch's instances are split into one row per (morph
+        height, weight) of their union entries (:func:`split_morph_rows`), each a copy of the
+        instance's data with ``i_anim.z`` = height and ``i_anim.w`` = weight."""
         groups: dict = {}
         for b in batches:
             if b.rep not in self._reps:
@@ -351,21 +444,35 @@ class Drawer:
                                f"uploaded: {sorted(self._reps)}")
             tint = tuple(float(c) for c in b.tint) if b.tint is not None else (0.0, 0.0, 0.0, 0.0)
             fade = fade_uniform(getattr(b, "fade", None))  # screen-door transition (lod.keyframed_selection)
-            groups.setdefault((b.rep, tint, fade), []).append(b)
+            morph = getattr(b, "morph_height", None) is not None
+            groups.setdefault((b.rep, tint, fade, morph), []).append(b)
         items = []
-        for (key, tint, fade), bs in groups.items():
+        for (key, tint, fade, morph), bs in groups.items():
             st = self._reps[key]
             n_leaves = st.hierarchy.n_leaves
-            offs, cls, data, ids, part = [], [], [], [], []
+            offs, cls, data, ids, part, first = [], [], [], [], [], []
             base = 0
             for b in bs:
                 o, c = _cut_arrays(b, n_leaves)
+                d = np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
+                i = np.asarray(b.instance_ids, np.int64)
+                p = np.full(b.n_instances, int(b.part), np.int64)
+                f = np.ones(b.n_instances, bool)
+                if morph:
+                    o, c, rows, hz, wz = split_morph_rows(o, c, b.morph_height, b.morph_weight)
+                    d = d[rows]
+                    d[:, MORPH_HEIGHT_FLOAT] = hz
+                    d[:, MORPH_WEIGHT_FLOAT] = wz
+                    i, p = i[rows], p[rows]
+                    f = np.ones(rows.shape[0], bool)
+                    f[1:] = rows[1:] != rows[:-1]
                 offs.append(o[:-1] + base)
                 base += int(o[-1])
                 cls.append(c)
-                data.append(np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS))
-                ids.append(np.asarray(b.instance_ids, np.int64))
-                part.append(np.full(b.n_instances, int(b.part), np.int64))
+                data.append(d)
+                ids.append(i)
+                part.append(p)
+                first.append(f)
             k = sum(d.shape[0] for d in data)
             if k == 0:
                 continue
@@ -374,7 +481,8 @@ class Drawer:
             items.append(SimpleNamespace(st=st, key=key, tint=tint, fade=fade, k=k, data=data,
                                          offsets=np.concatenate(offs + [np.array([base], np.int64)]),
                                          clusters=np.concatenate(cls), ids=np.concatenate(ids),
-                                         part=np.concatenate(part)))
+                                         part=np.concatenate(part), first_row=np.concatenate(first),
+                                         program="clusters_morph" if morph else "clusters"))
         return items
 
     def _plan(self, it, sub: np.ndarray, n_idx: int):
@@ -420,9 +528,11 @@ class Drawer:
             n_cmd += cmd.shape[0]
             stats["groups"] += n_groups
             stats["triangles"] += int((cmd[:, 0].astype(np.int64) * cmd[:, 1]).sum()) // 3
+            stats["instances"] += int(np.count_nonzero(it.first_row[sub]))
+            if it.program == "clusters_morph":
+                stats["morph_rows"] += int(sub.size)
         stats["commands"] += n_cmd
         stats["index_bytes"] += 4 * n_idx
-        stats["instances"] += n_inst
         if n_cmd == 0:
             return
         # each submission gets fresh buffers (orphaned), so draws still pending keep their data
@@ -439,20 +549,26 @@ class Drawer:
             ibo = self._grow("_ibo", all_idx.nbytes, "clusters.frame_indices")
             ibo.orphan(self._ibo_cap)
             ibo.write(all_idx)
-        prog = r.program("clusters")
         for it, pb, off, k, c0, nc in plans:
             if nc == 0:
                 continue
             st = it.st
-            vao = self._frame_vao(st) if self.strategy == "indices" else st.vao_ranges
+            prog = r.program(it.program)
+            vao, locs = self._vao(st, it.program)
             st.skin.joints.use(0)
+            if it.program == "clusters_morph":
+                ti, tf = self._morph_textures(st)
+                ti.use(MORPH_INT_UNIT)
+                tf.use(MORPH_FLOAT_UNIT)
+                prog["u_morph_i"].value = MORPH_INT_UNIT
+                prog["u_morph_f"].value = MORPH_FLOAT_UNIT
             prog["u_palette_base"].value = int(pb)
             prog["u_palette_stride"].value = 3 * st.skin.n_joints
             if "u_tint" in prog:
                 prog["u_tint"].value = it.tint
             if "u_fade" in prog:
                 prog["u_fade"].value = getattr(it, "fade", (0.0, 0.0))
-            r._bind_instances(vao, st.locs, inst, off * INSTANCE_FLOATS * 4)
+            r._bind_instances(vao, locs, inst, off * INSTANCE_FLOATS * 4)
             vao.render_indirect(ind, mode=ctx.TRIANGLES, count=nc, first=c0)
             stats["draws"] += 1
 
@@ -466,7 +582,7 @@ class Drawer:
         r = self.renderer
         items = self._collect(batches)
         stats = {"commands": 0, "draws": 0, "groups": 0, "instances": 0, "triangles": 0, "index_bytes": 0,
-                 "queries": 0, "occluded": 0}
+                 "queries": 0, "occluded": 0, "morph_rows": 0}
         self.last_stats = stats
         if not items:
             return
@@ -479,7 +595,8 @@ class Drawer:
         pbases = r._build_palette([(it.st.skin, pal, int(o) * INSTANCE_FLOATS * 4, it.k)
                                    for it, o in zip(items, offs)])
         r.fbo.use()
-        r._set_uniforms(r.program("clusters"), view_proj)
+        for name in {it.program for it in items}:
+            r._set_uniforms(r.program(name), view_proj)
         P = np.asarray(drawlist.proj, np.float64)
         if P[2, 2] != 1.0 and np.isfinite(P[2, 3] / (P[2, 2] - 1.0)):
             self._near = abs(float(P[2, 3] / (P[2, 2] - 1.0)))

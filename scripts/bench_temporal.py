@@ -4,7 +4,9 @@ Two parts, each comparing per-frame selection with selection every n-th frame
 blended in between:
 
 1. The crowd of ``scenes/horses.toml`` (fewer horses and a smaller image than the
-   scene, for run time; both printed) in LOD mode "triangles", rendered along
+   scene, for run time; both printed) in LOD mode "triangles" (levels faded) or
+   "clusters" (``--mode clusters``: cuts geomorphed, :mod:`lod.cluster_morph`,
+   and a faded variant for comparison), rendered along
    the scene's camera path next to the full-detail reference (mode "none").
    Per setting: selection time per displayed frame (the view-dependent part,
    i.e. the mode's ``select`` calls, and the whole ``select`` call including the
@@ -15,13 +17,21 @@ blended in between:
    ``max |G * ((F_t - F_t-1) - (R_t - R_t-1))|`` with G a Gaussian of sigma
    ``--blur`` pixels (the eye integrates a screen-door pattern; a pop is a
    large local change, a blend spreads it over n frames).
+   Mode "clusters" adds the measure of part 2 for the crowd: the screen-space
+   deviation ``e_t(v)`` (pixels) of sampled original vertices between where
+   the representation draws them (the vertex of the cut's cluster they
+   collapsed into, blended by the geomorph) and the full-detail mesh, per
+   frame its mean (error) and, between consecutive frames, the largest
+   ``|e_t(v) - e_t-1(v)|`` (flicker: the change of the drawn surface that the
+   reference does not have).
 2. The bisection terrain (lod/temporal.py) over a 513 x 513 grid: 2^19 leaf
    triangles, 2^20 triangles in its binary hierarchy, on the fly-through of
    ``scripts/bench_terrain_lod.py``: the same figures in screen-space pixels
    of vertex deviation, for per-frame selection and keyframed selection with
    linear blending, and the three §4.1 extrapolation modes' error terms.
 
-Usage: ``python scripts/bench_temporal.py [--frames 40] [--horses 300] [--size 480 270] [--n 8]``.
+Usage: ``python scripts/bench_temporal.py [--frames 40] [--horses 300] [--size 480 270] [--n 8]
+[--mode triangles|clusters] [--part both|crowd|terrain]``.
 """
 from __future__ import annotations
 
@@ -114,18 +124,121 @@ keys = [
 """
 
 
+#: sampled original vertices per character for the crowd's screen-space deviation measure
+DEVIATION_SAMPLES = 400
+#: PoE of the keyframed geomorph run whose mean error matches per-frame selection's (the union
+#: of two cuts is slightly coarser than the current cut while the camera approaches)
+MATCHED_POE = 0.9
+
+
+def deviation_setup(reps, samples: int = DEVIATION_SAMPLES, seed: int = 0) -> dict:
+    """Per cluster rep key: (hierarchy, skinned rep, sampled vertices (S,), a leaf cluster holding each)."""
+    rng = np.random.default_rng(seed)
+    out = {}
+    for r in reps:
+        if getattr(r, "kind", "") != "clusters":
+            continue
+        h = r.hierarchy
+        leaf_tris = np.asarray(h.indices[:h.tri_start[h.n_leaves]], np.int64)
+        owner = np.repeat(np.arange(h.n_leaves), np.diff(h.tri_start[:h.n_leaves + 1]))
+        verts, first = np.unique(leaf_tris.reshape(-1), return_index=True)
+        pick = rng.choice(verts.shape[0], min(samples, verts.shape[0]), replace=False)
+        out[r.key] = (h, r.skinned, verts[pick], owner[first[pick] // 3])
+    return out
+
+
+def _skin_at(sk, verts: np.ndarray, frame: float) -> np.ndarray:
+    """(m, 3) float64 model-space positions of ``verts`` skinned at a fractional row of the baked
+    joint table (as the GPU does: matrices of the two neighbouring rows blended)."""
+    f0 = int(np.clip(np.floor(frame), 0, sk.joint_table.shape[0] - 1))
+    f1 = min(f0 + 1, sk.joint_table.shape[0] - 1)
+    a = float(frame) - np.floor(frame)
+    M = (1 - a) * sk.joint_table[f0].astype(np.float64) + a * sk.joint_table[f1].astype(np.float64)  # (J, 3, 4)
+    j = np.asarray(sk.joints, np.int64)[verts]
+    w = np.asarray(sk.weights, np.float64)[verts]
+    p = np.c_[np.asarray(sk.positions, np.float64)[verts], np.ones(verts.shape[0])]
+    return np.einsum("vk,vkij,vj->vi", w, M[j], p)
+
+
+def vertex_deviations(dl, setup: dict) -> dict:
+    """agent id -> (S, 2) screen-space deviation (pixels) of the sampled vertices, drawn minus
+    full detail, for every agent a cluster batch draws unfaded (NaN rows: vertex culled)."""
+    from lod.cluster_morph import chain_targets, collapse_table
+
+    VP = np.asarray(dl.proj, np.float64) @ np.asarray(dl.view, np.float64)
+    W, H = dl.size
+    out = {}
+
+    def px(q):  # camera-relative world (m, 3) -> pixels (m, 2)
+        c = np.c_[q, np.ones(q.shape[0])] @ VP.T
+        w = np.where(np.abs(c[:, 3]) > 1e-9, c[:, 3], np.nan)
+        return np.c_[(c[:, 0] / w * 0.5 + 0.5) * W, (c[:, 1] / w * 0.5 + 0.5) * H]
+
+    for b in dl.batches:
+        st = setup.get(b.rep)
+        if st is None or b.fade is not None or not hasattr(b, "offsets"):
+            continue
+        h, sk, verts, leaf = st
+        nxt, rem = collapse_table(h)
+        mh, mw = getattr(b, "morph_height", None), getattr(b, "morph_weight", None)
+        data = np.asarray(b.instance_data, np.float64)
+        for i, agent in enumerate(np.asarray(b.instance_ids).tolist()):
+            e = slice(int(b.offsets[i]), int(b.offsets[i + 1]))
+            ent = np.asarray(b.clusters[e], np.int64)
+            if not ent.size:
+                continue
+            order = np.argsort(h.leaf_lo[ent], kind="stable")
+            ent = ent[order]
+            j = np.searchsorted(h.leaf_lo[ent], leaf, side="right") - 1
+            jj = np.clip(j, 0, ent.shape[0] - 1)
+            ok = (j >= 0) & (leaf < h.leaf_hi[ent[jj]])
+            u = chain_targets(nxt, rem, verts, h.height[ent[jj]])
+            if mh is not None:
+                hm = np.asarray(mh[e], np.int64)[order][jj]
+                wm = np.asarray(mw[e], np.float64)[order][jj]
+                x = np.where(hm >= 0, chain_targets(nxt, rem, u, hm), u)
+            else:
+                wm, x = np.zeros(verts.shape[0]), u
+            allv = np.unique(np.concatenate([verts, u, x]))
+            P = _skin_at(sk, allv, data[i, 12])
+            look = lambda v: P[np.searchsorted(allv, v)]  # noqa: E731
+            drawn = (1 - wm)[:, None] * look(u) + wm[:, None] * look(x)
+            M = data[i, :12].reshape(3, 4)
+            true_w = look(verts) @ M[:, :3].T + M[:, 3]
+            drawn_w = drawn @ M[:, :3].T + M[:, 3]
+            d = px(drawn_w) - px(true_w)
+            d[~ok] = np.nan
+            out[agent] = d
+    return out
+
+
+def deviation_step(prev: dict, cur: dict):
+    """(mean |e_t|, largest |e_t - e_t-1|, mean |e_t - e_t-1|) over the sampled vertices of agents
+    drawn in both frames (pixels); ``prev`` None gives NaN flicker."""
+    errs = [np.linalg.norm(d, axis=1) for d in cur.values()]
+    errs = np.concatenate(errs) if errs else np.zeros(0)
+    err = float(np.nanmean(errs)) if np.isfinite(errs).any() else float("nan")
+    if prev is None:
+        return err, float("nan"), float("nan")
+    ch = [np.linalg.norm(cur[a] - prev[a], axis=1) for a in cur if a in prev]
+    ch = np.concatenate(ch) if ch else np.zeros(0)
+    ch = ch[np.isfinite(ch)]
+    return err, float(ch.max()) if ch.size else 0.0, float(ch.mean()) if ch.size else 0.0
+
+
 def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float, speed: float,
-               still: bool = False, path: str = "scene") -> None:
+               still: bool = False, path: str = "scene", lod_mode: str = "triangles") -> None:
     from crowd.engine import Engine
     from crowd.image_metrics import as_float, flicker
     from crowd.scene import load_scene
+    from lod import clusters_mode as cm_mode
     from lod import triangles_mode as tm
     from lod.keyframed_selection import KeyframedSelector, subset_state
     from scipy.ndimage import gaussian_filter
 
     text = (REPO / "scenes" / "horses.toml").read_text()
     text = re.sub(r"count = \d+", f"count = {horses}", text)
-    text = text.replace('mode = "none"', f'mode = "triangles"\npoe = {poe}')
+    text = text.replace('mode = "none"', f'mode = "{lod_mode}"\npoe = {poe}')
     if path == "close":
         a, b = text.index("[camera]"), text.index("[render]")
         text = text[:a] + CLOSE_PATH + "\n" + text[b:]
@@ -137,28 +250,44 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
         e = Engine(scene, overrides={"size": tuple(size), "frames": frames}, quiet=True)
     reps = e.reps
     ref = e._build_mode("none")[1]
+
+    def inner(p=poe):
+        if lod_mode == "clusters":
+            return cm_mode.ClustersSelector(reps, static_reps=e.statics, poe=p)
+        return tm.TrianglesSelector(reps, static_reps=e.statics, poe=p)
+
     settings = [("full detail (reference)", ref, None), ("per-frame selection", e.selector, None)]
-    for mode in ("current", "extrapolated", "delayed"):
-        k = KeyframedSelector(tm.TrianglesSelector(reps, static_reps=e.statics, poe=poe), n=n, mode=mode)
-        settings.append((f"keyframed n={n}, {mode}", k, k))
+    variants = [("current", True, poe), ("extrapolated", True, poe), ("delayed", True, poe)]
+    if lod_mode == "clusters":
+        variants.insert(1, ("current", False, poe))
+        variants.insert(2, ("current", True, round(MATCHED_POE * poe, 3)))
+    for mode, morph, p in variants:
+        k = KeyframedSelector(inner(p), n=n, mode=mode, geomorph=morph)
+        label = f"keyframed n={n}, {mode}" + ("" if lod_mode != "clusters" else (", geomorph" if morph else ", fade"))
+        if p != poe:
+            label += f", poe {p:g} (error matched)"
+        settings.append((label, k, k, p))
+    settings = [x if len(x) == 4 else (*x, poe) for x in settings]
+    dev_setup = deviation_setup(reps) if lod_mode == "clusters" else {}
+    dev = {name: {"err": [], "fmax": [], "fmean": [], "prev": None} for name, *_ in settings}
     r = e.open_renderer(tuple(size))
     statics = [(s.key, np.eye(4)) for s in e.statics]
     bg = scene.render.background
     acc = {name: {"sel": [], "call": [], "tri": [], "err": [], "fl": [], "pop": [], "trans": [], "changes": [],
                   "sw": [], "swl1": []}
-           for name, _, _ in settings}
+           for name, *_ in settings}
     prev = {}
     print(f"# crowd: scenes/horses.toml with {horses} horses (scene: 2500) of "
           f"{e.plan.triangles(0)} triangles, {size[0]}x{size[1]} (scene: 1280x720), {frames} frames, "
           f"camera path {'of the scene' if path == 'scene' else '`--path close` (a dolly into the herd)'} "
-          f"{speed:g}x as fast, mode triangles poe = {poe} px, n = {n}"
+          f"{speed:g}x as fast, mode {lod_mode} poe = {poe} px, n = {n}"
           + ("; herd frozen (no simulation step: only the camera moves)" if still else ""))
     last_levels = {}
     last_dl = {}
     if still:
         e.step()  # one step places the herd on the terrain (terrain_follow); then it stays frozen
     cam0 = e.camera_at(0.0)
-    for _, sel, k in settings:  # warm-up (JIT, caches): not timed
+    for _, sel, k, _ in settings:  # warm-up (JIT, caches): not timed
         sel.select(e.world.state, cam0, tuple(size), statics=statics)
         if k is not None:
             k.reset()
@@ -172,7 +301,7 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
         cam = e.camera_at(t_sim)
         replay.append((subset_state(e.world.state, np.arange(e.world.state.n)), cam))
         imgs = {}
-        for name, sel, k in settings:
+        for name, sel, k, _ in settings:
             t0 = time.perf_counter()
             dl = sel.select(e.world.state, cam, tuple(size), statics=statics)
             call = time.perf_counter() - t0
@@ -186,6 +315,15 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
                 a["swl1"].append(float(np.abs(d).mean()))
                 a["sw"].append(float(np.abs(gaussian_filter(d, sigma)).max()))
             last_dl[name] = dl
+            if dev_setup and name != settings[0][0]:
+                cur = vertex_deviations(dl, dev_setup)
+                dv = dev[name]
+                er, fmax, fmean = deviation_step(dv["prev"], cur)
+                dv["err"].append(er)
+                if dv["prev"] is not None:
+                    dv["fmax"].append(fmax)
+                    dv["fmean"].append(fmean)
+                dv["prev"] = cur
             a["call"].append(call)
             a["sel"].append(k.last_selection_seconds if k is not None else call)
             a["tri"].append(dl.stats.get("triangles", dl.triangles))
@@ -196,7 +334,7 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
                 a["changes"].append(sum(1 for i, v in lv.items() if i in old and old[i] != v))
             last_levels[name] = lv
         R = imgs[settings[0][0]]
-        for name, _, _ in settings:
+        for name, *_ in settings:
             a = acc[name]
             a["err"].append(float(np.abs(as_float(imgs[name]) - as_float(R)).mean()))
             if prev:
@@ -210,7 +348,7 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
           "| flicker mean (L1) | flicker / per-frame | popping mean (peak) | popping / per-frame "
           "| transitions/frame | pops/frame | switch flicker mean (L1) | switch popping (peak) | / per-frame |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for name, _, _ in settings:
+    for name, *_ in settings:
         a = acc[name]
         fl_ratio = np.mean(a["fl"]) / np.mean(base["fl"]) if np.mean(base["fl"]) > 0 else float("nan")
         pop_ratio = np.mean(a["pop"]) / np.mean(base["pop"]) if np.mean(base["pop"]) > 0 else float("nan")
@@ -220,14 +358,27 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
               f"| {pop_ratio:.2f} | {np.mean(a['trans']):.1f} | {np.mean(a['changes'] or [0]):.1f} "
               f"| {np.mean(a['swl1'] or [0]):.6f} | {np.mean(a['sw'] or [0]):.4f} "
               f"| {np.mean(a['sw'] or [0]) / max(np.mean(base['sw']), 1e-12):.2f} |")
+    if dev_setup:
+        db = dev["per-frame selection"]
+        print(f"\n| screen-space vertex deviation ({DEVIATION_SAMPLES} vertices per character) | err mean px "
+              f"| err max px (frame means) | flicker max px (mean over frames) | / per-frame | flicker max px "
+              f"(worst frame) | flicker mean px | / per-frame |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|")
+        for name, _, k, _ in settings[1:]:
+            dv = dev[name]
+            if not dv["fmax"] or (k is not None and not k.geomorph):
+                continue  # a screen-door fade has no single drawn surface
+            print(f"| {name} | {np.nanmean(dv['err']):.3f} | {np.nanmax(dv['err']):.3f} "
+                  f"| {np.mean(dv['fmax']):.3f} | {np.mean(dv['fmax']) / np.mean(db['fmax']):.2f} "
+                  f"| {np.max(dv['fmax']):.3f} | {np.mean(dv['fmean']):.4f} "
+                  f"| {np.mean(dv['fmean']) / np.mean(db['fmean']):.2f} |")
     # selection cost per displayed frame, timed again without rendering: the same states and cameras
     # replayed REPEATS times (fresh selectors each time), median of the totals (the machine is shared)
-    totals = {name: [] for name, _, _ in settings[1:]}
-    calls = {name: [] for name, _, _ in settings[1:]}
+    totals = {name: [] for name, *_ in settings[1:]}
+    calls = {name: [] for name, *_ in settings[1:]}
     for _ in range(REPEATS):
-        for name, _, k in settings[1:]:
-            sel = (KeyframedSelector(tm.TrianglesSelector(reps, static_reps=e.statics, poe=poe), n=n, mode=k.mode)
-                   if k is not None else e.selector)
+        for name, _, k, p in settings[1:]:
+            sel = (KeyframedSelector(inner(p), n=n, mode=k.mode, geomorph=k.geomorph) if k is not None else e.selector)
             sel_t = call_t = 0.0
             for st, cam in replay:
                 t0 = time.perf_counter()
@@ -319,11 +470,13 @@ def main(argv=None) -> None:
     ap.add_argument("--terrain-resolution", type=int, default=513)
     ap.add_argument("--tau", type=float, default=1.0)
     ap.add_argument("--part", choices=("both", "crowd", "terrain"), default="both")
+    ap.add_argument("--mode", choices=("triangles", "clusters"), default="triangles",
+                    help="the crowd's LOD mode: triangle levels (faded) or cluster cuts (geomorphed)")
     a = ap.parse_args(argv)
     if a.frames < 2 or a.horses < 1 or a.n < 2 or not a.speed > 0:
         ap.error("--frames must be >= 2, --horses >= 1, --n >= 2, --speed > 0")
     if a.part in ("both", "crowd"):
-        crowd_part(a.frames, a.horses, tuple(a.size), a.n, a.poe, a.blur, a.speed, a.still, a.path)
+        crowd_part(a.frames, a.horses, tuple(a.size), a.n, a.poe, a.blur, a.speed, a.still, a.path, a.mode)
     if a.part in ("both", "terrain"):
         terrain_part(a.terrain_frames, (1280, 720), a.n, a.tau, a.terrain_resolution)
 

@@ -33,7 +33,8 @@ def test_keyframed_triangles_run_selects_every_nth_frame(tmp_path):
 @pytest.mark.parametrize("mode", ["none", "triangles", "points", "clusters", "auto"])
 def test_keyframe_every_is_valid_for_every_mode(tmp_path, mode):
     s = load_scene(_scene(tmp_path, mode=mode, extra="keyframe_every = 3"))
-    assert dict(s.lod_common) == {"keyframe_every": 3, "keyframe_extrapolation": "extrapolated"}
+    assert dict(s.lod_common) == {"keyframe_every": 3, "keyframe_extrapolation": "extrapolated",
+                                  "keyframe_geomorph": True}
 
 
 @pytest.mark.parametrize("line,needle", [("keyframe_every = 0", "lod.keyframe_every"),
@@ -99,3 +100,26 @@ def test_keyframed_engine_frames_in_every_mode(tmp_path, mode):
             r.draw(dl)
             assert r.read_pixels().max() > 0
         assert keys == [True, False, False, True, False]
+
+
+def test_keyframed_clusters_run_geomorphs_changed_cuts(tmp_path):
+    """A camera dollying in changes the instances' cluster cuts: in-between frames geomorph
+    them (frames.csv lod_geomorphs), and with keyframe_geomorph = false they fade instead."""
+    counts = {}
+    for morph in ("true", "false"):
+        p = tmp_path / f"g_{morph}.toml"
+        p.write_text(tiny_scene(replace={
+            "frames = 3": "frames = 12", "png_every = 1": "png_every = 0", "size = [64, 48]": "size = [160, 120]",
+            "position = [1.0, 2.0, 7.0]\ntarget = [1.0, 0.8, 1.0]":
+                "keys = [{ time = 0.0, position = [1.0, 1.5, 40.0], target = [1.0, 0.9, 0.0] },\n"
+                "        { time = 0.6, position = [1.0, 1.5, 4.0], target = [1.0, 0.9, 0.0] }]",
+            'mode = "none"': f'mode = "clusters"\npoe = 1.0\nkeyframe_every = 4\nkeyframe_extrapolation = "current"\n'
+                             f'keyframe_geomorph = {morph}'}))
+        out = tmp_path / f"out_{morph}"
+        r = run_cli("run", p, "--out", out, "--quiet")
+        assert r.returncode == 0, r.stderr
+        rows = list(csv.DictReader(open(out / "frames.csv")))
+        counts[morph] = (sum(float(x["lod_geomorphs"]) for x in rows), sum(float(x["lod_transitions"]) for x in rows))
+        assert all(int(float(x["instances"])) == 4 for x in rows)
+    assert counts["true"][0] > 0 and counts["true"][0] == counts["true"][1]
+    assert counts["false"][0] == 0 and counts["false"][1] > 0

@@ -348,3 +348,41 @@ def test_filled_silhouette_of_the_walker_within_poe(walker, poe):
             worst, where = err, case
     assert refined == len(walker.cases)  # every cut is really simplified
     assert worst <= poe + np.sqrt(2.0) / SS, (worst, "(clip, time, heading, depth)", where)
+
+
+@pytest.mark.parametrize("strategy", rc.STRATEGIES)
+def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
+    """A geomorphed union (lod/cluster_morph.py, shaders/clusters_morph.vert) renders exactly
+    cut A at t = 0 and exactly cut B at t = 1, pixel for pixel; in between it is neither."""
+    import copy
+
+    from lod import cluster_morph as cm
+
+    st = _state(*CROWD)
+    cam = Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0))
+    img_a, dl_a = _render(scene, scene.sel, st, cam, poe=8.0, strategy=strategy)
+    img_b, dl_b = _render(scene, scene.sel, st, cam, poe=0.7, strategy=strategy)
+    assert [(x.rep, x.part) for x in dl_a.batches] == [(x.rep, x.part) for x in dl_b.batches] and \
+        len(dl_a.batches) == 2  # two clips
+    h = scene.reps[0].hierarchy
+    imgs = {}
+    for t in (0.0, 0.5, 1.0):
+        mbs = []
+        for a, b in zip(dl_a.batches, dl_b.batches):
+            mb, ok = cm.morph_batch(h, a, b, t)
+            assert ok.all() and np.any(mb.morph_height >= 0)
+            mbs.append(mb)
+        dl = copy.copy(dl_a)
+        dl.batches = mbs
+        scene.r.draw(dl, background=BG)
+        imgs[t] = scene.r.read_pixels()
+        stats = scene.r.drawer("clusters").last_stats
+        assert stats["instances"] == 3 and stats["morph_rows"] > 3
+    assert not np.array_equal(img_a, img_b)
+    assert np.array_equal(imgs[0.0], img_a)
+    assert np.array_equal(imgs[1.0], img_b)
+    mid = imgs[0.5]
+    assert not np.array_equal(mid, img_a) and not np.array_equal(mid, img_b)
+    # the half-way silhouette lies between the two: no pixel covered by neither cut appears
+    assert not np.any(_mask(mid) & ~_mask(img_a) & ~_mask(img_b) & ~ndimage.binary_dilation(
+        _mask(img_a) | _mask(img_b), iterations=2))
