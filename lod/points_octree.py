@@ -39,6 +39,13 @@ Departures:
   whole subtree on its own.
 * "Receives a sample" counts the *kept* samples (after stratification), the
   ones that would be drawn; the maximum over the time intervals is used.
+* Candidates per time interval: the set is drawn once by the maximum areas over
+  the keyframe pair; each interval stratifies a random subset thinned to the
+  candidate count and area distribution of its own maximum areas
+  (:func:`lod.points_sampling.interval_thinning`), which is what §3.4.1 would
+  draw for that interval alone. A shrinking surface's late intervals otherwise
+  stratify a set many times denser than their area needs, and the greedy rule
+  keeps more points from a denser set. One interval: the whole set, as before.
 
 Data layout (structure of arrays, ready for numba and GPU upload): nodes in
 breadth-first order with contiguous children; per node a point range for each
@@ -56,7 +63,8 @@ from numba import njit
 
 from lod import points_config as C
 from lod.points_filter import filter_points, filter_set
-from lod.points_sampling import candidate_count, max_area, sample_triangles, triangle_vertices
+from lod.points_sampling import (candidate_count, interval_areas, interval_thinning, max_area, sample_triangles,
+                                 triangle_vertices)
 from lod.points_stratify import choose_interval_times, interval_times, stratify_async, worker_count
 
 
@@ -334,6 +342,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     tlo1, thi1 = V1.min(1), V1.max(1)
     centre = V0.mean(1)
     times = choose_interval_times(V0, V1, m) if adaptive_intervals else interval_times(m)
+    A_int = interval_areas(V0, V1, times) if m > 1 else None
 
     if T:
         root_lo = tlo0.min(0)
@@ -388,12 +397,16 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
             if ctri.size:
                 nd.ctri, nd.cbary = ctri, cbary
                 order = rng.permutation(ctri.size)
+                eligible = None
+                if m > 1:  # each interval stratifies the candidates its own areas call for (§3.4.1)
+                    thin = interval_thinning(a, A_int[:, tris], nd.r, safety)
+                    eligible = rng.random(ctri.size) < thin[:, ctri]
                 h = nd.r * C.POINTS_BIN_RATIO
                 nd.fcount = int(min(filter_factor * int(np.ceil(a.sum() / (h * h))), C.POINTS_MAX_CANDIDATES))
                 nd.fset = filter_set(a, nd.fcount, rng)
                 ahead += ctri.size
                 nd.pending = stratify_async((m, nd.positions(V0, V1, times)), nd.r, order, workers,
-                                            on_done=filtered(nd))
+                                            on_done=filtered(nd), eligible=eligible)
         # 2. stored triangles, children and points of node me
         if bar is None and (show or (show is None and time.perf_counter() - t_start > 1.0)):
             from tqdm.auto import tqdm

@@ -268,6 +268,68 @@ def candidate_count(total_area: float, spacing: float, safety: float = POINTS_SA
     return int(min(k, cap))
 
 
+def interval_areas(v0: np.ndarray, v1: np.ndarray, times) -> np.ndarray:
+    """(m, T) float64 maximum area of every triangle within each time interval.
+
+    v0, v1 : (T, 3, 3) corners at u = 0 and 1; times : (m + 1,) increasing
+    interval boundaries in [0, 1]. The corners move linearly, so within
+    [t_j, t_j+1] the triangle is the linear blend of its corners at the two
+    ends and :func:`max_area` of those gives its largest area there.
+    """
+    t = np.asarray(times, np.float64)
+    v0 = np.asarray(v0, np.float64)
+    v1 = np.asarray(v1, np.float64)
+    out = np.empty((t.shape[0] - 1, v0.shape[0]))
+    for j in range(t.shape[0] - 1):
+        a = (1.0 - t[j]) * v0 + t[j] * v1
+        b = (1.0 - t[j + 1]) * v0 + t[j + 1] * v1
+        out[j] = max_area(a, b)[0]
+    return out
+
+
+def interval_thinning(areas: np.ndarray, interval_area: np.ndarray, spacing: float,
+                      safety: float = POINTS_SAFETY_FACTOR) -> np.ndarray:
+    """(m, T) float64 probability of keeping a candidate of each triangle for each time interval.
+
+    The candidates of a node are drawn once for the keyframe pair, ``candidate_count(sum A)``
+    of them in proportion to every triangle's maximum area A over the pair (§3.4.1). An
+    interval j whose triangles are smaller (a shrinking surface) needs only
+    ``candidate_count(sum A_j)`` candidates in proportion to A_j, its own maximum areas
+    (the coupon-collector argument applied to that interval); keeping each candidate of
+    triangle t with probability ``p_j(t) = (A_j(t) / A(t)) * (N_j / sum A_j) / (N / sum A)``
+    (rejection sampling) turns the shared set into exactly such a draw. A denser set
+    than that covers no better but leaves more points after the greedy stratification (it
+    converges to a packing with more points: 2.59 instead of 2.47 points per r^2 on a static
+    sphere at 10x the density), so thinning lowers the counts of the small-area intervals.
+
+    Parameters
+    ----------
+    areas : (T,) maximum areas over the keyframe pair (:func:`max_area`)
+    interval_area : (m, T) maximum areas within each interval (:func:`interval_areas`)
+    spacing, safety : as for :func:`candidate_count`
+
+    Returns
+    -------
+    (m, T) float64 in [0, 1]; 1 where a triangle's interval area equals its pair area and
+    the counts match (one interval), 0 for zero-area triangles.
+    """
+    A = np.asarray(areas, np.float64)
+    Aj = np.asarray(interval_area, np.float64)
+    n = candidate_count(float(A.sum()), float(spacing), safety)
+    out = np.zeros(Aj.shape)
+    if n == 0:
+        return out
+    for j in range(Aj.shape[0]):
+        sj = float(Aj[j].sum())
+        nj = candidate_count(sj, float(spacing), safety)
+        if nj == 0 or not sj > 0.0:
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = (Aj[j] / A) * ((nj / sj) / (n / float(A.sum())))
+        out[j] = np.clip(np.where(A > 0.0, p, 0.0), 0.0, 1.0)
+    return out
+
+
 def sample_triangles(weights: np.ndarray, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Area-proportional random surface samples in barycentric form (§3.4.1).
 

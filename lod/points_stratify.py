@@ -20,8 +20,13 @@ Eurographics 2002, §3.4.2 and Figure 5:
   cascaded deletion (Fig. 5b): at all times every deleted point keeps a
   present coverer, so at the end every candidate is kept or within r/2 of a
   kept point.
-* Several equal time intervals per keyframe pair (default 3), each stratified
-  separately with the same random order.
+* Several time intervals per keyframe pair (default 3), each stratified
+  separately with the same random order. An interval may stratify a subset of
+  the candidates (``eligible``): the octree thins the shared candidate set to
+  the coupon-collector density of each interval's own maximum areas
+  (:func:`lod.points_sampling.interval_thinning`), as if every interval had
+  drawn its candidates by §3.4.1; the rest of the set takes no part in that
+  interval (neither kept nor needing cover).
 * Neighbour queries use a regular grid with cell r/2 (the sphere radius, as in
   the paper). The paper builds one grid at each end of the interval and
   intersects the two neighbour sets; we build the grid at the interval's start
@@ -509,7 +514,8 @@ def _checked_order(spacing, order, n=None):
     return 0.5 * float(spacing), order
 
 
-def stratify(positions: np.ndarray, spacing: float, order: np.ndarray, threads: int | None = None) -> np.ndarray:
+def stratify(positions: np.ndarray, spacing: float, order: np.ndarray, threads: int | None = None,
+             eligible: np.ndarray | None = None) -> np.ndarray:
     """Stratify moving candidates per time interval (§3.4.2, numba kernels).
 
     Parameters
@@ -521,21 +527,25 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray, threads: 
     order : (N,) int64 permutation of range(N), the random deletion order
     threads : None (:func:`worker_count`) or a thread count; the intervals
         run in parallel, and the result does not depend on it
+    eligible : None (every candidate in every interval) or (m, N) bool, the
+        candidates interval j stratifies (same relative deletion order)
 
     Returns
     -------
-    keep : (m, N) bool. For every interval j and every candidate i, either
-        ``keep[j, i]`` or some kept k has ``|p_i - p_k| <= r/2`` at both ends
-        of interval j (hence throughout it).
+    keep : (m, N) bool. For every interval j and every candidate i eligible in
+        it, either ``keep[j, i]`` or some kept k has ``|p_i - p_k| <= r/2`` at
+        both ends of interval j (hence throughout it); ineligible candidates
+        are not kept.
 
     Raises
     ------
     ValueError on bad shapes, a non-positive spacing or non-finite positions.
     """
-    return stratify_async(positions, spacing, order, threads).result()
+    return stratify_async(positions, spacing, order, threads, eligible=eligible).result()
 
 
-def stratify_async(positions, spacing: float, order: np.ndarray, threads: int | None = None, on_done=None):
+def stratify_async(positions, spacing: float, order: np.ndarray, threads: int | None = None, on_done=None,
+                   eligible: np.ndarray | None = None):
     """Start :func:`stratify` of one candidate set on the thread pool, one
     work item per interval; returns a handle whose ``result()`` waits and
     gives the (m, N) keep array.
@@ -552,10 +562,16 @@ def stratify_async(positions, spacing: float, order: np.ndarray, threads: int | 
         runs at once in the calling thread
     on_done : None or ``on_done(keep)``, called once, in the thread that
         finished the last interval (the octree filters the node there)
+    eligible : as for :func:`stratify`
     """
     job = _checked_job(positions, spacing, order)
+    if eligible is not None:
+        eligible = np.asarray(eligible, np.bool_)
+        if eligible.shape != (job[0], job[3].shape[0]):
+            raise ValueError(f"stratify: eligible must be (m, N) = ({job[0]}, {job[3].shape[0]}), "
+                             f"got {eligible.shape}")
     work = job[0] * job[3].shape[0]
-    return _submit(job, worker_count(threads) if work >= PARALLEL_MIN_CANDIDATES else 1, on_done)
+    return _submit(job, worker_count(threads) if work >= PARALLEL_MIN_CANDIDATES else 1, on_done, eligible)
 
 
 def _checked_job(positions, spacing, order):
@@ -583,7 +599,14 @@ class _Pending:
         return self.keep
 
 
-def _submit(job, workers: int, on_done) -> _Pending:
+def _subset(eligible_j: np.ndarray, order: np.ndarray):
+    """(candidates of the subset (k,), the subset's deletion order (k,) in the order's relative order)."""
+    idx = np.flatnonzero(eligible_j)
+    rank = np.cumsum(eligible_j) - 1
+    return idx, np.ascontiguousarray(rank[order[eligible_j[order]]], np.int64)
+
+
+def _submit(job, workers: int, on_done, eligible=None) -> _Pending:
     m, pos, rad, order = job
     n = order.shape[0]
     keep = np.ones((m, n), np.bool_)
@@ -595,9 +618,19 @@ def _submit(job, workers: int, on_done) -> _Pending:
             p = np.ascontiguousarray(pos(j), np.float64)
             if p.shape != (2, n, 3) or not np.isfinite(p).all():
                 raise ValueError(f"stratify: interval positions must be finite (2, {n}, 3)")
-            _greedy_witness(p[0], p[1], rad, order, keep[j], _NEIGHBOURS)
+            pa, pb = p[0], p[1]
         else:
-            _greedy_witness(pos[j], pos[j + 1], rad, order, keep[j], _NEIGHBOURS)
+            pa, pb = pos[j], pos[j + 1]
+        if eligible is None or eligible[j].all():
+            _greedy_witness(pa, pb, rad, order, keep[j], _NEIGHBOURS)
+        else:
+            idx, sub = _subset(eligible[j], order)
+            k = np.ones(idx.shape[0], np.bool_)
+            if idx.size:
+                _greedy_witness(np.ascontiguousarray(pa[idx]), np.ascontiguousarray(pb[idx]), rad, sub, k,
+                                _NEIGHBOURS)
+            keep[j] = False
+            keep[j, idx] = k
         with lock:
             left[0] -= 1
             last = left[0] == 0
