@@ -49,7 +49,7 @@ from lod.points_traverse import _traverse_kernel, traverse, viewport_scale
 from sim.params import Param
 
 #: version of the cached hierarchy format and build; bump when either changes
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3  # 3: intervals stratify candidates thinned to their own density (points_sampling.interval_thinning)
 #: environment variable naming the cache folder (default ``~/.cache/crowd``)
 CACHE_ENV = "CROWD_CACHE_DIR"
 #: renderer paths of the point splats
