@@ -228,21 +228,23 @@ def _prefetch(typingctx, arr, idx):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _cells(pa, cell):  # pragma: no cover - compiled
-    """Cells of the points pa in a dense grid of cubic cells of side ``cell``.
+def _cells(pa, cell, sel):  # pragma: no cover - compiled
+    """Cells of the points ``pa[sel]`` in a dense grid of cubic cells of side ``cell``.
 
     Returns (lo, dims, cell_start, cell, cell_of): ``cell_start`` (cells + 1,)
-    is the exclusive prefix sum of the cell counts. The cell is enlarged when
-    the dense grid would exceed ~8 cells per point (far-spread input), which
-    keeps the 27-cell query exact (cells are never smaller than asked).
+    is the exclusive prefix sum of the cell counts and ``cell_of[t]`` the cell
+    of point ``sel[t]``. The cell is enlarged when the dense grid would exceed
+    ~8 cells per point (far-spread input), which keeps the 27-cell query exact
+    (cells are never smaller than asked).
     """
-    n = pa.shape[0]
+    n = sel.shape[0]
     lo = np.empty(3)
     hi = np.empty(3)
     for k in range(3):
-        lo[k] = pa[0, k]
-        hi[k] = pa[0, k]
-    for i in range(n):
+        lo[k] = pa[sel[0], k]
+        hi[k] = pa[sel[0], k]
+    for t in range(n):
+        i = sel[t]
         for k in range(3):
             v = pa[i, k]
             if v < lo[k]:
@@ -261,12 +263,13 @@ def _cells(pa, cell):  # pragma: no cover - compiled
         cell *= 1.5
     cell_of = np.empty(n, np.int64)
     counts = np.zeros(tot + 1, np.int64)
-    for i in range(n):
+    for t in range(n):
+        i = sel[t]
         ix = min(int((pa[i, 0] - lo[0]) / cell), dims[0] - 1)
         iy = min(int((pa[i, 1] - lo[1]) / cell), dims[1] - 1)
         iz = min(int((pa[i, 2] - lo[2]) / cell), dims[2] - 1)
         c = (ix * dims[1] + iy) * dims[2] + iz
-        cell_of[i] = c
+        cell_of[t] = c
         counts[c + 1] += 1
     for c in range(tot):
         counts[c + 1] += counts[c]
@@ -277,8 +280,8 @@ def _cells(pa, cell):  # pragma: no cover - compiled
 def _grid(pa, cell):  # pragma: no cover - compiled
     """Counting-sort grid of the points pa (:func:`_cells` plus the point ids
     sorted by cell). Returns (lo, dims, cell_start, sorted_ids, cell, cell_of)."""
-    lo, dims, counts, cell, cell_of = _cells(pa, cell)
     n = pa.shape[0]
+    lo, dims, counts, cell, cell_of = _cells(pa, cell, np.arange(n))
     fill = counts[:-1].copy()
     ids = np.empty(n, np.int64)
     for i in range(n):
@@ -318,6 +321,9 @@ def _neighbour_step(o, i, step, near):  # pragma: no cover - compiled
 def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - compiled
     """Greedy deletion of §3.4.2 with witnesses instead of neighbour counts.
 
+    The points taking part are those ``order0`` lists (all of pa0's rows, or
+    the eligible subset of an interval); ``out`` is written for them only.
+
     Every deleted point d keeps a *witness*: a present point covering it
     (linked lists ``head``/``nxt`` per witness). Deleting i needs (a) a present
     coverer of i and (b) a new present witness (other than i) for every
@@ -338,32 +344,28 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
     decrefs its five arrays atomically on every call, which took 40% of the
     kernel's time (perf).
     """
-    n = pa0.shape[0]
+    n = order0.shape[0]  # the points taking part: order0 lists them (a subset of pa0's rows, or all)
     rad2 = rad * rad
-    lo, dims, start, cell, cell_of0 = _cells(pa0, rad)
+    lo, dims, start, cell, cell_of0 = _cells(pa0, rad, order0)
     tot = start.shape[0] - 1
     # renumber the points in (cell, latest in order first) order with a
     # counting sort: the cell scans then read contiguous memory
     fill = start[:-1].copy()
     perm = np.empty(n, np.int32)
-    inv = np.empty(n, np.int32)
+    order = np.empty(n, np.int32)
+    cell_of = np.empty(n, np.int32)
     for t in range(n - 1, -1, -1):
-        p = order0[t]
-        c = cell_of0[p]
-        perm[fill[c]] = p
-        inv[p] = fill[c]
+        c = cell_of0[t]
+        perm[fill[c]] = order0[t]
+        order[t] = fill[c]
+        cell_of[fill[c]] = c
         fill[c] += 1
     P = np.empty((n, 6))
-    cell_of = np.empty(n, np.int32)
-    order = np.empty(n, np.int32)
     for s in range(n):
         p = perm[s]
         for k in range(3):
             P[s, k] = pa0[p, k]
             P[s, 3 + k] = pb0[p, k]
-        cell_of[s] = cell_of0[p]
-    for t in range(n):
-        order[t] = inv[order0[t]]
     ids = np.arange(n).astype(np.int32)
     keep = np.ones(n, np.bool_)
     cs = np.zeros((tot, 3), np.int64)  # per cell: start, unprocessed, permanent
@@ -599,13 +601,6 @@ class _Pending:
         return self.keep
 
 
-def _subset(eligible_j: np.ndarray, order: np.ndarray):
-    """(candidates of the subset (k,), the subset's deletion order (k,) in the order's relative order)."""
-    idx = np.flatnonzero(eligible_j)
-    rank = np.cumsum(eligible_j) - 1
-    return idx, np.ascontiguousarray(rank[order[eligible_j[order]]], np.int64)
-
-
 def _submit(job, workers: int, on_done, eligible=None) -> _Pending:
     m, pos, rad, order = job
     n = order.shape[0]
@@ -623,14 +618,11 @@ def _submit(job, workers: int, on_done, eligible=None) -> _Pending:
             pa, pb = pos[j], pos[j + 1]
         if eligible is None or eligible[j].all():
             _greedy_witness(pa, pb, rad, order, keep[j], _NEIGHBOURS)
-        else:
-            idx, sub = _subset(eligible[j], order)
-            k = np.ones(idx.shape[0], np.bool_)
-            if idx.size:
-                _greedy_witness(np.ascontiguousarray(pa[idx]), np.ascontiguousarray(pb[idx]), rad, sub, k,
-                                _NEIGHBOURS)
+        else:  # the eligible candidates alone, in the order's relative order
             keep[j] = False
-            keep[j, idx] = k
+            sub = np.ascontiguousarray(order[eligible[j][order]])
+            if sub.size:
+                _greedy_witness(pa, pb, rad, sub, keep[j], _NEIGHBOURS)
         with lock:
             left[0] -= 1
             last = left[0] == 0
