@@ -29,7 +29,8 @@ Prints:
      paper's numbers.
 
 Run:  .venv/bin/python scripts/bench_points.py [--size 1280x720] [--frames 3] [--instances 400]
-      [--scenes] [--table-frames 3] [--grid-frames 3] [--skip-build] [--skip-splat] [--skip-none] [--complexity]
+      [--scenes] [--table-frames 3] [--grid-frames 3] [--grid-time 0] [--skip-build] [--skip-splat] [--skip-none]
+      [--complexity]
 """
 from __future__ import annotations
 
@@ -202,24 +203,26 @@ def camera_times(eng, n):
     return [t_end * (i + 0.5) / n for i in range(n)] if t_end > 0 else [0.0] * n
 
 
-def interleaved_frames(engines: dict, size, frames: int) -> dict:
-    """label -> ``frames`` rows of :func:`run_frames` at camera time 0, the
+def interleaved_frames(engines: dict, size, frames: int, cam_time: float = 0.0) -> dict:
+    """label -> ``frames`` rows of :func:`run_frames` at camera time ``cam_time``, the
     engines' frames taken in turn (so all see the same machine load) after
     one warm-up frame each."""
     rows = {label: [] for label in engines}
     for it in range(frames + 1):
         for label, eng in engines.items():
-            row = run_frames(eng, size, [0.0])[0]
+            row = run_frames(eng, size, [float(cam_time)])[0]
             if it:
                 rows[label].append(row)
     return rows
 
 
-def grid_section(frames, with_none=True):
+def grid_section(frames, with_none=True, cam_time: float = 0.0):
     """Frame times of the 90,000- and the 1,000-instance grid from the same
-    view, their frames interleaved (both engines open at once) so that both
-    see the same machine load; median over ``frames`` frames after a warm-up."""
-    print("\n== grid: output sensitivity (first camera view, splat 2; frames of both grids interleaved) ==")
+    view (the scene's camera at ``cam_time``: 0 = the overview, 8 = the last key,
+    3 m above the ground inside the grid), their frames interleaved (both
+    engines open at once) so that both see the same machine load; median over
+    ``frames`` frames after a warm-up."""
+    print(f"\n== grid: output sensitivity (camera at t = {cam_time:g} s, splat 2; frames of both grids interleaved) ==")
     res = {}
     for size in ((640, 480), (1280, 720)):
         t0 = time.perf_counter()
@@ -234,7 +237,7 @@ def grid_section(frames, with_none=True):
                 res["mb"] = data_mb(big)
                 res["played_mb"] = played_mb(big)
                 res["n_reps"] = sum(1 for r in big.reps if getattr(r, "kind", "") == "points")
-            rows = interleaved_frames({"90,000": big, "1,000": small}, size, frames)
+            rows = interleaved_frames({"90,000": big, "1,000": small}, size, frames, cam_time)
         ctx.release()
         for label in ("90,000", "1,000"):
             r_ = rows[label]
@@ -333,6 +336,8 @@ def main(argv=None):
     ap.add_argument("--scenes", action="store_true", help="also the grid and Tables 1/2 sections (slow)")
     ap.add_argument("--table-frames", type=int, default=3, help="frames per scene and splat size in the tables")
     ap.add_argument("--grid-frames", type=int, default=3, help="frames per grid run")
+    ap.add_argument("--grid-time", type=float, default=0.0,
+                    help="camera time of the grid views (0: the overview; 8: inside the grid, 3 m up)")
     ap.add_argument("--skip-build", action="store_true")
     ap.add_argument("--skip-splat", action="store_true")
     ap.add_argument("--skip-tables", action="store_true")
@@ -360,7 +365,7 @@ def main(argv=None):
             print(f"build of one keyframe pair, {T} triangles, {iv} interval(s): {dt:.2f} s "
                   f"({P} points, {N} nodes, {nb / 1e6:.1f} MB; paper 20-25 s with 1 interval; target <= 3 s)")
     if a.scenes:
-        grid_section(a.grid_frames, not a.skip_none)
+        grid_section(a.grid_frames, not a.skip_none, a.grid_time)
         if a.complexity:
             complexity_section(a.grid_frames)
         if not a.skip_tables:
