@@ -663,3 +663,25 @@ def test_cluster_error_scale_cuts_at_a_tighter_bound(built):
     for bad in (0.5, float("nan")):
         with pytest.raises(ValueError, match="cluster_error_scale"):
             ac.ClustersCandidate([], error_scale=bad)
+
+
+def test_keyframed_auto_geomorphs_its_cluster_cuts(built):
+    """Keyframed selection around auto (lod.keyframed_selection) blends the cluster cuts auto chose
+    at two keyframes by geomorphing (AutoSelector.cluster_hierarchies): a dolly changes the cuts,
+    in-between frames draw morphed unions, every visible instance exactly once."""
+    from lod.keyframed_selection import KeyframedSelector
+
+    sel = KeyframedSelector(_forced(built, "clusters", 1.0), n=4, mode="current")
+    assert set(sel.cluster_hierarchies()) == {r.key for r in built.reps if r.kind == "clusters"}
+    st = _crowd(40, 5, half_width=6.0, depth=60.0)
+    morphed = 0
+    for f in range(12):
+        cam = Camera.look_at((0, 1.6, 8.0 - 3.0 * f), (0, 1.0, -60.0))
+        dl = sel.select(st, cam, SIZE)
+        ids = _ids(dl)
+        ref = np.sort(_ids(built.fsel.select(st, cam, SIZE)))
+        assert np.array_equal(np.sort(ids), np.unique(ids)) and np.isin(ref, ids).all()
+        morphed += dl.stats["geomorphs"]
+        assert all(b.fade is None for b in dl.batches)
+        st.anim_time = st.anim_time + 1 / 30
+    assert morphed > 0
