@@ -72,6 +72,7 @@ from numba import njit
 from tqdm import tqdm
 
 from lod import clustering, deformation, poses, qem
+from lod.atomic_io import atomic_open
 from lod.clusters_config import (CLUSTERS_DEFORM_TOLERANCE, CLUSTERS_LEAF_TRIANGLES, CLUSTERS_POSE_D_FRACTION,
                                  CLUSTERS_POSE_SAMPLES, CLUSTERS_PROGRESS_SECONDS, CLUSTERS_SIMPLIFY_RATIO,
                                  CLUSTERS_SPHERE_PAD)
@@ -178,10 +179,9 @@ class ClusterHierarchy:
         return int(sum(a.nbytes for a in self.arrays().values()))
 
     def save(self, path) -> None:
-        """Write to ``path`` (.npz) atomically (temp file + rename)."""
+        """Write to ``path`` (.npz) atomically (:func:`lod.atomic_io.atomic_open`)."""
         import json
-        import os
-        import tempfile
+
         d = dict(self.arrays())
         d["pose_times"] = self.pose_times
         d["pose_clip"] = self.pose_clip
@@ -190,16 +190,8 @@ class ClusterHierarchy:
         meta = {"n_vertices": self.n_vertices, "n_triangles": self.n_triangles, "pose_clips": self.pose_clips,
                 "params": self.params, "build_seconds": self.build_seconds}
         d["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
-        path = os.fspath(path)
-        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)), suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, **d)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        with atomic_open(path, "wb") as f:
+            np.savez(f, **d)
 
     @classmethod
     def load(cls, path) -> "ClusterHierarchy":

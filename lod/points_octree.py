@@ -62,6 +62,7 @@ import numpy as np
 from numba import njit
 
 from lod import points_config as C
+from lod.atomic_io import atomic_open
 from lod.points_filter import filter_points, filter_set
 from lod.points_sampling import (candidate_count, interval_areas, interval_thinning, max_area, sample_triangles,
                                  triangle_vertices)
@@ -538,29 +539,18 @@ _FORMAT = 1
 
 
 def save_hierarchy(h: PointHierarchy, path) -> None:
-    """Write ``h`` to an ``.npz`` file atomically (temp file + rename).
+    """Write ``h`` to an ``.npz`` file atomically (:func:`lod.atomic_io.atomic_open`).
 
     The file holds every array of :class:`PointHierarchy` plus ``intervals``,
     the build parameters (JSON) and a format number; see
     :func:`load_hierarchy`.
     """
     import json
-    import os
-    import tempfile
-    from pathlib import Path
 
-    path = Path(path)
     arrays = {k: v for k, v in h.__dict__.items() if isinstance(v, np.ndarray)}
     meta = json.dumps({"format": _FORMAT, "intervals": int(h.intervals), "params": h.params})
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, __meta__=np.frombuffer(meta.encode(), np.uint8), **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_open(path, "wb") as f:
+        np.savez(f, __meta__=np.frombuffer(meta.encode(), np.uint8), **arrays)
 
 
 def load_hierarchy(path) -> PointHierarchy:

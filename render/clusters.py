@@ -372,9 +372,7 @@ class Drawer:
         r.upload(replace(rep.skinned, key=skin_key))
         g = r._reps[skin_key]
         h = rep.hierarchy
-        prog = r.program("clusters")
         flat = np.ascontiguousarray(np.asarray(h.indices).reshape(-1))
-        es = flat.dtype.itemsize
         ibo = self.ctx.buffer(flat.tobytes() if flat.size else bytes(16))
         ibo.label = f"{rep.key}.cluster_indices"
         st = _ClusterGpu(rep.key, g, h, flat, ibo, skinned=rep.skinned, objects=[ibo], content=list(g.content),
