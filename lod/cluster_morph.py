@@ -211,54 +211,39 @@ def _union_kernel(lo, hi, ht, off_a, cl_a, off_b, cl_b, out_off, out_cl, out_h, 
         ia = 0
         ib = 0
         while ia < na or ib < nb:
-            if ib >= nb or (ia < na and hi[va[ia]] <= lo[vb[ib]]):
-                out_cl[n] = va[ia]
+            # a cluster only one cut draws here (the other's next one lies beyond it), or both the same: unmoved
+            only_a = ib >= nb or (ia < na and hi[va[ia]] <= lo[vb[ib]])
+            only_b = not only_a and (ia >= na or hi[vb[ib]] <= lo[va[ia]])
+            if only_a or only_b or va[ia] == vb[ib]:
+                out_cl[n] = vb[ib] if only_b else va[ia]
                 out_h[n] = -1
-                out_s[n] = 0
+                out_s[n] = 1 if only_b else 0
                 n += 1
-                ia += 1
-                continue
-            if ia >= na or hi[vb[ib]] <= lo[va[ia]]:
-                out_cl[n] = vb[ib]
-                out_h[n] = -1
-                out_s[n] = 1
-                n += 1
-                ib += 1
+                if not only_b:
+                    ia += 1
+                if not only_a:
+                    ib += 1
                 continue
             a = va[ia]
             b = vb[ib]
-            if a == b:
-                out_cl[n] = a
-                out_h[n] = -1
-                out_s[n] = 0
-                n += 1
-                ia += 1
-                ib += 1
-                continue
             a_coarse = lo[a] <= lo[b] and hi[b] <= hi[a] and ht[a] >= ht[b]
-            covered = 0
+            # the finer side's clusters inside the coarse one morph towards it
             if a_coarse:
-                c = a
-                j = ib
-                while j < nb and lo[vb[j]] < hi[c]:
-                    out_cl[n] = vb[j]
-                    out_h[n] = ht[c]
-                    out_s[n] = 1
-                    n += 1
-                    covered += hi[vb[j]] - lo[vb[j]]
-                    j += 1
+                c, fv, fn, j, side = a, vb, nb, ib, 1
+            else:
+                c, fv, fn, j, side = b, va, na, ia, 0
+            covered = 0
+            while j < fn and lo[fv[j]] < hi[c]:
+                out_cl[n] = fv[j]
+                out_h[n] = ht[c]
+                out_s[n] = side
+                n += 1
+                covered += hi[fv[j]] - lo[fv[j]]
+                j += 1
+            if a_coarse:
                 ia += 1
                 ib = j
             else:
-                c = b
-                j = ia
-                while j < na and lo[va[j]] < hi[c]:
-                    out_cl[n] = va[j]
-                    out_h[n] = ht[c]
-                    out_s[n] = 0
-                    n += 1
-                    covered += hi[va[j]] - lo[va[j]]
-                    j += 1
                 ib += 1
                 ia = j
             if covered != hi[c] - lo[c]:
