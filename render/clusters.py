@@ -285,7 +285,7 @@ class _ClusterGpu:
     occlusion: bool = False
     occlusion_every: int = 8
     clip_aabb: np.ndarray | None = None  # (C, 2, 3) model-space bounds of each clip over all baked frames
-    vaos: dict = field(default_factory=dict)  # (program, index buffer role) -> (vao, index buffer)
+    vaos: dict = field(default_factory=dict)  # (program, per-frame indices?) -> (vao, its index buffer, locations)
     morph_tex: tuple | None = None  # (integer texture, float texture) of the geomorph chains, made on first use
 
 
@@ -710,7 +710,10 @@ class Drawer:
             self._submit(items, visible, pbases, stats)
             for j, s in enumerate(visible):
                 drawn[j][s] = True
-        self._pvs = {it.key: it.ids[d] for it, d in zip(items, drawn)}
+        pvs: dict = {}  # several items share a rep (fades, geomorphs): their visible agents together
+        for it, d in zip(items, drawn):
+            pvs.setdefault(it.key, []).append(it.ids[d])
+        self._pvs = {k: np.unique(np.concatenate(v)) for k, v in pvs.items()}
 
 
 def _sub_csr(offsets: np.ndarray, clusters: np.ndarray, sub: np.ndarray):

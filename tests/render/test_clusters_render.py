@@ -290,6 +290,44 @@ def test_occlusion_culling_never_removes_a_visible_cluster(scene, gl_ctx):
         without.release()
 
 
+def test_occlusion_culling_with_geomorphed_cuts(scene, gl_ctx):
+    """Keyframed selection (lod.keyframed_selection) geomorphs the cuts of a crowd the camera
+    approaches; with occlusion culling the images equal those without, frame by frame."""
+    from dataclasses import replace
+
+    from lod.keyframed_selection import KeyframedSelector
+
+    occ_reps = [replace(rep, occlusion=True, occlusion_every=3) for rep in scene.reps]
+    with_oc, without = Renderer(SIZE, ctx=gl_ctx), Renderer(SIZE, ctx=gl_ctx)
+    try:
+        for rep in occ_reps:
+            with_oc.upload(rep)
+        for rep in scene.reps:
+            without.upload(rep)
+        front = [[x, 0, 0] for x in np.linspace(-1.6, 1.6, 9)]
+        rng = np.random.default_rng(6)
+        back = np.column_stack([rng.uniform(-3, 3, 30), np.zeros(30), rng.uniform(-25, -4, 30)])
+        pos = np.vstack([front, back])
+        n = pos.shape[0]
+        st = _state(pos, rng.uniform(-0.3, 0.3, n), rng.uniform(0, 1, n), np.arange(n) % 2)
+        scene.sel.poe = 1.0
+        sel = KeyframedSelector(scene.sel, n=3, mode="current")
+        morph_rows = occluded = 0
+        for frame in range(9):
+            cam = Camera.look_at((0.0, 1.1, 9.0 - frame), (0, 1.0, -5.0), fov_y=45.0)
+            dl = sel.select(st, cam, SIZE)
+            with_oc.draw(dl, background=BG)
+            without.draw(dl, background=BG)
+            morph_rows += without.drawer("clusters").last_stats["morph_rows"]
+            occluded += with_oc.drawer("clusters").last_stats["occluded"]
+            assert np.array_equal(with_oc.read_pixels(), without.read_pixels()), f"frame {frame}"
+            st.anim_time = st.anim_time + 0.05
+        assert morph_rows > 0 and occluded > 0
+    finally:
+        with_oc.release()
+        without.release()
+
+
 # ---------------------------------------------------------------------------- rendered (filled) silhouettes
 #: the 8,000-triangle procedural walker of scripts/bench_auto.md ("Image error"), seen as in
 #: tests/lod/test_auto_mode.py: camera at (0, 1, 3) looking down -z at one instance at depth z
