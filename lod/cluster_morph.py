@@ -55,6 +55,9 @@ NEVER_REMOVED = np.int32(2 ** 30)
 NO_MORPH = -1
 #: side of a union entry: the finer cluster comes from cut A (blend weight t) or from cut B (weight 1 - t)
 SIDE_A, SIDE_B = 0, 1
+#: longest collapse chain the shader follows (``render/shaders/clusters_morph.vert`` MAX_CHAIN); a chain
+#: climbs strictly in height, so hierarchies up to this height morph (taller ones are faded)
+MAX_CHAIN = 64
 
 
 def collapse_table(h) -> tuple[np.ndarray, np.ndarray]:
@@ -112,12 +115,12 @@ def chain_targets(nxt: np.ndarray, removed_at: np.ndarray, vertices: np.ndarray,
     """
     x = np.asarray(vertices, np.int64).copy()
     hh = np.broadcast_to(np.asarray(heights, np.int64), x.shape)
-    for _ in range(64):
+    for _ in range(MAX_CHAIN):
         go = removed_at[x] <= hh
         if not go.any():
             return x
         x[go] = nxt[x[go]]
-    raise ValueError("cluster geomorph: collapse chain longer than 64 steps (corrupt hierarchy)")
+    raise ValueError(f"cluster geomorph: collapse chain longer than {MAX_CHAIN} steps (corrupt hierarchy)")
 
 
 # ---------------------------------------------------------------------------- union of two cuts
@@ -328,10 +331,13 @@ def morph_batch(h, a, b, t: float):
     batch : a shallow copy of ``a`` restricted to the morphable rows, its cuts replaced by
         the unions, with ``morph_height`` / ``morph_weight`` per entry and the union's
         triangle count; None when no row can morph
-    ok : (k,) bool the rows ``batch`` holds (the others need a fade)
+    ok : (k,) bool the rows ``batch`` holds (the others need a fade; all of them for a hierarchy
+        taller than :data:`MAX_CHAIN` - 1)
     """
     import copy
 
+    if h.height.size and int(h.height.max()) >= MAX_CHAIN:  # chains the shader could not follow to the end
+        return None, np.zeros(a.n_instances, bool)
     off, cl, hs, sd, ok = morph_union(h, a.offsets, a.clusters, b.offsets, b.clusters)
     if not ok.any():
         return None, ok

@@ -264,3 +264,21 @@ def test_take_rows_keeps_morph_entries_aligned(human):
         np.testing.assert_array_equal(sub.clusters[f], mb.clusters[e])
         np.testing.assert_array_equal(sub.morph_height[f], mb.morph_height[e])
         np.testing.assert_array_equal(sub.morph_weight[f], mb.morph_weight[e])
+
+
+def test_hierarchy_too_tall_for_the_shader_is_not_morphed(human):
+    """A hierarchy taller than the shader's chain bound (MAX_CHAIN) falls back to fades."""
+    import copy
+
+    _, h = human
+    tall = copy.copy(h)
+    tall.height = h.height.copy()
+    tall.height[-1] = cm.MAX_CHAIN
+    (oa, ca), (ob, cb) = _cut_pairs(h, 4, 1)
+    a = clusters_mode.ClusterDrawBatch("clusters:h", 0, np.arange(4, dtype=np.int32), np.zeros((4, 16), np.float32),
+                                       offsets=oa, clusters=ca)
+    b = clusters_mode.ClusterDrawBatch("clusters:h", 0, np.arange(4, dtype=np.int32), np.zeros((4, 16), np.float32),
+                                       offsets=ob, clusters=cb)
+    assert cm.morph_batch(h, a, b, 0.5)[0] is not None
+    mb, ok = cm.morph_batch(tall, a, b, 0.5)
+    assert mb is None and not ok.any()

@@ -424,3 +424,17 @@ def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
     # the half-way silhouette lies between the two: no pixel covered by neither cut appears
     assert not np.any(_mask(mid) & ~_mask(img_a) & ~_mask(img_b) & ~ndimage.binary_dilation(
         _mask(img_a) | _mask(img_b), iterations=2))
+
+
+def test_geomorph_shader_constants_match_python():
+    """clusters_morph.vert follows collapse chains of at most lod.cluster_morph.MAX_CHAIN steps
+    and addresses its textures MORPH_TEXTURE_WIDTH texels wide."""
+    import re
+
+    from lod import cluster_morph as cm
+    from render.shaders import load_source
+
+    src = load_source("clusters_morph.vert")
+    assert int(re.search(r"const int MAX_CHAIN = (\d+);", src).group(1)) == cm.MAX_CHAIN
+    w = rc.MORPH_TEXTURE_WIDTH
+    assert f"t & {w - 1}" in src and f"t >> {w.bit_length() - 1}" in src
