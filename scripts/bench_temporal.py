@@ -31,7 +31,7 @@ blended in between:
    linear blending, and the three §4.1 extrapolation modes' error terms.
 
 Usage: ``python scripts/bench_temporal.py [--frames 40] [--horses 300] [--size 480 270] [--n 8]
-[--mode triangles|clusters] [--part both|crowd|terrain]``.
+[--mode triangles|clusters] [--ss 1] [--part both|crowd|terrain]``.
 """
 from __future__ import annotations
 
@@ -226,8 +226,19 @@ def deviation_step(prev: dict, cur: dict):
     return err, float(ch.max()) if ch.size else 0.0, float(ch.mean()) if ch.size else 0.0
 
 
+def downsample(img: np.ndarray, ss: int) -> np.ndarray:
+    """(h, w, c) float image in [0, 1]: the mean of every ss x ss block of a (ss h, ss w, c) image."""
+    from crowd.image_metrics import as_float
+
+    a = as_float(img)
+    if ss == 1:
+        return a
+    h, w = a.shape[0] // ss, a.shape[1] // ss
+    return a[:h * ss, :w * ss].reshape(h, ss, w, ss, -1).mean(axis=(1, 3))
+
+
 def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float, speed: float,
-               still: bool = False, path: str = "scene", lod_mode: str = "triangles") -> None:
+               still: bool = False, path: str = "scene", lod_mode: str = "triangles", ss: int = 1) -> None:
     from crowd.engine import Engine
     from crowd.image_metrics import as_float, flicker
     from crowd.scene import load_scene
@@ -270,7 +281,9 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
     settings = [x if len(x) == 4 else (*x, poe) for x in settings]
     dev_setup = deviation_setup(reps) if lod_mode == "clusters" else {}
     dev = {name: {"err": [], "fmax": [], "fmean": [], "prev": None} for name, *_ in settings}
-    r = e.open_renderer(tuple(size))
+    # the LOD is selected for ``size``; images are rendered ss x larger and box-filtered down (an
+    # antialiased image: a sub-pixel move of an edge changes its pixels a little instead of flipping them)
+    r = e.open_renderer((size[0] * ss, size[1] * ss))
     statics = [(s.key, np.eye(4)) for s in e.statics]
     bg = scene.render.background
     acc = {name: {"sel": [], "call": [], "tri": [], "err": [], "fl": [], "pop": [], "trans": [], "changes": [],
@@ -281,6 +294,7 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
           f"{e.plan.triangles(0)} triangles, {size[0]}x{size[1]} (scene: 1280x720), {frames} frames, "
           f"camera path {'of the scene' if path == 'scene' else '`--path close` (a dolly into the herd)'} "
           f"{speed:g}x as fast, mode {lod_mode} poe = {poe} px, n = {n}"
+          + (f", images rendered at {ss}x{ss} supersampling and box-filtered" if ss > 1 else "")
           + ("; herd frozen (no simulation step: only the camera moves)" if still else ""))
     last_levels = {}
     last_dl = {}
@@ -306,11 +320,11 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
             dl = sel.select(e.world.state, cam, tuple(size), statics=statics)
             call = time.perf_counter() - t0
             r.draw(dl, bg)
-            imgs[name] = r.read_pixels()
+            imgs[name] = downsample(r.read_pixels(), ss)
             a = acc[name]
             if name in last_dl and name != settings[0][0]:  # the image change due to the selection alone
                 r.draw(restage(last_dl[name], dl), bg)
-                same_sel = r.read_pixels()
+                same_sel = downsample(r.read_pixels(), ss)
                 d = as_float(imgs[name]).mean(axis=2) - as_float(same_sel).mean(axis=2)
                 a["swl1"].append(float(np.abs(d).mean()))
                 a["sw"].append(float(np.abs(gaussian_filter(d, sigma)).max()))
@@ -470,13 +484,14 @@ def main(argv=None) -> None:
     ap.add_argument("--terrain-resolution", type=int, default=513)
     ap.add_argument("--tau", type=float, default=1.0)
     ap.add_argument("--part", choices=("both", "crowd", "terrain"), default="both")
+    ap.add_argument("--ss", type=int, default=1, help="supersampling of the crowd's images (1: none)")
     ap.add_argument("--mode", choices=("triangles", "clusters"), default="triangles",
                     help="the crowd's LOD mode: triangle levels (faded) or cluster cuts (geomorphed)")
     a = ap.parse_args(argv)
-    if a.frames < 2 or a.horses < 1 or a.n < 2 or not a.speed > 0:
-        ap.error("--frames must be >= 2, --horses >= 1, --n >= 2, --speed > 0")
+    if a.frames < 2 or a.horses < 1 or a.n < 2 or not a.speed > 0 or not 1 <= a.ss <= 8:
+        ap.error("--frames must be >= 2, --horses >= 1, --n >= 2, --speed > 0, --ss 1..8")
     if a.part in ("both", "crowd"):
-        crowd_part(a.frames, a.horses, tuple(a.size), a.n, a.poe, a.blur, a.speed, a.still, a.path, a.mode)
+        crowd_part(a.frames, a.horses, tuple(a.size), a.n, a.poe, a.blur, a.speed, a.still, a.path, a.mode, a.ss)
     if a.part in ("both", "terrain"):
         terrain_part(a.terrain_frames, (1280, 720), a.n, a.tau, a.terrain_resolution)
 
