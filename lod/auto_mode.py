@@ -480,6 +480,11 @@ class AutoSelector:
         between keyframe cuts, :mod:`lod.keyframed_selection`)."""
         return {r.key: r.hierarchy for r in self.candidate_reps if getattr(r, "kind", "") == "clusters"}
 
+    def chain_reps(self) -> dict:
+        """{rep key: TrianglesRep} of the triangle chains with vertex collapses (for geomorphs
+        between keyframe levels, :mod:`lod.keyframed_selection`)."""
+        return {k: r for k, r in self._chains.items() if getattr(r, "collapse_next", None) is not None}
+
     @property
     def candidate_reps(self) -> list:
         """Every representation the candidates draw (to upload), master reps first."""

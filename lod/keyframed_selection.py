@@ -18,13 +18,15 @@ selections chose for them:
   complementary screen-door (dither) patterns, so every pixel the instance
   covers is drawn by exactly one of the two and the switch is spread evenly
   over the n frames instead of popping;
-- an instance with two different *cluster cuts* of one hierarchy is instead
-  geomorphed (``geomorph``, default; :mod:`lod.cluster_morph`): one batch
-  draws the union of the two cuts, the finer cluster over every part of the
-  mesh, its vertices blended by ``t`` towards the vertices they collapse into
-  in the coarser cut, so the image moves continuously from cut i to cut i+1
-  as the paper's interpolated hierarchies do (an instance whose cuts the
-  frustum clipped so that one lacks part of the other's region is faded);
+- an instance with two different *cluster cuts* of one hierarchy, or two
+  *levels* of one LOD chain, is instead geomorphed (``geomorph``, default):
+  one batch draws the finer representation (for cuts, the union of the two:
+  the finer cluster over every part of the mesh, :mod:`lod.cluster_morph`;
+  for levels, the finer level) with its vertices blended by ``t`` towards the
+  vertices they have collapsed into in the coarser one, so the image moves
+  continuously from selection i to selection i+1 as the paper's interpolated
+  hierarchies do (an instance whose cuts the frustum clipped so that one
+  lacks part of the other's region is faded);
 - an instance only one keyframe selected (it was culled in the other) is drawn
   with that one, unfaded;
 - an instance neither keyframe selected with a representation valid for its
@@ -55,10 +57,12 @@ Friedrich, Polthier & Schmies, *Smooth View-Dependent Rendering in
 Animations*, §3 (the view-dependent selection at keyframes only, the union of
 two keyframe selections drawn in between with a global per-frame weight) and
 §4.1 (camera extrapolation). Departure: the paper interpolates vertex
-positions of two conforming triangle hierarchies; cluster cuts are geomorphed
-the same way, but LOD chain levels and point sets have no common vertices, so
-their blend is a per-pixel choice between the two (screen-door transparency
-with a global weight ``t``).
+positions of two conforming triangle hierarchies; cluster cuts and chain
+levels, whose coarser representations keep a subset of the finer ones'
+vertices, are geomorphed the same way, but point sets have no common
+vertices, so their blend is a per-pixel choice between the two (screen-door
+transparency with a global weight ``t``), as is the switch between two
+different representation families (mode auto).
 """
 from __future__ import annotations
 
@@ -90,8 +94,8 @@ LOD_COMMON_PARAMS: dict = {
     "keyframe_extrapolation": Param("str", KEYFRAME_EXTRAPOLATION_DEFAULT, choices=TEMPORAL_MODES,
                                     doc="camera of the keyframe selections (Friedrich et al. §4.1)"),
     "keyframe_geomorph": Param("bool", True,
-                               doc="blend two keyframe cluster cuts by geomorphing their vertices (else by a "
-                                   "screen-door fade, as points and triangle levels are)"),
+                               doc="blend two keyframe cluster cuts or LOD chain levels by geomorphing their "
+                                   "vertices (else by a screen-door fade, as point sets are)"),
 }
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -340,8 +344,9 @@ class KeyframedSelector:
     cull_margin : degrees the keyframe selections' culling frustum is opened by
         on every side (:class:`MarginCamera`), so that instances entering the
         view between keyframes rarely need a selection on the spot
-    geomorph : blend two cluster cuts of an instance by geomorphing (default) rather
-        than by a screen-door fade (needs ``inner.cluster_hierarchies()``)
+    geomorph : blend two cluster cuts or two chain levels of an instance by geomorphing
+        (default) rather than by a screen-door fade (needs ``inner.cluster_hierarchies()``
+        / ``inner.chain_reps()``)
 
     Attributes
     ----------
@@ -511,18 +516,24 @@ class KeyframedSelector:
                 draw_cam = self.history[-1 - lag] if lag < len(self.history) else self.history[0]
         return self._blend(state, draw_cam, size, statics, A, B, t)
 
-    def _hierarchies(self) -> dict:
-        """{rep key: ClusterHierarchy} the inner selector's cluster cuts refer to ({} without)."""
-        f = getattr(self.inner, "cluster_hierarchies", None)
-        return f() if callable(f) else {}
+    def _morphables(self) -> tuple[dict, dict]:
+        """({rep key: ClusterHierarchy}, {rep key: TrianglesRep}) the inner selector's cluster cuts
+        and chain levels refer to, where geomorphs are possible (``cluster_hierarchies()`` and
+        ``chain_reps()`` of the inner selector; {} without)."""
+        out = []
+        for name in ("cluster_hierarchies", "chain_reps"):
+            f = getattr(self.inner, name, None)
+            out.append(f() if callable(f) else {})
+        return out[0], out[1]
 
     def _geomorphs(self, A: _Key, B: _Key, ids, data, gid, trans, t: float):
-        """Geomorphed batches (:func:`lod.cluster_morph.morph_batch`) of the transitions whose two
-        keyframe rows are cluster cuts of one hierarchy; returns (positions into ``ids`` morphed,
-        batches)."""
-        hier = self._hierarchies()
+        """Geomorphed batches of the transitions whose two keyframe rows are cluster cuts of one
+        hierarchy (:func:`lod.cluster_morph.morph_batch`: the union of the cuts) or two levels of
+        one LOD chain (the finer level, its vertices blended towards the coarser one,
+        ``TriangleDrawBatch.morph``); returns (positions into ``ids`` morphed, batches)."""
+        hier, chains = self._morphables()
         morphed = np.zeros(ids.shape[0], bool)
-        if not hier:
+        if not hier and not chains:
             return morphed, []
         p = np.flatnonzero(trans)
         ab, bb = A.batch[ids[p]], B.batch[ids[p]]
@@ -534,18 +545,34 @@ class KeyframedSelector:
         out = []
         for lo, hi in zip(np.r_[0, cut], np.r_[cut, p.shape[0]]):
             ka, kb = A.drawlist.batches[int(ab[lo])], B.drawlist.batches[int(bb[lo])]
-            h = hier.get(ka.rep)
-            if h is None or ka.rep != kb.rep or not (_is_csr(ka) and _is_csr(kb)):
+            if ka.rep != kb.rep:
                 continue
             q = p[lo:hi]
             agents = ids[q]
             part = self._group_part[int(gid[q[0]])]
-            a = take_rows(ka, A.row[agents], agents.astype(np.int32), data[q], part=None if part == ka.part else part)
-            b = take_rows(kb, B.row[agents], agents.astype(np.int32), data[q])
-            mb, ok = morph_batch(h, a, b, t)
-            if mb is not None:
+            h = hier.get(ka.rep)
+            if h is not None and _is_csr(ka) and _is_csr(kb):
+                a = take_rows(ka, A.row[agents], agents.astype(np.int32), data[q],
+                              part=None if part == ka.part else part)
+                b = take_rows(kb, B.row[agents], agents.astype(np.int32), data[q])
+                mb, ok = morph_batch(h, a, b, t)
+                if mb is not None:
+                    out.append(mb)
+                    morphed[q[ok]] = True
+                continue
+            r = chains.get(ka.rep)
+            if (r is not None and getattr(ka, "index_range", None) is not None
+                    and getattr(kb, "index_range", None) is not None and int(ka.level) != int(kb.level)):
+                # the finer level morphs: towards B's coarser level (weight t), or from A's coarser one (1 - t)
+                a_fine = int(ka.level) < int(kb.level)
+                fine, K = (ka, A) if a_fine else (kb, B)
+                coarse = max(int(ka.level), int(kb.level))
+                mb = take_rows(fine, K.row[agents], agents.astype(np.int32), data[q],
+                               triangles=int(r.level_count[int(fine.level)]) * int(q.size),
+                               part=None if part == fine.part else part)
+                mb.morph = (coarse, float(t) if a_fine else 1.0 - float(t))
                 out.append(mb)
-                morphed[q[ok]] = True
+                morphed[q] = True
         return morphed, out
 
     def _blend(self, state, camera, size, statics, A: _Key, B: _Key, t: float) -> DrawList:

@@ -26,7 +26,12 @@ Representation: one :class:`TrianglesRep` per character, a
 :class:`lod.nolod.SkinnedRep` whose ``indices`` are the chain's index buffers
 concatenated (vertex data shared by all levels); a batch draws one level
 through :attr:`TriangleDrawBatch.index_range` (first index, index count),
-which the renderer's skinned path honours.
+which the renderer's skinned path honours. The rep also keeps the collapse of
+every vertex (the vertex of the next level it collapsed onto, and that level):
+a batch with :attr:`TriangleDrawBatch.morph` draws its level with every vertex
+blended towards the vertex it has become in a coarser level (a geomorph between
+two keyframe selections, :mod:`lod.keyframed_selection`; the same chain walk as
+the cluster geomorphs of :mod:`lod.cluster_morph`).
 
 Selection (per instance, every frame): the projected error of level k is
 ``error_k * s * viewport_scale / d`` pixels, with s the instance's largest axis
@@ -55,13 +60,14 @@ from lod import poses, qem
 from lod.atomic_io import atomic_open
 from lod.cluster_cut import viewport_scale
 from lod.cluster_dag import skin_poses
+from lod.cluster_morph import NEVER_REMOVED
 from lod.clusters_mode import cache_dir, cache_key
 from lod.drawlist import DrawBatch, DrawList
 from lod.nolod import NoLodSelector, SkinnedRep, build_rep, build_skinned_rep
 from sim.params import Param
 
 #: bump when the cached file layout or its meaning changes
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: the vertex collapses (geomorph targets)
 #: a simplified level's error is at least this fraction of the rest box diagonal
 MIN_ERROR_FRACTION = 1e-6
 #: the chain stops when a level keeps more than this fraction of the previous one
@@ -88,6 +94,12 @@ class TrianglesRep(SkinnedRep):
     level_count : (L,) int64, triangles of each level (level 0 = full mesh)
     level_error : (L,) float64, metres in model space, monotone non-decreasing,
         0 for level 0 and > 0 for every other level
+    collapse_next : (V,) int32 or None, the vertex each vertex collapsed onto when
+        it left the chain (itself when it never did)
+    collapse_level : (V,) int32 or None, the first level without the vertex
+        (:data:`lod.cluster_morph.NEVER_REMOVED` when none): following
+        ``collapse_next`` while ``collapse_level <= L`` gives the vertex of level L
+        a vertex has become (:func:`lod.cluster_morph.chain_targets`)
 
     ``n_triangles`` and ``part_triangles`` give the full mesh (level 0).
     """
@@ -95,6 +107,8 @@ class TrianglesRep(SkinnedRep):
     level_first: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     level_count: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     level_error: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    collapse_next: np.ndarray | None = None
+    collapse_level: np.ndarray | None = None
 
     kind = "skinned"
 
@@ -116,9 +130,13 @@ class TrianglesRep(SkinnedRep):
 class TriangleDrawBatch(DrawBatch):
     """A :class:`lod.drawlist.DrawBatch` drawing one level of a chain:
     ``index_range`` = (first index, index count) into the rep's index buffer
-    (indices, i.e. 3 per triangle)."""
+    (indices, i.e. 3 per triangle). ``morph`` = (coarser level, weight in [0, 1])
+    or None: the level's vertices are drawn blended by the weight towards the
+    vertices they have become in the coarser level (weight 1 draws exactly that
+    level's triangles, plus degenerate ones)."""
 
     index_range: tuple | None = None
+    morph: tuple | None = None
 
 
 # ---------------------------------------------------------------------------- chain
@@ -136,6 +154,8 @@ def build_chain(character, skinned: SkinnedRep, levels: int = 7, ratio: float = 
     -------
     indices : list of (T_k, 3) int64 arrays, level 0 first
     error : (L,) float64 metres, monotone, 0 for level 0, > 0 after
+    collapse : ((V,) int32, (V,) int32) the vertex each vertex collapsed onto and the first level
+        without it (``TrianglesRep.collapse_next`` / ``collapse_level``)
     """
     levels = int(levels)
     ratio = float(ratio)
@@ -145,8 +165,11 @@ def build_chain(character, skinned: SkinnedRep, levels: int = 7, ratio: float = 
         raise ValueError(f"[lod] ratio: expected a number in (0, 1), got {ratio}")
     base = np.asarray(skinned.indices, np.int64).reshape(-1, 3)
     chain, errors = [base], [0.0]
+    V = int(np.asarray(skinned.positions).shape[0])
+    nxt = np.arange(V, dtype=np.int32)
+    gone_at = np.full(V, NEVER_REMOVED, np.int32)
     if levels == 1 or base.shape[0] == 0:
-        return chain, np.asarray(errors)
+        return chain, np.asarray(errors), (nxt, gone_at)
     mats, reps, _ = poses.representative_poses(character)
     X_all = skin_poses(character.mesh, mats)
     X_rep = np.ascontiguousarray(X_all[reps])
@@ -162,14 +185,18 @@ def build_chain(character, skinned: SkinnedRep, levels: int = 7, ratio: float = 
         new, remap, e = qem.simplify(X_rep, prev, target, quadrics=Q)
         if new.shape[0] == 0 or new.shape[0] > STALL_FRACTION * prev.shape[0]:
             break
-        rep_of = np.asarray(remap, np.int64)[rep_of]
+        remap = np.asarray(remap, np.int64)
+        rep_of = remap[rep_of]
         measured = qem.collapse_distance(X_all, new, original, rep_of)
         err = max(float(e), float(measured), errors[-1], floor)
         if not np.isfinite(err):
             break
+        gone = np.flatnonzero(remap != np.arange(remap.shape[0]))  # collapsed onto a survivor of the new level
+        nxt[gone] = remap[gone]
+        gone_at[gone] = len(chain)
         chain.append(np.asarray(new, np.int64))
         errors.append(err)
-    return chain, np.asarray(errors, np.float64)
+    return chain, np.asarray(errors, np.float64), (nxt, gone_at)
 
 
 def _chain_key(skinned: SkinnedRep, levels: int, ratio: float) -> str:
@@ -180,23 +207,31 @@ def _chain_key(skinned: SkinnedRep, levels: int, ratio: float) -> str:
     return h.hexdigest()
 
 
-def _save(path: Path, chain, errors) -> None:
+def _save(path: Path, chain, errors, collapse) -> None:
     with atomic_open(path, "wb") as f:
         np.savez(f, indices=np.concatenate(chain).astype(np.uint32),
-                 count=np.asarray([c.shape[0] for c in chain], np.int64), error=np.asarray(errors, np.float64))
+                 count=np.asarray([c.shape[0] for c in chain], np.int64), error=np.asarray(errors, np.float64),
+                 collapse_next=np.asarray(collapse[0], np.int32), collapse_level=np.asarray(collapse[1], np.int32))
 
 
 def _load(path: Path, n_vertices: int):
     try:
         with np.load(path) as z:
             idx, count, err = z["indices"], z["count"], z["error"]
+            nxt, lvl = z["collapse_next"], z["collapse_level"]
     except Exception as exc:  # truncated, corrupt, wrong layout
         raise ValueError(f"{path}: unreadable chain ({exc})") from exc
     if (idx.ndim != 2 or idx.shape[1] != 3 or count.ndim != 1 or err.shape != count.shape or count.sum() != idx.shape[0]
-            or (idx.size and idx.max() >= n_vertices) or not np.isfinite(err).all()):
+            or (idx.size and idx.max() >= n_vertices) or not np.isfinite(err).all()
+            or nxt.shape != (n_vertices,) or lvl.shape != (n_vertices,)
+            or (nxt.size and (nxt.min() < 0 or nxt.max() >= n_vertices))):
         raise ValueError(f"{path}: inconsistent chain arrays")
+    moved = np.flatnonzero(nxt != np.arange(n_vertices))
+    if np.any(lvl[nxt[moved]] <= lvl[moved]):  # a chain must climb, else the walk could loop
+        raise ValueError(f"{path}: inconsistent vertex collapses")
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-    return [idx[a:a + c].astype(np.int64) for a, c in zip(first, count)], err.astype(np.float64)
+    return ([idx[a:a + c].astype(np.int64) for a, c in zip(first, count)], err.astype(np.float64),
+            (nxt.astype(np.int32), lvl.astype(np.int32)))
 
 
 def cached_chain(character, skinned: SkinnedRep, levels: int = 7, ratio: float = 0.5, cache: bool = True,
@@ -215,23 +250,26 @@ def cached_chain(character, skinned: SkinnedRep, levels: int = 7, ratio: float =
             return _load(path, skinned.positions.shape[0])
         except ValueError:
             pass
-    chain, err = build_chain(character, skinned, levels, ratio)
+    chain, err, collapse = build_chain(character, skinned, levels, ratio)
     try:
         d.mkdir(parents=True, exist_ok=True)
-        _save(path, chain, err)
+        _save(path, chain, err, collapse)
     except OSError:
         pass
-    return chain, err
+    return chain, err, collapse
 
 
-def triangles_rep(skinned: SkinnedRep, chain, errors) -> TrianglesRep:
-    """A :class:`TrianglesRep` from a full-detail rep and its chain."""
+def triangles_rep(skinned: SkinnedRep, chain, errors, collapse=None) -> TrianglesRep:
+    """A :class:`TrianglesRep` from a full-detail rep and its chain (``collapse``: the
+    vertex collapses of :func:`build_chain`, for geomorphs; None: none)."""
     count = np.asarray([c.shape[0] for c in chain], np.int64)
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
     fields = {k: getattr(skinned, k) for k in SkinnedRep.__dataclass_fields__}
     fields["indices"] = np.ascontiguousarray(np.concatenate(chain), np.uint32).reshape(-1, 3)
+    nxt, lvl = (None, None) if collapse is None else (np.asarray(collapse[0], np.int32),
+                                                      np.asarray(collapse[1], np.int32))
     return TrianglesRep(**fields, level_first=first, level_count=count,
-                        level_error=np.asarray(errors, np.float64))
+                        level_error=np.asarray(errors, np.float64), collapse_next=nxt, collapse_level=lvl)
 
 
 # ---------------------------------------------------------------------------- selection
@@ -284,6 +322,11 @@ class TrianglesSelector:
         self._chains = {r.key: r for r in self.reps if isinstance(r, TrianglesRep)}
         self._inner = NoLodSelector(self.reps, static_reps=static_reps, cull=cull)
         self._n_levels = max([r.n_levels for r in self._chains.values()] or [1])
+
+    def chain_reps(self) -> dict:
+        """{rep key: TrianglesRep} of the chains with vertex collapses (for geomorphs between
+        keyframe levels, :mod:`lod.keyframed_selection`)."""
+        return {k: r for k, r in self._chains.items() if r.collapse_next is not None}
 
     def select(self, state, camera, size, statics=()) -> DrawList:
         """The frame's DrawList (see :meth:`lod.nolod.NoLodSelector.select`).
@@ -358,8 +401,8 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         key = f"triangles:{name}"
         if getattr(ch, "kind", "") == "skinned" and ch.mesh.is_skinned:
             sk = build_skinned_rep(ch, fps=f, key=key)
-            chain, err = cached_chain(ch, sk, levels, ratio, cache=cache)
-            reps.append(triangles_rep(sk, chain, err))
+            chain, err, collapse = cached_chain(ch, sk, levels, ratio, cache=cache)
+            reps.append(triangles_rep(sk, chain, err, collapse))
         else:
             reps.append(build_rep(ch, fps=f, key=key))
     return reps, TrianglesSelector(reps, static_reps=static_reps, poe=poe)

@@ -40,12 +40,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
 
-import moderngl
 import numpy as np
 from numba import njit
 
 from lod.cluster_morph import collapse_table
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
+from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 
 #: bytes of one DrawElementsIndirectCommand (count, instanceCount, firstIndex, baseVertex, baseInstance)
 COMMAND_BYTES = 20
@@ -57,11 +57,6 @@ PALETTE_SLOT_FLOAT = 13
 #: negative = none) and the blend weight (i_anim.w); ``shaders/clusters_morph.vert``
 MORPH_HEIGHT_FLOAT = 14
 MORPH_WEIGHT_FLOAT = 15
-#: texture units of the geomorph chain textures (0 and 1 hold the joint table and the palette)
-MORPH_INT_UNIT = 2
-MORPH_FLOAT_UNIT = 3
-#: width of the geomorph textures (the shader addresses texel t at (t & 4095, t >> 12))
-MORPH_TEXTURE_WIDTH = 4096
 #: occlusion culling: a camera closer to an instance's box than this many
 #: near-plane distances draws the instance without a query (the box could be clipped)
 OCCLUSION_NEAR_MARGIN = 2.0
@@ -229,38 +224,6 @@ def split_morph_rows(offsets, clusters, heights, weights):
     return out_off, c, inst[starts].astype(np.int64), h[starts].astype(np.float32), w[starts]
 
 
-def morph_textures(ctx, hierarchy, skinned, label: str = "clusters") -> tuple:
-    """The two textures ``shaders/clusters_morph.vert`` reads (width :data:`MORPH_TEXTURE_WIDTH`).
-
-    Integer (RGBA32I), 2 texels per vertex: (next vertex of its collapse chain, height of the
-    cluster that removes it, 0, 0) and its joints; float (RGBA32F), 4 texels per vertex:
-    position, normal, colour, weights (``skinned``: the character's ``lod.nolod.SkinnedRep``).
-    """
-    nxt, removed_at = collapse_table(hierarchy)
-    V = int(hierarchy.n_vertices)
-    W = MORPH_TEXTURE_WIDTH
-    ti = np.zeros((V, 2, 4), np.int32)
-    ti[:, 0, 0] = nxt
-    ti[:, 0, 1] = removed_at
-    ti[:, 1, :] = np.asarray(skinned.joints, np.int64)[:V]
-    tf = np.zeros((V, 4, 4), np.float32)
-    tf[:, 0, :3] = skinned.positions[:V]
-    tf[:, 0, 3] = 1.0
-    tf[:, 1, :3] = skinned.normals[:V]
-    tf[:, 2, :] = skinned.colors[:V]
-    tf[:, 3, :] = skinned.weights[:V]
-    out = []
-    for arr, dtype in ((ti.reshape(-1, 4), "i4"), (tf.reshape(-1, 4), "f4")):
-        rows = max(1, -(-arr.shape[0] // W))
-        full = np.zeros((rows * W, 4), arr.dtype)
-        full[:arr.shape[0]] = arr
-        tex = ctx.texture((W, rows), 4, full.tobytes(), dtype=dtype)
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        tex.label = f"{label}.morph_{'int' if dtype == 'i4' else 'float'}"
-        out.append(tex)
-    return tuple(out)
-
-
 def _cut_arrays(b, n_leaves: int):
     """(offsets, clusters) of a batch: its cut, or every leaf (full detail) for a plain DrawBatch."""
     off = getattr(b, "offsets", None)
@@ -408,7 +371,7 @@ class Drawer:
         """(integer, float) textures of the geomorph chains (``shaders/clusters_morph.vert``):
         per vertex (next vertex, removed-at height), joints / position, normal, colour, weights."""
         if st.morph_tex is None:
-            st.morph_tex = morph_textures(self.ctx, st.hierarchy, st.skinned, st.key)
+            st.morph_tex = morph_textures(self.ctx, *collapse_table(st.hierarchy), st.skinned, st.key)
             st.objects.extend(st.morph_tex)
         return st.morph_tex
 

@@ -55,6 +55,7 @@ import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context
+from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.shaders import program_sources
 
 #: bytes per instance in the instance buffer
@@ -158,6 +159,10 @@ class _GpuRep:
     n_vertices: int = 0
     n_joints: int = 0
     palette_vao: object = None
+    # geomorphs of a LOD chain (lod.triangles_mode TriangleDrawBatch.morph): the rep with its vertex
+    # collapses (kept for the tables, made on first use), then (vertex array, instance locations, tables)
+    morph_source: object = None
+    morph: tuple | None = None
 
 
 class Renderer:
@@ -405,8 +410,33 @@ class Renderer:
         if kind == "keyframed":
             g.seg_first = np.asarray(rep.seg_first, np.int64)
             g.seg_count = np.asarray(rep.seg_count, np.int64)
+        if kind == "skinned" and getattr(rep, "collapse_next", None) is not None:
+            g.morph_source = rep
         self._objects.extend(objs)
         self._reps[rep.key] = g
+
+    def _morph_of(self, g: _GpuRep) -> tuple:
+        """(vertex array, instance locations) of the geomorph program of a LOD chain rep, its
+        collapse tables bound to their texture units (made on first use)."""
+        if g.morph is None:
+            if g.morph_source is None:
+                raise ValueError(f"DrawBatch of {g.key!r} asks for a geomorph, but the representation has no "
+                                 f"vertex collapses (a lod.triangles_mode chain built with them)")
+            r = g.morph_source
+            prog = self.program("skinned_direct_morph" if self.skinning == "direct" else "skinned_morph")
+            vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
+                                        index_element_size=4)
+            vao.label = f"{g.key}.morph_vao"
+            tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key)
+            g.objects.extend([vao, *tex])
+            self._objects.extend([vao, *tex])
+            g.morph = (vao, {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}, tex)
+        vao, locs, (ti, tf) = g.morph
+        ti.use(MORPH_INT_UNIT)
+        tf.use(MORPH_FLOAT_UNIT)
+        vao.program["u_morph_i"].value = MORPH_INT_UNIT
+        vao.program["u_morph_f"].value = MORPH_FLOAT_UNIT
+        return vao, locs
 
     def _release_rep(self, g: _GpuRep) -> None:
         for o in reversed(g.objects):
@@ -441,7 +471,7 @@ class Renderer:
                 vao.bind(loc, "f", buffer, "4f", offset=offset + 16 * i, stride=INSTANCE_BYTES, divisor=1)
 
     def _render_instanced(self, g: _GpuRep, prog, palette_base, offset: int, vertices: int, first: int,
-                          k: int) -> None:
+                          k: int, vao=None, locs=None) -> None:
         """Draw ``k`` instances of ``g`` (instance data from byte ``offset`` of
         the instance buffer, already bound there) in submissions of at most
         ``max_triangles_in_flight`` triangles, waiting for the driver between
@@ -450,15 +480,17 @@ class Renderer:
         instance and, for palette skinning, moves ``u_palette_base`` by as
         many palette blocks (the shader indexes both by ``gl_InstanceID``)."""
         ctx = self.ctx
+        vao = g.vao if vao is None else vao
+        locs = g.locations if locs is None else locs
         budget = self.max_triangles_in_flight
         per = k if not budget else max(1, int(budget) // max(1, vertices // 3))
         for s in range(0, k, per):
             if s:
                 ctx.finish()
-                self._bind_instances(g.vao, g.locations, self._instances, offset + s * INSTANCE_BYTES)
+                self._bind_instances(vao, locs, self._instances, offset + s * INSTANCE_BYTES)
                 if palette_base is not None:
                     prog["u_palette_base"].value = palette_base + s * 3 * g.n_joints
-            g.vao.render(ctx.TRIANGLES, vertices=vertices, first=first, instances=min(per, k - s))
+            vao.render(ctx.TRIANGLES, vertices=vertices, first=first, instances=min(per, k - s))
             self.last_submissions += 1
 
     def _set_uniforms(self, prog, view_proj: np.ndarray) -> None:
@@ -537,10 +569,16 @@ class Renderer:
                 if g.n_indices == 0:
                     offset += b.n_instances * INSTANCE_BYTES
                     continue
-                prog = g.vao.program
+                morph = getattr(b, "morph", None) if g.kind == "skinned" else None
+                vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
+                prog = vao.program
                 if id(prog) not in used:
                     self._set_uniforms(prog, view_proj)
                     used.add(id(prog))
+                if morph is not None:  # a geomorphed chain level (lod.triangles_mode TriangleDrawBatch.morph)
+                    level, weight = int(morph[0]), float(morph[1])
+                    prog["u_morph_level"].value = level
+                    prog["u_morph_weight"].value = min(1.0, max(0.0, weight)) if weight == weight else 0.0
                 if g.joints is not None:
                     g.joints.use(0)
                 if i in palette:
@@ -551,7 +589,7 @@ class Renderer:
                     prog["u_tint"].value = tuple(float(c) for c in tint) if tint is not None else (0.0, 0.0, 0.0, 0.0)
                 if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
                     prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
-                self._bind_instances(g.vao, g.locations, self._instances, offset)
+                self._bind_instances(vao, locs, self._instances, offset)
                 k = b.n_instances
                 if g.kind == "keyframed":
                     self._render_instanced(g, prog, palette.get(i), offset, int(g.seg_count[b.part]),
@@ -561,9 +599,9 @@ class Renderer:
                     if not (0 <= first and 0 <= count and first + count <= g.n_indices):
                         raise ValueError(f"DrawBatch {b.rep!r}: index_range {b.index_range} outside the "
                                          f"{g.n_indices} indices of the representation")
-                    self._render_instanced(g, prog, palette.get(i), offset, count, first, k)
+                    self._render_instanced(g, prog, palette.get(i), offset, count, first, k, vao, locs)
                 else:
-                    self._render_instanced(g, prog, palette.get(i), offset, g.default_count, 0, k)
+                    self._render_instanced(g, prog, palette.get(i), offset, g.default_count, 0, k, vao, locs)
                 offset += k * INSTANCE_BYTES
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's

@@ -132,18 +132,25 @@ MATCHED_POE = 0.9
 
 
 def deviation_setup(reps, samples: int = DEVIATION_SAMPLES, seed: int = 0) -> dict:
-    """Per cluster rep key: (hierarchy, skinned rep, sampled vertices (S,), a leaf cluster holding each)."""
+    """Per rep key with vertex collapses: (collapse next, collapse height/level, height of each cluster or
+    None for a LOD chain, leaf range arrays or None, skinned rep, sampled vertices (S,), a leaf cluster
+    holding each or None)."""
+    from lod.cluster_morph import collapse_table
+
     rng = np.random.default_rng(seed)
     out = {}
     for r in reps:
-        if getattr(r, "kind", "") != "clusters":
-            continue
-        h = r.hierarchy
-        leaf_tris = np.asarray(h.indices[:h.tri_start[h.n_leaves]], np.int64)
-        owner = np.repeat(np.arange(h.n_leaves), np.diff(h.tri_start[:h.n_leaves + 1]))
-        verts, first = np.unique(leaf_tris.reshape(-1), return_index=True)
-        pick = rng.choice(verts.shape[0], min(samples, verts.shape[0]), replace=False)
-        out[r.key] = (h, r.skinned, verts[pick], owner[first[pick] // 3])
+        if getattr(r, "kind", "") == "clusters":
+            h = r.hierarchy
+            leaf_tris = np.asarray(h.indices[:h.tri_start[h.n_leaves]], np.int64)
+            owner = np.repeat(np.arange(h.n_leaves), np.diff(h.tri_start[:h.n_leaves + 1]))
+            verts, first = np.unique(leaf_tris.reshape(-1), return_index=True)
+            pick = rng.choice(verts.shape[0], min(samples, verts.shape[0]), replace=False)
+            out[r.key] = (*collapse_table(h), h, r.skinned, verts[pick], owner[first[pick] // 3])
+        elif getattr(r, "collapse_next", None) is not None:  # a LOD chain (lod.triangles_mode)
+            verts = np.unique(np.asarray(r.level_indices(0), np.int64))
+            pick = rng.choice(verts.shape[0], min(samples, verts.shape[0]), replace=False)
+            out[r.key] = (r.collapse_next, r.collapse_level, None, r, verts[pick], None)
     return out
 
 
@@ -162,8 +169,8 @@ def _skin_at(sk, verts: np.ndarray, frame: float) -> np.ndarray:
 
 def vertex_deviations(dl, setup: dict) -> dict:
     """agent id -> (S, 2) screen-space deviation (pixels) of the sampled vertices, drawn minus
-    full detail, for every agent a cluster batch draws unfaded (NaN rows: vertex culled)."""
-    from lod.cluster_morph import chain_targets, collapse_table
+    full detail, for every agent a cluster or chain batch draws unfaded (NaN rows: vertex culled)."""
+    from lod.cluster_morph import chain_targets
 
     VP = np.asarray(dl.proj, np.float64) @ np.asarray(dl.view, np.float64)
     W, H = dl.size
@@ -176,29 +183,41 @@ def vertex_deviations(dl, setup: dict) -> dict:
 
     for b in dl.batches:
         st = setup.get(b.rep)
-        if st is None or b.fade is not None or not hasattr(b, "offsets"):
+        if st is None or b.fade is not None:
             continue
-        h, sk, verts, leaf = st
-        nxt, rem = collapse_table(h)
-        mh, mw = getattr(b, "morph_height", None), getattr(b, "morph_weight", None)
+        nxt, rem, h, sk, verts, leaf = st
         data = np.asarray(b.instance_data, np.float64)
-        for i, agent in enumerate(np.asarray(b.instance_ids).tolist()):
-            e = slice(int(b.offsets[i]), int(b.offsets[i + 1]))
-            ent = np.asarray(b.clusters[e], np.int64)
-            if not ent.size:
+        if h is None:  # a chain level, geomorphed towards a coarser one or not
+            if getattr(b, "index_range", None) is None:
                 continue
-            order = np.argsort(h.leaf_lo[ent], kind="stable")
-            ent = ent[order]
-            j = np.searchsorted(h.leaf_lo[ent], leaf, side="right") - 1
-            jj = np.clip(j, 0, ent.shape[0] - 1)
-            ok = (j >= 0) & (leaf < h.leaf_hi[ent[jj]])
-            u = chain_targets(nxt, rem, verts, h.height[ent[jj]])
-            if mh is not None:
-                hm = np.asarray(mh[e], np.int64)[order][jj]
-                wm = np.asarray(mw[e], np.float64)[order][jj]
-                x = np.where(hm >= 0, chain_targets(nxt, rem, u, hm), u)
+            u_all = chain_targets(nxt, rem, verts, int(b.level))
+            m = getattr(b, "morph", None)
+            x_all = chain_targets(nxt, rem, u_all, int(m[0])) if m is not None else u_all
+            w_all = np.full(verts.shape[0], float(m[1]) if m is not None else 0.0)
+        for i, agent in enumerate(np.asarray(b.instance_ids).tolist()):
+            ok = np.ones(verts.shape[0], bool)
+            if h is not None:  # a cluster cut (or a geomorphed union of two)
+                if not hasattr(b, "offsets"):
+                    break
+                e = slice(int(b.offsets[i]), int(b.offsets[i + 1]))
+                ent = np.asarray(b.clusters[e], np.int64)
+                if not ent.size:
+                    continue
+                order = np.argsort(h.leaf_lo[ent], kind="stable")
+                ent = ent[order]
+                j = np.searchsorted(h.leaf_lo[ent], leaf, side="right") - 1
+                jj = np.clip(j, 0, ent.shape[0] - 1)
+                ok = (j >= 0) & (leaf < h.leaf_hi[ent[jj]])
+                u = chain_targets(nxt, rem, verts, h.height[ent[jj]])
+                mh, mw = getattr(b, "morph_height", None), getattr(b, "morph_weight", None)
+                if mh is not None:
+                    hm = np.asarray(mh[e], np.int64)[order][jj]
+                    wm = np.asarray(mw[e], np.float64)[order][jj]
+                    x = np.where(hm >= 0, chain_targets(nxt, rem, u, hm), u)
+                else:
+                    wm, x = np.zeros(verts.shape[0]), u
             else:
-                wm, x = np.zeros(verts.shape[0]), u
+                u, x, wm = u_all, x_all, w_all
             allv = np.unique(np.concatenate([verts, u, x]))
             P = _skin_at(sk, allv, data[i, 12])
             look = lambda v: P[np.searchsorted(allv, v)]  # noqa: E731
@@ -268,18 +287,16 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
         return tm.TrianglesSelector(reps, static_reps=e.statics, poe=p)
 
     settings = [("full detail (reference)", ref, None), ("per-frame selection", e.selector, None)]
-    variants = [("current", True, poe), ("extrapolated", True, poe), ("delayed", True, poe)]
-    if lod_mode == "clusters":
-        variants.insert(1, ("current", False, poe))
-        variants.insert(2, ("current", True, round(MATCHED_POE * poe, 3)))
+    variants = [("current", True, poe), ("current", False, poe), ("current", True, round(MATCHED_POE * poe, 3)),
+                ("extrapolated", True, poe), ("delayed", True, poe)]
     for mode, morph, p in variants:
         k = KeyframedSelector(inner(p), n=n, mode=mode, geomorph=morph)
-        label = f"keyframed n={n}, {mode}" + ("" if lod_mode != "clusters" else (", geomorph" if morph else ", fade"))
+        label = f"keyframed n={n}, {mode}" + (", geomorph" if morph else ", fade")
         if p != poe:
             label += f", poe {p:g} (error matched)"
         settings.append((label, k, k, p))
     settings = [x if len(x) == 4 else (*x, poe) for x in settings]
-    dev_setup = deviation_setup(reps) if lod_mode == "clusters" else {}
+    dev_setup = deviation_setup(reps)
     dev = {name: {"err": [], "fmax": [], "fmean": [], "prev": None} for name, *_ in settings}
     # the LOD is selected for ``size``; images are rendered ss x larger and box-filtered down (an
     # antialiased image: a sub-pixel move of an edge changes its pixels a little instead of flipping them)

@@ -88,7 +88,7 @@ def test_level_error_bounds_measured_distance(built, char):
 
 def test_short_chain_and_bad_params(char):
     sk = nolod.build_skinned_rep(char, key="x")
-    chain, err = tm.build_chain(char, sk, levels=1)
+    chain, err, _ = tm.build_chain(char, sk, levels=1)
     assert len(chain) == 1 and err.tolist() == [0.0]
     with pytest.raises(ValueError, match="ratio"):
         tm.build_chain(char, sk, levels=3, ratio=1.5)
@@ -98,16 +98,18 @@ def test_short_chain_and_bad_params(char):
 
 def test_cache_round_trip_and_corrupt_file(char, tmp_path):
     sk = nolod.build_skinned_rep(char, key="x")
-    c1, e1 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
+    c1, e1, k1 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
     files = list(tmp_path.glob("triangles-*.npz"))
     assert len(files) == 1 and not list(tmp_path.glob("*.tmp"))
-    c2, e2 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
+    c2, e2, k2 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
     assert len(c1) == len(c2) == 4
     for a, b in zip(c1, c2):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(e1, e2)
+    np.testing.assert_array_equal(k1[0], k2[0])
+    np.testing.assert_array_equal(k1[1], k2[1])
     files[0].write_bytes(b"garbage")
-    c3, e3 = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
+    c3, e3, _ = tm.cached_chain(char, sk, 4, 0.5, directory=tmp_path)
     np.testing.assert_array_equal(e3, e1)
     tm._load(files[0], sk.positions.shape[0])  # rewritten: loads again
     tm.cached_chain(char, sk, 3, 0.5, directory=tmp_path)
@@ -272,3 +274,76 @@ def test_crowd_run_with_mode_triangles(tmp_path):
     assert len(rows) == 3
     tri = [int(float(r["triangles"])) for r in rows]
     assert all(0 < t < 4 * 600 for t in tri), tri  # far away: coarser than full detail
+
+
+# ------------------------------------------------------------------------------------------ geomorph collapses
+def test_vertex_collapses_map_each_level_onto_every_coarser_one(built):
+    """Following the collapses of a level's vertices up to a coarser level turns its triangles into
+    exactly that level's triangles (plus degenerate ones): what TriangleDrawBatch.morph draws at
+    weight 1 (lod.cluster_morph.chain_targets: the walk the shaders run)."""
+    from lod.cluster_morph import chain_targets
+
+    r = built.rep
+    nxt, lvl = r.collapse_next, r.collapse_level
+    assert nxt.shape == lvl.shape == (r.positions.shape[0],)
+    for fine in range(r.n_levels - 1):
+        for coarse in range(fine + 1, r.n_levels):
+            t = chain_targets(nxt, lvl, r.level_indices(fine).reshape(-1), coarse).reshape(-1, 3)
+            keep = (t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2])
+
+            def canon(a):
+                a = np.asarray(a, np.int64)
+                k = np.argmin(a, axis=1)
+                return sorted(map(tuple, np.stack([a[np.arange(len(a)), (k + j) % 3] for j in range(3)], 1)))
+            assert canon(t[keep]) == canon(r.level_indices(coarse))
+    # a vertex of level L keeps itself up to L (its walk starts above it)
+    v = np.unique(r.level_indices(2))
+    assert np.array_equal(chain_targets(nxt, lvl, v, 2), v)
+
+
+def test_corrupt_collapses_in_the_cache_are_rebuilt(char, tmp_path):
+    sk = nolod.build_skinned_rep(char, key="x")
+    c1, e1, k1 = tm.cached_chain(char, sk, 3, 0.5, directory=tmp_path)
+    f = next(tmp_path.glob("triangles-*.npz"))
+    with np.load(f) as z:
+        d = dict(z)
+    moved = np.flatnonzero(d["collapse_next"] != np.arange(d["collapse_next"].shape[0]))
+    d["collapse_level"][d["collapse_next"][moved[0]]] = 0  # a chain that descends
+    np.savez(f, **d)
+    with pytest.raises(ValueError, match="collapses"):
+        tm._load(f, sk.positions.shape[0])
+    c2, e2, k2 = tm.cached_chain(char, sk, 3, 0.5, directory=tmp_path)  # rebuilt
+    np.testing.assert_array_equal(k2[1], k1[1])
+
+
+def test_keyframed_levels_are_geomorphed(built):
+    """Keyframed selection around the triangles selector blends two different levels of an
+    instance by a geomorph of the finer one (TriangleDrawBatch.morph), never fades, and with
+    geomorph off fades them."""
+    from lod.keyframed_selection import KeyframedSelector
+    from sim.state import CrowdState
+
+    rng = np.random.default_rng(3)
+    st = CrowdState.empty(30)
+    st.position[:] = np.c_[rng.uniform(-5, 5, 30), np.zeros(30), rng.uniform(-80, -2, 30)]
+    st.heading[:] = rng.uniform(0, 6.28, 30)
+    st.scale[:] = 1.0
+    for geomorph in (True, False):
+        sel = KeyframedSelector(tm.TrianglesSelector([built.rep], poe=1.0), n=4, mode="current", geomorph=geomorph)
+        morphs = fades = 0
+        for f in range(12):
+            cam = Camera.look_at((0.0, 1.6, 10.0 - 4.0 * f), (0.0, 1.0, -90.0))
+            dl = sel.select(st, cam, (320, 240))
+            for b in dl.batches:
+                m = getattr(b, "morph", None)
+                if m is not None:
+                    assert b.fade is None and m[0] > b.level and 0.0 <= m[1] <= 1.0
+                    assert b.index_range == (3 * int(built.rep.level_first[b.level]),
+                                             3 * int(built.rep.level_count[b.level]))
+                    morphs += b.n_instances
+                fades += b.fade is not None
+            ids = np.concatenate([b.instance_ids for b in dl.batches if b.fade is None])
+            assert np.unique(ids).size == ids.size
+            assert dl.stats["geomorphs"] == sum(b.n_instances for b in dl.batches
+                                                if getattr(b, "morph", None) is not None)
+        assert (morphs > 0, fades > 0) == ((True, False) if geomorph else (False, True))

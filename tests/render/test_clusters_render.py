@@ -427,14 +427,15 @@ def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
 
 
 def test_geomorph_shader_constants_match_python():
-    """clusters_morph.vert follows collapse chains of at most lod.cluster_morph.MAX_CHAIN steps
+    """morph.glsl (the geomorph shaders) follows collapse chains of at most lod.cluster_morph.MAX_CHAIN steps
     and addresses its textures MORPH_TEXTURE_WIDTH texels wide."""
     import re
 
     from lod import cluster_morph as cm
+    from render.morph import MORPH_TEXTURE_WIDTH
     from render.shaders import load_source
 
-    src = load_source("clusters_morph.vert")
+    src = load_source("morph.glsl")
     assert int(re.search(r"const int MAX_CHAIN = (\d+);", src).group(1)) == cm.MAX_CHAIN
-    w = rc.MORPH_TEXTURE_WIDTH
+    w = MORPH_TEXTURE_WIDTH
     assert f"t & {w - 1}" in src and f"t >> {w.bit_length() - 1}" in src
