@@ -38,9 +38,11 @@ void morph_attributes(int x, out vec3 pos, out vec3 nrm, out vec4 col, out uvec4
 }
 
 // Blend the skinned position p, normal n and colour of vertex v by w towards
-// the vertex it has become at height / level h, skinned with the same rows
-// source: the palette block ``slot`` (palette path) ...
-void morph_blend_palette(int v, int h, float w, int slot, inout vec3 p, inout vec3 n, inout vec4 color) {
+// the vertex it has become at height / level h, skinned like v: from the
+// palette block ``slot`` (``palette``: the palette path) or from the baked
+// frames around ``frame`` (the direct path).
+void morph_blend(int v, int h, float w, bool palette, int slot, float frame,
+                 inout vec3 p, inout vec3 n, inout vec4 color) {
     if (h < 0 || !(w > 0.0)) return;
     int x = morph_target(v, h);
     if (x == v) return;
@@ -49,24 +51,8 @@ void morph_blend_palette(int v, int h, float w, int slot, inout vec3 p, inout ve
     uvec4 tj;
     morph_attributes(x, tp, tn, tc, tj, tw);
     vec4 q0, q1, q2;
-    palette_rows(tj, tw, slot, q0, q1, q2);
-    vec4 th = vec4(tp, 1.0);
-    p = mix(p, vec3(dot(q0, th), dot(q1, th), dot(q2, th)), w);
-    n = mix(n, vec3(dot(q0.xyz, tn), dot(q1.xyz, tn), dot(q2.xyz, tn)), w);
-    color = mix(color, tc, w);
-}
-
-// ... or the baked frames around ``frame`` (direct path).
-void morph_blend_direct(int v, int h, float w, float frame, inout vec3 p, inout vec3 n, inout vec4 color) {
-    if (h < 0 || !(w > 0.0)) return;
-    int x = morph_target(v, h);
-    if (x == v) return;
-    vec3 tp, tn;
-    vec4 tc, tw;
-    uvec4 tj;
-    morph_attributes(x, tp, tn, tc, tj, tw);
-    vec4 q0, q1, q2;
-    skin_rows(tj, tw, frame, q0, q1, q2);
+    if (palette) palette_rows(tj, tw, slot, q0, q1, q2);
+    else skin_rows(tj, tw, frame, q0, q1, q2);
     vec4 th = vec4(tp, 1.0);
     p = mix(p, vec3(dot(q0, th), dot(q1, th), dot(q2, th)), w);
     n = mix(n, vec3(dot(q0.xyz, tn), dot(q1.xyz, tn), dot(q2.xyz, tn)), w);

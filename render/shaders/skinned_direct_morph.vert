@@ -26,7 +26,7 @@ void main() {
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
     vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
     vec4 color = in_color;
-    morph_blend_direct(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), i_anim.x, p, n, color);
+    morph_blend(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), false, 0, i_anim.x, p, n, color);
     v_world = instance_point(p);
     v_normal = instance_dir(n);
     v_color = color;

@@ -28,7 +28,7 @@ void main() {
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
     vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
     vec4 color = in_color;
-    morph_blend_palette(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), gl_InstanceID, p, n, color);
+    morph_blend(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), true, gl_InstanceID, 0.0, p, n, color);
     v_world = instance_point(p);
     v_normal = instance_dir(n);
     v_color = color;

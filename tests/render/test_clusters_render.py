@@ -252,80 +252,73 @@ def test_plain_batch_of_a_clusters_rep_draws_full_detail(scene):
     assert np.array_equal(scene.r.read_pixels(), ref)
 
 
-def test_occlusion_culling_never_removes_a_visible_cluster(scene, gl_ctx):
+@pytest.fixture()
+def occlusion_pair(scene, gl_ctx):
+    """Two renderers of the scene's reps, with and without occlusion culling (§5.2)."""
+    from dataclasses import replace
+
+    with_oc, without = Renderer(SIZE, ctx=gl_ctx), Renderer(SIZE, ctx=gl_ctx)
+    try:
+        for rep in scene.reps:
+            with_oc.upload(replace(rep, occlusion=True, occlusion_every=3))
+            without.upload(rep)
+        yield with_oc, without
+    finally:
+        with_oc.release()
+        without.release()
+
+
+def _occluded_crowd(seed, n_back):
+    """A front row close to the camera hiding a crowd behind it (partly: gaps between legs and arms)."""
+    front = [[x, 0, 0] for x in np.linspace(-1.6, 1.6, 9)]
+    rng = np.random.default_rng(seed)
+    back = np.column_stack([rng.uniform(-3, 3, n_back), np.zeros(n_back), rng.uniform(-25, -4, n_back)])
+    pos = np.vstack([front, back])
+    n = pos.shape[0]
+    return _state(pos, rng.uniform(-0.3, 0.3, n), rng.uniform(0, 1, n), np.arange(n) % 2)
+
+
+def test_occlusion_culling_never_removes_a_visible_cluster(scene, occlusion_pair):
     """§5.2: images equal with and without occlusion culling over frames that
     rebuild the visible set and frames that reuse it, while queries do cull."""
-    from dataclasses import replace
-
-    occ_reps = [replace(rep, occlusion=True, occlusion_every=3) for rep in scene.reps]
-    with_oc, without = Renderer(SIZE, ctx=gl_ctx), Renderer(SIZE, ctx=gl_ctx)
-    try:
-        for rep in occ_reps:
-            with_oc.upload(rep)
-        for rep in scene.reps:
-            without.upload(rep)
-        # a front row close to the camera hides a crowd behind it (partly: gaps between legs and arms)
-        front = [[x, 0, 0] for x in np.linspace(-1.6, 1.6, 9)]
-        rng = np.random.default_rng(5)
-        back = np.column_stack([rng.uniform(-3, 3, 40), np.zeros(40), rng.uniform(-25, -4, 40)])
-        pos = np.vstack([front, back])
-        n = pos.shape[0]
-        st = _state(pos, rng.uniform(-0.3, 0.3, n), rng.uniform(0, 1, n), np.arange(n) % 2)
-        scene.sel.poe = 1.0
-        occluded = 0
-        for frame in range(7):
-            cam = Camera.look_at((0.05 * frame, 1.1, 1.6), (0, 1.0, -5.0), fov_y=45.0)
-            dl = scene.sel.select(st, cam, SIZE)
-            with_oc.draw(dl, background=BG)
-            without.draw(dl, background=BG)
-            s = with_oc.drawer("clusters").last_stats
-            occluded += s["occluded"]
-            assert s["instances"] + s["occluded"] == dl.stats["instances"]
-            assert np.array_equal(with_oc.read_pixels(), without.read_pixels()), f"frame {frame}"
-            st.anim_time = st.anim_time + 0.1
-        assert occluded > 0
-        assert with_oc.drawer("clusters").frame == 7
-    finally:
-        with_oc.release()
-        without.release()
+    with_oc, without = occlusion_pair
+    st = _occluded_crowd(5, 40)
+    scene.sel.poe = 1.0
+    occluded = 0
+    for frame in range(7):
+        cam = Camera.look_at((0.05 * frame, 1.1, 1.6), (0, 1.0, -5.0), fov_y=45.0)
+        dl = scene.sel.select(st, cam, SIZE)
+        with_oc.draw(dl, background=BG)
+        without.draw(dl, background=BG)
+        s = with_oc.drawer("clusters").last_stats
+        occluded += s["occluded"]
+        assert s["instances"] + s["occluded"] == dl.stats["instances"]
+        assert np.array_equal(with_oc.read_pixels(), without.read_pixels()), f"frame {frame}"
+        st.anim_time = st.anim_time + 0.1
+    assert occluded > 0
+    assert with_oc.drawer("clusters").frame == 7
 
 
-def test_occlusion_culling_with_geomorphed_cuts(scene, gl_ctx):
+def test_occlusion_culling_with_geomorphed_cuts(scene, occlusion_pair):
     """Keyframed selection (lod.keyframed_selection) geomorphs the cuts of a crowd the camera
     approaches; with occlusion culling the images equal those without, frame by frame."""
-    from dataclasses import replace
-
     from lod.keyframed_selection import KeyframedSelector
 
-    occ_reps = [replace(rep, occlusion=True, occlusion_every=3) for rep in scene.reps]
-    with_oc, without = Renderer(SIZE, ctx=gl_ctx), Renderer(SIZE, ctx=gl_ctx)
-    try:
-        for rep in occ_reps:
-            with_oc.upload(rep)
-        for rep in scene.reps:
-            without.upload(rep)
-        front = [[x, 0, 0] for x in np.linspace(-1.6, 1.6, 9)]
-        rng = np.random.default_rng(6)
-        back = np.column_stack([rng.uniform(-3, 3, 30), np.zeros(30), rng.uniform(-25, -4, 30)])
-        pos = np.vstack([front, back])
-        n = pos.shape[0]
-        st = _state(pos, rng.uniform(-0.3, 0.3, n), rng.uniform(0, 1, n), np.arange(n) % 2)
-        scene.sel.poe = 1.0
-        sel = KeyframedSelector(scene.sel, n=3, mode="current")
-        morph_rows = occluded = 0
-        for frame in range(9):
-            cam = Camera.look_at((0.0, 1.1, 9.0 - frame), (0, 1.0, -5.0), fov_y=45.0)
-            dl = sel.select(st, cam, SIZE)
-            with_oc.draw(dl, background=BG)
-            without.draw(dl, background=BG)
-            morph_rows += without.drawer("clusters").last_stats["morph_rows"]
-            occluded += with_oc.drawer("clusters").last_stats["occluded"]
-            assert np.array_equal(with_oc.read_pixels(), without.read_pixels()), f"frame {frame}"
-            st.anim_time = st.anim_time + 0.05
-        assert morph_rows > 0 and occluded > 0
-    finally:
-        with_oc.release()
-        without.release()
+    with_oc, without = occlusion_pair
+    st = _occluded_crowd(6, 30)
+    scene.sel.poe = 1.0
+    sel = KeyframedSelector(scene.sel, n=3, mode="current")
+    morph_rows = occluded = 0
+    for frame in range(9):
+        cam = Camera.look_at((0.0, 1.1, 9.0 - frame), (0, 1.0, -5.0), fov_y=45.0)
+        dl = sel.select(st, cam, SIZE)
+        with_oc.draw(dl, background=BG)
+        without.draw(dl, background=BG)
+        morph_rows += without.drawer("clusters").last_stats["morph_rows"]
+        occluded += with_oc.drawer("clusters").last_stats["occluded"]
+        assert np.array_equal(with_oc.read_pixels(), without.read_pixels()), f"frame {frame}"
+        st.anim_time = st.anim_time + 0.05
+    assert morph_rows > 0 and occluded > 0
 
 
 # ---------------------------------------------------------------------------- rendered (filled) silhouettes
