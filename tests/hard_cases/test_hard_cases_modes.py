@@ -116,3 +116,34 @@ def test_180_degree_keys_in_the_triangles_chain(tmp_path, monkeypatch):
     assert chains
     for rep in chains:
         assert np.isfinite(rep.level_error).all() and (np.diff(rep.level_error) >= 0).all()
+
+
+@pytest.mark.parametrize("mode", ["triangles", "clusters", "auto"])
+def test_geomorphs_of_the_stressed_character(gl_ctx, mode, tmp_path, monkeypatch):
+    """Keyframed selection (n = 3) geomorphs chain levels and cluster cuts of the zero-scale and
+    folded clips while the camera dollies in from far: finite instance data and morph weights,
+    every agent drawn, images not blank."""
+    from lod.keyframed_selection import KeyframedSelector
+
+    ch = _stressed_character()
+    reps, inner = _build(mode, [ch], tmp_path, monkeypatch)
+    sel = KeyframedSelector(inner, n=3, mode="current")
+    st = crowd(16, spacing=1.5)
+    st.clip[:8] = ch.clip_index("vanish")
+    st.clip[8:] = ch.clip_index("flip")
+    size = (96, 64)
+    morphs = 0
+    with Renderer(size, ctx=gl_ctx, debug=True) as r:
+        for rep in reps:
+            r.upload(rep)
+        for f in range(9):
+            st.anim_time[:] = 0.4 + 0.05 * f  # across the zero-scale key (0.5) and the 180-degree one (0.8)
+            dl = sel.select(st, look((2, 3 + 4 * (8 - f), 12 + 10 * (8 - f)), (2, 1, 2)), size)
+            r.draw(dl)
+            check_frame(r, dl)
+            for b in dl.batches:
+                for w in (getattr(b, "morph_weight", None), (getattr(b, "morph", None) or (0, 0.0))[1:]):
+                    assert w is None or np.isfinite(np.asarray(w, np.float64)).all()
+            morphs += dl.stats["geomorphs"]
+            assert r.read_pixels().std() > 0
+    assert morphs > 0 or mode == "auto"
