@@ -130,12 +130,17 @@ def make_engine(name, mode, size, splat=2, edits=()):
         if a not in text:
             raise SystemExit(f"bench_points: scenes/{name}.toml no longer holds {a!r}; update GRID_1000")
         text = text.replace(a, b)
+    import shutil
+
     tmp = Path(tempfile.mkdtemp(prefix="bench_points_")) / f"{name}.toml"
-    tmp.write_text(text)
-    sc = load_scene(tmp)
-    params = (("splat_size", int(splat)),) if mode == "points" else ()
-    sc = dataclasses.replace(sc, lod_mode=mode, lod_params=params)
-    return Engine(sc, overrides={"size": size}, quiet=True)
+    try:
+        tmp.write_text(text)
+        sc = load_scene(tmp)
+        params = (("splat_size", int(splat)),) if mode == "points" else ()
+        sc = dataclasses.replace(sc, lod_mode=mode, lod_params=params)
+        return Engine(sc, overrides={"size": size}, quiet=True)  # the engine has read everything it needs
+    finally:
+        shutil.rmtree(tmp.parent, ignore_errors=True)
 
 
 def run_frames(eng, size, times, splat=None):
