@@ -128,7 +128,8 @@ from lod import cost_model
 from lod import triangles_mode as tm
 from lod.cluster_cut import viewport_scale
 from lod.clusters_config import CLUSTERS_LEAF_TRIANGLES
-from lod.drawlist import DrawBatch, DrawList
+from lod.drawlist import DrawList
+from lod.keyframed_selection import subset_state
 from lod.nolod import NoLodSelector
 from sim.params import Param
 
@@ -407,19 +408,6 @@ class _Block:
         return b
 
 
-def _without(b, taken):
-    """Batch ``b`` without the agents ``taken`` ((n,) bool; drawn as whole groups this frame): the same
-    batch when none of its agents is taken, None when all are."""
-    keep = ~taken[np.asarray(b.instance_ids, np.int64)]
-    if keep.all():
-        return b
-    if not keep.any():
-        return None
-    per = int(b.triangles) // max(b.n_instances, 1)
-    return DrawBatch(b.rep, b.part, b.instance_ids[keep], b.instance_data[keep], triangles=per * int(keep.sum()),
-                     points=0, level=b.level, tint=b.tint)
-
-
 class AutoSelector:
     """Cull and pack as the full-detail mode, then choose per instance among
     the candidates (module docstring).
@@ -670,7 +658,6 @@ class AutoSelector:
         bound = float(self.bound)
         if not (np.isfinite(bound) and bound >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
-        dl = self._inner.select(state, camera, size, statics)
         w, h = max(1, int(size[0])), max(1, int(size[1]))
         frame = ac.Frame(state, camera, (w, h), camera.frustum_planes(w / h), viewport_scale(h, camera.fov_y), bound,
                          self.prior, self.cull)
@@ -680,7 +667,7 @@ class AutoSelector:
         out = []
         groups = []  # (group, [_Block per candidate], columns)
         # whole groups first (§3.6 super-hierarchies): their agents get no per-instance option
-        wholes, taken, fixed_s, fixed_used = [], None, 0.0, set()
+        wholes, taken, fixed_s, fixed_used, represented = [], None, 0.0, set(), 0
         if bound > 0.0:
             for c in self.candidates[1:]:
                 wb, tk, sec = c.wholes(frame)
@@ -691,16 +678,26 @@ class AutoSelector:
                     taken = tk if taken is None else taken | tk
                     n_rep = int(sum(getattr(x, "represented", x.n_instances) for x in wb))
                     per_cand[c.name] += n_rep
+                    represented += n_rep
                     tel.add(c.name, "super", n_rep)
+        if taken is not None and taken.any():
+            # only the agents no whole group draws are culled and packed (as mode points does): a far view
+            # of 90,000 instancing agents drawn from super nodes packs none of them
+            keep = np.flatnonzero(~taken)
+            dl = self._inner.select(subset_state(state, keep), camera, size, statics)
+            for b in dl.batches:
+                ids = np.asarray(b.instance_ids, np.int64)
+                if ids.size and ids[0] >= 0:
+                    b.instance_ids = keep[ids].astype(np.int32)
+            dl.stats["instances"] += represented
+            dl.stats["culled"] = int(state.n - dl.stats["instances"])
+        else:
+            dl = self._inner.select(state, camera, size, statics)
         for b in dl.batches:
             ri = self._rep_index.get(b.rep)
             if ri is None or b.n_instances == 0 or int(b.instance_ids[0]) < 0:  # scenery
                 out.append(b)
                 continue
-            if taken is not None:
-                b = _without(b, taken)
-                if b is None:
-                    continue
             rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
             g = ac.Group(ri, b, rows)
             opts = self._options(frame, g, bound)
