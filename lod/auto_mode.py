@@ -129,7 +129,6 @@ from lod import triangles_mode as tm
 from lod.cluster_cut import viewport_scale
 from lod.clusters_config import CLUSTERS_LEAF_TRIANGLES
 from lod.drawlist import DrawList
-from lod.keyframed_selection import subset_state
 from lod.nolod import NoLodSelector
 from sim.params import Param
 
@@ -683,12 +682,7 @@ class AutoSelector:
         if taken is not None and taken.any():
             # only the agents no whole group draws are culled and packed (as mode points does): a far view
             # of 90,000 instancing agents drawn from super nodes packs none of them
-            keep = np.flatnonzero(~taken)
-            dl = self._inner.select(subset_state(state, keep), camera, size, statics)
-            for b in dl.batches:
-                ids = np.asarray(b.instance_ids, np.int64)
-                if ids.size and ids[0] >= 0:
-                    b.instance_ids = keep[ids].astype(np.int32)
+            dl = self._inner.select(state, camera, size, statics, agents=np.flatnonzero(~taken))
             dl.stats["instances"] += represented
             dl.stats["culled"] = int(state.n - dl.stats["instances"])
         else:

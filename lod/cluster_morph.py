@@ -46,6 +46,8 @@ the union per instance (numba kernel beside :func:`morph_union_numpy`), and
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 from numba import njit
 
@@ -334,8 +336,6 @@ def morph_batch(h, a, b, t: float):
     ok : (k,) bool the rows ``batch`` holds (the others need a fade; all of them for a hierarchy
         taller than :data:`MAX_CHAIN` - 1)
     """
-    import copy
-
     if h.height.size and int(h.height.max()) >= MAX_CHAIN:  # chains the shader could not follow to the end
         return None, np.zeros(a.n_instances, bool)
     off, cl, hs, sd, ok = morph_union(h, a.offsets, a.clusters, b.offsets, b.clusters)

@@ -907,7 +907,7 @@ class NoLodSelector:
         self._n_clips = np.array([(r.n_clips if r.kind == "keyframed" else r.n_parts) for r in self.reps] or [0])
 
     # -------------------------------------------------------------------------
-    def select(self, state, camera, size, statics=()) -> DrawList:
+    def select(self, state, camera, size, statics=(), agents=None) -> DrawList:
         """Build the frame's DrawList.
 
         Parameters
@@ -917,6 +917,9 @@ class NoLodSelector:
         size : (width, height) pixels
         statics : sequence of (StaticRep key, (4, 4) float64 world matrix),
             each drawn as a single-instance batch (instance id -1).
+        agents : None (every agent) or (m,) increasing int agent indices: only
+            these are culled and packed (instance ids stay the state's); e.g. the
+            agents no super-hierarchy node draws (Wand & Straßer §3.6)
 
         Returns
         -------
@@ -928,9 +931,15 @@ class NoLodSelector:
         aspect = w / max(1, h)
         origin = np.asarray(camera.position, np.float64).copy()
         planes = camera.frustum_planes(aspect)
-        n = state.n
-        char = np.asarray(state.character, np.int64)
-        clip = np.asarray(state.clip, np.int64)
+        sel = None if agents is None else np.asarray(agents, np.int64)
+
+        def pick(a, dtype):
+            a = np.asarray(a, dtype)
+            return a if sel is None else a[sel]
+
+        n = state.n if sel is None else int(sel.shape[0])
+        char = pick(state.character, np.int64)
+        clip = pick(state.clip, np.int64)
         nreps = len(self.reps)
         if n and (char.min() < 0 or char.max() >= nreps):
             raise ValueError(f"CrowdState.character: expected indices in 0..{nreps - 1}, got {char.min()}..{char.max()}")
@@ -938,11 +947,11 @@ class NoLodSelector:
             clip = np.where(self._is_static[char], 0, clip)
         if n and (clip.min() < 0 or (clip >= self._n_clips[char]).any()):
             bad = int(np.flatnonzero((clip < 0) | (clip >= self._n_clips[char]))[0])
-            raise ValueError(f"CrowdState.clip[{bad}] = {clip[bad]}: expected a clip index below "
-                             f"{self._n_clips[char[bad]]} for character {char[bad]}")
+            raise ValueError(f"CrowdState.clip[{bad if sel is None else int(sel[bad])}] = {clip[bad]}: expected a "
+                             f"clip index below {self._n_clips[char[bad]]} for character {char[bad]}")
 
         gid = self._g.offset[char] + clip if nreps else np.zeros(0, np.int64)
-        t = np.asarray(state.anim_time, np.float64)
+        t = pick(state.anim_time, np.float64)
         anim = np.zeros(n, np.float64)
         for ri, r in enumerate(self.reps):
             if r.kind != "keyframed":
@@ -955,17 +964,19 @@ class NoLodSelector:
                 seg, u = r.locate(a, t[ma])
                 gid[ma] = self._g.offset[ri] + seg
                 anim[ma] = u
-        pos = np.asarray(state.position, np.float64)
-        scale = np.asarray(state.scale, np.float64)
+        pos = pick(state.position, np.float64)
+        scale = pick(state.scale, np.float64)
         if n and not (np.isfinite(pos).all() and np.isfinite(scale).all()):
             raise FloatingPointError("CrowdState.position/scale hold NaN or Inf; refusing to draw them")
-        heading = np.asarray(state.heading, np.float64)
+        heading = pick(state.heading, np.float64)
         args = (pos, origin, heading, scale, gid, t, anim, self._g.sphere, self._g_skinned, self._g_off, self._g_fps,
                 self._g_dur, self._g_loop, self._g_last, planes, self.cull)
         if self.use_kernel:
             ids, data, counts = instance_batches(*args)
         else:
             ids, data, counts = instance_batches_numpy(*args)
+        if sel is not None:
+            ids = sel[ids].astype(np.int32)
         batches = []
         a = 0
         for g in np.flatnonzero(counts).tolist():

@@ -553,14 +553,7 @@ class PointsSelector:
             supers = super_batches(draws, planes, vs, self.splat_size)
             represented = sum(b.represented for b in supers)
             if not flat.all():
-                from sim.state import CrowdState
-
-                keep = np.flatnonzero(flat)
-                sub = CrowdState(**{k: np.asarray(v)[keep] for k, v in state.arrays().items()})
-                dl = self._base.select(sub, camera, size, statics)
-                for b in dl.batches:
-                    if b.rep in self._by_key:
-                        b.instance_ids = keep[np.asarray(b.instance_ids, np.int64)].astype(np.int32)
+                dl = self._base.select(state, camera, size, statics, agents=np.flatnonzero(flat))
                 dl.stats["instances"] += represented
                 dl.stats["culled"] = int(state.n - dl.stats["instances"])
                 dl.stats["super_nodes"] = int(sum(b.n_instances for b in supers))

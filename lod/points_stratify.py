@@ -306,7 +306,6 @@ def _neighbour_order() -> np.ndarray:
 _NEIGHBOURS = _neighbour_order()
 
 
-
 @njit(cache=True, inline="always")
 def _neighbour_step(o, i, step, near):  # pragma: no cover - compiled
     """One axis of a neighbour offset (_NEIGHBOURS code o: 0 same cell, 1 the near neighbour, 2 the far one):
@@ -316,6 +315,7 @@ def _neighbour_step(o, i, step, near):  # pragma: no cover - compiled
     if o == 2:
         return i - step, (1.0 - near) * (1.0 - near)
     return i, 0.0
+
 
 @njit(cache=True, nogil=True)
 def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - compiled

@@ -178,6 +178,32 @@ def test_select_model_rows_anim_and_batches(rep, krep):
     assert np.allclose(dl.view, cam.view_matrix()) and dl.proj.dtype == np.float32
 
 
+def test_select_of_some_agents_equals_the_full_select_without_the_others(rep, krep):
+    """select(agents=...) culls and packs only those agents, instance ids in the state's numbering:
+    the same batches as the full selection with the other agents removed."""
+    sel = NoLodSelector([rep, krep])
+    rng = np.random.default_rng(2)
+    st = _state(40)
+    st.position[:] = np.c_[rng.uniform(-6, 6, 40), np.zeros(40), rng.uniform(-8, 2, 40)]
+    st.heading[:] = rng.uniform(0, 6.3, 40)
+    st.character[:] = rng.integers(0, 2, 40)
+    st.anim_time[:] = rng.uniform(0, 2, 40)
+    cam = Camera.look_at((0, 2, 12), (0, 1, 0))
+    full = sel.select(st, cam, (640, 360))
+    agents = np.flatnonzero(rng.random(40) < 0.6)
+    part = sel.select(st, cam, (640, 360), agents=agents)
+    want = []
+    for b in full.batches:
+        keep = np.isin(b.instance_ids, agents)
+        if keep.any():
+            want.append((b.rep, b.part, b.instance_ids[keep].tolist(), b.instance_data[keep]))
+    got = [(b.rep, b.part, b.instance_ids.tolist(), b.instance_data) for b in part.batches]
+    assert [w[:3] for w in want] == [g[:3] for g in got]
+    for w, g in zip(want, got):
+        np.testing.assert_array_equal(w[3], g[3])
+    assert part.stats["instances"] + part.stats["culled"] == agents.size
+
+
 def test_select_culls_outside_and_keeps_straddling(rep):
     sel = NoLodSelector([rep])
     cam = Camera.look_at((0, 1.5, 10), (0, 1.5, 0), fov_y=50)
