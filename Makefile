@@ -11,7 +11,7 @@ VENV     ?= .venv
 VPY      := $(VENV)/bin/python
 SENTINEL := $(VENV)/.crowd-setup-done
 # Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL), a virtual X server, and the headless
-# browser the report test opens index.html in (tests/crowd/test_report_browser.py)
+# browser the report test opens index.html in (tests/crowd/report/test_report_browser.py)
 SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri xvfb chromium
 # benchmark scenes: every scene but the quick start (override: make bench BENCH_SCENES=scenes/office.toml)
 BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.toml)))

@@ -1,4 +1,15 @@
 """The crowd application: scene schema, engine loop, CLI, telemetry, reports.
 
-The only package that imports sim, lod and render; nothing imports it.
+The only package that imports sim, lod and render; nothing imports it. Modules in data-flow order:
+
+- ``crowd.cli`` (and ``__main__``): the ``crowd`` command line; ``crowd.errors``: one-sentence user errors.
+- ``crowd.scene``: scene files loaded and validated in full; ``crowd.characters``: the characters they name.
+- ``crowd.memory``: the memory estimate and guard.
+- ``crowd.engine``: builds the world, the LOD mode and the renderer, runs the frame loop.
+- ``crowd.telemetry``, ``crowd.output``: per-frame timings and counts, written atomically.
+- ``crowd.fly``: the interactive fly-through; ``crowd.inspect``: a character's cluster hierarchy (pyvista).
+- ``crowd.build``: LOD hierarchies built ahead of time on dask; ``crowd.calibrate``: the cost model's machine
+  coefficients.
+- ``crowd.image_metrics``: image error against the full-detail reference; ``crowd.report``: reports over scenes
+  and swept settings (a package).
 """

@@ -14,13 +14,13 @@ ASSET is
   that character at 30 fps with every mode's defaults (what a scene naming it with default ``fps`` and
   ``[lod]`` keys uses).
 
-One task per (character, mode) runs the mode's own ``build`` (``lod.modes``: ``lod.points_mode``
-``HierarchyCache``, ``lod.clusters_mode.cached_hierarchy``, ``lod.triangles_mode.cached_chain``; ``auto`` the
+One task per (character, mode) runs the mode's own ``build`` (``lod.modes``: ``lod.points.mode``
+``HierarchyCache``, ``lod.clusters.mode.cached_hierarchy``, ``lod.chains.chain.cached_chain``; ``auto`` the
 triangle chains plus the candidates its keys ask for), which loads a warm entry or builds and stores it. Each
 entry is written atomically by the mode (temp file in the cache folder + ``os.replace``), so concurrent tasks
 and runs never read half a file, and an interrupted build leaves no entry. Mode ``none`` has nothing to build.
 
-The tasks run on :class:`crowd.report.ClusterPool` (default: an embedded dask ``LocalCluster``, one
+The tasks run on :class:`crowd.report.cluster.ClusterPool` (default: an embedded dask ``LocalCluster``, one
 single-threaded worker process per core; builds are not timed, so they fill every worker). Every task writes
 to this process's cache folder (``$CROWD_CACHE_DIR``, default ``~/.cache/crowd``), passed to it explicitly:
 workers on other machines need that path on a shared filesystem.
@@ -41,7 +41,7 @@ from crowd.errors import AssetError, CrowdError
 
 #: LOD modes that keep hierarchies in the on-disk cache (``--mode all`` builds each)
 CACHED_MODES = ("points", "clusters", "triangles", "auto")
-#: environment variable of the cache folder (the same for every mode, see ``lod.clusters_mode.cache_dir``)
+#: environment variable of the cache folder (the same for every mode, see ``lod.clusters.mode.cache_dir``)
 CACHE_ENV = "CROWD_CACHE_DIR"
 
 
@@ -71,7 +71,7 @@ class BuildJob:
 
 def cache_dir() -> Path:
     """The cache folder every mode writes to: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
-    from lod.clusters_mode import cache_dir as cd
+    from lod.clusters.mode import cache_dir as cd
 
     return cd()
 
@@ -185,7 +185,7 @@ def build_task(job: BuildJob, cache: str, *after) -> dict:
 
 
 def _user_errors() -> tuple:
-    from crowd.report import _user_errors as ue
+    from crowd.report.runs import _user_errors as ue
 
     return ue()
 
@@ -229,7 +229,7 @@ def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None 
     """
     from tqdm import tqdm
 
-    from crowd.report import ClusterPool
+    from crowd.report.cluster import ClusterPool
 
     jobs = expand_assets(assets, modes)
     pool = ClusterPool(cluster)

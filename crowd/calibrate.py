@@ -3,16 +3,16 @@
 A short headless run renders synthetic draw lists and times every frame
 (instance upload + submission + ``ctx.finish``, the stages ``crowd run``
 times and mode "auto" observes), fits the linear model of
-:mod:`lod.cost_model` by non-negative least squares and stores it under this
+:mod:`lod.auto.cost_model` by non-negative least squares and stores it under this
 machine and GL renderer string. The draw lists exercise every feature of the
 model, so that predictions of the mixed draw lists of mode "auto" hold:
 
-- full-detail triangles (:mod:`lod.nolod`) of two procedural humanoids of
+- full-detail triangles (:mod:`lod.full.mode`) of two procedural humanoids of
   different triangle counts, varying the number of instances and splitting
   batches into several draw calls (per triangle, per instance, per batch);
-- VDR-AM cluster cuts (:mod:`lod.clusters_mode`) at several pixels of error
+- VDR-AM cluster cuts (:mod:`lod.clusters.mode`) at several pixels of error
   (per cluster);
-- Wand & Straßer point hierarchies (:mod:`lod.points_mode`) at splat sizes 1
+- Wand & Straßer point hierarchies (:mod:`lod.points.mode`) at splat sizes 1
   to 3 (per splat).
 
 Then, held out of the fit, mixed draw lists of mode "auto" (all three
@@ -27,9 +27,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from lod import cost_model
+from lod.auto import cost_model
 from lod.drawlist import DrawBatch
-from lod.nolod import NoLodSelector, build_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_rep
 from lod.view import Camera
 from sim.procedural import humanoid
 
@@ -95,7 +96,7 @@ def measure(renderer, quick: bool = False, repeats: int | None = None, seed: int
 
     Returns
     -------
-    X : (n, 9) float64 feature counts (:func:`lod.cost_model.features`)
+    X : (n, 9) float64 feature counts (:func:`lod.auto.cost_model.features`)
     y : (n,) float64 seconds, the median over ``repeats`` timed frames (after one warm-up)
     """
     rng = np.random.default_rng(seed)
@@ -143,7 +144,11 @@ def hierarchy_selectors(quiet: bool = True):
     dict with "reps" (every rep to upload) and a selector per mode name
     ("auto": all candidates, the default cost model)
     """
-    from lod import auto_mode, clusters_mode, cost_model as cm, points_mode, triangles_mode
+    from lod.auto import mode as auto_mode
+    from lod.clusters import mode as clusters_mode
+    from lod.auto import cost_model as cm
+    from lod.points import mode as points_mode
+    from lod.chains import mode as triangles_mode
 
     ch = humanoid(HIER_TRIANGLES, 1)
     prog = False if quiet else None
@@ -209,7 +214,7 @@ def calibrate(size=(1280, 720), quick: bool = False, save: bool = True, director
 
     Returns
     -------
-    (model, path) : the fitted :class:`lod.cost_model.CostModel` and the file
+    (model, path) : the fitted :class:`lod.auto.cost_model.CostModel` and the file
     it was stored in (None when ``save`` is False)
     """
     from render.context import gl_info

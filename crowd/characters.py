@@ -1,7 +1,7 @@
 """Building the characters a scene or ``crowd info`` names.
 
 A character comes from a procedural generator (``sim.procedural``) or a glTF
-file (``sim.gltf_io``). The generator modules and the glTF importer are
+file (``sim.gltf.load``). The generator modules and the glTF importer are
 imported only when a character needs them.
 """
 from __future__ import annotations
@@ -28,7 +28,7 @@ def build_character(spec: CharacterSpec):
         gen = getattr(sim.procedural, spec.generator)
         ch = gen(triangles=spec.triangles, seed=spec.seed)
     else:
-        from sim.gltf_io import load_gltf
+        from sim.gltf.load import load_gltf
 
         ch = load_gltf(spec.file)
     if ch.kind == "skinned":

@@ -186,18 +186,19 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from crowd.report import build_report, parse_sweep
+    from crowd.report.pipeline import build_report
+    from crowd.report.settings import parse_sweep
 
     sweeps = [parse_sweep(t) for t in args.sweep]
     keys = [k for k, _ in sweeps]
     dup = next((k for k in keys if keys.count(k) > 1), None)
     if dup is not None:
-        from crowd.report import SweepError
+        from crowd.report.settings import SweepError
 
         raise SweepError(f"--sweep {dup}: given more than once; list all its values in one --sweep")
     baseline = None
     if args.compare is not None:
-        from crowd.report import load_baseline
+        from crowd.report.compare import load_baseline
 
         baseline = load_baseline(args.compare)  # read before --out may replace the same directory
     res = build_report(args.scenes, sweeps, frames=args.frames, size=args.size, out=args.out,

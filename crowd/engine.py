@@ -251,7 +251,7 @@ class Engine:
         statics = []
         terrain = self.world.resources.get("terrain")
         if terrain is not None:
-            from lod.nolod import build_static_rep
+            from lod.full.reps import build_static_rep
 
             statics.append(build_static_rep(terrain.mesh(), key="static:terrain"))
         self.statics = statics
@@ -314,11 +314,11 @@ class Engine:
         return int(dict(self.scene.lod_common).get("keyframe_every", 1))
 
     def _keyframed(self, selector, n: int):
-        """``selector`` wrapped in a :class:`lod.keyframed_selection.KeyframedSelector`
+        """``selector`` wrapped in a :class:`lod.temporal.selection.KeyframedSelector`
         when ``n > 1`` (Friedrich et al. §3 for the crowd's LOD), else itself."""
         if int(n) <= 1:
             return selector
-        from lod.keyframed_selection import KEYFRAME_EXTRAPOLATION_DEFAULT, KeyframedSelector
+        from lod.temporal.selection import KEYFRAME_EXTRAPOLATION_DEFAULT, KeyframedSelector
 
         common = dict(self.scene.lod_common)
         mode = common.get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
@@ -331,7 +331,7 @@ class Engine:
         terrain = self.world.resources.get("terrain")
         if terrain is None:
             return None
-        from lod.temporal import terrain_lod_from_params
+        from lod.temporal.terrain_keyframes import terrain_lod_from_params
 
         return terrain_lod_from_params(terrain, self.scene.render.size, dict(self.scene.terrain_lod), self.scene.dt)
 
@@ -343,7 +343,7 @@ class Engine:
         camera (Friedrich et al. §4.1, mode 1)."""
         if self.terrain_lod is None:
             return camera, {}
-        from lod.nolod import build_static_rep
+        from lod.full.reps import build_static_rep
 
         fr = self.terrain_lod.frame(camera)
         renderer.upload(build_static_rep(fr.mesh(), key="static:terrain"))
@@ -423,7 +423,7 @@ class Engine:
         keyframed selection (wrapping the mode's selector when it becomes > 1;
         restarting its keyframes when it changes) and the occlusion toggle to
         the cluster representations (and the open renderer's cluster drawer)."""
-        from lod.keyframed_selection import KeyframedSelector
+        from lod.temporal.selection import KeyframedSelector
 
         s = self.settings
         n = max(1, int(s.keyframe_interval))
@@ -510,7 +510,7 @@ class Engine:
                 dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
                 t2 = time.perf_counter()
                 stages["select"] = (t1 - t_frame, t2 - t1)
-                if "keyframe" in dl.stats:  # keyframed selection (lod.keyframed_selection)
+                if "keyframe" in dl.stats:  # keyframed selection (lod.temporal.selection)
                     metrics = {**metrics, "lod_keyframe": float(bool(dl.stats["keyframe"])),
                                "lod_selection_ms": 1e3 * float(getattr(self.selector, "last_selection_seconds", 0.0)),
                                "lod_transitions": float(dl.stats.get("transitions", 0)),

@@ -60,7 +60,7 @@ MESSAGE_SECONDS = 4.0
 #: every LOD mode the fly-through can cycle through (the engine says which exist)
 LOD_MODES_ALL = ("none", "points", "triangles", "clusters", "auto")
 #: splat size range and step, pixels
-SPLAT_RANGE, SPLAT_STEP = (1.0, 3.0), 1.0  # the point splats' sizes (lod.points_mode)
+SPLAT_RANGE, SPLAT_STEP = (1.0, 3.0), 1.0  # the point splats' sizes (lod.points.mode)
 #: pixels-of-error range (halved / doubled per key)
 POE_RANGE = (0.125, 64.0)
 #: keyframe interval range, frames

@@ -95,7 +95,7 @@ def inspect_data(character, h, clip=None, time=None, pose=None, poe: float = 1.0
     Parameters
     ----------
     character : sim.character.SkinnedCharacter
-    h : lod.cluster_dag.ClusterHierarchy of ``character``
+    h : lod.clusters.dag.ClusterHierarchy of ``character``
     clip, time, pose : the pose (see the module docstring)
     poe : float >= 0, pixels of error of the cut
     camera : (3,) eye in model space, or None (in front at 2.5 model sizes)
@@ -110,8 +110,8 @@ def inspect_data(character, h, clip=None, time=None, pose=None, poe: float = 1.0
     ``cut_height`` (t,) int cluster height per cut triangle; ``eye`` (3,);
     ``target`` (3,); ``pose_label`` str; ``poe`` float.
     """
-    from lod import cluster_cut
-    from lod.cluster_dag import skin_poses
+    from lod.clusters import cut as cluster_cut
+    from lod.clusters.dag import skin_poses
 
     mats, label = _pose_matrices(character, h, clip, time, pose)
     X = skin_poses(character.mesh, mats[None])[0]
@@ -213,8 +213,8 @@ def render(data: dict, png: str | os.PathLike | None = None, size=DEFAULT_SIZE, 
 def load(asset: str, clustering: str = "error-aware", quiet: bool = False):
     """(character, hierarchy) of an asset spec (``crowd info`` syntax); CrowdError when it has no skin."""
     from crowd.characters import build_character, parse_asset
-    from lod.clusters_mode import cached_hierarchy
-    from lod.nolod import build_skinned_rep
+    from lod.clusters.mode import cached_hierarchy
+    from lod.full.reps import build_skinned_rep
 
     spec = parse_asset(asset)
     ch = build_character(spec)

@@ -193,8 +193,8 @@ class Scene:
     output_dir: Path
     terrain: dict | None = None
     lod_params: tuple = ()  # ((key, value), ...) of the [lod] table besides mode (lod.modes PARAMS)
-    terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal)
-    lod_common: tuple = ()  # ((key, value), ...): the [lod] keys of every mode (lod.keyframed_selection)
+    terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal.terrain_keyframes)
+    lod_common: tuple = ()  # ((key, value), ...): the [lod] keys of every mode (lod.temporal.selection)
 
     @property
     def effect_names(self) -> list:
@@ -306,7 +306,7 @@ class _Parser:
         render = self.render()
         lod_table = dict(self.table("lod"))
         mode = validate(LOD_SCHEMA, {"mode": lod_table.pop("mode")} if "mode" in lod_table else {}, "lod")["mode"]
-        from lod.keyframed_selection import LOD_COMMON_PARAMS  # (imports numba: only when a scene is loaded)
+        from lod.temporal.selection import LOD_COMMON_PARAMS  # (imports numba: only when a scene is loaded)
 
         common = {k: lod_table.pop(k) for k in list(lod_table) if k in LOD_COMMON_PARAMS}
         lod_common = validate(LOD_COMMON_PARAMS, common, "lod")  # keys of every mode (keyframed selection)
@@ -445,7 +445,7 @@ class _Parser:
             return None
         t = dict(self.table("terrain"))
         import sim.terrain
-        from lod.temporal import TERRAIN_LOD_PARAMS
+        from lod.temporal.terrain_keyframes import TERRAIN_LOD_PARAMS
 
         # the view-dependent terrain's keys (lod, lod_tau, ...) belong to the LOD layer; the rest to sim.terrain
         lod_keys = {k: t.pop(k) for k in list(t) if k in TERRAIN_LOD_PARAMS}

@@ -53,7 +53,7 @@ class DrawBatch:
     fade : (t, role) or None
         Screen-door (dither) transition between two selections of the same
         instances (Friedrich, Polthier & Schmies §3, applied to discrete
-        representations; see ``lod.keyframed_selection``): ``t`` in [0, 1] is
+        representations; see ``lod.temporal.selection``): ``t`` in [0, 1] is
         the frame's transition weight and ``role`` is :data:`FADE_OUT` (+1, the
         outgoing batch: drawn where ``dither(pixel) >= t``) or :data:`FADE_IN`
         (-1, the incoming batch: drawn where ``dither(pixel) < t``). The two

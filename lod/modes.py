@@ -10,7 +10,7 @@ A mode is a module exposing
         names : list of str, the scene's character names (for representation keys)
         fps : list of int, the bake rate per character
         params : dict, the validated ``[lod]`` table
-        static_reps : lod.nolod.StaticRep scenery (terrain) the selector may be
+        static_reps : lod.full.reps.StaticRep scenery (terrain) the selector may be
             asked to draw through ``statics``
         progress : a callable ``progress(iterable, description)`` wrapping a
             long loop in a progress bar; False for no progress output at all
@@ -32,11 +32,11 @@ import importlib
 
 #: mode name -> module path (see the module docstring for the protocol)
 MODES: dict[str, str] = {
-    "none": "lod.nolod",
-    "points": "lod.points_mode",
-    "clusters": "lod.clusters_mode",
-    "triangles": "lod.triangles_mode",
-    "auto": "lod.auto_mode",
+    "none": "lod.full.mode",
+    "points": "lod.points.mode",
+    "clusters": "lod.clusters.mode",
+    "triangles": "lod.chains.mode",
+    "auto": "lod.auto.mode",
 }
 
 

@@ -1,4 +1,15 @@
-"""Rendering layer: GL context, GPU resources, shaders, draws, timing, images.
+"""Rendering layer: GL context, GPU resources, shaders, draws, timing, images. Imports ``lod`` types only.
 
-Imports ``lod`` types only.
+Modules in data-flow order (representations and DrawList in, pixels and timings out):
+
+- ``render.context``: the OpenGL context (headless EGL by default).
+- ``render.shaders``: GLSL sources under ``render/shaders/`` by name.
+- ``render.renderer``: uploads representations, draws a DrawList's triangle batches (GPU skinning, the
+  full-detail and chain levels of ``lod.full`` and ``lod.chains``), hands the other kinds to their drawers.
+- ``render.morph``: the geomorph tables the morph shaders follow (``lod.chains``, ``lod.clusters``).
+- ``render.clusters``: the drawer of ``lod.clusters`` cuts (VDR-AM; occlusion culling §5.2).
+- ``render.points``: the drawer of ``lod.points`` hierarchies (compute-shader splats and GL_POINTS).
+- ``render.timing``: which GPU timer-query readings to believe (llvmpipe).
+- ``render.image``: PNG output written atomically.
+- ``render.window``: the glfw window of the fly-through.
 """

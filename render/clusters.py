@@ -1,7 +1,7 @@
 """Drawer of ``"clusters"`` representations: per-instance cuts of VDR-AM cluster
 hierarchies (Claudio, Kim, Kim, Yoon, *VDR-AM*, §3.1, §5.1), skinned on the GPU.
 
-GPU resources per character (:class:`lod.clusters_mode.ClustersRep`):
+GPU resources per character (:class:`lod.clusters.mode.ClustersRep`):
 
 - the character's full-detail skinned representation, uploaded through the
   renderer's own path (vertex buffers, the baked joint-table texture, the
@@ -43,7 +43,7 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit
 
-from lod.cluster_morph import collapse_table
+from lod.clusters.morph import collapse_table
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 
@@ -197,7 +197,7 @@ def split_morph_rows(offsets, clusters, heights, weights):
 
     Parameters
     ----------
-    offsets : (k+1,) int64; clusters : (E,) int32 the union cuts (``lod.cluster_morph.morph_union``)
+    offsets : (k+1,) int64; clusters : (E,) int32 the union cuts (``lod.clusters.morph.morph_union``)
     heights : (E,) int32 morph height per entry (< 0: unmoved); weights : (E,) float32 blend weights
 
     Returns
@@ -242,7 +242,7 @@ class _ClusterGpu:
     hierarchy: object
     flat: np.ndarray
     ibo: object  # the hierarchy's index buffer ("ranges" commands point into it)
-    skinned: object = None  # the lod.nolod.SkinnedRep (vertex arrays of the geomorph textures)
+    skinned: object = None  # the lod.full.reps.SkinnedRep (vertex arrays of the geomorph textures)
     objects: list = field(default_factory=list)
     content: list = field(default_factory=list)  # the skinned vertex buffers (buffer, format, attribute)
     occlusion: bool = False
@@ -326,7 +326,7 @@ class Drawer:
             st.occlusion = bool(on)
 
     def upload(self, rep) -> None:
-        """GPU resources of a :class:`lod.clusters_mode.ClustersRep` (re-upload replaces)."""
+        """GPU resources of a :class:`lod.clusters.mode.ClustersRep` (re-upload replaces)."""
         old = self._reps.pop(rep.key, None)
         if old is not None:
             self._release_rep(old)
@@ -404,7 +404,7 @@ class Drawer:
                 raise KeyError(f"DrawList batch names clusters representation {b.rep!r}, which was not uploaded; "
                                f"uploaded: {sorted(self._reps)}")
             tint = tuple(float(c) for c in b.tint) if b.tint is not None else (0.0, 0.0, 0.0, 0.0)
-            fade = fade_uniform(getattr(b, "fade", None))  # screen-door transition (lod.keyframed_selection)
+            fade = fade_uniform(getattr(b, "fade", None))  # screen-door transition (lod.temporal.selection)
             morph = getattr(b, "morph_height", None) is not None
             groups.setdefault((b.rep, tint, fade, morph), []).append(b)
         items = []
@@ -534,10 +534,10 @@ class Drawer:
             stats["draws"] += 1
 
     def draw(self, batches, drawlist, view_proj) -> None:
-        """Draw the cuts of ``batches`` (``lod.clusters_mode.ClusterDrawBatch``; a
+        """Draw the cuts of ``batches`` (``lod.clusters.mode.ClusterDrawBatch``; a
         plain DrawBatch of a clusters rep draws every leaf, i.e. full detail).
 
-        With occlusion culling on (:class:`lod.clusters_mode.ClustersRep`
+        With occlusion culling on (:class:`lod.clusters.mode.ClustersRep`
         ``occlusion``), see :meth:`_draw_occlusion`.
         """
         r = self.renderer

@@ -2,8 +2,8 @@
 
 A geomorph draws a fine representation with every vertex blended towards the
 vertex it has become in a coarser one: a VDR-AM cluster's ancestor
-(:mod:`lod.cluster_morph`, drawn by ``shaders/clusters_morph.vert``) or a
-later level of a discrete LOD chain (:mod:`lod.triangles_mode`,
+(:mod:`lod.clusters.morph`, drawn by ``shaders/clusters_morph.vert``) or a
+later level of a discrete LOD chain (:mod:`lod.chains.mode`,
 ``shaders/skinned_morph.vert`` / ``skinned_direct_morph.vert``). Both collapse
 onto existing vertices, so one table per character serves every pair of
 representations: per vertex, the vertex it collapses onto and the height (or
@@ -29,9 +29,9 @@ def morph_textures(ctx, nxt: np.ndarray, removed_at: np.ndarray, skinned, label:
     Parameters
     ----------
     ctx : moderngl.Context
-    nxt, removed_at : (V,) int32 collapse chains (:func:`lod.cluster_morph.collapse_table`,
+    nxt, removed_at : (V,) int32 collapse chains (:func:`lod.clusters.morph.collapse_table`,
         ``TrianglesRep.collapse_next`` / ``collapse_level``)
-    skinned : the character's ``lod.nolod.SkinnedRep`` (positions, normals, colours, joints, weights)
+    skinned : the character's ``lod.full.reps.SkinnedRep`` (positions, normals, colours, joints, weights)
     label : prefix of the textures' GL labels
 
     Returns

@@ -358,7 +358,7 @@ class _GpuPoints:
 
 
 class Drawer:
-    """Plug-in drawer of ``lod.points_mode.PointsRep`` (see the module docstring).
+    """Plug-in drawer of ``lod.points.rep.PointsRep`` (see the module docstring).
 
     Attributes
     ----------
@@ -535,7 +535,7 @@ class Drawer:
         cs.run(gx, gy, 1)
 
     def draw(self, batches, drawlist, view_proj) -> None:
-        """Draw point batches (``lod.points_mode.PointsBatch``) of this frame."""
+        """Draw point batches (``lod.points.rep.PointsBatch``) of this frame."""
         ctx = self.ctx
         batches = [b for b in batches if b.rep in self._reps and b.n_instances]
         self.last_counts = {"points": 0, "triangles": 0}
@@ -552,7 +552,7 @@ class Drawer:
         self._buffer("instances", inst).bind_to_storage_buffer(1)
         w, h = self.r.size
         vp = np.asarray(view_proj, np.float64)
-        # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.keyframed_selection) draw together
+        # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.temporal.selection) draw together
         by_fade: dict = {}
         for b in batches:
             by_fade.setdefault(fade_uniform(getattr(b, "fade", None)), []).append(b)

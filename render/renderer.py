@@ -12,7 +12,7 @@ Draw paths (one program each, shaders in ``render/shaders/``):
   texture; the vertex shader then reads 3 texels per influence. The "direct"
   path (``skinned_direct.vert``) blends both frames per vertex (6 texels per
   influence); it is kept for comparison and as a fallback. Blending matrices
-  is exact for LBS (see ``lod.nolod.SkinnedRep``).
+  is exact for LBS (see ``lod.full.reps.SkinnedRep``).
 - keyframed: per segment vertex start/end attributes mixed by the instance's u
   (Wand & Straßer 2002, §3).
 - static: the same instancing path without animation.
@@ -57,13 +57,12 @@ from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.shaders import program_sources
+from render.timing import gpu_seconds
 
 #: bytes per instance in the instance buffer
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
 #: initial capacity of the per-frame instance buffer (instances)
 INITIAL_INSTANCES = 1024
-#: the value some drivers (Mesa llvmpipe) return from an unusable time query
-GL_TIMER_INVALID = 4294967295
 #: direction towards the sun (world), normalised at use
 SUN_DIRECTION = (0.35, 0.85, 0.4)
 #: ambient light factor
@@ -85,33 +84,6 @@ DEBUG_ENV = "CROWD_GL_DEBUG"
 MAX_TRIANGLES_IN_FLIGHT = 100_000
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
-
-
-def gpu_seconds(elapsed_ns, wall: float | None = None) -> float | None:
-    """Seconds from a timer query's ``elapsed`` (ns), or None if implausible.
-
-    Mesa llvmpipe's timer queries are unreliable: moderngl reads results as
-    32 bits, so anything above 4.29 s (and, on llvmpipe, often the first query
-    of a context) reads 4294967295; a time query combined with a samples query
-    in one ``ctx.query(samples=True, time=True)`` reads a constant ~20 ns; and
-    even a lone time query sometimes returns tens of nanoseconds for
-    millisecond-long draws. So a reading is accepted only when it is positive,
-    not the 32-bit sentinel, and -- when ``wall`` (seconds from the first
-    submit to the end of ``ctx.finish``) is given -- neither larger than
-    ``1.5 * wall + 1 ms`` nor smaller than 1 % of a wall time above 1 ms.
-    """
-    if elapsed_ns is None:
-        return None
-    e = int(elapsed_ns)
-    if e <= 0 or e >= GL_TIMER_INVALID:
-        return None
-    s = e * 1e-9
-    if wall is not None:
-        if s > 1.5 * wall + 1e-3:
-            return None
-        if wall > 1e-3 and s < 0.01 * wall:
-            return None
-    return s
 
 
 def joint_attribute(joints: np.ndarray, make_buffer) -> tuple:
@@ -159,7 +131,7 @@ class _GpuRep:
     n_vertices: int = 0
     n_joints: int = 0
     palette_vao: object = None
-    # geomorphs of a LOD chain (lod.triangles_mode TriangleDrawBatch.morph): the rep with its vertex
+    # geomorphs of a LOD chain (lod.chains.mode TriangleDrawBatch.morph): the rep with its vertex
     # collapses (kept for the tables, made on first use), then (vertex array, instance locations, tables)
     morph_source: object = None
     morph: tuple | None = None
@@ -319,7 +291,7 @@ class Renderer:
         return bases
 
     def upload(self, rep) -> None:
-        """Create the GPU resources of a representation (``lod.nolod`` rep);
+        """Create the GPU resources of a representation (``lod.full.mode`` rep);
         re-uploading a key replaces the old resources."""
         if rep.key in self._reps:
             self._release_rep(self._reps.pop(rep.key))
@@ -399,7 +371,7 @@ class Renderer:
                     n_vertices=int(n_vertices))
         g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
         g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
-        # a LOD chain (lod.triangles_mode) holds all its levels: a batch without index_range draws level 0
+        # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])
@@ -421,7 +393,7 @@ class Renderer:
         if g.morph is None:
             if g.morph_source is None:
                 raise ValueError(f"DrawBatch of {g.key!r} asks for a geomorph, but the representation has no "
-                                 f"vertex collapses (a lod.triangles_mode chain built with them)")
+                                 f"vertex collapses (a lod.chains.mode chain built with them)")
             r = g.morph_source
             prog = self.program("skinned_direct_morph" if self.skinning == "direct" else "skinned_morph")
             vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
@@ -575,7 +547,7 @@ class Renderer:
                 if id(prog) not in used:
                     self._set_uniforms(prog, view_proj)
                     used.add(id(prog))
-                if morph is not None:  # a geomorphed chain level (lod.triangles_mode TriangleDrawBatch.morph)
+                if morph is not None:  # a geomorphed chain level (lod.chains.mode TriangleDrawBatch.morph)
                     level, weight = int(morph[0]), float(morph[1])
                     prog["u_morph_level"].value = level
                     prog["u_morph_weight"].value = min(1.0, max(0.0, weight)) if weight == weight else 0.0

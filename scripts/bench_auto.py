@@ -2,7 +2,7 @@
 
 For each scene at 1280x720, in ONE run with one renderer, on the same simulated
 frames along the scene's camera path: the frame time (select + upload + draw +
-``ctx.finish``) of NoLOD (``lod.nolod``), of each single representation
+``ctx.finish``) of NoLOD (``lod.full.mode``), of each single representation
 (triangle chains at ``--poe``, cluster cuts at ``--poe``, point hierarchies at
 splat size ``--splat``) and of auto at the fixed bound ``--poe`` twice: "auto"
 (a point hierarchy's error = splat size + projected keyframe deviation, the
@@ -51,7 +51,12 @@ sys.path.insert(0, str(ROOT))
 from crowd.engine import Engine  # noqa: E402
 from crowd.image_metrics import psnr  # noqa: E402
 from crowd.scene import load_scene  # noqa: E402
-from lod import auto_mode, clusters_mode, cost_model, nolod, points_mode, triangles_mode  # noqa: E402
+from lod.chains import mode as triangles_mode  # noqa: E402
+from lod.auto import mode as auto_mode
+from lod.clusters import mode as clusters_mode
+from lod.auto import cost_model
+from lod.full import mode as nolod
+from lod.points import mode as points_mode
 from render.context import gl_info  # noqa: E402
 from render.renderer import Renderer  # noqa: E402
 
@@ -135,7 +140,7 @@ def bench_scene(path: Path, args, model) -> dict:
             measured = sum(float(t.get(s) or 0.0) for s in ("upload", "draw", "finish"))
             if name.startswith("auto"):
                 # as crowd.engine does: selection + rendering; the selector refits its model with the rendering
-                # share (lod.auto_mode.AutoSelector.observe) and budget mode adapts to the whole
+                # share (lod.auto.mode.AutoSelector.observe) and budget mode adapts to the whole
                 sel.observe(s_sel + measured)
             if k >= args.warmup:
                 times[name].append(b - a)

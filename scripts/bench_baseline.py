@@ -25,7 +25,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from lod.nolod import NoLodSelector, build_rep  # noqa: E402
+from lod.full.mode import NoLodSelector, build_rep  # noqa: E402
 from lod.view import Camera  # noqa: E402
 from render.context import gl_info  # noqa: E402
 from render.renderer import Renderer  # noqa: E402

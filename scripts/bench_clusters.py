@@ -31,8 +31,8 @@ sys.path.insert(0, str(ROOT))
 
 from crowd.engine import Engine  # noqa: E402
 from crowd.scene import load_scene  # noqa: E402
-from lod import clusters_mode  # noqa: E402
-from lod.cluster_dag import bytes_per_triangle  # noqa: E402
+from lod.clusters import mode as clusters_mode  # noqa: E402
+from lod.clusters.dag import bytes_per_triangle  # noqa: E402
 from render.renderer import Renderer  # noqa: E402
 
 

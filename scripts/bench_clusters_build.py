@@ -37,8 +37,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from lod import cluster_cut, cluster_dag  # noqa: E402
-from lod.clusters_config import CLUSTERS_LEAF_TRIANGLES  # noqa: E402
+from lod.clusters import dag as cluster_dag  # noqa: E402
+from lod.clusters import cut as cluster_cut
+from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES  # noqa: E402
 from lod.view import Camera  # noqa: E402
 from sim.procedural import humanoid  # noqa: E402
 

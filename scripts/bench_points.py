@@ -1,4 +1,4 @@
-"""Benchmark of the point-hierarchy LOD mode (Wand & Straßer 2002; lod/points_mode.py, render/points.py).
+"""Benchmark of the point-hierarchy LOD mode (Wand & Straßer 2002; lod/points/mode.py, render/points.py).
 
 Prints:
 
@@ -47,8 +47,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from lod import points_mode as pm  # noqa: E402
-from lod.points_octree import build_hierarchy  # noqa: E402
+from lod.points import mode as pm  # noqa: E402
+from lod.points.octree import build_hierarchy  # noqa: E402
 from lod.view import Camera  # noqa: E402
 from render.renderer import Renderer  # noqa: E402
 from sim.procedural import humanoid  # noqa: E402
@@ -176,11 +176,11 @@ def data_mb(eng):
 
 def played_mb(eng):
     """MB of the point reps if only the clips the scene's agents play got point
-    hierarchies (``lod.points_mode.build(clips=...)``; the other segments as
+    hierarchies (``lod.points.mode.build(clips=...)``; the other segments as
     one-node triangle hierarchies), super-hierarchies included."""
     import numpy as np
 
-    from lod.points_mode import played_segments, segment_arrays, triangle_hierarchy
+    from lod.points.mode import played_segments, segment_arrays, triangle_hierarchy
 
     st = eng.plan.state
     keys = {f"points:{c.name}": i for i, c in enumerate(eng.scene.characters)}

@@ -2,7 +2,7 @@
 
 Bakes a procedural humanoid (``sim.procedural.humanoid``, default 30,000
 triangles) walking into keyframes and builds the octree of prefiltered points
-and triangles (``lod.points_octree.build_segment``) for the first keyframe
+and triangles (``lod.points.octree.build_segment``) for the first keyframe
 pairs. Prints the wall time per pair (after one warm-up build that compiles
 the numba kernels), the points and nodes produced, the data structure size,
 and the paper's figure for comparison (20-25 s per pair for a 30,000-triangle
@@ -13,7 +13,7 @@ Run:  .venv/bin/python scripts/bench_points_build.py [--triangles 30000]
       [--pairs 1] [--intervals 3] [--fraction 0.125] [--k 2] [--threads N] [--compare-threads]
 
 The build stratifies (one work item per node and time interval) and filters
-the octree nodes in parallel threads (``lod.points_stratify.worker_count``:
+the octree nodes in parallel threads (``lod.points.stratify.worker_count``:
 the usable cores by default; ``--threads N`` sets it). ``--compare-threads``
 also times each pair in one thread, in the same run, and checks that both
 builds are identical.
@@ -31,8 +31,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from lod.points_config import POINTS_SPACING_FRACTION, POINTS_TIME_INTERVALS, POINTS_TRIANGLE_SAMPLES  # noqa: E402
-from lod.points_octree import build_segment  # noqa: E402
+from lod.points.config import POINTS_SPACING_FRACTION, POINTS_TIME_INTERVALS, POINTS_TRIANGLE_SAMPLES  # noqa: E402
+from lod.points.octree import build_segment  # noqa: E402
 from sim.keyframes import bake_skinned  # noqa: E402
 from sim.procedural import humanoid  # noqa: E402
 
@@ -60,7 +60,7 @@ def main(argv=None) -> int:
           f"intervals={args.intervals}, spacing fraction={args.fraction:.4g}, k={args.k}")
     import os
 
-    from lod.points_stratify import worker_count
+    from lod.points.stratify import worker_count
 
     workers = worker_count(args.threads)
     print(f"cores: {os.cpu_count()}, threads: {workers}, load average {os.getloadavg()[0]:.1f}")

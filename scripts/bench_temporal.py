@@ -5,7 +5,7 @@ blended in between:
 
 1. The crowd of ``scenes/horses.toml`` (fewer horses and a smaller image than the
    scene, for run time; both printed) in LOD mode "triangles" (levels faded) or
-   "clusters" (``--mode clusters``: cuts geomorphed, :mod:`lod.cluster_morph`,
+   "clusters" (``--mode clusters``: cuts geomorphed, :mod:`lod.clusters.morph`,
    and a faded variant for comparison), rendered along
    the scene's camera path next to the full-detail reference (mode "none").
    Per setting: selection time per displayed frame (the view-dependent part,
@@ -24,7 +24,7 @@ blended in between:
    frame its mean (error) and, between consecutive frames, the largest
    ``|e_t(v) - e_t-1(v)|`` (flicker: the change of the drawn surface that the
    reference does not have).
-2. The bisection terrain (lod/temporal.py) over a 513 x 513 grid: 2^19 leaf
+2. The bisection terrain (lod/temporal/terrain_keyframes.py) over a 513 x 513 grid: 2^19 leaf
    triangles, 2^20 triangles in its binary hierarchy, on the fly-through of
    ``scripts/bench_terrain_lod.py``: the same figures in screen-space pixels
    of vertex deviation, for per-frame selection and keyframed selection with
@@ -80,7 +80,7 @@ def restage(prev, cur):
     agents ``cur`` does not draw are left out."""
     import dataclasses
 
-    from lod.keyframed_selection import take_rows
+    from lod.temporal.selection import take_rows
 
     rows, part = {}, {}
     for b in cur.batches:
@@ -135,7 +135,7 @@ def deviation_setup(reps, samples: int = DEVIATION_SAMPLES, seed: int = 0) -> di
     """Per rep key with vertex collapses: (collapse next, collapse height/level, height of each cluster or
     None for a LOD chain, leaf range arrays or None, skinned rep, sampled vertices (S,), a leaf cluster
     holding each or None)."""
-    from lod.cluster_morph import collapse_table
+    from lod.clusters.morph import collapse_table
 
     rng = np.random.default_rng(seed)
     out = {}
@@ -147,7 +147,7 @@ def deviation_setup(reps, samples: int = DEVIATION_SAMPLES, seed: int = 0) -> di
             verts, first = np.unique(leaf_tris.reshape(-1), return_index=True)
             pick = rng.choice(verts.shape[0], min(samples, verts.shape[0]), replace=False)
             out[r.key] = (*collapse_table(h), h, r.skinned, verts[pick], owner[first[pick] // 3])
-        elif getattr(r, "collapse_next", None) is not None:  # a LOD chain (lod.triangles_mode)
+        elif getattr(r, "collapse_next", None) is not None:  # a LOD chain (lod.chains.mode)
             verts = np.unique(np.asarray(r.level_indices(0), np.int64))
             pick = rng.choice(verts.shape[0], min(samples, verts.shape[0]), replace=False)
             out[r.key] = (r.collapse_next, r.collapse_level, None, r, verts[pick], None)
@@ -170,7 +170,7 @@ def _skin_at(sk, verts: np.ndarray, frame: float) -> np.ndarray:
 def vertex_deviations(dl, setup: dict) -> dict:
     """agent id -> (S, 2) screen-space deviation (pixels) of the sampled vertices, drawn minus
     full detail, for every agent a cluster or chain batch draws unfaded (NaN rows: vertex culled)."""
-    from lod.cluster_morph import chain_targets
+    from lod.clusters.morph import chain_targets
 
     VP = np.asarray(dl.proj, np.float64) @ np.asarray(dl.view, np.float64)
     W, H = dl.size
@@ -261,9 +261,9 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
     from crowd.engine import Engine
     from crowd.image_metrics import as_float, flicker
     from crowd.scene import load_scene
-    from lod import clusters_mode as cm_mode
-    from lod import triangles_mode as tm
-    from lod.keyframed_selection import KeyframedSelector, subset_state
+    from lod.clusters import mode as cm_mode
+    from lod.chains import mode as tm
+    from lod.temporal.selection import KeyframedSelector, subset_state
     from scipy.ndimage import gaussian_filter
 
     text = (REPO / "scenes" / "horses.toml").read_text()
@@ -433,8 +433,8 @@ def crowd_part(frames: int, horses: int, size, n: int, poe: float, sigma: float,
 def terrain_part(frames: int, size, n: int, tau: float, resolution: int) -> None:
     from bench_terrain_lod import camera_path
 
-    from lod.temporal import TEMPORAL_MODES, TemporalTerrainLOD, pixel_deviation
-    from lod.terrain_lod import TerrainHierarchy
+    from lod.temporal.terrain_keyframes import TEMPORAL_MODES, TemporalTerrainLOD, pixel_deviation
+    from lod.temporal.terrain import TerrainHierarchy
     from sim.terrain import Terrain
 
     import tomllib

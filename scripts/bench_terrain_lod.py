@@ -1,7 +1,7 @@
 """Benchmark: bisection terrain LOD vs the full-resolution terrain along a camera path.
 
 Builds the terrain of a scene's ``[terrain]`` table (default ``scenes/horses.toml``)
-as a :class:`lod.terrain_lod.TerrainHierarchy`, flies a scripted camera over it
+as a :class:`lod.temporal.terrain.TerrainHierarchy`, flies a scripted camera over it
 and prints, per method, the triangles drawn and the CPU time per frame spent on
 LOD work (selection or interpolation + building the mesh arrays), the number of
 view-dependent selections, the screen-space error against the full-resolution
@@ -26,8 +26,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from lod.temporal import TEMPORAL_MODES, TemporalTerrainLOD, pixel_deviation  # noqa: E402
-from lod.terrain_lod import TerrainHierarchy  # noqa: E402
+from lod.temporal.terrain_keyframes import TEMPORAL_MODES, TemporalTerrainLOD, pixel_deviation  # noqa: E402
+from lod.temporal.terrain import TerrainHierarchy  # noqa: E402
 from lod.view import Camera  # noqa: E402
 from sim.terrain import Terrain  # noqa: E402
 

@@ -28,7 +28,8 @@ sys.path.insert(0, str(ROOT))
 
 from crowd.engine import Engine  # noqa: E402
 from crowd.scene import load_scene  # noqa: E402
-from lod import triangles_mode  # noqa: E402
+from lod.chains import chain as triangles_mode_chain  # noqa: E402
+from lod.chains import mode as triangles_mode
 from render.renderer import Renderer  # noqa: E402
 
 
@@ -44,7 +45,7 @@ def bench_scene(path: Path, args) -> dict:
     t_build = time.perf_counter() - t0
     print(f"  chains built or loaded in {t_build:.1f} s", flush=True)
     for rep in reps:
-        if isinstance(rep, triangles_mode.TrianglesRep):
+        if isinstance(rep, triangles_mode_chain.TrianglesRep):
             lv = ", ".join(f"{int(c):,} ({e * 1000:.1f} mm)" for c, e in zip(rep.level_count, rep.level_error))
             print(f"  {rep.key}: {lv}", flush=True)
     r = Renderer(size)

@@ -1,6 +1,6 @@
 """Checking and repairing the skin weights of a mesh built in code.
 
-The same policy as the glTF importer (``sim.gltf_io``), for meshes that do not
+The same policy as the glTF importer (``sim.gltf.load``), for meshes that do not
 come from a file (generators, tests, user code):
 
 - NaN or infinite weights are refused: :class:`sim.errors.AssetError`, one

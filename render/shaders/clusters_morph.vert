@@ -1,5 +1,5 @@
 #version 330 core
-// Geomorphed cluster geometry (lod/cluster_morph.py; Friedrich, Polthier &
+// Geomorphed cluster geometry (lod/clusters/morph.py; Friedrich, Polthier &
 // Schmies §3 applied to a VDR-AM hierarchy): the clusters.vert draw, plus a
 // blend of every vertex towards the vertex of a coarser ancestor cluster it
 // has collapsed into (morph.glsl). i_anim.z = height of that ancestor (< 0: no

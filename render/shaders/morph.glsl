@@ -1,4 +1,4 @@
-// Geomorph targets (lod/cluster_morph.py, lod/triangles_mode.py): a vertex of a
+// Geomorph targets (lod/clusters/morph.py, lod/chains/mode.py): a vertex of a
 // fine representation blends towards the vertex it has collapsed into in a
 // coarser one (a cluster's ancestor, a later level of a LOD chain), found by
 // following its collapse chain. Two textures, MORPH_WIDTH texels wide
@@ -10,7 +10,7 @@
 uniform isampler2D u_morph_i;
 uniform sampler2D u_morph_f;
 
-// Chains climb strictly in height, so this bounds them (lod.cluster_morph.MAX_CHAIN);
+// Chains climb strictly in height, so this bounds them (lod.clusters.morph.MAX_CHAIN);
 // it only guards a corrupt table.
 const int MAX_CHAIN = 64;
 // texture width 4096 = 2^12: texel t sits at (t & 4095, t >> 12)

@@ -1,5 +1,5 @@
 #version 330 core
-// Geomorphed LOD chain level (lod/triangles_mode.py TriangleDrawBatch.morph),
+// Geomorphed LOD chain level (lod/chains/mode.py TriangleDrawBatch.morph),
 // palette path: the skinned.vert draw of one level with every vertex blended
 // by u_morph_weight towards the vertex it has become in level u_morph_level
 // (morph.glsl; the batch's instances share both).

@@ -58,16 +58,16 @@ class _Rebuilt(Exception):
 def _forbid_builds(monkeypatch):
     """Make every hierarchy build of the three cached modes raise: a run that finds its cache warm never calls
     one."""
-    import lod.clusters_mode
-    import lod.points_mode
-    import lod.triangles_mode
+    import lod.chains.chain
+    import lod.clusters.mode
+    import lod.points.rep
 
     def fail(*a, **k):
         raise _Rebuilt
 
-    monkeypatch.setattr(lod.clusters_mode, "build_cluster_hierarchy", fail)
-    monkeypatch.setattr(lod.points_mode, "build_hierarchy", fail)
-    monkeypatch.setattr(lod.triangles_mode, "build_chain", fail)
+    monkeypatch.setattr(lod.clusters.mode, "build_cluster_hierarchy", fail)
+    monkeypatch.setattr(lod.points.rep, "build_hierarchy", fail)
+    monkeypatch.setattr(lod.chains.chain, "build_chain", fail)
 
 
 def _engine_scenes(scene):

@@ -220,7 +220,7 @@ def test_cli_validate_and_run_scene_with_broken_gltf_exit_2(tmp_path):
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim" / "gltf"))
     from test_fuzz_gltf import BASE_GLB
 
     (tmp_path / "broken.glb").write_bytes(BASE_GLB[: len(BASE_GLB) // 3])

@@ -52,7 +52,7 @@ def test_default_is_per_frame_selection(tmp_path):
 
 
 def test_live_keyframe_interval_and_occlusion_are_applied(tmp_path):
-    from lod.keyframed_selection import KeyframedSelector
+    from lod.temporal.selection import KeyframedSelector
 
     with Engine(load_scene(_scene(tmp_path, mode="clusters")), quiet=True) as e:
         cam = e.camera_at(0.0)
@@ -84,7 +84,7 @@ def test_live_keyframe_interval_and_occlusion_are_applied(tmp_path):
 def test_keyframed_engine_frames_in_every_mode(tmp_path, mode):
     """Every mode's selector can be keyframed: the engine wraps it, draws every
     agent on every frame, selects only on keyframes and renders without error."""
-    from lod.keyframed_selection import KeyframedSelector
+    from lod.temporal.selection import KeyframedSelector
 
     with Engine(load_scene(_scene(tmp_path, mode=mode, extra="keyframe_every = 3")), quiet=True) as e:
         assert isinstance(e.selector, KeyframedSelector) and e.selector.n == 3

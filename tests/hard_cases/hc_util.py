@@ -1,7 +1,8 @@
 """Shared helpers of the hard-case suite (module name unique under tests/)."""
 import numpy as np
 
-from lod.nolod import NoLodSelector, build_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_rep
 from lod.view import Camera
 from render.renderer import INSTANCE_BYTES, Renderer
 from sim.state import CrowdState

@@ -1,7 +1,7 @@
 """Cache files: a truncated or corrupted file is detected and never used.
 
-Covers what exists today: ``lod.cluster_dag.ClusterHierarchy.save/load`` and
-``lod.points_octree.save_hierarchy/load_hierarchy`` (``.npz``: every member
+Covers what exists today: ``lod.clusters.dag.ClusterHierarchy.save/load`` and
+``lod.points.octree.save_hierarchy/load_hierarchy`` (``.npz``: every member
 carries a CRC-32 that ``zipfile`` checks on read). The property: for every
 truncation and for single-byte corruptions anywhere in the file, ``load``
 either raises ValueError naming the file (so a cache rebuilds) or returns
@@ -19,7 +19,7 @@ from tiny_characters import tiny_keyframed, tiny_skinned
 
 @pytest.fixture(scope="module")
 def cluster_file(tmp_path_factory):
-    from lod import cluster_dag
+    from lod.clusters import dag as cluster_dag
 
     h = cluster_dag.build_cluster_hierarchy(tiny_skinned(), ["bend"], samples=4, s=8, progress=False)
     p = tmp_path_factory.mktemp("cache") / "clusters.npz"
@@ -29,7 +29,7 @@ def cluster_file(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def points_file(tmp_path_factory):
-    from lod.points_octree import build_hierarchy, load_hierarchy, save_hierarchy
+    from lod.points.octree import build_hierarchy, load_hierarchy, save_hierarchy
 
     kf = tiny_keyframed().animations["wave"].keyframes[0]
     p0 = kf.positions.astype(np.float64)
@@ -108,7 +108,7 @@ def _damage(path, how):
 
 @pytest.mark.parametrize("how", ["truncate", "empty", "flip"])
 def test_points_cache_detects_damage_by_hash_and_rebuilds(tmp_path, how):
-    from lod.points_mode import HierarchyCache, hierarchy_key
+    from lod.points.rep import HierarchyCache, hierarchy_key
 
     kf = tiny_keyframed().animations["wave"].keyframes[0]
     p0 = kf.positions.astype(np.float64)
@@ -131,8 +131,8 @@ def test_points_cache_detects_damage_by_hash_and_rebuilds(tmp_path, how):
 
 @pytest.mark.parametrize("how", ["truncate", "empty", "flip"])
 def test_cluster_cache_detects_damage_and_rebuilds(tmp_path, how):
-    from lod.clusters_mode import cache_key, cached_hierarchy
-    from lod.nolod import build_skinned_rep
+    from lod.clusters.mode import cache_key, cached_hierarchy
+    from lod.full.reps import build_skinned_rep
 
     ch = tiny_skinned()
     rep = build_skinned_rep(ch)
@@ -140,13 +140,13 @@ def test_cluster_cache_detects_damage_and_rebuilds(tmp_path, how):
     try:
         h = cached_hierarchy(ch, rep, params, directory=tmp_path)
     except TypeError as e:  # build parameters named differently: adapt this test to clusters_mode
-        pytest.fail(f"lod.clusters_mode.cached_hierarchy: {e}")
+        pytest.fail(f"lod.clusters.mode.cached_hierarchy: {e}")
     path = tmp_path / f"clusters-{cache_key(rep, params)}.npz"
     assert path.is_file()
     _damage(path, how)
     h2 = cached_hierarchy(ch, rep, params, directory=tmp_path)
     for k, v in h.arrays().items():
         assert np.array_equal(h2.arrays()[k], v), k
-    from lod.cluster_dag import ClusterHierarchy
+    from lod.clusters.dag import ClusterHierarchy
 
     ClusterHierarchy.load(path)  # rewritten: loads again

@@ -6,7 +6,8 @@ import numpy as np
 from hc_util import crowd, look
 from tiny_characters import tiny_keyframed, tiny_skinned
 
-from lod.nolod import NoLodSelector, build_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_rep
 from render.renderer import MAX_TRIANGLES_IN_FLIGHT, Renderer
 
 

@@ -75,7 +75,8 @@ def _degenerate_mesh():
 
 
 def test_degenerate_triangles_normals_finite_and_render(gl_ctx):
-    from lod.nolod import NoLodSelector, build_static_rep
+    from lod.full.mode import NoLodSelector
+    from lod.full.reps import build_static_rep
     from render.renderer import Renderer
     from sim.state import CrowdState
 
@@ -112,10 +113,10 @@ def test_skin_weights_repaired_or_refused_in_gltf(tmp_path):
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim" / "gltf"))
     from test_fuzz_gltf import BASE_BLOB, BASE_JSON, glb_bytes  # noqa: E402
     from sim.errors import AssetError
-    from sim.gltf_io import load_gltf
+    from sim.gltf.load import load_gltf
 
     wacc = BASE_JSON["accessors"][2]
     off = BASE_JSON["bufferViews"][wacc["bufferView"]]["byteOffset"]
@@ -258,7 +259,8 @@ def test_camera_ten_thousand_km_away(gl_ctx):
 
 
 def _capture(gl_ctx, ch, st, cam, size):
-    from lod.nolod import NoLodSelector, build_rep
+    from lod.full.mode import NoLodSelector
+    from lod.full.reps import build_rep
     from render.renderer import Renderer
 
     rep = build_rep(ch, key="hc:far")

@@ -123,7 +123,7 @@ def test_geomorphs_of_the_stressed_character(gl_ctx, mode, tmp_path, monkeypatch
     """Keyframed selection (n = 3) geomorphs chain levels and cluster cuts of the zero-scale and
     folded clips while the camera dollies in from far: finite instance data and morph weights,
     every agent drawn, images not blank."""
-    from lod.keyframed_selection import KeyframedSelector
+    from lod.temporal.selection import KeyframedSelector
 
     ch = _stressed_character()
     reps, inner = _build(mode, [ch], tmp_path, monkeypatch)

@@ -5,17 +5,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lod.nolod import NoLodSelector, build_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_rep
 from lod.view import Camera
 from render.renderer import Renderer
+from sim.gltf import load as gltf_load
 from sim.state import CrowdState
 
 ASSETS = Path(__file__).resolve().parents[3] / "shared" / "assets"
 MODELS = sorted(ASSETS.glob("*.glb")) if ASSETS.is_dir() else []
 
 pytestmark = pytest.mark.skipif(not MODELS, reason=f"no glTF assets folder at {ASSETS}")
-
-gltf_io = pytest.importorskip("sim.gltf_io", reason="sim.gltf_io (engineer B) is not there yet")
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +27,7 @@ def renderer(gl_ctx):
 
 @pytest.fixture(scope="module", params=MODELS, ids=[p.stem for p in MODELS])
 def model(request):
-    ch = gltf_io.load_gltf(request.param)
+    ch = gltf_load.load_gltf(request.param)
     return ch, build_rep(ch, fps=30)
 
 

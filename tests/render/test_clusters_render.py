@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from lod import cluster_cut, clusters_mode, nolod
+from lod.clusters import cut as cluster_cut
+from lod.clusters import mode as clusters_mode
+from lod.full import mode as nolod
 from lod.view import Camera
 from render import clusters as rc
 from render.renderer import Renderer
@@ -300,9 +302,9 @@ def test_occlusion_culling_never_removes_a_visible_cluster(scene, occlusion_pair
 
 
 def test_occlusion_culling_with_geomorphed_cuts(scene, occlusion_pair):
-    """Keyframed selection (lod.keyframed_selection) geomorphs the cuts of a crowd the camera
+    """Keyframed selection (lod.temporal.selection) geomorphs the cuts of a crowd the camera
     approaches; with occlusion culling the images equal those without, frame by frame."""
-    from lod.keyframed_selection import KeyframedSelector
+    from lod.temporal.selection import KeyframedSelector
 
     with_oc, without = occlusion_pair
     st = _occluded_crowd(6, 30)
@@ -323,7 +325,7 @@ def test_occlusion_culling_with_geomorphed_cuts(scene, occlusion_pair):
 
 # ---------------------------------------------------------------------------- rendered (filled) silhouettes
 #: the 8,000-triangle procedural walker of scripts/bench_auto.md ("Image error"), seen as in
-#: tests/lod/test_auto_mode.py: camera at (0, 1, 3) looking down -z at one instance at depth z
+#: tests/lod/auto/test_auto_mode.py: camera at (0, 1, 3) looking down -z at one instance at depth z
 WALKER_TRIANGLES = 8000
 WALKER_DEPTHS = (-10.0, -25.0, -60.0)
 WALKER_HEADINGS = (1.2, 2.0)
@@ -367,7 +369,7 @@ def test_filled_silhouette_of_the_walker_within_poe(walker, poe):
     in either axis; measured worst with the fix: 0.79 px at PoE 0.5). With the plain surface Hausdorff
     distance as cluster error this failed (2.1 px at PoE 0.5, 2.8 px at PoE 1, 4.3 px at PoE 2):
     feet and limbs flattened into two-sided sheets are close to the surface but cover no pixel
-    seen edge-on; the normal-compatible distance (lod.qem.cluster_hausdorff) bounds it."""
+    seen edge-on; the normal-compatible distance (lod.simplify.distance.cluster_hausdorff) bounds it."""
     worst, where, refined = 0.0, None, 0
     walker.sel.poe = poe
     for st, cam, ref, case in walker.cases:
@@ -383,11 +385,11 @@ def test_filled_silhouette_of_the_walker_within_poe(walker, poe):
 
 @pytest.mark.parametrize("strategy", rc.STRATEGIES)
 def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
-    """A geomorphed union (lod/cluster_morph.py, shaders/clusters_morph.vert) renders exactly
+    """A geomorphed union (lod/clusters/morph.py, shaders/clusters_morph.vert) renders exactly
     cut A at t = 0 and exactly cut B at t = 1, pixel for pixel; in between it is neither."""
     import copy
 
-    from lod import cluster_morph as cm
+    from lod.clusters import morph as cm
 
     st = _state(*CROWD)
     cam = Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0))
@@ -420,11 +422,11 @@ def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
 
 
 def test_geomorph_shader_constants_match_python():
-    """morph.glsl (the geomorph shaders) follows collapse chains of at most lod.cluster_morph.MAX_CHAIN steps
+    """morph.glsl (the geomorph shaders) follows collapse chains of at most lod.clusters.morph.MAX_CHAIN steps
     and addresses its textures MORPH_TEXTURE_WIDTH texels wide."""
     import re
 
-    from lod import cluster_morph as cm
+    from lod.clusters import morph as cm
     from render.morph import MORPH_TEXTURE_WIDTH
     from render.shaders import load_source
 

@@ -1,4 +1,4 @@
-"""Screen-door transitions (DrawBatch.fade, lod/keyframed_selection.py): no fade
+"""Screen-door transitions (DrawBatch.fade, lod/temporal/selection.py): no fade
 draws every fragment (bit-identical images), the outgoing and incoming patterns
 are exact complements (their pixel coverage partitions the unfaded one), and
 an instance drawn by both halves of a transition renders exactly the unfaded
@@ -10,8 +10,11 @@ import pytest
 
 from tiny_characters import tiny_skinned, uv_sphere
 
-from lod import clusters_mode, nolod
-from lod import points_mode as pm
+from lod.clusters import mode as clusters_mode
+from lod.full import mode as nolod
+from lod.full import reps as nolod_reps
+from lod.points import mode as pm
+from lod.points import rep as pm_rep
 from lod.drawlist import FADE_IN, FADE_OUT, fade_uniform
 from lod.view import Camera
 from render.renderer import Renderer
@@ -38,9 +41,9 @@ def ball_character(n_lat=30, n_lon=48) -> KeyframedCharacter:
 
 @pytest.fixture(scope="module")
 def reps(tmp_path_factory):
-    sk = nolod.build_rep(tiny_skinned(), fps=30, key="none:tiny")
+    sk = nolod_reps.build_rep(tiny_skinned(), fps=30, key="none:tiny")
     creps, csel = clusters_mode.build([humanoid(1000, 2)], ["h"], [30], {"poe": 3.0}, cache=False)
-    cache = pm.HierarchyCache(tmp_path_factory.mktemp("pcache"))
+    cache = pm_rep.HierarchyCache(tmp_path_factory.mktemp("pcache"))
     preps, psel = pm.build([ball_character()], ["ball"], [30], {"splat_size": 1}, cache=cache,
                            progress=lambda it, d: it)
     return {"skinned": ([sk], nolod.NoLodSelector([sk])), "clusters": (creps, csel), "points": (preps, psel)}

@@ -1,4 +1,4 @@
-"""Geomorphs of LOD chain levels (lod/triangles_mode.py TriangleDrawBatch.morph,
+"""Geomorphs of LOD chain levels (lod/chains/mode.py TriangleDrawBatch.morph,
 shaders/skinned_morph.vert and skinned_direct_morph.vert): a level drawn with
 weight 0 is that level pixel for pixel, with weight 1 the coarser level pixel for
 pixel, in between neither; both skinning paths."""
@@ -7,7 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lod import triangles_mode as tm
+from lod.chains import chain as tm_chain
+from lod.chains import mode as tm
 from lod.view import Camera
 from render.renderer import Renderer
 from sim.procedural import humanoid
@@ -32,7 +33,7 @@ def _crowd():
 
 def _image(r, sel, rep, level, morph=None):
     dl = sel.select(_crowd(), Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0)), SIZE)
-    dl.batches = [tm.TriangleDrawBatch(b.rep, b.part, b.instance_ids, b.instance_data, level=level,
+    dl.batches = [tm_chain.TriangleDrawBatch(b.rep, b.part, b.instance_ids, b.instance_data, level=level,
                                        index_range=(3 * int(rep.level_first[level]), 3 * int(rep.level_count[level])),
                                        morph=morph) for b in dl.batches]
     r.draw(dl, background=BG)

@@ -6,7 +6,8 @@ import pytest
 from tiny_characters import tiny_keyframed, tiny_skinned
 
 from lod.drawlist import INSTANCE_FLOATS
-from lod.nolod import build_rep, model_rows
+from lod.full.pack import model_rows
+from lod.full.reps import build_rep
 from render.renderer import Renderer
 from sim.procedural import humanoid, quadruped
 from sim.skinning import skin

@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lod import points_mode as pm
-from lod.nolod import NoLodSelector, build_static_rep
+from lod.points import mode as pm
+from lod.points import rep as pm_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_static_rep
 from lod.view import Camera
 from render.renderer import Renderer
 from sim.character import KeyframedCharacter
@@ -38,7 +40,7 @@ def sphere_character(n_lat=60, n_lon=100, name="ball") -> KeyframedCharacter:
 
 @pytest.fixture(scope="module")
 def ball(tmp_path_factory):
-    cache = pm.HierarchyCache(tmp_path_factory.mktemp("cache"))
+    cache = pm_rep.HierarchyCache(tmp_path_factory.mktemp("cache"))
     reps, sel = pm.build([sphere_character()], ["ball"], [30], {"splat_size": 1}, cache=cache,
                          progress=lambda it, d: it)
     return reps[0], sel
@@ -123,7 +125,7 @@ def test_compute_splat_and_gl_points_give_nearly_the_same_image(renderer, ball):
 
 
 def _one_point_batch(rep, data):
-    return pm.PointsBatch(rep.key, 0, np.array([0], np.int32), data.astype(np.float32), points=1,
+    return pm_rep.PointsBatch(rep.key, 0, np.array([0], np.int32), data.astype(np.float32), points=1,
                           point_jobs=np.array([[0, 0, 1]], np.int64), tri_jobs=np.zeros((0, 3), np.int64))
 
 
@@ -192,7 +194,7 @@ def test_crowd_run_with_points_mode_end_to_end(tmp_path, monkeypatch):
     scene = tmp_path / "tiny.toml"
     scene.write_text(tiny_scene(replace={'mode = "none"': 'mode = "points"\nkeyframes = 2\nsplat_size = 2',
                                          "position = [1.0, 2.0, 7.0]": "position = [1.0, 2.0, 40.0]"}))
-    monkeypatch.setenv(pm.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setenv(pm_rep.CACHE_ENV, str(tmp_path / "cache"))
     out = tmp_path / "out"
     res = run_cli("run", scene, "--out", out)
     assert res.returncode == 0, res.stderr[-2000:]
@@ -236,9 +238,9 @@ def test_sample_packing_and_job_tables():
         want = d["p1"][:3] @ m[:, :3].T + m[:, 3]
         got = q[:3] @ f[:, 4 * i:4 * i + 3].T + f[:, 4 * i + 3]
         np.testing.assert_allclose(np.diag(got), np.diag(want), rtol=1e-4, atol=1e-2)
-    b1 = pm.PointsBatch("points:a", 1, np.arange(2, dtype=np.int32), np.zeros((2, 16), np.float32),
+    b1 = pm_rep.PointsBatch("points:a", 1, np.arange(2, dtype=np.int32), np.zeros((2, 16), np.float32),
                         point_jobs=np.array([[0, 5, 3], [1, 0, 0], [1, 7, 2]]))
-    b2 = pm.PointsBatch("points:a", 0, np.arange(1, dtype=np.int32), np.zeros((1, 16), np.float32),
+    b2 = pm_rep.PointsBatch("points:a", 0, np.arange(1, dtype=np.int32), np.zeros((1, 16), np.float32),
                         point_jobs=np.array([[0, 1, 4]]))
     jobs = job_table([b1, b2], "points:a", np.array([0, 100]), "point_jobs", {id(b1): 0, id(b2): 2})
     # empty jobs dropped; segment base added; instance rows offset; exclusive prefix
@@ -250,7 +252,7 @@ def test_sample_packing_and_job_tables():
 # ---------------------------------------------------------------------------- hierarchical instantiation (§3.6)
 def _walker():
     """Looping 3-keyframe walker (an ellipsoid 1.8 m tall that sways; as in
-    tests/lod/test_points_instancing.py)."""
+    tests/lod/points/test_points_instancing.py)."""
     from sim.keyframes import Keyframe as K
 
     n_lat, n_lon = 12, 16
@@ -284,7 +286,7 @@ def test_hierarchical_instantiation_renders_a_block_within_the_flat_instances_er
     levels = parse_levels([{"layout": "grid", "nx": 10, "nz": 10, "spacing": [2.0, 2.0], "phase_step": 0.13}])
     h = Hierarchy(levels, character=0, clip=0, period=1.2)
     reps, sel = pm.build([_walker()], ["w"], [30], {"splat_size": 1}, progress=False,
-                         cache=pm.HierarchyCache(tmp_path / "c"), instancing=Instancing([(0, h)]))
+                         cache=pm_rep.HierarchyCache(tmp_path / "c"), instancing=Instancing([(0, h)]))
     flat = pm.PointsSelector(reps[:1], splat_size=1)
     ref = dataclasses.replace(reps[0].keyframed, key="none:w")
     r = Renderer((320, 240), ctx=gl_ctx)
@@ -411,7 +413,7 @@ def test_frames_after_a_dense_frame_keep_no_stale_splats(renderer, ball, monkeyp
 def test_two_reps_share_the_sample_buffer_and_a_replaced_upload(gl_ctx, ball, tmp_path):
     """Samples of several reps live in one buffer (uploads append; a rep
     uploaded again gets a new range): each rep still draws its own points."""
-    cache = pm.HierarchyCache(tmp_path)
+    cache = pm_rep.HierarchyCache(tmp_path)
     reps2, sel2 = pm.build([sphere_character(30, 50, name="ball2")], ["ball2"], [30], {"splat_size": 1},
                            cache=cache, progress=lambda it, d: it)
     rep1, sel1 = ball

@@ -7,10 +7,12 @@ import pytest
 
 from tiny_characters import tiny_keyframed, tiny_skinned
 
-from lod.nolod import NoLodSelector, build_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_rep
 from lod.view import Camera
 from render.image import read_png
-from render.renderer import GL_TIMER_INVALID, Renderer, gpu_seconds
+from render.renderer import Renderer
+from render.timing import GL_TIMER_INVALID, gpu_seconds
 from render.shaders import ShaderNotFound, load_source, program_sources
 from sim.state import CrowdState
 

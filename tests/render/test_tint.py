@@ -5,7 +5,8 @@ import pytest
 from tiny_characters import tiny_skinned
 
 from lod.debug_colors import COLOR_BY, LEVEL_COLORS, REPRESENTATION_COLORS, apply_tints
-from lod.nolod import NoLodSelector, build_rep
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_rep
 from lod.view import Camera
 from render.renderer import Renderer
 from sim.state import CrowdState

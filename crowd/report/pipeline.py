@@ -1,0 +1,277 @@
+"""``crowd report``: frame-time and accuracy reports over scenes and swept settings (:func:`build_report`).
+
+For each scene and each combination of swept settings (``--sweep KEY=V1,V2``, :mod:`crowd.report.settings`)
+the scene runs headless along its camera path (``Engine.run``: frames.csv,
+summary.json, trace.json and every k-th frame as PNG; :mod:`crowd.report.runs`). A full-detail reference
+run (LOD mode ``none``, same scene, seed and size; the simulation does not
+depend on the LOD mode, so the states and cameras of both runs are equal frame
+by frame) renders the same sampled frames, and each sampled frame is compared
+with its reference by PSNR, SSIM and FLIP (:mod:`crowd.image_metrics`, :mod:`crowd.report.metrics`).
+The work runs on :class:`crowd.report.cluster.ClusterPool` (``--cluster``); ``--compare`` checks the frame
+times against a baseline report (:mod:`crowd.report.compare`).
+
+The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
+
+    index.html         self-contained page (relative links only; crowd.report.page)
+    report.json        every number of the page (non-finite values as null)
+    plots/*.png        matplotlib (Agg) figures (crowd.report.plots)
+    samples/*.png      sampled frames, references and error maps
+    runs/<scene>/<setting>/   the runs' own outputs (frames.csv, summary.json, ...)
+"""
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from crowd.errors import CrowdError
+from crowd.report.cluster import DEFAULT_CLUSTER, ClusterPool
+from crowd.report.compare import MAD_TO_SIGMA, MIN_REGRESSION, NOISE_K, compare_reports
+from crowd.report.metrics import aggregate, metrics_task
+from crowd.report.page import render_html
+from crowd.report.plots import _plots
+from crowd.report.runs import (STAGE_COLUMNS, RunData, _checked, _is_reference, _reference_scene, frame_seconds,
+                               run_task, test_sleep_seconds)
+from crowd.report.settings import expand_settings
+
+#: default number of sampled (compared) frames per run
+DEFAULT_SAMPLES = 4
+
+
+def _progress(total: int, quiet: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="report", disable=quiet or not sys.stderr.isatty(), leave=False,
+                file=sys.stderr, dynamic_ncols=True)
+
+
+def finite_or_none(x):
+    """JSON-safe number: non-finite floats become None."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+@dataclass
+class ReportResult:
+    out_dir: Path
+    data: dict  # as report.json
+
+
+def build_report(scene_paths: list, sweeps: list, frames: int | None = None, size: tuple | None = None,
+                 out: str | Path = "out/report", sample_every: int | None = None, quiet: bool = False,
+                 repeat: int | None = None, baseline: dict | None = None, baseline_dir: str | None = None,
+                 cluster: str | None = DEFAULT_CLUSTER) -> ReportResult:
+    """Run every scene x setting plus references, measure, and write the report directory atomically.
+
+    Parameters
+    ----------
+    scene_paths : list of scene file paths
+    sweeps : list of (key, values) (:func:`crowd.report.settings.parse_sweep`)
+    frames, size : overrides of every scene's ``frames`` and ``[render] size``
+    out : report directory (replaced atomically)
+    sample_every : compare every k-th frame (default: ``frames // 4``, at least 1)
+    quiet : no progress bar
+    repeat : timed runs per setting (default 3 with a baseline, else 1); the first run's images are compared,
+        every run's median frame time goes into ``repeat_medians_ms``.
+    baseline : a baseline report.json (:func:`crowd.report.compare.load_baseline`); the comparison goes into
+        ``data["compare"]`` and the page
+    baseline_dir : the baseline's directory, as shown on the page
+    cluster : ``"local"`` (default, an embedded dask LocalCluster), ``"none"``/None (this process) or the
+        address of a dask scheduler (``tcp://HOST:PORT``): see :class:`ClusterPool`.
+
+    Notes
+    -----
+    Two phases. First every timed run (each setting ``repeat`` times, all scenes) through
+    :meth:`ClusterPool.timed`: one at a time per host, nothing else running. Then, in parallel on every
+    worker, the NoLOD reference runs (untimed) and the image error of every sampled frame
+    (:func:`crowd.report.metrics.metrics_task`). The client writes the runs' files, plots and the page.
+
+    Raises
+    ------
+    crowd.errors.CrowdError
+        Bad scene, sweep or ``cluster`` (before anything runs or is written); a user error raised by a run
+        (e.g. a broken asset) is raised here with its message, and nothing is written.
+    """
+    from crowd.image_metrics import flip_available
+    from crowd.output import atomic_dir, check_output_dir
+    from render.image import write_png
+
+    all_settings = [(Path(p), expand_settings(p, sweeps, size=size, frames=frames)) for p in scene_paths]
+    names = [s[0].scene.name for _, s in all_settings]
+    slugs = _unique_slugs(names)
+    out = check_output_dir(out)
+    repeat = int(repeat) if repeat is not None else (3 if baseline is not None else 1)
+    if repeat < 1:
+        raise CrowdError(f"--repeat {repeat}: expected a positive number of runs per setting")
+    sleep = test_sleep_seconds()  # a bad test-only setting fails before anything runs
+    pool = ClusterPool(cluster)  # a malformed address fails here, before anything runs
+    ks = [sample_every or max(1, settings[0].scene.frames // DEFAULT_SAMPLES) for _, settings in all_settings]
+    # reference runs: one per scene and size, unless a setting of mode none without LOD keys is its own
+    refs_needed = []
+    for (_, settings), k in zip(all_settings, ks):
+        own = {tuple(st.scene.render.size) for st in settings if _is_reference(st.scene)}
+        refs_needed.append(sorted({tuple(st.scene.render.size) for st in settings} - own))
+    n_timed = sum(repeat * len(s) for _, s in all_settings)
+    n_refs = sum(len(r) for r in refs_needed)
+    n_metrics = sum(len(s) * len(range(0, s[0].scene.frames, k)) for (_, s), k in zip(all_settings, ks))
+    data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None,
+            "repeat": repeat}
+    with pool, atomic_dir(out) as tmp, _progress(n_timed + n_refs + n_metrics, quiet) as bar:
+        data["cluster"] = pool.description
+        data["hosts"] = {h: len(w) for h, w in pool.hosts().items()}
+        for d in ("plots", "samples", "runs"):
+            (tmp / d).mkdir()
+
+        # phase 1: timed runs, never two on one host, nothing else running
+        jobs, where = [], []
+        for si, ((_, settings), k) in enumerate(zip(all_settings, ks)):
+            for st in settings:
+                for i in range(repeat):  # the first run writes the sampled frames; repeats are timing only
+                    jobs.append((st.scene, k if i == 0 else 0, i == 0, sleep))
+                    where.append((si, st, i))
+        bar.set_postfix_str(f"timed runs on {pool.description}")
+
+        def timed_done(v):
+            _checked(v)
+            bar.update(1)
+
+        timed = pool.timed(run_task, jobs, done=timed_done)
+        runs_of = [[] for _ in all_settings]  # per scene: (RunData, handle of the first run)
+        first = {}
+        # when and where each run ran (wall-clock seconds since the epoch): the scheduling, checkable
+        data["schedule"] = []
+        for (si, st, i), (handle, v) in zip(where, timed):
+            data["schedule"].append({"kind": "timed", "scene": names[si], "label": st.label, "run": i,
+                                     "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
+            slug = slugs[si]
+            rd = tmp / "runs" / slug / (st.slug if i == 0 else f"{st.slug}_r{i}")
+            _write_files(rd, v["files"])
+            median = float(np.median(frame_seconds(v["columns"])))
+            if i == 0:
+                run = RunData(st, rd, v["summary"], v["columns"], [rd / "frames" / n for n in v["pngs"]])
+                run.host = v.get("host")
+                runs_of[si].append(run)
+                first[id(run)] = (handle, v)
+            runs_of[si][-1].repeat_medians.append(median)
+
+        # phase 2: reference runs and image error, in parallel on every worker
+        bar.set_postfix_str("references and image error")
+        ref_handles = {}
+        for si, (_, settings) in enumerate(all_settings):
+            for sz in refs_needed[si]:
+                scene = _reference_scene(next(st.scene for st in settings if tuple(st.scene.render.size) == sz))
+                ref_handles[si, sz] = pool.submit(run_task, scene, ks[si], True, 0.0)
+        mjobs, mhandles = [], []
+        for si in range(len(all_settings)):
+            for run in runs_of[si]:
+                sz = tuple(run.setting.scene.render.size)
+                if (si, sz) in ref_handles:
+                    ref = ref_handles[si, sz]
+                else:  # a NoLOD setting of this size is the reference
+                    ref = first[id(next(r for r in runs_of[si] if _is_reference(r.setting.scene)
+                                        and tuple(r.setting.scene.render.size) == sz))][0]
+                handle = first[id(run)][0]
+                for name in first[id(run)][1]["pngs"]:
+                    frame = int(re.search(r"(\d+)", name).group(1))
+                    if frame % ks[si] == 0:  # not the second frame of a flicker pair
+                        mjobs.append((si, run, frame, ref))
+                        mhandles.append(pool.submit(metrics_task, handle, ref, frame))
+        ref_values = dict(zip(ref_handles, pool.results(list(ref_handles.values()), done=lambda: bar.update(1))))
+        for (si, sz), v in ref_values.items():
+            _checked(v)
+            data["schedule"].append({"kind": "reference", "scene": names[si], "label": f"{sz[0]}x{sz[1]}", "run": 0,
+                                     "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
+            _write_files(tmp / "runs" / slugs[si] / f"reference_{sz[0]}x{sz[1]}", v["files"])
+        results = pool.results(mhandles, done=lambda: bar.update(1))
+
+        for si, (path, settings) in enumerate(all_settings):
+            slug, k = slugs[si], ks[si]
+            for (sj, run, frame, ref), m in zip(mjobs, results):
+                if sj != si:
+                    continue
+                sz = tuple(run.setting.scene.render.size)
+                ref_dir = (tmp / "runs" / slug / f"reference_{sz[0]}x{sz[1]}" if (si, sz) in ref_handles
+                           else next(r.out_dir for r in runs_of[si] if _is_reference(r.setting.scene)
+                                     and tuple(r.setting.scene.render.size) == sz))
+                base = f"{slug}_{run.setting.slug}_f{frame:05d}"
+                shutil.copyfile(run.out_dir / "frames" / f"frame_{frame:05d}.png", tmp / "samples" / f"{base}.png")
+                shutil.copyfile(ref_dir / "frames" / f"frame_{frame:05d}.png", tmp / "samples" / f"{base}_ref.png")
+                m = dict(m)
+                write_png(tmp / "samples" / f"{base}_err.png", m.pop("error_png"))
+                run.metrics.append({"frame": frame, **m, "image": f"samples/{base}.png",
+                                    "reference": f"samples/{base}_ref.png", "error": f"samples/{base}_err.png"})
+            scene_entry = {"name": names[si], "slug": slug, "file": str(path), "frames": settings[0].scene.frames,
+                           "sample_every": k, "settings": []}
+            for run in runs_of[si]:
+                scene_entry["settings"].append(_setting_entry(run, tmp))
+                if data["machine"] is None:
+                    data["machine"] = run.summary.get("machine")
+            _plots(tmp, scene_entry, runs_of[si])
+            data["scenes"].append(scene_entry)
+        if baseline is not None:
+            rows = compare_reports(data, baseline)
+            data["compare"] = {"baseline": str(baseline_dir) if baseline_dir is not None else None, "rows": rows,
+                               "regressions": sum(r["regression"] for r in rows),
+                               "rule": f"ratio of medians > 1 + max({MIN_REGRESSION:g}, {NOISE_K:g} x the larger "
+                                       f"relative spread {MAD_TO_SIGMA} MAD / median of the repeated medians "
+                                       f"of both reports)"}
+        from crowd.output import write_atomic, write_json
+
+        write_json(tmp / "report.json", _json_safe(data))
+        write_atomic(tmp / "index.html", render_html(data))
+    return ReportResult(out_dir=out, data=data)
+
+
+def _write_files(folder: Path, files: dict) -> None:
+    """Write a run's files (relative path -> bytes) under ``folder`` (inside the report's temporary folder)."""
+    for rel, blob in files.items():
+        p = folder / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(blob)
+
+
+def _unique_slugs(names: list) -> list:
+    out, used = [], set()
+    for n in names:
+        base = re.sub(r"[^A-Za-z0-9_.-]+", "_", n) or "scene"
+        s, i = base, 2
+        while s in used:
+            s, i = f"{base}_{i}", i + 1
+        used.add(s)
+        out.append(s)
+    return out
+
+
+def _setting_entry(run: RunData, tmp: Path) -> dict:
+    from crowd.telemetry import stats
+
+    s, st = run.summary, run.setting
+    stages = s["stages"]
+    ft = stats(frame_seconds(run.columns))
+    return {"label": st.label, "slug": st.slug, "values": st.values, "lod_mode": st.scene.lod_mode,
+            "host": run.host,
+            "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
+            "run_dir": str(run.out_dir.relative_to(tmp)),
+            "frame_ms": {q: ft[q] * 1e3 for q in ("mean", "p50", "p95", "p99", "max")},
+            "repeat_medians_ms": [m * 1e3 for m in run.repeat_medians],
+            "stage_ms": {k: stages[k]["mean"] * 1e3 for k in STAGE_COLUMNS if stages.get(k)},
+            "gpu_ms": (stages["gpu"]["p50"] * 1e3) if stages.get("gpu") else None,
+            "triangles": s["counts"]["triangles"]["mean"], "points": s["counts"]["points"]["mean"],
+            "instances": s["counts"]["instances"]["mean"],
+            "accuracy": aggregate(run.metrics), "samples": run.metrics}
+
+
+def _json_safe(obj):
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        obj = obj.item()
+    return finite_or_none(obj)

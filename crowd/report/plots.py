@@ -1,0 +1,121 @@
+"""``crowd report`` plots (matplotlib, Agg): frame time, per-stage breakdown, primitives drawn, flicker, accuracy
+against time.
+
+Figures are written as ``plots/*.png`` of the report directory; :func:`_plots` records their relative paths
+(and the Pareto front) in the scene's entry of report.json.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from crowd.report.metrics import pareto_front
+from crowd.report.runs import STAGE_COLUMNS, frame_seconds
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _error_axis(settings: list) -> tuple:
+    """(name, values) of the error shown on the Pareto plot: mean FLIP, else 1 - SSIM."""
+    if all(s["accuracy"]["flip"] is not None for s in settings):
+        return "mean FLIP error", [s["accuracy"]["flip"] for s in settings]
+    return "1 - SSIM", [1.0 - (s["accuracy"]["ssim"] if s["accuracy"]["ssim"] is not None else 0.0)
+                        for s in settings]
+
+
+def _plots(tmp: Path, entry: dict, runs: list) -> None:
+    plt = _plt()
+    slug = entry["slug"]
+    plots = entry["plots"] = {}
+
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=96)
+    for run in runs:
+        c = run.columns
+        ax.plot(c["frame"], frame_seconds(c) * 1e3, label=run.setting.label, lw=1.2)
+    ax.set_xlabel("frame (along the camera path)")
+    ax.set_ylabel("frame time, ms")
+    ax.set_title(f"{entry['name']}: frame time")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plots["frame_time"] = _save(fig, tmp, f"plots/{slug}_frame_time.png")
+
+    plots["stages"] = {}
+    for run in runs:
+        c = run.columns
+        fig, ax = plt.subplots(figsize=(8, 3), dpi=96)
+        ys = [np.nan_to_num(c[k]) * 1e3 for k in STAGE_COLUMNS if k in c]
+        ax.stackplot(c["frame"], *ys, labels=[k for k in STAGE_COLUMNS if k in c], alpha=0.85)
+        ax.set_xlabel("frame")
+        ax.set_ylabel("ms")
+        ax.set_title(f"{entry['name']} [{run.setting.label}]: per-stage breakdown", fontsize=9)
+        ax.legend(fontsize=7, loc="upper right", ncol=5)
+        ax.grid(alpha=0.3)
+        plots["stages"][run.setting.slug] = _save(fig, tmp, f"plots/{slug}_{run.setting.slug}_stages.png")
+
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=96)
+    for run in runs:
+        c = run.columns
+        prims = np.nan_to_num(c.get("triangles", 0)) + np.nan_to_num(c.get("points", 0))
+        ax.plot(c["frame"], prims, label=run.setting.label, lw=1.2)
+    ax.set_xlabel("frame")
+    ax.set_ylabel("primitives drawn (triangles + points)")
+    ax.set_title(f"{entry['name']}: primitives drawn")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plots["primitives"] = _save(fig, tmp, f"plots/{slug}_primitives.png")
+
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=96)
+    for s in entry["settings"]:
+        pts = [(m["frame"], m["flicker"]) for m in s["samples"] if m["flicker"] is not None]
+        if pts:
+            ax.plot(*zip(*pts), marker="o", label=s["label"], lw=1.2)
+    ax.set_xlabel("frame t (pair t, t+1)")
+    ax.set_ylabel("mean |ΔF − ΔR|")
+    ax.set_title(f"{entry['name']}: LOD flicker (temporal change the NoLOD reference does not have)")
+    ax.grid(alpha=0.3)
+    if ax.lines:
+        ax.legend(fontsize=7)
+    plots["flicker"] = _save(fig, tmp, f"plots/{slug}_flicker.png")
+
+    sets = entry["settings"]
+    name, errs = _error_axis(sets)
+    times = [s["frame_ms"]["p50"] for s in sets]
+    fig, ax = plt.subplots(figsize=(6, 4.5), dpi=96)
+    ax.scatter(times, errs, zorder=3)
+    for i, (t, e, s) in enumerate(zip(times, errs, sets)):  # staggered: settings of equal cost stay readable
+        ax.annotate(s["label"], (t, e), fontsize=7, xytext=(4, 4 + 9 * (i % 3)), textcoords="offset points")
+    front = pareto_front(times, errs)
+    ax.plot([times[i] for i in front], [errs[i] for i in front], "r--", lw=1, marker="o", ms=11, mfc="none",
+            label="Pareto front", zorder=2)
+    log_x = min(times) > 0 and max(times) > 20 * min(times)  # NoLOD of a big scene is 10-100x the LOD modes
+    if log_x:
+        ax.set_xscale("log")
+    ax.set_xlabel("median frame time, ms" + (" (log scale)" if log_x else ""))
+    ax.set_ylabel(name + " vs NoLOD")
+    ax.set_title(f"{entry['name']}: accuracy against time")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plots["pareto"] = _save(fig, tmp, f"plots/{slug}_pareto.png")
+    entry["pareto_front"] = [sets[i]["slug"] for i in front]
+    entry["pareto_error"] = name
+
+
+def _save(fig, tmp: Path, rel: str) -> str:
+    import io
+
+    from crowd.output import write_atomic
+
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png")
+    _plt().close(fig)
+    write_atomic(tmp / rel, buf.getvalue())
+    return rel

@@ -1,0 +1,119 @@
+"""The per-instance choice at a pixel bound and the budget controller that moves
+the bound towards a frame-time budget (see :mod:`lod.auto.mode`, "Budget").
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+UP_TOLERANCE = 0.05
+#: cost below budget * (1 - DOWN_TOLERANCE): refine (lower the bound)
+DOWN_TOLERANCE = 0.15
+#: bound change factor at the start and after a run in one direction
+MAX_STEP = 1.5
+#: the step is never below this factor
+MIN_STEP = 1.02
+#: an out-of-band cost must persist this many consecutive frames before the bound moves (one noisy
+#: frame does not), unless it is off the budget by more than ``URGENT`` (a factor)
+PERSIST = 2
+URGENT = 1.5
+#: a held bound is released when the cost at it changes by more than this fraction
+HOLD_RELEASE = 0.10
+#: observed frames the online cost-model refit keeps (the most recent)
+ADAPT_FRAMES = 32
+#: observed frames per plan its correction factor is the median of (the most recent: the view moves)
+PLAN_FRAMES = 8
+
+#: an unmeasured plan predicted within this fraction of the best plan is drawn once to measure it
+#: (about the cost model's median error), during the first ``EXPLORE_FRAMES`` frames of a selector
+EXPLORE_MARGIN = 0.3
+EXPLORE_FRAMES = 3
+
+#: clamp of the adaptive bound, pixels
+BOUND_MIN = 0.25
+BOUND_MAX = 1000.0
+def choose(cost: np.ndarray, error_px: np.ndarray, bound: float) -> np.ndarray:
+    """Per instance, the index of the cheapest candidate with error <= ``bound``.
+
+    Parameters
+    ----------
+    cost : (L,) or (k, L) float64 predicted seconds per candidate
+    error_px : (k, L) float64 projected error; column 0 is full detail
+    bound : pixels >= 0
+
+    Returns
+    -------
+    (k,) int64; 0 (full detail) where no candidate is within the bound.
+    Ties go to the lower index (finer).
+    """
+    err = np.asarray(error_px, np.float64)
+    c = np.broadcast_to(np.asarray(cost, np.float64), err.shape)
+    ok = err <= float(bound)
+    ok[:, 0] = True
+    masked = np.where(ok, c, np.inf)
+    return np.argmin(masked, axis=1).astype(np.int64)
+
+
+class BudgetController:
+    """The adaptive bound of budget mode (module docstring).
+
+    Parameters
+    ----------
+    budget_s : seconds > 0
+    bound : start value, pixels (clamped)
+    """
+
+    def __init__(self, budget_s: float, bound: float = 1.0):
+        if not (math.isfinite(budget_s) and budget_s > 0.0):
+            raise ValueError(f"[lod] budget_ms: expected a finite number > 0, got {budget_s * 1e3}")
+        self.budget = float(budget_s)
+        self.bound = float(min(max(bound, BOUND_MIN), BOUND_MAX))
+        self.step = MAX_STEP
+        self._last_dir = 0
+        self._run = 0
+        self._held_cost = None
+        self._pending = 0
+
+    def update(self, cost: float) -> float:
+        """Adapt the bound to a frame's ``cost`` (seconds); returns the new bound."""
+        cost = float(cost)
+        if not math.isfinite(cost) or cost < 0.0:
+            return self.bound
+        if self._held_cost is not None:
+            if abs(cost - self._held_cost) <= HOLD_RELEASE * max(self._held_cost, 1e-12):
+                return self.bound
+            self._held_cost = None
+            self.step = MAX_STEP
+            self._last_dir = 0
+        if cost > self.budget * (1.0 + UP_TOLERANCE):
+            d = 1
+        elif cost < self.budget * (1.0 - DOWN_TOLERANCE):
+            d = -1
+        else:
+            self._run = 0
+            self._pending = 0
+            return self.bound
+        urgent = cost > self.budget * URGENT or cost < self.budget / URGENT
+        self._pending = self._pending + d if self._pending * d > 0 else d
+        if abs(self._pending) < PERSIST and not urgent:
+            return self.bound
+        self._pending = 0
+        if (d > 0 and self.bound >= BOUND_MAX) or (d < 0 and self.bound <= BOUND_MIN):
+            return self.bound
+        if self._last_dir and d != self._last_dir:
+            if d < 0 and self.step <= MIN_STEP * (1 + 1e-9):
+                self._held_cost = cost  # neighbouring bounds straddle the band: keep the cheaper one
+                return self.bound
+            self.step = max(MIN_STEP, math.sqrt(self.step))
+            self._run = 0
+        else:
+            self._run += 1
+            if self._run >= 3:  # a long run in one direction: the view changed, speed up again
+                self.step = min(MAX_STEP, self.step * self.step)
+        self._last_dir = d
+        self.bound = float(min(max(self.bound * (self.step if d > 0 else 1.0 / self.step), BOUND_MIN), BOUND_MAX))
+        return self.bound
+
+
+__all__ = ["BudgetController", "choose"]

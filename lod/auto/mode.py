@@ -1,0 +1,605 @@
+"""LOD mode ``"auto"``: per instance, the cheapest representation within the error bound.
+
+For every visible instance and every option of every candidate
+representation (:mod:`lod.auto.candidates`: the levels of the character's
+discrete triangle chain, its VDR-AM cluster cut, its Wand & Straßer point
+hierarchy), the projected error (pixels; the splat size for points) and the
+predicted cost (seconds, :mod:`lod.auto.cost_model`) are computed; the instance
+gets the cheapest option whose error is at most the bound, and full detail
+(triangle level 0) when none is or when the bound is 0 (issue 7, "lod.mode =
+auto"; the per-object cost/benefit choice of Funkhouser & Séquin, SIGGRAPH
+1993, §4, with the accuracy constraint as a hard bound instead of a benefit
+term). Instances are culled once, by the full-detail selector over the
+triangle reps, so every instance inside the frustum is drawn by exactly one
+candidate.
+
+The per-instance cost of an option is ``c_tri * triangles + c_splat * points
++ c_cluster * clusters + c_inst`` of what that option would draw for that
+instance (cluster cuts and point traversals are computed for every visible
+instance, so these counts are exact); the per-batch cost ``c_draw`` is
+shared by a batch and ignored in the per-instance choice. The candidates in
+play are the ``[lod] candidates`` key (default all three); without
+``ClustersCandidate``/``PointsCandidate`` (``candidates = "triangles"``) the
+mode is the triangle-chain choice of the first version.
+
+Point error, a decision: issue 7 defines a point hierarchy's error as its
+splat size, and ``points_error = "splat"`` uses exactly that (mode "points"
+at splat size s is the same choice). But a skinned character's point
+hierarchies are built over poses baked at ``keyframes`` times per clip and
+interpolated linearly (Wand & Straßer §3), which departs from the skinned
+pose the other representations and the NoLOD reference draw: 0.73 m at 3
+keyframes, 0.27 m at 9, 0.07 m at 33 for the procedural humanoid
+(:func:`lod.auto.candidates.keyframe_deviation`). Counting only the splat
+size would let auto show that departure (tens of pixels on a near
+instance) under a bound of 1-3 pixels, so the default is
+``points_error = "splat+keyframes"``: half the bound goes to the splat size,
+and the projected deviation must fit in the rest; the image error against
+the skinned mesh then stays within the bound (tests/lod/auto/test_auto_mode.py).
+``scripts/bench_auto.py`` reports both ("auto" and "auto-splat").
+
+Plans (issue 7, "auto within 10 % of the best single representation"): the
+per-instance choice alone can lose to a single representation, since the
+per-frame costs (the point pass, the cluster drawer's pre-pass) are shared
+by all instances and the calibration's relative costs are off by ~20-30 %.
+So every frame evaluates, from the same per-instance option table, the
+*mixed* plan (per instance the cheapest option; a candidate with a per-frame
+cost is dropped for the frame when its instances' savings do not pay for
+it) and one *pure* plan per candidate (that representation wherever it has
+an option within the bound, the triangle chain elsewhere), each priced as a
+frame: instances + batches + the per-frame passes used + the constant. With
+``adapt``, each plan's prediction is corrected by its own measured /
+predicted factor (the median over its observed frames, see
+:meth:`AutoSelector.plan_factor`; an unmeasured plan gets the median over
+all frames), and the plan with the lowest corrected prediction is drawn.
+During the first ``EXPLORE_FRAMES`` frames, a plan never measured whose
+corrected prediction is within ``EXPLORE_MARGIN`` of the best is drawn once,
+so that the correction is measured rather than assumed. A plan that draws
+what an earlier plan draws (the mixed plan equal to a pure one, or pure plans
+that coincide, e.g. when every agent is in a super node) shares that plan's
+name and measurements.
+
+Selection work: a candidate may give a cost lower bound per instance
+(:meth:`lod.auto.candidates.Candidate.cost_lower_bound`, the cluster cut:
+one skinned instance); candidates without one are evaluated first, and an
+instance's exact options of a bounded candidate are computed only where the
+bound undercuts the cheapest admissible option found so far. A plan priced
+with such skipped instances is optimistic; when it wins, the skipped
+instances are evaluated exactly and the plans priced again, so skipping
+never changes the choice (tested against a selector without the bound).
+
+The cost model is the stored calibration of this machine; with ``adapt``
+(default) it is rescaled after every frame the engine reports through
+:meth:`AutoSelector.observe` (:func:`lod.auto.cost_model.refine`: one factor, the
+median measured / predicted ratio of the last ``ADAPT_FRAMES`` frames), so
+predictions follow the load the engine really runs under while the relative
+costs that decide the choices stay the calibration's.
+
+Far groups (issue 7; Wand & Straßer §3.6): before the per-instance
+choice, each candidate may draw whole groups of instances
+(:meth:`lod.auto.candidates.Candidate.wholes`). The point candidate draws
+the far nodes of the simulation's instancing groups from their
+super-hierarchies, exactly the nodes mode points draws at the same splat
+size: a node qualifies only when its finest super-hierarchy leaves project
+within the splat size, so its few points undercut any per-instance option
+of its hundreds of members (each costs at least one instance). Those
+agents get no per-instance option; every plan includes the node draws and
+their point pass. With ``points_error = "splat+keyframes"`` no node is
+drawn this way (the keyframe deviation is projected per instance only).
+
+Accuracy is asked for in one of two ways:
+
+- ``budget_ms = 0`` (default): a fixed bound, ``poe`` pixels.
+- ``budget_ms > 0``: a frame-time budget. The bound adapts once per frame
+  from the last frame's cost (measured, when the caller reports it through
+  :meth:`AutoSelector.observe`, else predicted) with hysteresis: it is
+  multiplied by ``step`` when the cost exceeds the budget by more than
+  ``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
+  ``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
+  square-rooted at every change of direction (a damped, bisection-like
+  search) down to ``MIN_STEP``; a reversal from over- to under-budget at the
+  smallest step holds the bound (the cost jumps across the band between two
+  neighbouring bounds: the under-budget one is kept) until the cost at the
+  held bound changes by more than ``HOLD_RELEASE`` (the view changed). The
+  bound is clamped to ``[BOUND_MIN, BOUND_MAX]`` pixels. A cost outside the
+  band moves the bound only after ``PERSIST`` consecutive frames on the same
+  side (a single noisy measurement does not), or at once when it is off the
+  budget by more than a factor ``URGENT``.
+
+Telemetry: ``DrawList.stats["auto"]`` = {"levels": instances per triangle
+chain level (full-detail fallbacks at 0), "representations": instances per
+candidate name, "options": instances per "candidate:option" label,
+"predicted_ms": predicted rendering time of the frame (the drawn plan's
+corrected prediction), "bound": pixels used this frame, "budget_ms": the
+budget or 0, "plan": the plan drawn, "plans_ms": every plan's corrected
+prediction, "select_ms": this selection's own time}.
+"""
+from __future__ import annotations
+
+import math
+import statistics
+import time
+
+import numpy as np
+
+from lod.auto import candidates as ac
+from lod.auto import cost_model
+from lod.chains import chain as tm_chain
+from lod.chains import mode as tm
+from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
+from lod.auto.plans import _Block, _Plan, _plans_kernel
+from lod.clusters.cut import viewport_scale
+from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES
+from lod.drawlist import DrawList
+from lod.full.mode import NoLodSelector
+from sim.params import Param
+
+#: candidate representations mode "auto" can choose among (``[lod] candidates``)
+CANDIDATES = ("triangles", "clusters", "points")
+
+#: ``[lod]`` keys of mode "auto"
+PARAMS: dict = {
+    "poe": Param("float", 1.0, min=0.0, max=1000.0,
+                 doc="pixels of error: each instance gets the cheapest representation whose error projects below "
+                     "this (the start value of the bound in budget mode)"),
+    "budget_ms": Param("float", 0.0, min=0.0, max=10000.0,
+                       doc="frame-time budget in ms; 0 = fixed bound poe, > 0 = the bound adapts to the budget"),
+    "candidates": Param("str", ",".join(CANDIDATES),
+                        doc="comma-separated representations to choose among: triangles (always), clusters, points"),
+    "max_splat": Param("int", 3, min=1, max=3, doc="largest splat size (pixels) of the point candidate"),
+    "points_error": Param("str", "splat+keyframes", choices=("splat", "splat+keyframes"),
+                          doc="error of the point candidate: its splat size (issue 7's definition), or the splat "
+                              "size plus the projected keyframe-interpolation deviation of the baked poses "
+                              "(bounds the image error against the skinned mesh)"),
+    "cluster_error_scale": Param("float", 1.0, min=1.0, max=100.0,
+                                 doc="the cluster candidate cuts at poe / this: VDR-AM's per-cluster error "
+                                     "under-estimates the image error about 2-3x against the triangle chains' "
+                                     "(scripts/bench_auto.md); 1 keeps the paper's measure"),
+    "adapt": Param("bool", True, doc="rescale the cost model to the measured frames as they come "
+                                     "(lod.auto.cost_model.refine); false keeps the stored calibration"),
+    "levels": tm.PARAMS["levels"],
+    "ratio": tm.PARAMS["ratio"],
+    "leaf_triangles": Param("int", CLUSTERS_LEAF_TRIANGLES, min=8, max=1_000_000,
+                            doc="§4.2 s of the cluster candidate's hierarchies (mode clusters' leaf_triangles)"),
+    "keyframes": Param("int", 9, min=2, max=256,
+                       doc="poses baked per clip for the point candidate's hierarchies (mode points' keyframes)"),
+}
+
+
+def parse_candidates(value) -> tuple:
+    """``[lod] candidates`` as a tuple of names in :data:`CANDIDATES` order
+    ("triangles" always included); ValueError naming the key otherwise."""
+    names = [v.strip() for v in str(value).split(",") if v.strip()]
+    bad = [n for n in names if n not in CANDIDATES]
+    if bad or not names:
+        raise ValueError(f"[lod] candidates: expected a comma-separated subset of {', '.join(CANDIDATES)}, "
+                         f"got {value!r}")
+    return tuple(c for c in CANDIDATES if c in names or c == "triangles")
+
+
+#: cost above budget * (1 + UP_TOLERANCE): coarsen (raise the bound)
+
+
+#: (k, L) pixels of error of each chain level per instance (see :func:`lod.auto.candidates.projected_errors`)
+projected_errors = ac.projected_errors
+
+
+class AutoSelector:
+    """Cull and pack as the full-detail mode, then choose per instance among
+    the candidates (module docstring).
+
+    Parameters
+    ----------
+    reps : list aligned with ``CrowdState.character`` (:class:`lod.chains.chain.TrianglesRep`
+        for skinned characters, full-detail reps for the others): the master
+        selection and the triangle candidate
+    static_reps : StaticRep scenery
+    poe : pixels of error >= 0 (fixed bound, or the start of the adaptive one)
+    budget_ms : 0 for a fixed bound, > 0 for a frame-time budget
+    model : :class:`lod.auto.cost_model.CostModel` (default: this host's stored
+        calibration, else the defaults)
+    cull : frustum culling on (default)
+    candidates : further :class:`lod.auto.candidates.Candidate` objects
+        (clusters, points, ...) besides the triangle candidate, which is
+        always first
+    adapt : rescale the cost model to the frames reported through
+        :meth:`observe` (the last ``ADAPT_FRAMES``; :func:`lod.auto.cost_model.refine`)
+    """
+
+    def __init__(self, reps, static_reps=(), poe: float = 1.0, budget_ms: float = 0.0, model=None,
+                 cull: bool = True, candidates=(), adapt: bool = False, explore: bool = True):
+        if not (np.isfinite(poe) and float(poe) >= 0.0):
+            raise ValueError(f"[lod] poe: expected a finite number >= 0, got {poe}")
+        if not (np.isfinite(budget_ms) and float(budget_ms) >= 0.0):
+            raise ValueError(f"[lod] budget_ms: expected a finite number >= 0, got {budget_ms}")
+        self.poe = float(poe)
+        self.budget_ms = float(budget_ms)
+        self.model = model if model is not None else cost_model.load_any()
+        #: the calibration the online refit is pulled towards
+        self.prior = self.model
+        self.adapt = bool(adapt)
+        self._obs_x: list = []
+        self._obs_y: list = []
+        self._last_features = None
+        self.reps = list(reps)
+        self.cull = bool(cull)
+        self._rep_index = {r.key: i for i, r in enumerate(self.reps)}
+        self._chains = {r.key: r for r in self.reps if isinstance(r, tm_chain.TrianglesRep)}
+        self._inner = NoLodSelector(self.reps, static_reps=static_reps, cull=cull)
+        self._n_levels = max([r.n_levels for r in self._chains.values()] or [1])
+        self.candidates = [ac.TrianglesCandidate(self.reps), *candidates]
+        self.controller = BudgetController(self.budget_ms * 1e-3, self.poe) if self.budget_ms > 0 else None
+        self._measured = None
+        self._uses_measured = False
+        self.explore = bool(explore)
+        #: seconds the last :meth:`select` took (what :meth:`observe` subtracts to get the rendering time)
+        self.last_select_seconds = 0.0
+        self._plan_ratio: dict = {}  # plan name -> log(measured / predicted) of its observed frames
+        self._last_plan = None
+        self._last_prior_pred = 0.0
+        self._frames = 0
+
+    def cluster_hierarchies(self) -> dict:
+        """{rep key: ClusterHierarchy} of the cluster candidate's characters (for geomorphs
+        between keyframe cuts, :mod:`lod.temporal.selection`)."""
+        return {r.key: r.hierarchy for r in self.candidate_reps if getattr(r, "kind", "") == "clusters"}
+
+    def chain_reps(self) -> dict:
+        """{rep key: TrianglesRep} of the triangle chains with vertex collapses (for geomorphs
+        between keyframe levels, :mod:`lod.temporal.selection`)."""
+        return {k: r for k, r in self._chains.items() if getattr(r, "collapse_next", None) is not None}
+
+    @property
+    def candidate_reps(self) -> list:
+        """Every representation the candidates draw (to upload), master reps first."""
+        out, seen = [], set()
+        for c in self.candidates:
+            for r in c.reps:
+                if r.key not in seen:
+                    seen.add(r.key)
+                    out.append(r)
+        return out
+
+    @property
+    def bound(self) -> float:
+        """Pixels of error the next frame is selected with."""
+        return self.controller.bound if self.controller is not None else self.poe
+
+    def observe(self, seconds: float, select_seconds: float | None = None) -> None:
+        """Report the measured cost of the last selected frame.
+
+        Parameters
+        ----------
+        seconds : selection + rendering of the frame (what ``crowd.engine``
+            measures): budget mode adapts the bound to it
+        select_seconds : the selection's share of ``seconds``; default: the
+            selector's own timing of its last :meth:`select`
+            (``last_select_seconds``). With ``adapt`` the rest (the
+            rendering, what the cost model predicts) rescales the model
+            (:func:`lod.auto.cost_model.refine`) and corrects the prediction of
+            the frame plan drawn (module docstring, "Plans").
+        """
+        self._measured = float(seconds)
+        self._uses_measured = True
+        sel_s = self.last_select_seconds if select_seconds is None else float(select_seconds)
+        render = float(seconds) - (sel_s if np.isfinite(sel_s) and sel_s > 0 else 0.0)
+        if not (self.adapt and self._last_features is not None and np.isfinite(render) and render > 0):
+            return
+        self._obs_x.append(self._last_features)
+        self._obs_y.append(render)
+        del self._obs_x[:-ADAPT_FRAMES], self._obs_y[:-ADAPT_FRAMES]
+        self.model = cost_model.refine(self.prior, np.asarray(self._obs_x), np.asarray(self._obs_y))
+        if self._last_plan is not None and self._last_prior_pred > 0:
+            r = self._plan_ratio.setdefault(self._last_plan, [])
+            r.append(math.log(render / self._last_prior_pred))
+            del r[:-PLAN_FRAMES]
+        self._last_features = None
+        self._last_plan = None
+
+    def plan_factor(self, name: str) -> float:
+        """Measured / predicted (stored calibration) of frame plan ``name``:
+        the median (log space) over its last ``PLAN_FRAMES`` observed frames,
+        else over those of all plans, else 1."""
+        r = self._plan_ratio.get(name)
+        if not r:
+            r = [v for x in self._plan_ratio.values() for v in x]
+        return float(math.exp(statistics.median(r))) if r else 1.0  # a few floats: no numpy call
+
+    def _options(self, frame, g, bound):
+        """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
+        "Selection work": a candidate with a cost lower bound is asked only for the instances where that
+        bound is below the cheapest option within the bound found so far)."""
+        opts, a = [], 0
+        best = None
+        tri = self.candidates[0]
+        order = [tri] + [c for c in self.candidates[1:] if not self._has_lb(c)] + \
+            [c for c in self.candidates[1:] if self._has_lb(c)]
+        for c in order:
+            if c is not tri and not bound > 0.0:
+                continue
+            skipped = None
+            lb = c.cost_lower_bound(frame, g) if best is not None else None
+            if lb is not None:
+                need = lb < best
+                skipped = ~need
+                o = c.options(frame, g, need) if skipped.any() else c.options(frame, g)
+                if not skipped.any():
+                    skipped = None
+            else:
+                o = c.options(frame, g)
+            if o is None or not o.cost.shape[1]:
+                continue
+            blk = _Block.of(c, o, a, skipped, bound, c is tri)
+            opts.append(blk)
+            a += blk.m
+            best = blk.bmin if best is None else np.minimum(best, blk.bmin)
+        return opts
+
+    @staticmethod
+    def _has_lb(c) -> bool:
+        return type(c).cost_lower_bound is not ac.Candidate.cost_lower_bound
+
+    def _plans(self, frame, groups, bound, fixed=(0.0, frozenset())):
+        """The frame plans (module docstring, "Plans"): name -> :class:`_Plan`; ``fixed``: (seconds,
+        candidate names) of the whole-group draws every plan includes (:meth:`Candidate.wholes`).
+
+        Per group, one pass over its instances (:func:`_plans_kernel`) prices every pure plan and the
+        mixed one from the candidates' blocks (:class:`_Block`: each block's cheapest admissible option
+        per instance, computed once); the mixed plan is the argmin over the blocks in use (ties to the
+        lower column, as :func:`choose`)."""
+        c = frame.model.coefficients
+        fc = {cand.name: (cand.frame_cost(frame) if bound > 0.0 else 0.0) for cand in self.candidates[1:]}
+        names = [cand.name for cand in self.candidates]
+        # the mixed plan: per instance the cheapest option; a candidate with a per-frame cost is dropped
+        # for the frame when its instances' savings do not pay for it
+        use = set(names)
+        for cand in self.candidates[1:]:
+            if fc.get(cand.name, 0.0) <= 0.0 or cand.name in fixed[1]:  # no cost, or paid by the wholes
+                continue
+            saving = 0.0
+            for g, opts, ncols in groups:
+                mine = next((x.bmin for x in opts if x.cand is cand), None)
+                if mine is None:
+                    continue
+                rest = [x.bmin for x in opts if x.cand is not cand and x.cand.name in use]
+                other = rest[0] if len(rest) == 1 else np.min(np.stack(rest), axis=0)
+                wins = mine < other  # ties go to the lower column: only strict wins count
+                saving += float((other[wins] - mine[wins]).sum())
+            if saving <= fc[cand.name]:
+                use.discard(cand.name)
+        n_plans = len(names) + 1  # the pure plans in candidate order, then the mixed one
+        totals = np.full(n_plans, float(c["frame"]) + float(fixed[0]))
+        exact = np.ones(n_plans, bool)
+        used = [set(fixed[1]) for _ in range(n_plans)]
+        choices = [[] for _ in range(n_plans)]
+        for g, opts, ncols in groups:
+            col = {x.cand.name: j for j, x in enumerate(opts)}  # blocks in column order, triangles first
+            bmin = np.stack([x.bmin for x in opts])
+            barg = np.stack([x.barg for x in opts])
+            opt = np.stack([x.opt for x in opts])
+            sk = np.zeros(bmin.shape, np.bool_)
+            for j, x in enumerate(opts):
+                if x.skipped is not None:
+                    sk[j] = x.skipped
+            pure = np.array([col.get(n, 0) for n in names], np.int64)  # 0: the triangle chain
+            ch = np.empty((n_plans, g.k), np.int64)
+            cost = np.empty(n_plans)
+            ex = np.empty(n_plans, np.bool_)
+            opts_used = np.zeros((n_plans, ncols), np.bool_)
+            _plans_kernel(bmin, barg, opt, sk, pure, np.array([x.cand.name in use for x in opts]), ch, cost, ex,
+                          opts_used)
+            totals += cost
+            exact &= ex
+            for q in range(n_plans):
+                choices[q].append(ch[q])
+            for x in opts:  # batches: the distinct options of each block a plan draws
+                k = opts_used[:, x.a:x.a + x.m].sum(axis=1)
+                totals += c["batches"] * k
+                for q in np.flatnonzero(k).tolist():
+                    used[q].add(x.cand.name)
+        plans = {}
+        for q, name in enumerate(names + ["mixed"]):
+            plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]),
+                                bool(exact[q]))
+        # a plan whose choices equal an earlier plan's is that plan (its measurements are shared): a pure plan
+        # that draws what an earlier pure one draws (e.g. every agent in super nodes: all plans draw the same),
+        # and the mixed plan equal to a pure one
+        def same(x, y):
+            return all(np.array_equal(a_, b_) for a_, b_ in zip(x.choices, y.choices))
+
+        # roots first: a pure plan whose own candidate draws (so the far view drawn from super nodes alone is
+        # "points", not "triangles"), then candidate order
+        order = sorted(names, key=lambda n: (n not in used[names.index(n)], names.index(n)))
+        for i, name in enumerate(order + ["mixed"]):
+            this = plans[name]
+            for other in order[:i]:
+                o = plans[other]
+                if o.alias is None and same(this, o):
+                    this.exact = this.exact and o.exact
+                    if o.exact or not this.exact:
+                        this.seconds = o.seconds
+                    this.alias = other
+                    break
+        return plans
+
+    def select(self, state, camera, size, statics=()) -> DrawList:
+        """The frame's DrawList (see :meth:`lod.full.mode.NoLodSelector.select`):
+        every instance inside the frustum in exactly one batch of the
+        candidate it was given; batches sorted by (rep, part, level);
+        ``stats["auto"]`` holds the telemetry (module docstring)."""
+        t_start = time.perf_counter()
+        if self.controller is not None and self._measured is not None:
+            self.controller.update(self._measured)
+            self._measured = None
+        bound = float(self.bound)
+        if not (np.isfinite(bound) and bound >= 0.0):
+            raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
+        w, h = max(1, int(size[0])), max(1, int(size[1]))
+        frame = ac.Frame(state, camera, (w, h), camera.frustum_planes(w / h), viewport_scale(h, camera.fov_y), bound,
+                         self.prior, self.cull)
+        levels = np.zeros(self._n_levels, np.int64)
+        per_cand = {c.name: 0 for c in self.candidates}
+        tel = ac.Telemetry()
+        out = []
+        groups = []  # (group, [_Block per candidate], columns)
+        # whole groups first (§3.6 super-hierarchies): their agents get no per-instance option
+        wholes, taken, fixed_s, fixed_used, represented = [], None, 0.0, set(), 0
+        if bound > 0.0:
+            for c in self.candidates[1:]:
+                wb, tk, sec = c.wholes(frame)
+                if wb:
+                    wholes.extend(wb)
+                    fixed_s += sec
+                    fixed_used.add(c.name)
+                    taken = tk if taken is None else taken | tk
+                    n_rep = int(sum(getattr(x, "represented", x.n_instances) for x in wb))
+                    per_cand[c.name] += n_rep
+                    represented += n_rep
+                    tel.add(c.name, "super", n_rep)
+        if taken is not None and taken.any():
+            # only the agents no whole group draws are culled and packed (as mode points does): a far view
+            # of 90,000 instancing agents drawn from super nodes packs none of them
+            dl = self._inner.select(state, camera, size, statics, agents=np.flatnonzero(~taken))
+            dl.stats["instances"] += represented
+            dl.stats["culled"] = int(state.n - dl.stats["instances"])
+        else:
+            dl = self._inner.select(state, camera, size, statics)
+        for b in dl.batches:
+            ri = self._rep_index.get(b.rep)
+            if ri is None or b.n_instances == 0 or int(b.instance_ids[0]) < 0:  # scenery
+                out.append(b)
+                continue
+            rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
+            g = ac.Group(ri, b, rows)
+            opts = self._options(frame, g, bound)
+            groups.append((g, opts, sum(x.m for x in opts)))
+        plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
+
+        factors = {}  # plan name -> its measured factor, once per selection
+
+        def corrected(name):
+            m = plans[name].measured_as(name)
+            f = factors.get(m)
+            if f is None:
+                f = factors[m] = self.plan_factor(m)
+            return plans[name].seconds * f
+
+        best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
+        if not plans[best].exact:  # priced optimistically: price every skipped instance exactly, then decide again
+            for gi, (g, opts, ncols) in enumerate(groups):
+                if any(x.skipped is not None for x in opts):
+                    full = [x if x.skipped is None else
+                            _Block.of(x.cand, x.cand.options(frame, g), x.a, None, bound, x.cand is self.candidates[0])
+                            for x in opts]
+                    groups[gi] = (g, full, ncols)
+            plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
+            best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
+        if self.explore and self.controller is None and self.adapt and self._frames < EXPLORE_FRAMES:
+            # a plan never measured whose prediction is within the model's error of the best is tried once
+            cands = [n for n in plans if n != best and n not in self._plan_ratio and plans[n].alias is None
+                     and corrected(n) <= (1.0 + EXPLORE_MARGIN) * corrected(best)]
+            if cands and plans[best].measured_as(best) in self._plan_ratio:
+                best = min(cands, key=corrected)
+        plan_name = plans[best].measured_as(best)
+        for (g, opts, ncols), choice in zip(groups, plans[best].choices):
+            for x in opts:
+                c, o, a, m = x.cand, x.options, x.a, x.m
+                mine = np.flatnonzero(choice == a) if m == 1 else np.flatnonzero((choice >= a) & (choice < a + m))
+                if mine.size:
+                    local = choice[mine] - a
+                    out.extend(c.emit(frame, g, o, mine, local))
+                    per_cand[c.name] += int(mine.size)
+                    cnt = np.bincount(local, minlength=m)
+                    for j in np.flatnonzero(cnt).tolist():
+                        tel.add(c.name, o.labels[j] if j < len(o.labels) else str(j), int(cnt[j]))
+                    if c is self.candidates[0]:
+                        if g.batch.rep in self._chains:
+                            levels[:m] += cnt
+                        else:
+                            levels[0] += int(mine.size)
+        out.extend(wholes)
+        out.sort(key=lambda x: (x.rep, x.part, x.level))
+        dl.batches = out
+        dl.stats["points"] = 0
+        for c in self.candidates:
+            c.finish(frame, dl)
+        dl.stats["triangles"] = int(sum(x.triangles for x in out))
+        dl.stats["batches"] = len(out)
+        dl.stats["levels"] = [int(x) for x in levels]
+        prior_pred = self.prior.predict(dl)
+        predicted = prior_pred * self.plan_factor(plan_name)
+        self._last_features = cost_model.features(dl)
+        self._last_prior_pred = prior_pred
+        self._last_plan = plan_name
+        dl.stats["auto"] = {"levels": [int(x) for x in levels], "representations": per_cand, "options": tel.counts,
+                            "predicted_ms": 1e3 * predicted, "bound": bound, "budget_ms": self.budget_ms,
+                            "plan": plan_name,
+                            "plans_ms": {n: 1e3 * corrected(n) for n in plans}}
+        if self.controller is not None and not self._uses_measured:
+            self.controller.update(predicted)
+        self._frames += 1
+        self.last_select_seconds = time.perf_counter() - t_start
+        dl.stats["auto"]["select_ms"] = 1e3 * self.last_select_seconds
+        return dl
+
+
+def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True, model=None,
+          points_params=None, instancing=None, clips=None):
+    """Mode "auto" for ``lod.modes``: the "triangles" mode's reps (full-detail
+    reps for non-skinned characters), the cluster hierarchies and point
+    hierarchies of the characters when those candidates are asked for, and
+    an :class:`AutoSelector`.
+
+    Parameters
+    ----------
+    characters, names, fps, params, static_reps, progress : see ``lod.modes``
+    cache : use the on-disk chain and cluster caches (default); point
+        hierarchies always use theirs (``lod.points.rep.HierarchyCache``)
+    model : a :class:`lod.auto.cost_model.CostModel` (default: stored calibration or defaults)
+    points_params : further ``[lod]`` keys of mode "points" for the point
+        candidate's hierarchies (e.g. ``{"intervals": 1}``)
+    instancing : the simulation's ``sim.instancing.Instancing`` (or None):
+        the point candidate draws far nodes of its groups from
+        super-hierarchies (Wand & Straßer §3.6), as mode "points" does
+    clips : the clips the scene can play per character (see
+        ``lod.points.mode.build``): point hierarchies only for those
+
+    Returns
+    -------
+    reps : every representation to upload (triangle reps first, aligned with
+        the characters; then the clusters and points reps)
+    selector : AutoSelector
+    """
+    params = dict(params or {})
+    poe = float(params.get("poe", PARAMS["poe"].default))
+    budget = float(params.get("budget_ms", PARAMS["budget_ms"].default))
+    names_c = parse_candidates(params.get("candidates", PARAMS["candidates"].default))
+    tri_params = {k: params[k] for k in ("levels", "ratio") if k in params}
+    tri_params["poe"] = poe
+    reps, _ = tm.build(characters, names, fps, tri_params, static_reps=static_reps, progress=progress, cache=cache)
+    extra = []
+    if "clusters" in names_c and any(getattr(c, "kind", "") == "skinned" for c in characters):
+        from lod.clusters import mode as clusters_mode
+
+        cp = {"leaf_triangles": int(params.get("leaf_triangles", PARAMS["leaf_triangles"].default))}
+        creps, _ = clusters_mode.build(characters, names, fps, cp, static_reps=static_reps, progress=progress,
+                                       cache=cache)
+        extra.append(ac.ClustersCandidate(creps, error_scale=float(params.get(
+            "cluster_error_scale", PARAMS["cluster_error_scale"].default))))
+    if "points" in names_c and characters:
+        from lod.points import mode as points_mode
+
+        pp = {**dict(points_params or {}), "keyframes": int(params.get("keyframes", PARAMS["keyframes"].default))}
+        preps, psel = points_mode.build(characters, names, fps, pp, static_reps=static_reps, progress=progress,
+                                        instancing=instancing, clips=clips)
+        strict = str(params.get("points_error", PARAMS["points_error"].default)) == "splat+keyframes"
+        dev = [ac.keyframe_deviation(ch, pp["keyframes"]) if strict else 0.0 for ch in characters]
+        extra.append(ac.PointsCandidate(preps, [r.kind for r in reps],
+                                        max_splat=int(params.get("max_splat", PARAMS["max_splat"].default)),
+                                        deviation=dev, spheres=[getattr(r, "clip_sphere", None) for r in reps],
+                                        instancing=psel.instancing))
+    sel = AutoSelector(reps, static_reps=static_reps, poe=poe, budget_ms=budget, model=model, candidates=extra,
+                       adapt=bool(params.get("adapt", PARAMS["adapt"].default)))
+    return sel.candidate_reps, sel
+
+
+__all__ = ["PARAMS", "CANDIDATES", "AutoSelector", "build", "parse_candidates", "projected_errors"]

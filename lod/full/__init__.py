@@ -1,0 +1,11 @@
+"""Full detail (LOD mode ``"none"``): every visible instance drawn with its complete mesh.
+
+The fair baseline every LOD speed-up is measured against. Modules in data-flow order:
+
+- ``lod.full.reps``: ``SkinnedRep`` (mesh + skin + every clip's joint matrices baked at a fixed rate, linear
+  blend skinning), ``KeyframedRep`` (keyframe segments, Wand & Straßer §3), ``StaticRep``; ``build_rep``.
+- ``lod.full.bounds``: per-frame skinned boxes and spheres that bound the whole animation (for culling).
+- ``lod.full.pack``: per-frame culling and packing of instances into instanced batches (numba, numpy reference).
+- ``lod.full.mode``: ``NoLodSelector`` and the mode protocol (``PARAMS``, ``build``); every other mode's
+  selector reuses its cull-and-pack pass.
+"""

@@ -1,0 +1,15 @@
+"""Point-sample hierarchies of keyframe animations (Wand & Straßer 2002), LOD mode ``"points"``.
+
+Modules in data-flow order:
+
+- ``lod.points.config``: the tunable constants, each naming its section.
+- ``lod.points.sampling``: candidate samples of moving triangles, area-weighted over a keyframe interval (§3.4.1).
+- ``lod.points.stratify``: stratification of the moving candidates per octree level (§3.4.2).
+- ``lod.points.filter``: prefiltered attributes of the representative samples (§3.5).
+- ``lod.points.octree``: the octree of samples and triangles of one keyframe pair, saved and loaded (§3.1, §3.3).
+- ``lod.points.traverse``: the per-frame traversal: points where they are small enough, triangles where not
+  (§3.2, §3.3).
+- ``lod.points.rep``: ``PointsRep`` (a hierarchy per segment), ``PointsBatch`` and the hierarchy cache.
+- ``lod.points.instancing``: hierarchical instantiation, super-hierarchies of instance groups (§3.6).
+- ``lod.points.mode``: the builder and ``PointsSelector`` (many instances traversed at once); the mode protocol.
+"""

@@ -1,0 +1,61 @@
+"""Tunable constants of the point-sample hierarchy (Wand & Straßer 2002, §3).
+
+Every ``lod/points_*`` module reads its defaults from here, so tests and
+benchmarks can import and vary them. Names are upper case and prefixed
+``POINTS_``; each says its unit, its accepted range and the paper's value.
+"""
+from __future__ import annotations
+
+#: Maximum sample spacing r of a node as a fraction of the larger side of its
+#: start and end bounding boxes (§3.3, §5.1: "1/8 - 1/16"). Accepted (0, 1].
+POINTS_SPACING_FRACTION = 1.0 / 8.0
+
+#: A triangle that receives more than this many kept (stratified) samples in a
+#: node is stored there as a triangle and leaves the sampling below (§3.1:
+#: "say 1-3"). Accepted >= 0.
+POINTS_TRIANGLE_SAMPLES = 2
+
+#: A node with at most this many triangles is a leaf and stores them without
+#: sampling (§3.1: "e.g. at most 50 triangles"). Accepted >= 1.
+POINTS_LEAF_TRIANGLES = 50
+
+#: A triangle may exceed the child cube holding its centre by this fraction of
+#: the child's side, else it stays at the inner node (§3.1: "say 10%").
+POINTS_LOOSE_FRACTION = 0.10
+
+#: Coupon-collector safety factor multiplying n ln n candidates (§3.4.1: "say 3
+#: or 5"). Accepted > 0.
+POINTS_SAFETY_FACTOR = 3.0
+
+#: Number of time intervals per keyframe pair, each with its own stratified
+#: point set (§3.4.2: "say 3 or 4"; §5.1: "between 3 and 5"). Their boundaries
+#: follow the area change (``lod.points.stratify.choose_interval_times``; equal
+#: for animated characters).
+POINTS_TIME_INTERVALS = 3
+
+#: Density of the filter set F relative to the number of bins n of the node
+#: (§3.5 uses "ten times" the candidate density, i.e. 10 * safety * ln n bins;
+#: we sample 10 n by default, about 25x the kept points, to keep the build
+#: within budget; see ``lod.points.filter``).
+POINTS_FILTER_FACTOR = 10.0
+
+#: Standard deviation of the Gaussian attribute filter, as a fraction of the
+#: node spacing r; the kernel is cut off at 2 sigma (= r/2 by default: the
+#: splat radius). §3.5 only says the support is "relatively small".
+POINTS_FILTER_SIGMA = 0.25
+
+#: Hard cap on the candidates of one node (a guard against pathological
+#: inputs such as thousands of coincident triangles); when hit, the node's
+#: candidate count is clipped and coverage is no longer guaranteed there.
+POINTS_MAX_CANDIDATES = 4_000_000
+
+#: Depth limit of the octree; a node at this depth becomes a leaf whatever its
+#: triangle count (coincident triangle centres cannot be separated).
+POINTS_MAX_DEPTH = 24
+
+#: Ratio of the voxel side h of the coupon-collector bins to the spacing r:
+#: the paper sets r to two voxel diagonals (§3.4.1), h = r / (2 sqrt 3).
+POINTS_BIN_RATIO = 1.0 / (2.0 * 3.0 ** 0.5)
+
+#: Lengths and areas below this (relative to the root box) count as zero.
+POINTS_EPS = 1e-12

@@ -1,0 +1,450 @@
+"""LOD mode ``"points"``: point-sample hierarchies of keyframe animations
+(Wand & Straßer 2002, §3) selected per instance and frame.
+
+Build (:func:`build`): every character becomes a keyframe animation (skinned
+characters are baked to ``keyframes`` poses per clip with
+``sim.keyframes.bake_skinned``, §3 "keyframe animations"); every segment
+(keyframe pair) gets its own point/triangle octree (``lod.points.octree``,
+§3.1, §3.3-§3.5), kept in a content-addressed on-disk cache
+(:class:`HierarchyCache`).
+
+Selection (:class:`PointsSelector`): whole-animation sphere culling and
+segment/u location are those of the full-detail selector
+(``lod.full.mode.NoLodSelector``) run on the keyframed form of the characters;
+then for each visible instance the octree of its segment is traversed at its
+u with its camera-relative model matrix (§3.2, numba kernel
+:func:`traverse_instances` over all instances of a segment, beside the
+per-instance reference :func:`traverse_instances_reference`). The result is
+one :class:`PointsBatch` per (character, segment): the instances, and two job
+lists ``(instance row, start, count)``: point ranges into the segment's points
+and triangle ranges into its ``tri_order``. ``render.points`` draws both.
+
+§3.6 hierarchical instantiation: when the engine hands over the
+simulation's instancing groups (``build(..., instancing=...)``), every group
+whose clip has one triangle list over all its segments gets a super-hierarchy
+per tree depth (``lod.points.instancing``), uploaded as extra point reps; per
+frame the tree is walked top-down (:class:`lod.points.instancing.InstancingPlan`)
+and only the instances of refined nodes go through the per-instance path
+above. Their super-hierarchy draws are ordinary :class:`PointsBatch` es whose
+instances are tree nodes (model matrix of the node, u within the node's
+super-segment; ``instance_ids`` the node's first agent).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from lod.points import config as C
+from lod.drawlist import DrawList
+from lod.full.mode import NoLodSelector
+from lod.full.reps import KeyframedRep, build_keyframed_rep
+from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
+from lod.points.octree import PointHierarchy
+from lod.points.traverse import _traverse_kernel, traverse, viewport_scale
+from sim.params import Param
+
+#: renderer paths of the point splats
+RENDERERS = ("compute", "gl_points")
+
+#: ``[lod]`` keys of mode "points"
+PARAMS: dict = {
+    "splat_size": Param("int", 2, min=1, max=3, doc="splat size in pixels (§3.2): a node is drawn as points "
+                                                    "when its projected spacing is at most this"),
+    "keyframes": Param("int", 9, min=2, max=256, doc="poses baked per clip of a skinned character"),
+    "intervals": Param("int", C.POINTS_TIME_INTERVALS, min=1, max=16,
+                       doc="stratification time intervals per keyframe pair (§3.4.2)"),
+    "spacing_fraction": Param("float", C.POINTS_SPACING_FRACTION, min=1.0 / 64.0, max=1.0,
+                              doc="sample spacing as a fraction of a node's side (§3.1, 1/8-1/16)"),
+    "renderer": Param("str", "compute", choices=RENDERERS,
+                      doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
+}
+
+
+# ---------------------------------------------------------------------------- build
+def keyframed_character(character, keyframes: int):
+    """The character as a ``KeyframedCharacter``: skinned characters get every
+    clip baked to ``keyframes`` poses (``sim.keyframes.bake_skinned``), clip
+    order kept so that ``CrowdState.clip`` indices stay valid."""
+    if getattr(character, "kind", None) == "keyframed":
+        return character
+    if getattr(character, "kind", None) != "skinned":
+        raise TypeError(f"points mode: expected a skinned or keyframed character, got {type(character).__name__}")
+    from sim.character import KeyframedCharacter
+    from sim.keyframes import bake_skinned
+
+    anims = {name: bake_skinned(character, name, int(keyframes)) for name in character.clips}
+    return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims)
+
+
+def segment_arrays(kf: KeyframedRep, s: int) -> tuple:
+    """(p0, p1, indices, c0, c1, n0, n1) of segment s of a KeyframedRep, local
+    vertex numbering (the inputs of ``build_hierarchy``)."""
+    a, b = int(kf.seg_first[s]) // 3, int(kf.seg_first[s] + kf.seg_count[s]) // 3
+    idx = kf.indices[a:b].astype(np.int64)
+    if idx.size == 0:
+        z3 = np.zeros((0, 3), np.float32)
+        return z3, z3, np.zeros((0, 3), np.int64), np.zeros((0, 4), np.float32), np.zeros((0, 4), np.float32), z3, z3
+    lo, hi = int(idx.min()), int(idx.max()) + 1
+    sl = slice(lo, hi)
+    return (kf.positions0[sl], kf.positions1[sl], idx - lo, kf.colors0[sl], kf.colors1[sl], kf.normals0[sl],
+            kf.normals1[sl])
+
+
+def triangle_hierarchy(p0, p1, indices) -> PointHierarchy:
+    """A one-node hierarchy holding every triangle of a segment and no points
+    (``build_hierarchy`` with a leaf as large as the segment): the traversal
+    draws it as triangles at every distance, like mode "none". Stands in for
+    the segments of clips a scene does not play (:func:`build_points_rep`).
+    Not cached (no sampling: one node), so it is called through the module
+    rather than as the cache's build entry point (``lod.points.rep.build_hierarchy``)."""
+    from lod.points import octree as points_octree
+
+    idx = np.asarray(indices).reshape(-1, 3)
+    return points_octree.build_hierarchy(p0, p1, idx, leaf_triangles=max(1, idx.shape[0]), progress=False)
+
+
+def played_segments(kf: KeyframedRep, clips) -> np.ndarray:
+    """(n_parts,) bool, the segments of the clips in ``clips`` (None: all).
+
+    clips : None or an iterable of clip indices (int) or names (str)
+    Raises ValueError naming the clip for an unknown name or index.
+    """
+    if clips is None:
+        return np.ones(kf.n_parts, bool)
+    out = np.zeros(kf.n_parts, bool)
+    for c in clips:
+        if isinstance(c, str):
+            if c not in kf.anim_names:
+                raise ValueError(f"points mode: unknown clip {c!r}; accepted: {', '.join(map(repr, kf.anim_names))}")
+            c = kf.anim_names.index(c)
+        c = int(c)
+        if not 0 <= c < kf.n_clips:
+            raise ValueError(f"points mode: clip index {c} out of range 0..{kf.n_clips - 1}")
+        a0 = int(kf.anim_first_seg[c])
+        out[a0:a0 + int(kf.anim_n_segs[c])] = True
+    return out
+
+
+def build_points_rep(character, name: str, params: dict, cache: HierarchyCache | None = None,
+                     progress=None, clips=None) -> PointsRep:
+    """Bake (if skinned), then build or load one hierarchy per segment.
+
+    params : validated ``[lod]`` table (see :data:`PARAMS`); cache : default
+    :class:`HierarchyCache` at :func:`cache_dir`; progress : None or
+    ``progress(iterable, description)``.
+    clips : None (every clip) or the clips (indices or names) the scene
+        plays: only their segments get point hierarchies; the others get a
+        :func:`triangle_hierarchy` (drawn as full-detail triangles if an agent
+        switches to them after all), so the data structure holds what is used.
+    """
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    cache = cache if cache is not None else HierarchyCache()
+    kfc = keyframed_character(character, int(p["keyframes"]))
+    kf = build_keyframed_rep(kfc, key=f"points:{name}")
+    bp = dict(intervals=int(p["intervals"]), spacing_fraction=float(p["spacing_fraction"]))
+    played = played_segments(kf, clips)
+    segs = [s for s in range(kf.n_parts) if played[s]]
+    if progress is not None:
+        segs = progress(segs, f"point hierarchies {name}")
+    built = {s: cache.get_or_build(segment_arrays(kf, s), bp) for s in segs}
+    hs = [built[s] if s in built else triangle_hierarchy(*segment_arrays(kf, s)[:3]) for s in range(kf.n_parts)]
+    return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]))
+
+
+def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None):
+    """Super-hierarchies (§3.6) of every instancing group, as an
+    :class:`lod.points.instancing.InstancingPlan`, or None without groups.
+
+    instancing : sim.instancing.Instancing or None; reps : the characters'
+    PointsReps (index = CrowdState.character); names : their names.
+    A group is left to the per-instance path (and named in the plan's
+    ``skipped``) when its clip does not loop, changes triangles between
+    segments, or its period is not a multiple of the clip's duration.
+    Identical trees of the same character share one super-hierarchy.
+    """
+    from lod.points import instancing as pi
+
+    if instancing is None or not getattr(instancing, "groups", None):
+        return None
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    groups, skipped, memo = [], [], {}
+    items = list(enumerate(instancing.groups))
+    if progress is not None:
+        items = progress(items, "super-hierarchies")
+    for gi, (first, h) in items:
+        if not 0 <= h.character < len(reps):
+            skipped.append((gi, "character index out of range"))
+            continue
+        rep = reps[h.character]
+        kf = rep.keyframed
+        surf = pi.clip_surface(kf, h.clip)
+        dur = float(kf.anim_duration[h.clip]) if surf is not None else 0.0
+        ratio = h.period / dur if dur > 0 else 0.0
+        if surf is None or not bool(kf.anim_loop[h.clip]) or ratio < 0.5 or abs(ratio - round(ratio)) > 1e-6:
+            skipped.append((gi, "clip is not a looping one-topology animation with the tree's period"))
+            continue
+        a0, ns = int(kf.anim_first_seg[h.clip]), int(kf.anim_n_segs[h.clip])
+        r_root = max(float(rep.hierarchies[s].spacing[0]) for s in range(a0, a0 + ns))
+        if r_root <= 0.0:  # a character small enough to be one leaf: its own box sets the scale
+            box = kf.seg_aabb[a0:a0 + ns]
+            r_root = float(C.POINTS_SPACING_FRACTION * (box[:, 1] - box[:, 0]).max())
+        supers = []
+        r_stop = r_root * float(np.abs(h.levels[0].scale).max())
+        for d in range(1, h.depth + 1):
+            key = (h.character, h.clip, d,
+                   tuple((lv.translation.tobytes(), lv.yaw.tobytes(), lv.scale.tobytes(), lv.time_offset.tobytes())
+                         for lv in h.levels[:d]), h.period, r_stop)
+            sup = memo.get(key)
+            if sup is None:
+                sup = pi.build_super(surf, h.levels, d, h.period, r_stop, group=gi, name=names[h.character],
+                                     spacing_fraction=float(p["spacing_fraction"]),
+                                     cache=cache, splat_size=int(p["splat_size"]), renderer=str(p["renderer"]))
+                memo[key] = sup
+            supers.append(sup)
+            if d < h.depth:  # (a root of a few coincident sources has spacing 0: keep the finer stop then)
+                r_stop = max(sup.r_root, r_stop) * float(np.abs(h.levels[d].scale).max())
+        groups.append((first, h, supers))
+    plan = pi.InstancingPlan(groups)
+    plan.skipped = skipped
+    return plan
+
+
+def build(characters, names, fps, params, static_reps=(), progress=None, cache: HierarchyCache | None = None,
+          instancing=None, clips=None):
+    """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character
+    (then one per super-hierarchy, §3.6, when ``instancing`` holds groups)
+    and a :class:`PointsSelector`.
+
+    clips : None (every clip of every character gets point hierarchies) or a
+        sequence aligned with ``characters``, each None (all clips) or the
+        clip indices / names the scene can play (see :func:`build_points_rep`;
+        the clips of ``instancing`` groups are always added).
+    """
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    p.pop("mode", None)
+    if progress is False:
+        progress = None  # quiet: no progress output
+    elif progress is None:
+        from tqdm.auto import tqdm
+
+        def progress(it, desc):
+            return tqdm(it, desc=desc, leave=False, disable=None)
+    cache = cache if cache is not None else HierarchyCache()
+    if clips is None:
+        clips = [None] * len(characters)
+    clips = [None if c is None else list(c) for c in clips]
+    if len(clips) != len(characters):
+        raise ValueError(f"points mode: clips must list one entry per character ({len(characters)}), got {len(clips)}")
+    for _, h in (getattr(instancing, "groups", None) or []):  # super-hierarchies sample the group's clip
+        if 0 <= h.character < len(clips) and clips[h.character] is not None:
+            clips[h.character].append(int(h.clip))
+    reps = [build_points_rep(ch, n, p, cache, progress, clips=c) for ch, n, c in zip(characters, names, clips)]
+    plan = build_instancing(instancing, reps, list(names), p, cache, progress)
+    sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan)
+    return reps + (plan.reps if plan is not None else []), sel
+
+
+# ---------------------------------------------------------------------------- traversal of many instances
+@njit(cache=True)
+def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
+                               tri_count, bounds, data, planes, vscale, splat, pjobs, tjobs, psum,
+                               tsum):  # pragma: no cover
+    k = data.shape[0]
+    N = child_start.shape[0]
+    out_p = np.empty((N, 2), np.int64)
+    out_pn = np.empty(N, np.int32)
+    out_t = np.empty((N, 2), np.int64)
+    out_tn = np.empty(N, np.int32)
+    model = np.empty((3, 4))
+    npj = 0
+    ntj = 0
+    for r in range(k):
+        for a in range(3):
+            for b in range(4):
+                model[a, b] = data[r, 4 * a + b]
+        scale = 0.0
+        for b in range(3):
+            s = np.sqrt(model[0, b] ** 2 + model[1, b] ** 2 + model[2, b] ** 2)
+            if s > scale:
+                scale = s
+        u = data[r, 12]
+        if not np.isfinite(u):
+            u = 0.0
+        u = min(max(u, 0.0), 1.0)
+        intervals = bounds.shape[0] - 1
+        j = 0  # the interval holding u (lod.points.stratify.interval_of)
+        while j < intervals - 1 and bounds[j + 1] <= u:
+            j += 1
+        np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
+                                   tri_start, tri_count, u, j, planes, model, scale, vscale, splat,
+                                   out_p, out_pn, out_t, out_tn)
+        if npj + np_ > pjobs.shape[0] or ntj + nt > tjobs.shape[0]:
+            return -1 - r, npj, ntj
+        sp = 0
+        for q in range(np_):
+            pjobs[npj, 0] = r
+            pjobs[npj, 1] = out_p[q, 0]
+            pjobs[npj, 2] = out_p[q, 1]
+            sp += out_p[q, 1]
+            npj += 1
+        st = 0
+        for q in range(nt):
+            tjobs[ntj, 0] = r
+            tjobs[ntj, 1] = out_t[q, 0]
+            tjobs[ntj, 2] = out_t[q, 1]
+            st += out_t[q, 1]
+            ntj += 1
+        psum[r] = sp
+        tsum[r] = st
+    return k, npj, ntj
+
+
+def _harrays(h: PointHierarchy) -> tuple:
+    arr = getattr(h, "_traverse_arrays", None)
+    if arr is None:
+        arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
+               np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
+               np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
+               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64))
+        h._traverse_arrays = arr
+    return arr
+
+
+def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: float, splat: float,
+                       totals: bool = False):
+    """Traverse ``h`` (§3.2) once per instance (numba).
+
+    Parameters
+    ----------
+    h : PointHierarchy
+    data : (k, 16) float32/64 instance data (camera-relative model rows, u in column 12)
+    planes : (6, 4) float64 camera-relative frustum planes; vscale : pixels per
+        metre at depth 1; splat : splat size in pixels
+    totals : also return each instance's point and triangle totals
+
+    Returns
+    -------
+    point_jobs (J, 3) int64 and tri_jobs (Q, 3) int64: (instance row, start,
+    count); with ``totals`` also points (k,) int64 and triangles (k,) int64
+    per instance (the sums of its jobs' counts).
+    """
+    data = np.ascontiguousarray(data, np.float64).reshape(-1, 16)
+    planes = np.ascontiguousarray(planes, np.float64)
+    k = data.shape[0]
+    # job capacity per instance: what this hierarchy needed before (a retry doubles it)
+    per = int(getattr(h, "_jobs_per_instance", 4))
+    cap = max(16, per * k)
+    arr = _harrays(h)
+    psum = np.empty(k, np.int64)
+    tsum = np.empty(k, np.int64)
+    while True:
+        pj = np.empty((cap, 3), np.int64)
+        tj = np.empty((cap, 3), np.int64)
+        done, npj, ntj = _traverse_instances_kernel(*arr, data, planes, float(vscale),
+                                                    float(splat), pj, tj, psum, tsum)
+        if done == k:
+            h._jobs_per_instance = max(per, -(-max(npj, ntj) // max(k, 1)))
+            # a view while the buffer is at most twice what was used (no copy), else a compact copy
+            pj = pj[:npj] if 2 * npj >= cap else pj[:npj].copy()
+            tj = tj[:ntj] if 2 * ntj >= cap else tj[:ntj].copy()
+            return (pj, tj, psum, tsum) if totals else (pj, tj)
+        cap *= 2
+
+
+def traverse_instances_reference(h: PointHierarchy, data, planes, vscale: float, splat: float):
+    """Reference of :func:`traverse_instances`: ``lod.points.traverse.traverse`` per instance."""
+    data = np.asarray(data, np.float64).reshape(-1, 16)
+    pj, tj = [], []
+    for r in range(data.shape[0]):
+        res = traverse(h, float(data[r, 12]), planes, vscale, splat, data[r, :12].reshape(3, 4))
+        pj += [(r, s, c) for s, c in res.point_ranges.tolist()]
+        tj += [(r, s, c) for s, c in res.tri_ranges.tolist()]
+    return np.array(pj, np.int64).reshape(-1, 3), np.array(tj, np.int64).reshape(-1, 3)
+
+
+# ---------------------------------------------------------------------------- selector
+def super_batches(draws, planes, vscale: float, splat: float) -> list:
+    """PointsBatches of the super-hierarchy draws of ``InstancingPlan.select`` (§3.6): per drawn
+    node, its super-hierarchy traversed at the node's super-segment; ``represented`` on each batch
+    counts the instances its nodes stand for."""
+    out = []
+    for sup, seg, data, ids, m in draws:
+        for s in np.unique(seg).tolist():
+            sel = np.flatnonzero(seg == s)
+            pj, tj = traverse_instances(sup.rep.hierarchies[s], data[sel], planes, vscale, splat)
+            npts = int(pj[:, 2].sum()) if pj.size else 0
+            b = PointsBatch(sup.rep.key, int(s), ids[sel], data[sel], triangles=0, points=npts, point_jobs=pj,
+                            tri_jobs=tj)
+            b.represented = int(m[sel].sum())
+            out.append(b)
+    return out
+
+
+class PointsSelector:
+    """Per frame: cull and locate instances (as ``NoLodSelector`` on the
+    keyframed form), then traverse each instance's segment octree (§3.2).
+
+    Parameters
+    ----------
+    reps : list of PointsRep aligned with ``CrowdState.character``
+    static_reps : StaticRep scenery drawn through ``statics``
+    splat_size : pixels (1..3)
+    """
+
+    def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None):
+        if not 1 <= int(splat_size) <= 3:
+            raise ValueError(f"[lod] splat_size: expected 1, 2 or 3 pixels, got {splat_size}")
+        self.reps = list(reps)
+        self.splat_size = int(splat_size)
+        self._base = NoLodSelector([r.keyframed for r in self.reps], static_reps=static_reps)
+        self._by_key = {r.key: r for r in self.reps}
+        self.instancing = instancing
+        if instancing is not None:
+            for r in instancing.reps:
+                self._by_key[r.key] = r
+
+    def select(self, state, camera, size, statics=()) -> DrawList:
+        """DrawList of :class:`PointsBatch` (plus static batches); stats hold
+        "points" and "triangles" actually submitted, "instances", "culled"."""
+        w, h = int(size[0]), int(size[1])
+        planes = camera.frustum_planes(w / max(1, h))
+        vs = viewport_scale(h, camera.fov_y)
+        supers, represented = [], 0
+        if self.instancing is not None and state.n:
+            origin = np.asarray(camera.position, np.float64)
+            draws, flat = self.instancing.select(state, origin, planes, vs, self.splat_size)
+            supers = super_batches(draws, planes, vs, self.splat_size)
+            represented = sum(b.represented for b in supers)
+            if not flat.all():
+                dl = self._base.select(state, camera, size, statics, agents=np.flatnonzero(flat))
+                dl.stats["instances"] += represented
+                dl.stats["culled"] = int(state.n - dl.stats["instances"])
+                dl.stats["super_nodes"] = int(sum(b.n_instances for b in supers))
+            else:
+                dl = self._base.select(state, camera, size, statics)
+        else:
+            dl = self._base.select(state, camera, size, statics)
+        out = []
+        pts = tris = 0
+        for b in dl.batches:
+            rep = self._by_key.get(b.rep)
+            if rep is None:
+                out.append(b)
+                continue
+            hier = rep.hierarchies[b.part]
+            pj, tj = traverse_instances(hier, b.instance_data, planes, vs, self.splat_size)
+            np_ = int(pj[:, 2].sum()) if pj.size else 0
+            nt = int(tj[:, 2].sum()) if tj.size else 0
+            pts += np_
+            tris += nt
+            out.append(PointsBatch(b.rep, b.part, b.instance_ids, b.instance_data, triangles=nt, points=np_,
+                                   point_jobs=pj, tri_jobs=tj))
+        for b in supers:
+            pts += b.points
+            out.append(b)
+        dl.batches = out
+        dl.stats["points"] = int(pts)
+        dl.options["splat_size"] = self.splat_size  # the drawer splats at the size the traversal assumed
+        dl.stats["triangles"] = int(tris) + sum(b.triangles for b in out if not isinstance(b, PointsBatch))
+        dl.stats["batches"] = len(out)
+        return dl

@@ -1,0 +1,150 @@
+"""The point representation of a character and its on-disk cache (Wand & Straßer §3):
+:class:`PointsRep` (one point hierarchy per keyframe segment), :class:`PointsBatch`
+(what a frame draws of it) and :class:`HierarchyCache`, the content-addressed,
+atomically written store of built hierarchies.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lod.atomic_io import write_atomic
+from lod.drawlist import DrawBatch
+from lod.full.reps import KeyframedRep
+from lod.points.octree import PointHierarchy, build_hierarchy, load_hierarchy, save_hierarchy
+
+#: version of the cached hierarchy format and build; bump when either changes
+CACHE_FORMAT = 3  # 3: intervals stratify candidates thinned to their own density (points_sampling.interval_thinning)
+#: environment variable naming the cache folder (default ``~/.cache/crowd``)
+CACHE_ENV = "CROWD_CACHE_DIR"
+# ---------------------------------------------------------------------------- representation
+@dataclass
+class PointsRep:
+    """All segment hierarchies of one character, ready for upload.
+
+    key : ``"points:<name>"``
+    keyframed : lod.full.reps.KeyframedRep, the segments' full-detail vertices
+        (the triangles stored in the octrees index them) and timing
+    hierarchies : list of PointHierarchy, one per segment (global order)
+    splat_size : int pixels; renderer : "compute" | "gl_points"
+    """
+
+    key: str
+    keyframed: KeyframedRep
+    hierarchies: list
+    splat_size: int = 2
+    renderer: str = "compute"
+
+    kind = "points"
+
+    @property
+    def n_parts(self) -> int:
+        return len(self.hierarchies)
+
+    @property
+    def n_points(self) -> int:
+        return int(sum(h.n_points for h in self.hierarchies))
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(h.nbytes for h in self.hierarchies))
+
+    def segment_triangles(self, s: int) -> np.ndarray:
+        """(T, 3) uint32 global vertex indices (into ``keyframed`` vertices) of
+        segment s's triangles in ``tri_order`` order."""
+        kf = self.keyframed
+        h = self.hierarchies[s]
+        first = int(kf.seg_first[s]) // 3
+        return kf.indices[first + h.tri_order.astype(np.int64)]
+
+
+@dataclass
+class PointsBatch(DrawBatch):
+    """A DrawBatch of instances at one segment of a points rep, plus what
+    each instance draws of it.
+
+    point_jobs : (J, 3) int64 (row in ``instance_data``, first point, count)
+    tri_jobs : (Q, 3) int64 (row, first entry of ``tri_order``, count)
+    """
+
+    point_jobs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+    tri_jobs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+
+
+# ---------------------------------------------------------------------------- cache
+def cache_dir() -> Path:
+    """Folder of cached hierarchies: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
+    d = os.environ.get(CACHE_ENV)
+    return Path(d) if d else Path.home() / ".cache" / "crowd"
+
+
+def hierarchy_key(arrays, params: dict) -> str:
+    """sha256 hex digest of the input arrays (shape, dtype, bytes), the build
+    parameters and :data:`CACHE_FORMAT`."""
+    h = hashlib.sha256()
+    h.update(f"points-hierarchy/{CACHE_FORMAT}".encode())
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    h.update(json.dumps(params, sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def _file_sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+class HierarchyCache:
+    """Content-addressed store of PointHierarchy files.
+
+    Entry ``<key>.npz`` (written atomically by ``save_hierarchy``) and
+    ``<key>.sha256``, the digest of the npz bytes, written after it
+    (``lod.atomic_io``). An entry is used only if the digest matches and the
+    file loads; anything else (truncated, corrupt, missing digest) is rebuilt
+    and overwritten. ``hits``/``misses`` count lookups.
+    """
+
+    def __init__(self, folder=None):
+        self.folder = Path(folder) if folder is not None else cache_dir()
+        self.hits = 0
+        self.misses = 0
+
+    def paths(self, key: str) -> tuple[Path, Path]:
+        return self.folder / f"{key}.npz", self.folder / f"{key}.sha256"
+
+    def load(self, key: str):
+        """The cached hierarchy of ``key`` or None (missing or corrupt)."""
+        npz, sha = self.paths(key)
+        try:
+            if not npz.is_file() or sha.read_text().strip() != _file_sha(npz):
+                return None
+            return load_hierarchy(npz)
+        except (OSError, ValueError):
+            return None
+
+    def store(self, key: str, h: PointHierarchy) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        npz, sha = self.paths(key)
+        save_hierarchy(h, npz)
+        write_atomic(sha, _file_sha(npz) + "\n")
+
+    def get_or_build(self, arrays, params: dict) -> PointHierarchy:
+        """Cached hierarchy of ``build_hierarchy(*arrays, **params)``, built and stored on a miss."""
+        key = hierarchy_key(arrays, params)
+        h = self.load(key)
+        if h is not None:
+            self.hits += 1
+            return h
+        self.misses += 1
+        h = build_hierarchy(*arrays, **params, progress=False)
+        try:
+            self.store(key, h)
+        except OSError:  # a read-only cache still builds
+            pass
+        return h

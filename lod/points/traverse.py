@@ -1,0 +1,239 @@
+"""Per-frame traversal of a point/triangle octree (Wand & Straßer 2002, §3.2, §3.3).
+
+At time u in [0, 1] of the keyframe pair, from the root down:
+
+* the node's box is the linear interpolation of its start and end boxes (§3.3);
+* a node whose (transformed) box lies entirely outside one frustum plane is
+  culled with its subtree;
+* the triangles stored at every visited node are drawn (§3.2: "all triangles
+  that are found during hierarchy traversal");
+* the node's projected spacing is ``spacing / min depth * viewport_scale``
+  (min depth: the smallest view depth of the 8 box corners; viewport scale:
+  pixels per metre at depth 1). If it is at most the splat size the node's
+  points of the current time interval are drawn and the subtree ends there;
+  else the children are visited. A box reaching to or behind the camera
+  (min depth <= 0) always descends: no division by zero, no projection of a
+  point behind the eye. A leaf draws its triangles and, if it has any, its
+  points of the current interval (the octrees of ``lod.points.octree`` keep
+  no points at leaves; the super-hierarchy leaves of ``lod.points.instancing``
+  (§3.6) hold only points, and their owners ensure they are fine enough).
+
+Coordinates: the node boxes are in the model space of the hierarchy; ``model``
+(3, 4) maps model space to camera-relative world space (the camera at the
+origin, see ``lod.view``), where ``planes`` (6, 4) are given with unit inward
+normals, ordered left, right, bottom, top, near, far as
+``Camera.frustum_planes`` returns them. The view depth of a point is its
+distance along the near plane's normal (the viewing direction). Spacings are
+scaled by the largest column norm of the model's linear part.
+
+``traverse`` runs the numba kernel; ``traverse_reference`` is the plain Python
+recursion the tests compare it with.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from lod.points.stratify import interval_of
+
+
+@dataclass
+class TraversalResult:
+    """What to draw of one hierarchy at one time.
+
+    point_ranges : (P, 2) int64 (start, count) into the hierarchy's point arrays
+    point_nodes : (P,) int32 the nodes drawn as points
+    tri_ranges : (Q, 2) int64 (start, count) into ``tri_order``
+    tri_nodes : (Q,) int32 the nodes whose triangles are drawn
+    points, triangles : int totals
+    """
+
+    point_ranges: np.ndarray
+    point_nodes: np.ndarray
+    tri_ranges: np.ndarray
+    tri_nodes: np.ndarray
+
+    @property
+    def points(self) -> int:
+        return int(self.point_ranges[:, 1].sum()) if self.point_ranges.size else 0
+
+    @property
+    def triangles(self) -> int:
+        return int(self.tri_ranges[:, 1].sum()) if self.tri_ranges.size else 0
+
+
+def _model(model) -> np.ndarray:
+    if model is None:
+        return np.hstack([np.eye(3), np.zeros((3, 1))])
+    m = np.asarray(model, np.float64)
+    if m.shape == (4, 4):
+        m = m[:3]
+    if m.shape != (3, 4) or not np.isfinite(m).all():
+        raise ValueError(f"traverse: model must be a finite (3, 4) or (4, 4) matrix, got shape {m.shape}")
+    return np.ascontiguousarray(m)
+
+
+def _corners(lo, hi, model):
+    """(8, 3) transformed corners of the box [lo, hi]."""
+    c = np.array([[lo[0] if (k >> 2) & 1 == 0 else hi[0], lo[1] if (k >> 1) & 1 == 0 else hi[1],
+                   lo[2] if k & 1 == 0 else hi[2]] for k in range(8)])
+    return c @ model[:, :3].T + model[:, 3]
+
+
+def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: float, model=None) -> TraversalResult:
+    """Reference traversal (plain Python recursion), same contract as :func:`traverse`."""
+    planes = np.asarray(planes, np.float64).reshape(6, 4)
+    model = _model(model)
+    scale = float(np.linalg.norm(model[:, :3], axis=0).max())
+    fwd = planes[4, :3]
+    j = interval_of(u, h.intervals, getattr(h, "interval_bounds", None))
+    box = h.box_at(float(u))
+    pr, pn, tr, tn = [], [], [], []
+
+    def visit(i):
+        cs = _corners(box[i, 0], box[i, 1], model)
+        if np.any(np.all(cs @ planes[:, :3].T + planes[:, 3] < 0.0, axis=0)):
+            return
+        if h.tri_count[i] > 0:
+            tr.append((h.tri_start[i], h.tri_count[i]))
+            tn.append(i)
+        if h.child_count[i] == 0:
+            if h.point_count[i, j] > 0:  # a leaf with points (a §3.6 super-hierarchy leaf)
+                pr.append((h.point_start[i, j], h.point_count[i, j]))
+                pn.append(i)
+            return
+        dmin = float((cs @ fwd).min())
+        if dmin > 0.0 and h.spacing[i] * scale / dmin * viewport_scale <= splat_size:
+            if h.point_count[i, j] > 0:
+                pr.append((h.point_start[i, j], h.point_count[i, j]))
+                pn.append(i)
+            return
+        for c in range(h.child_start[i], h.child_start[i] + h.child_count[i]):
+            visit(c)
+
+    if h.n_nodes:
+        visit(0)
+    return TraversalResult(np.array(pr, np.int64).reshape(-1, 2), np.array(pn, np.int32),
+                           np.array(tr, np.int64).reshape(-1, 2), np.array(tn, np.int32))
+
+
+@njit(cache=True)
+def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
+                     tri_start, tri_count, u, j, planes, model, scale, viewport_scale, splat,
+                     out_p, out_pn, out_t, out_tn):  # pragma: no cover - compiled
+    N = child_start.shape[0]
+    stack = np.empty(N + 8, np.int64)
+    sp = 0
+    np_ = 0
+    nt = 0
+    if N == 0:
+        return 0, 0
+    stack[sp] = 0
+    sp += 1
+    w = 1.0 - u
+    cs = np.empty((8, 3))
+    lo = np.empty(3)
+    hi = np.empty(3)
+    while sp > 0:
+        sp -= 1
+        i = stack[sp]
+        for k in range(3):
+            lo[k] = w * box0[i, 0, k] + u * box1[i, 0, k]
+            hi[k] = w * box0[i, 1, k] + u * box1[i, 1, k]
+        for c in range(8):
+            x = lo[0] if (c >> 2) & 1 == 0 else hi[0]
+            y = lo[1] if (c >> 1) & 1 == 0 else hi[1]
+            z = lo[2] if c & 1 == 0 else hi[2]
+            for k in range(3):
+                cs[c, k] = model[k, 0] * x + model[k, 1] * y + model[k, 2] * z + model[k, 3]
+        culled = False
+        for p in range(planes.shape[0]):
+            outside = True
+            for c in range(8):
+                if planes[p, 0] * cs[c, 0] + planes[p, 1] * cs[c, 1] + planes[p, 2] * cs[c, 2] + planes[p, 3] >= 0.0:
+                    outside = False
+                    break
+            if outside:
+                culled = True
+                break
+        if culled:
+            continue
+        if tri_count[i] > 0:
+            out_t[nt, 0] = tri_start[i]
+            out_t[nt, 1] = tri_count[i]
+            out_tn[nt] = i
+            nt += 1
+        if child_count[i] == 0:
+            if point_count[i, j] > 0:  # a leaf with points (a §3.6 super-hierarchy leaf)
+                out_p[np_, 0] = point_start[i, j]
+                out_p[np_, 1] = point_count[i, j]
+                out_pn[np_] = i
+                np_ += 1
+            continue
+        dmin = np.inf
+        for c in range(8):
+            d = planes[4, 0] * cs[c, 0] + planes[4, 1] * cs[c, 1] + planes[4, 2] * cs[c, 2]
+            if d < dmin:
+                dmin = d
+        if dmin > 0.0 and spacing[i] * scale / dmin * viewport_scale <= splat:
+            if point_count[i, j] > 0:
+                out_p[np_, 0] = point_start[i, j]
+                out_p[np_, 1] = point_count[i, j]
+                out_pn[np_] = i
+                np_ += 1
+            continue
+        # push children in reverse so they pop in order (same order as the reference)
+        for c in range(child_start[i] + child_count[i] - 1, child_start[i] - 1, -1):
+            stack[sp] = c
+            sp += 1
+    return np_, nt
+
+
+def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, model=None) -> TraversalResult:
+    """Select the points and triangles of hierarchy ``h`` to draw at time u (§3.2).
+
+    Parameters
+    ----------
+    h : lod.points.octree.PointHierarchy
+    u : float in [0, 1], time within the keyframe pair (clamped)
+    planes : (6, 4) float64 camera-relative unit inward frustum planes
+        (``Camera.frustum_planes``); the near plane (row 4) defines depth
+    viewport_scale : float > 0, pixels per metre at depth 1
+        (``height / (2 tan(fov_y / 2))``)
+    splat_size : float > 0, splat size in pixels
+    model : (3, 4) or (4, 4) float64 model-to-camera-relative-world transform
+        (default identity: the hierarchy is already camera-relative)
+
+    Returns
+    -------
+    TraversalResult (ranges in depth-first order, children in storage order).
+
+    Raises
+    ------
+    ValueError for bad planes, model, scale or splat size.
+    """
+    planes = np.ascontiguousarray(planes, np.float64)
+    if planes.shape != (6, 4) or not np.isfinite(planes).all():
+        raise ValueError(f"traverse: planes must be a finite (6, 4) array, got shape {planes.shape}")
+    if not (viewport_scale > 0.0 and splat_size > 0.0):
+        raise ValueError(f"traverse: viewport_scale and splat_size must be > 0, got {viewport_scale}, {splat_size}")
+    model = _model(model)
+    u = float(np.clip(u, 0.0, 1.0)) if np.isfinite(u) else 0.0
+    scale = float(np.linalg.norm(model[:, :3], axis=0).max())
+    N = h.n_nodes
+    out_p = np.empty((N, 2), np.int64)
+    out_pn = np.empty(N, np.int32)
+    out_t = np.empty((N, 2), np.int64)
+    out_tn = np.empty(N, np.int32)
+    np_, nt = _traverse_kernel(h.child_start.astype(np.int64), h.child_count.astype(np.int64), h.box0, h.box1,
+                               h.spacing, h.point_start, h.point_count, h.tri_start, h.tri_count, u,
+                               interval_of(u, h.intervals, getattr(h, "interval_bounds", None)), planes, model, scale, float(viewport_scale),
+                               float(splat_size), out_p, out_pn, out_t, out_tn)
+    return TraversalResult(out_p[:np_].copy(), out_pn[:np_].copy(), out_t[:nt].copy(), out_tn[:nt].copy())
+
+
+def viewport_scale(height_px: float, fov_y_deg: float) -> float:
+    """Pixels per metre at depth 1: ``height / (2 tan(fov_y / 2))``."""
+    return float(height_px) / (2.0 * np.tan(np.radians(float(fov_y_deg)) * 0.5))

@@ -1,0 +1,692 @@
+"""LOD mode "auto" (lod/auto/mode.py, lod/auto/candidates.py): cheapest representation within the
+bound among triangle levels, cluster cuts and point hierarchies, equality with NoLOD at a zero bound,
+every visible instance drawn once with all three candidates in play, the measured image error of each
+representation within the bound, the budget controller's convergence without oscillation, telemetry,
+and a `crowd run` with the mode."""
+import csv
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from lod.auto import candidates as ac
+from lod.auto import budget as am_budget
+from lod.auto import mode as am
+from lod import modes
+from lod.auto import cost_model
+from lod.full import mode as nolod
+from lod.full import pack as nolod_pack
+from lod.chains import chain as tm_chain
+from lod.chains import mode as tm
+from lod.view import Camera
+from sim.procedural import humanoid
+
+from crowd_testutil import run_cli, tiny_scene
+from image_checks import silhouette_error
+from tiny_characters import tiny_keyframed
+
+SIZE = (320, 240)
+MODEL = cost_model.CostModel()  # the defaults: independent of any stored calibration
+
+
+@pytest.fixture(scope="module")
+def char():
+    return humanoid(1500, 0)
+
+
+@pytest.fixture(scope="module")
+def built(char):
+    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
+                         progress=False)
+    full, fsel = nolod.build([char], ["h"], [30], {})
+    return SimpleNamespace(rep=reps[0], reps=reps, tri_reps=[reps[0]], sel=sel, full=full, fsel=fsel)
+
+
+class Free(ac.Candidate):
+    """A candidate whose options cost nothing: forces its representation wherever it is admissible."""
+
+    def __init__(self, inner):
+        super().__init__()
+        self.inner, self.name, self.reps = inner, inner.name, inner.reps
+
+    def options(self, frame, group):
+        o = self.inner.options(frame, group)
+        if o is not None:
+            o.cost = np.zeros_like(o.cost)
+        return o
+
+    def emit(self, *a):
+        return self.inner.emit(*a)
+
+    def finish(self, frame, dl):
+        self.inner.finish(frame, dl)
+
+
+def _forced(built, name, poe):
+    """An AutoSelector drawing every admissible instance with candidate ``name``."""
+    inner = next(c for c in built.sel.candidates if c.name == name)
+    return am.AutoSelector(built.tri_reps, poe=poe, model=MODEL, candidates=[Free(inner)])
+
+
+def _state(pos, heading, t):
+    pos = np.asarray(pos, float).reshape(-1, 3)
+    n = len(pos)
+    return SimpleNamespace(n=n, character=np.zeros(n, np.int64), clip=np.zeros(n, np.int64),
+                           anim_time=np.asarray(t, float), position=pos, scale=np.ones(n),
+                           heading=np.asarray(heading, float))
+
+
+def _crowd(n=80, seed=3, half_width=20.0, depth=80.0):
+    rng = np.random.default_rng(seed)
+    pos = np.column_stack([rng.uniform(-half_width, half_width, n), np.zeros(n), rng.uniform(-depth, 5, n)])
+    return _state(pos, rng.uniform(0, 6.3, n), rng.uniform(0, 2, n))
+
+
+CAM = Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0))
+
+
+def test_registered_with_params():
+    assert modes.MODES["auto"] == "lod.auto.mode"
+    p = modes.mode_params("auto")
+    assert p["poe"].default == 1.0 and p["budget_ms"].default == 0.0 and "levels" in p
+    assert p["candidates"].default == "triangles,clusters,points"
+    assert am.parse_candidates("points, clusters") == ("triangles", "clusters", "points")
+    assert am.parse_candidates("triangles") == ("triangles",)
+    for bad in ("", "meshlets", "points,,x"):
+        with pytest.raises(ValueError, match="candidates"):
+            am.parse_candidates(bad)
+
+
+def test_leaf_triangles_reaches_the_cluster_candidate(built, char):
+    _, sel = am.build([char], ["h"], [30], {"poe": 1.0, "candidates": "triangles,clusters", "leaf_triangles": 600},
+                      cache=False, model=MODEL, progress=False)
+    big = sel.candidates[1].reps[0].hierarchy
+    default = built.sel.candidates[1].reps[0].hierarchy
+    assert modes.mode_params("auto")["leaf_triangles"].default == 100
+    assert big.n_leaves < default.n_leaves
+
+
+def test_candidates_and_reps(built):
+    assert [c.name for c in built.sel.candidates] == ["triangles", "clusters", "points"]
+    assert [r.key for r in built.reps] == ["triangles:h", "clusters:h", "points:h"]
+    assert [r.kind for r in built.reps] == ["skinned", "clusters", "points"]
+
+
+def test_splat_for_bound():
+    assert [ac.splat_for_bound(b) for b in (0.0, 0.99, 1.0, 2.5, 3.0, 7.0, float("inf"))] == [0, 0, 1, 2, 3, 3, 3]
+    assert ac.splat_for_bound(float("nan")) == 0 and ac.splat_for_bound(5.0, max_splat=2) == 2
+
+
+def test_sub_csr():
+    off = np.array([0, 2, 2, 5], np.int64)
+    cl = np.array([7, 8, 1, 2, 3], np.int32)
+    o, c = ac.sub_csr(off, cl, np.array([2, 0]))
+    np.testing.assert_array_equal(o, [0, 3, 5])
+    np.testing.assert_array_equal(c, [1, 2, 3, 7, 8])
+    o, c = ac.sub_csr(off, cl, np.array([1], np.int64))
+    np.testing.assert_array_equal(o, [0, 0]) and c.size == 0
+    o, c = ac.sub_csr(off, cl, np.zeros(0, np.int64))
+    np.testing.assert_array_equal(o, [0]) and c.size == 0
+    for rows in (np.arange(3), np.array([0, 2, 1]), np.array([0, 1, 1])):  # all in order, permuted, repeated
+        o, c = ac.sub_csr(off, cl, rows)
+        ref = np.concatenate([cl[off[r]:off[r + 1]] for r in rows])
+        np.testing.assert_array_equal(c, ref)
+        np.testing.assert_array_equal(np.diff(o), [off[r + 1] - off[r] for r in rows])
+
+
+def test_choose_cheapest_within_bound():
+    cost = np.array([4.0, 2.0, 3.0, 1.0])  # not monotone: the choice is by cost, not by index
+    err = np.array([[0.0, 0.5, 0.2, 3.0], [0.0, 5.0, 0.1, 9.0], [0.0, np.inf, np.inf, np.inf]])
+    np.testing.assert_array_equal(am_budget.choose(cost, err, 1.0), [1, 2, 0])
+    np.testing.assert_array_equal(am_budget.choose(cost, err, 10.0), [3, 3, 0])
+    np.testing.assert_array_equal(am_budget.choose(cost, err, 0.0), [0, 0, 0])
+    assert am_budget.choose(cost, np.zeros((0, 4)), 1.0).shape == (0,)
+
+
+def test_projected_errors_kernel_matches_numpy_reference(built):
+    r = built.rep
+    rng = np.random.default_rng(1)
+    rel = np.column_stack([rng.uniform(-5, 5, 50), rng.uniform(-1, 0, 50), rng.uniform(-40, 0.5, 50)])
+    rel[:3] = 0.0  # camera inside the sphere
+    rows = nolod_pack.model_rows(rel, rng.uniform(0, 6, 50), rng.uniform(0.5, 2.0, 50)).astype(np.float64).reshape(-1, 3, 4)
+    got = ac.projected_errors(r.level_error, rows, r.clip_sphere[0], 300.0)
+    want = ac.projected_errors_numpy(r.level_error, rows, r.clip_sphere[0], 300.0)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert np.isinf(got[:3, 1:]).all() and (got[:3, 0] == 0).all()
+    assert ac.projected_errors(r.level_error, np.zeros((0, 3, 4)), r.clip_sphere[0], 300.0).shape == (0, r.n_levels)
+
+
+def test_projected_errors_match_triangles_rule(built):
+    r = built.rep
+    rng = np.random.default_rng(0)
+    rel = np.column_stack([rng.uniform(-5, 5, 30), rng.uniform(-1, 0, 30), rng.uniform(-40, 0.5, 30)])
+    rows = nolod_pack.model_rows(rel, rng.uniform(0, 6, 30), np.full(30, 1.0)).astype(np.float64).reshape(-1, 3, 4)
+    px = am.projected_errors(r.level_error, rows, r.clip_sphere[0], 300.0)
+    assert px.shape == (30, r.n_levels) and not np.isnan(px).any()
+    cost = MODEL.coefficients["triangles"] * r.level_count + MODEL.coefficients["instances"]
+    for poe in (0.0, 0.7, 3.0, 50.0):  # costs fall along the chain: cheapest within = coarsest within
+        np.testing.assert_array_equal(am_budget.choose(cost, px, poe),
+                                      tm.choose_levels(r.level_error, rows, r.clip_sphere[0], 300.0, poe))
+
+
+def test_zero_bound_draws_exactly_what_nolod_draws(built):
+    st = _crowd()
+    built.sel.poe = 0.0
+    dl = built.sel.select(st, CAM, SIZE)
+    ref = built.fsel.select(st, CAM, SIZE)
+    ids = np.concatenate([b.instance_ids for b in dl.batches])
+    ref_ids = np.concatenate([b.instance_ids for b in ref.batches])
+    np.testing.assert_array_equal(ids, ref_ids)
+    assert dl.stats["triangles"] == ref.stats["triangles"] == dl.triangles
+    assert all(b.level == 0 for b in dl.batches)
+    for b, rb in zip(dl.batches, ref.batches):
+        np.testing.assert_array_equal(b.instance_data, rb.instance_data)
+    a = dl.stats["auto"]
+    assert a["levels"][0] == ids.size and sum(a["levels"]) == ids.size and a["bound"] == 0.0
+    assert a["predicted_ms"] == pytest.approx(1e3 * MODEL.predict(dl)) and a["budget_ms"] == 0.0
+    # the limit bound -> 0 with all three candidates evaluated: full-detail triangles, or a cluster
+    # cut of leaves only (the exact mesh) where frustum culling of its clusters makes it cheaper
+    built.sel.poe = 1e-9
+    dl = built.sel.select(st, CAM, SIZE)
+    reps = dl.stats["auto"]["representations"]
+    assert reps["points"] == 0 and reps["triangles"] + reps["clusters"] == ids.size
+    np.testing.assert_array_equal(np.sort(_ids(dl)), np.sort(ids))
+    assert all(b.level == 0 for b in dl.batches) and dl.stats["triangles"] <= ref.stats["triangles"]
+    h = built.reps[1].hierarchy
+    leaves = np.flatnonzero(np.asarray(h.children)[:, 0] < 0)  # lod.clusters.dag: children -1 for leaves
+    assert leaves.size
+    for b in dl.batches:
+        if b.representation == "clusters":
+            assert np.isin(b.clusters, leaves).all()
+    built.sel.poe = 0.0
+
+
+def _ids(dl):
+    return np.concatenate([b.instance_ids for b in dl.batches if b.n_instances]) if dl.batches else np.zeros(0)
+
+
+def test_every_visible_instance_drawn_once(built):
+    st = _crowd(120, 7)
+    ref = built.fsel.select(st, CAM, SIZE)
+    ref_ids = np.sort(_ids(ref))
+    prev = None
+    for poe in (0.0, 0.5, 2.0, 10.0, 1e3):
+        built.sel.poe = poe
+        dl = built.sel.select(st, CAM, SIZE)
+        ids = _ids(dl)
+        np.testing.assert_array_equal(np.sort(ids), ref_ids)  # none twice, none dropped
+        a = dl.stats["auto"]
+        assert sum(a["representations"].values()) == ids.size == dl.stats["instances"]
+        assert sum(a["options"].values()) == ids.size and a["levels"][0] <= a["representations"]["triangles"]
+        keys = [(b.rep, b.part, b.level) for b in dl.batches]
+        assert len(set(keys)) == len(keys) and keys == sorted(keys)
+        for b in dl.batches:
+            if isinstance(b, tm_chain.TriangleDrawBatch):
+                assert b.index_range == (3 * built.rep.level_first[b.level], 3 * built.rep.level_count[b.level])
+        p = a["predicted_ms"]
+        assert p == pytest.approx(1e3 * MODEL.predict(dl))
+        assert prev is None or p <= prev + 1e-12  # a looser bound never costs more
+        prev = p
+    built.sel.poe = 0.0
+
+
+def test_all_three_candidates_in_play_draw_every_instance_once(built):
+    """A model where the point pass and cluster path are free, splats cost about as much as the triangles they
+    replace and cluster cuts just their triangles (their errors are conservative: lod.simplify.distance.cluster_hausdorff
+    counts only facing triangles, so a cut needs more triangles than a chain level at the same bound): at some
+    bound instances get triangle levels, cluster cuts and points;
+    at every bound the union is exactly NoLOD's visible set, each instance in one batch, and the point
+    jobs and cuts belong to their own rows."""
+    model = cost_model.CostModel({"points": 1e-7, "clusters": 0.0, "splat_pixels": 0.0, "splat_area": 0.0,
+                                  "cluster_frames": 0.0})
+    cands = [c for c in built.sel.candidates[1:]]
+    sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=cands)
+    st = _crowd(300, 21, half_width=60.0, depth=500.0)
+    st.clip = np.arange(st.n) % 2
+    ref_ids = np.sort(_ids(built.fsel.select(st, CAM, SIZE)))
+    all_three = False
+    for poe in (0.5, 1.0, 1.5, 2.0, 3.0, 6.0, 50.0):
+        sel.poe = poe
+        dl = sel.select(st, CAM, SIZE)
+        ids = _ids(dl)
+        np.testing.assert_array_equal(np.sort(ids), ref_ids)
+        reps = dl.stats["auto"]["representations"]
+        all_three |= min(reps.values()) > 0
+        assert reps["points"] == 0 or poe >= 1.0
+        assert dl.options.get("splat_size") == (cands[1].splat_size(poe) if reps["points"] else None)
+        for b in dl.batches:
+            if b.representation == "points":
+                for jobs in (b.point_jobs, b.tri_jobs):
+                    assert jobs.size == 0 or (jobs[:, 0].min() >= 0 and jobs[:, 0].max() < b.n_instances)
+                assert np.all((b.instance_data[:, 12] >= 0) & (b.instance_data[:, 12] <= 1))
+            if b.representation == "clusters":
+                assert b.offsets.shape == (b.n_instances + 1,) and b.offsets[-1] == b.clusters.size
+        assert dl.stats["points"] == sum(b.points for b in dl.batches)
+        assert dl.stats["clusters"] == sum(b.clusters.size for b in dl.batches if b.representation == "clusters")
+    assert all_three
+
+
+def test_cluster_path_used_only_when_it_pays(built):
+    """The cluster drawer's per-frame cost (``cluster_frames``): priced at a second, no instance gets
+    a cluster cut; free, the same crowd uses them."""
+    st = _crowd(200, 4, depth=100.0)
+    cl = built.sel.candidates[1]
+    for cost, used in ((1.0, False), (0.0, True)):
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=cost_model.CostModel({"cluster_frames": cost,
+                                                                                   "clusters": 0.0}),
+                              candidates=[cl])
+        dl = sel.select(st, CAM, SIZE)
+        assert (dl.stats["auto"]["representations"]["clusters"] > 0) == used
+        assert sum(dl.stats["auto"]["representations"].values()) == dl.stats["instances"]
+
+
+def test_point_pass_used_only_when_it_pays(built):
+    """The point candidate adds a per-frame pass (lod.auto.cost_model.pass_cost): with it priced at a
+    second no instance gets points; free, the same crowd uses them."""
+    st = _crowd(200, 4, depth=200.0)
+    pts = built.sel.candidates[2]
+    dear = cost_model.CostModel({"points": 0.0, "splat_pixels": 1.0})
+    cheap = cost_model.CostModel({"points": 0.0, "splat_pixels": 0.0, "splat_area": 0.0})
+    for model, used in ((dear, False), (cheap, True)):
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=[pts])
+        dl = sel.select(st, CAM, SIZE)
+        assert (dl.stats["auto"]["representations"]["points"] > 0) == used
+        assert ("splat_size" in dl.options) == used
+
+
+def test_keyframed_character_at_full_detail_or_points(char):
+    reps, sel = am.build([char, tiny_keyframed()], ["h", "flag"], [30, 30], {"poe": 5.0, "keyframes": 3},
+                         cache=False, model=MODEL, progress=False)
+    st = _crowd(40, 1)
+    st.character = np.arange(40) % 2
+    dl = sel.select(st, CAM, SIZE)
+    kf = [b for b in dl.batches if b.rep.endswith(":flag")]
+    assert kf and all(b.level == 0 and b.rep in ("triangles:flag", "points:flag") for b in kf)
+    assert sum(dl.stats["auto"]["representations"].values()) == dl.stats["instances"]
+    assert not any(r.key == "clusters:flag" for r in reps)  # no cluster hierarchy without a skin
+
+
+def test_bad_params():
+    with pytest.raises(ValueError, match="poe"):
+        am.AutoSelector([], poe=float("nan"), model=MODEL)
+    with pytest.raises(ValueError, match="budget_ms"):
+        am.AutoSelector([], budget_ms=-1.0, model=MODEL)
+    with pytest.raises(ValueError, match="budget_ms"):
+        am_budget.BudgetController(float("inf"))
+
+
+# ------------------------------------------------------------------------------------------ budget
+def _run_budget(sel, st, frames=50, measured=None):
+    bounds, costs = [], []
+    for _ in range(frames):
+        dl = sel.select(st, CAM, SIZE)
+        bounds.append(dl.stats["auto"]["bound"])
+        costs.append(dl.stats["auto"]["predicted_ms"])
+        if measured is not None:
+            sel.observe(measured(dl))
+    return np.array(bounds), np.array(costs)
+
+
+def test_budget_converges_without_oscillation(built):
+    """Over a sweep of budgets between the coarsest and the full-detail cost, on a static view with
+    measured cost = predicted cost, the bound settles within 50 frames and then never changes."""
+    st = _crowd(150, 11, depth=60.0)
+    full_ms = 1e3 * MODEL.predict(built.fsel.select(st, CAM, SIZE))
+    coarse = am.AutoSelector(built.tri_reps, poe=1e3, model=MODEL, candidates=built.sel.candidates[1:])
+    floor_ms = coarse.select(st, CAM, SIZE).stats["auto"]["predicted_ms"]
+    assert full_ms > 3 * floor_ms
+    for factor in np.linspace(0.02, 0.98, 12):
+        budget = floor_ms + factor * (full_ms - floor_ms)
+        sel = am.AutoSelector(built.tri_reps, poe=1.0, budget_ms=budget, model=MODEL,
+                              candidates=built.sel.candidates[1:])
+        bounds, costs = _run_budget(sel, st)
+        tail = bounds[-15:]
+        assert np.all(tail == tail[0]), (factor, bounds)  # settled: no change over the last 15 frames
+        assert costs[-1] <= budget * (1 + am_budget.UP_TOLERANCE) + 1e-9, (factor, costs[-1], budget)
+        assert am_budget.BOUND_MIN <= tail[0] <= am_budget.BOUND_MAX and np.isfinite(costs).all()
+
+
+def test_budget_with_measured_cost_and_extremes(built):
+    st = _crowd(150, 11, depth=60.0)
+    # measured = predicted, reported through observe(): same convergence
+    sel = am.AutoSelector(built.tri_reps, poe=1.0, budget_ms=3.0, model=MODEL, candidates=built.sel.candidates[1:])
+    bounds, _ = _run_budget(sel, st, measured=MODEL.predict)
+    assert np.all(bounds[-15:] == bounds[-1])
+    # a huge budget refines to the smallest bound and stays; an impossible one coarsens to the largest
+    sel = am.AutoSelector(built.tri_reps, poe=4.0, budget_ms=1e4, model=MODEL)
+    bounds, _ = _run_budget(sel, st, frames=60)
+    assert bounds[-1] == am_budget.BOUND_MIN and np.all(bounds[-5:] == bounds[-1])
+    sel = am.AutoSelector(built.tri_reps, poe=4.0, budget_ms=1e-3, model=MODEL)
+    bounds, _ = _run_budget(sel, st, frames=60)
+    assert bounds[-1] == am_budget.BOUND_MAX and np.all(bounds[-5:] == bounds[-1])
+
+
+def test_observe_refits_the_cost_model_when_adapting(built):
+    """With ``adapt`` every observed frame rescales the model (lod.auto.cost_model.refine) so that the
+    prediction of a static view follows the measured time and the choice does not change; without
+    it the model never changes."""
+    st = _crowd(100, 2)
+    for adapt in (False, True):
+        sel = am.AutoSelector(built.tri_reps, poe=1.0, model=MODEL, candidates=built.sel.candidates[1:],
+                              adapt=adapt, explore=False)
+        dl0 = sel.select(st, CAM, SIZE)
+        first = dl0.stats["auto"]["predicted_ms"]
+        for _ in range(6):
+            sel.observe(3e-3 * first, select_seconds=0.0)  # the machine is 3x slower than the model says
+            dl = sel.select(st, CAM, SIZE)
+            p = dl.stats["auto"]["predicted_ms"]
+        assert dl.stats["auto"]["options"] == dl0.stats["auto"]["options"]
+        if adapt:
+            assert sel.model is not MODEL and p == pytest.approx(3 * first) and sel.prior is MODEL
+        else:
+            assert sel.model is MODEL and p == pytest.approx(first)
+    assert am.PARAMS["adapt"].default is True
+
+
+def test_controller_holds_when_cost_jumps_across_the_band():
+    c = am_budget.BudgetController(1.0, bound=1.0)
+    cost = (lambda b: 2.0 if b < 3.0 else 0.5)  # a step from far above to far below the band
+    seen = []
+    for _ in range(60):
+        seen.append(c.update(cost(c.bound)))
+    assert seen[-1] >= 3.0 and len(set(seen[-20:])) == 1  # kept the under-budget bound, no flip-flop
+    c.update(5.0)  # the view changed: released and coarsening again
+    assert c.bound > seen[-1]
+
+
+# ------------------------------------------------------------------------------------------ crowd run
+@pytest.mark.parametrize("budget", ["0.0", "50.0"])
+def test_crowd_run_with_mode_auto(tmp_path, monkeypatch, budget):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(tiny_scene(replace={'mode = "none"': f'mode = "auto"\npoe = 1.0\nbudget_ms = {budget}\nlevels = 5',
+                                         "position = [1.0, 2.0, 7.0]": "position = [1.0, 2.0, 30.0]"}))
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    p = run_cli("run", scene, "--out", tmp_path / "out", "--quiet")
+    assert p.returncode == 0, p.stderr
+    rows = list(csv.DictReader(open(tmp_path / "out" / "frames.csv")))
+    assert len(rows) == 3
+    tri = [int(float(r["triangles"])) for r in rows]
+    assert all(0 < t < 4 * 600 for t in tri), tri  # far away: coarser than full detail
+
+
+# ------------------------------------------------------------------------------------------ rendering
+BG = (0.1, 0.1, 0.12)
+
+
+@pytest.fixture(scope="module")
+def gl(built):
+    from render.context import create_context
+    from render.renderer import Renderer
+    ctx = create_context()
+    rs = {}
+    for ss in (1, 4):
+        r = Renderer((SIZE[0] * ss, SIZE[1] * ss), ctx=ctx)
+        for rep in [*built.reps, *built.full]:
+            r.upload(rep)
+        rs[ss] = r
+    yield rs
+    for r in rs.values():
+        r.release()
+    ctx.release()
+
+
+def _mask(img):
+    bg = np.round(np.asarray(BG) * 255).astype(int)
+    return np.abs(img.astype(int) - bg).max(axis=2) > 2
+
+
+def _draw(r, dl):
+    r.draw(dl, background=BG)
+    return r.read_pixels()
+
+
+def test_zero_bound_is_pixel_identical_to_nolod(built, gl):
+    st = _crowd(30, 5, half_width=5.0, depth=25.0)
+    built.sel.poe = 0.0
+    ref_dl = built.fsel.select(st, CAM, SIZE)
+    ref, img = _draw(gl[1], ref_dl), _draw(gl[1], built.sel.select(st, CAM, SIZE))
+    assert _mask(ref).sum() > 1000 and np.array_equal(img, ref)
+    built.sel.poe = 50.0
+    dl = built.sel.select(st, CAM, SIZE)
+    assert dl.stats["triangles"] < ref_dl.stats["triangles"] and not np.array_equal(_draw(gl[1], dl), ref)
+    built.sel.poe = 0.0
+
+
+@pytest.mark.parametrize("name,poe", [("triangles", 1.0), ("triangles", 3.0), ("clusters", 1.0),
+                                      ("clusters", 3.0), ("auto", 2.0)])
+def test_silhouette_error_within_bound(built, gl, name, poe):
+    """One instance at distances where the bound picks coarse levels: rendered at 4x the selection
+    resolution, the chosen representation's silhouette stays within ``poe`` (+1 pixel of
+    rasterisation) of full detail's (the measure of tests/lod/chains/test_triangles_mode.py). ``name``
+    forces a candidate (its options made free) or lets auto choose."""
+    r = gl[4]
+    sel = built.sel if name == "auto" else _forced(built, name, poe)
+    if name == "triangles":
+        sel = am.AutoSelector(built.tri_reps, poe=poe, model=MODEL)
+    seen = set()
+    for z, t, heading in ((-4.0, 0.3, 0.4), (-10.0, 0.9, 1.2), (-25.0, 0.1, 2.0), (-60.0, 0.6, 0.0)):
+        st = _state([[0.0, 0.0, z]], [heading], [t])
+        cam = Camera.look_at((0, 1.0, 3.0), (0, 0.9, z))
+        full = _mask(_draw(r, built.fsel.select(st, cam, SIZE)))
+        sel.poe = poe
+        dl = sel.select(st, cam, SIZE)
+        (b,) = dl.batches
+        rep_name = b.representation if b.representation != "triangles" else f"L{b.level}"
+        seen.add(rep_name)
+        if b.representation == "points":  # splats are sized for the selection resolution: compare there
+            err = silhouette_error(_mask(_draw(gl[1], built.fsel.select(st, cam, SIZE))), _mask(_draw(gl[1], dl)))
+        else:
+            err = silhouette_error(full, _mask(_draw(r, dl))) / 4.0
+        assert err <= poe + 1.0, (z, rep_name, err)
+    built.sel.poe = 0.0
+    if name == "triangles":
+        assert seen - {"L0"}
+    elif name == "clusters":
+        assert "clusters" in seen
+
+
+def test_keyframe_deviation(char):
+    """The point candidate's keyframe interpolation error: > 0 for a skinned walker, shrinking with
+    more keyframes, 0 for a keyframed character; projected, it is added to the splat size."""
+    d3, d9 = ac.keyframe_deviation(char, 3), ac.keyframe_deviation(char, 9)
+    assert 0.0 < d9 < d3 < 2.0
+    assert ac.keyframe_deviation(tiny_keyframed(), 3) == 0.0
+    pts = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3}, progress=False)[1].candidates
+               if c.name == "points")
+    assert pts.deviation[0] == pytest.approx(d3)
+    assert [pts.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0, 6.0, 9.0)] == [0, 1, 1, 2, 3, 3]
+    loose = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3, "points_error": "splat"},
+                                     progress=False)[1].candidates if c.name == "points")
+    assert loose.deviation == [0.0] and [loose.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0)] == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("bound", [8.0, 12.0])
+def test_points_image_error_within_bound(built, gl, bound):
+    """Forced point hierarchies at ``bound`` pixels (the splat size takes half, at most 3 px, the
+    projected keyframe deviation of the coarse 3-keyframe bake, 0.7 m, the rest): selected and
+    drawn at 1280x960, the silhouette stays within the bound (+1 pixel) of full detail's; the near
+    instance, whose interpolated pose would show, is not given points, far ones are."""
+    r = gl[4]
+    size = r.size
+    sel = _forced(built, "points", bound)
+    kinds = []
+    for z, t, heading in ((-6.0, 0.3, 0.4), (-110.0, 0.9, 1.2), (-160.0, 0.1, 2.0)):
+        st = _state([[0.0, 0.0, z]], [heading], [t])
+        cam = Camera.look_at((0, 1.0, 3.0), (0, 0.9, z))
+        full = _mask(_draw(r, built.fsel.select(st, cam, size)))
+        dl = sel.select(st, cam, size)
+        (b,) = dl.batches
+        kinds.append(b.representation)
+        if b.representation == "points":
+            assert dl.options["splat_size"] == sel.candidates[1].inner.splat_size(bound)
+        assert full.sum() > 10
+        err = silhouette_error(full, _mask(_draw(r, dl)))
+        assert err <= bound + 1.0, (z, b.representation, err)
+    assert kinds[0] == "triangles" and "points" in kinds, kinds
+
+
+def test_controller_ignores_a_single_noisy_frame():
+    c = am_budget.BudgetController(0.050, bound=2.0)
+    assert c.update(0.050) == 2.0 and c.update(0.040) == 2.0  # inside the band (-15 % .. +5 %)
+    assert c.update(0.060) == 2.0  # one frame 20 % over: noise, no change
+    assert c.update(0.050) == 2.0
+    assert c.update(0.060) == 2.0 and c.update(0.060) > 2.0  # persisting: coarsen
+    b = c.bound
+    assert c.update(0.200) > b  # far over budget: at once
+
+
+# ------------------------------------------------------------------------------------------ frame plans
+FREE_PASSES = cost_model.CostModel({"points": 1e-7, "clusters": 1e-6, "splat_pixels": 0.0, "splat_area": 0.0,
+                                    "cluster_frames": 0.0})
+
+
+def test_chosen_plan_is_the_cheapest_predicted_plan(built):
+    """Without measurements the frame plan drawn is the cheapest of the mixed plan and every pure plan
+    (all instances on one representation, with its per-frame pass), and it is what the draw list costs."""
+    st = _crowd(200, 4, depth=200.0)
+    for model in (MODEL, FREE_PASSES, cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0})):
+        for poe in (1.0, 2.0, 6.0):
+            sel = am.AutoSelector(built.tri_reps, poe=poe, model=model, candidates=built.sel.candidates[1:])
+            a = sel.select(st, CAM, SIZE).stats["auto"]
+            plans = a["plans_ms"]
+            assert set(plans) == {"triangles", "clusters", "points", "mixed"}
+            assert plans[a["plan"]] == pytest.approx(min(plans.values()), rel=1e-9), (poe, plans, a["plan"])
+            assert np.isfinite(list(plans.values())).all() and a["select_ms"] > 0.0
+            if a["plan"] in ("triangles", "clusters", "points"):
+                assert all(n == a["plan"] or n == "triangles" or v == 0 for n, v in a["representations"].items())
+
+
+def test_measured_plan_costs_steer_the_choice(built):
+    """Frames drawing points are measured 3x slower than predicted, the others as predicted: the
+    selector tries the plans predicted within EXPLORE_MARGIN of the best once, learns each plan's
+    factor, and settles on a plan without points; without ``adapt`` nothing is learnt."""
+    st = _crowd(200, 4, depth=200.0)
+    model = cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0})
+    for adapt in (True, False):
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=built.sel.candidates[1:],
+                              adapt=adapt)
+        seen = []
+        for _ in range(8):
+            dl = sel.select(st, CAM, SIZE)
+            a = dl.stats["auto"]
+            seen.append((a["plan"], a["representations"]["points"]))
+            sel.observe(model.predict(dl) * (3.0 if a["representations"]["points"] else 1.0), select_seconds=0.0)
+        if adapt:
+            assert seen[0][1] > 0  # the calibration prefers points here
+            assert all(p == 0 for _, p in seen[-3:]), seen
+            assert sel.plan_factor(seen[0][0]) == pytest.approx(3.0)
+            assert sel.plan_factor(seen[-1][0]) == pytest.approx(1.0)
+            assert dl.stats["auto"]["predicted_ms"] == pytest.approx(1e3 * model.predict(dl))
+        else:
+            assert len(set(seen)) == 1 and sel.plan_factor("points") == 1.0
+
+
+class NoBound(ac.ClustersCandidate):
+    """The cluster candidate without its cost lower bound: every cut computed."""
+
+    def __init__(self, inner):
+        ac.Candidate.__init__(self)
+        self.__dict__.update(inner.__dict__)
+
+    cost_lower_bound = ac.Candidate.cost_lower_bound
+
+
+def test_cost_lower_bound_skips_work_but_not_choices(built):
+    """Cluster cuts are computed only where their lower bound undercuts the best option found so far;
+    the draw lists equal those of a selector computing every cut; skipped rows are priced at the bound
+    (never above the exact cost) and cannot be chosen."""
+    cl, pts = built.sel.candidates[1], built.sel.candidates[2]
+    st = _crowd(300, 21, half_width=60.0, depth=500.0)
+    for model in (MODEL, FREE_PASSES):
+        for poe in (1.0, 2.0, 6.0):
+            dls = []
+            for c in (cl, NoBound(cl)):
+                sel = am.AutoSelector(built.tri_reps, poe=poe, model=model, candidates=[c, pts])
+                dls.append(sel.select(st, CAM, SIZE))
+            a, b = dls
+            assert a.stats["auto"]["plan"] == b.stats["auto"]["plan"]
+            assert a.stats["auto"]["options"] == b.stats["auto"]["options"]
+            assert [(x.rep, x.part, x.level, tuple(x.instance_ids)) for x in a.batches] == \
+                [(x.rep, x.part, x.level, tuple(x.instance_ids)) for x in b.batches]
+    sel = am.AutoSelector(built.tri_reps, poe=2.0, model=MODEL, candidates=[cl])
+    dl = sel._inner.select(st, CAM, SIZE)
+    bt = dl.batches[0]
+    g = ac.Group(0, bt, np.asarray(bt.instance_data, np.float64)[:, :12].reshape(-1, 3, 4))
+    frame = ac.Frame(st, CAM, SIZE, CAM.frustum_planes(SIZE[0] / SIZE[1]),
+                     am.viewport_scale(SIZE[1], CAM.fov_y), 2.0, MODEL)
+    need = np.arange(g.k) % 3 == 0
+    full, part = cl.options(frame, g), cl.options(frame, g, need)
+    np.testing.assert_allclose(part.cost[need], full.cost[need])
+    assert np.all(part.cost[~need] <= full.cost[~need]) and np.all(np.isinf(part.error[~need]))
+    off = part.plan[1]
+    assert off.shape == (g.k + 1,) and np.all(np.diff(off)[~need] == 0)
+    # the bound never exceeds the exact cut's cost; inside the frustum it counts the root cut (equal to the
+    # exact cost when the bound is so loose that the cut is the roots)
+    base = MODEL.coefficients["instances"] + MODEL.coefficients["clusters"]
+    for poe in (0.5, 2.0, 1e4):
+        fr = ac.Frame(st, CAM, SIZE, frame.planes, frame.scale_px, poe, MODEL)
+        lb, exact = cl.cost_lower_bound(fr, g), cl.options(fr, g).cost[:, 0]
+        assert np.all(lb <= exact * (1 + 1e-12))
+        assert np.all(lb >= base) and (lb > base).sum() > g.k // 4
+    np.testing.assert_allclose(lb[lb > base], exact[lb > base], rtol=1e-12)
+
+
+def test_observe_takes_the_rendering_share(built):
+    """observe() gets selection + rendering (as crowd.engine measures); the refit uses the rendering only,
+    by default minus the selector's own timing of its last select()."""
+    st = _crowd(60, 2)
+    sel = am.AutoSelector(built.tri_reps, poe=1.0, model=MODEL, adapt=True, explore=False)
+    dl = sel.select(st, CAM, SIZE)
+    p = MODEL.predict(dl)
+    assert sel.last_select_seconds > 0.0
+    sel.observe(2 * p + sel.last_select_seconds)
+    assert sel.plan_factor(dl.stats["auto"]["plan"]) == pytest.approx(2.0, rel=1e-6)
+    sel.select(st, CAM, SIZE)
+    sel.observe(float("nan"))  # ignored
+    sel.observe(0.5 * sel.last_select_seconds)  # no rendering share left: ignored by the refit
+    assert sel.plan_factor(dl.stats["auto"]["plan"]) == pytest.approx(2.0, rel=1e-6)
+
+
+def test_cluster_error_scale_cuts_at_a_tighter_bound(built):
+    """``cluster_error_scale`` k: the cluster candidate's cut at bound b is VDR-AM's cut at b / k (more
+    triangles, the same admissibility); k < 1 or non-finite is rejected naming the key."""
+    cl = built.sel.candidates[1]
+    st = _crowd(80, 9)
+    sel = am.AutoSelector(built.tri_reps, poe=2.0, model=MODEL, candidates=[cl])
+    bt = sel._inner.select(st, CAM, SIZE).batches[0]
+    g = ac.Group(0, bt, np.asarray(bt.instance_data, np.float64)[:, :12].reshape(-1, 3, 4))
+
+    def frame(bound):
+        return ac.Frame(st, CAM, SIZE, CAM.frustum_planes(SIZE[0] / SIZE[1]), am.viewport_scale(SIZE[1], CAM.fov_y),
+                        bound, MODEL)
+
+    scaled = ac.ClustersCandidate(list(cl.by_char.values()), error_scale=2.0)
+    a, b = scaled.options(frame(2.0), g), cl.options(frame(1.0), g)
+    np.testing.assert_array_equal(a.plan[1], b.plan[1])
+    np.testing.assert_array_equal(a.plan[2], b.plan[2])
+    assert np.all(a.error == 2.0) and a.plan[3].sum() > cl.options(frame(2.0), g).plan[3].sum()
+    for bad in (0.5, float("nan")):
+        with pytest.raises(ValueError, match="cluster_error_scale"):
+            ac.ClustersCandidate([], error_scale=bad)
+
+
+def test_keyframed_auto_geomorphs_its_cluster_cuts(built):
+    """Keyframed selection around auto (lod.temporal.selection) blends the cluster cuts auto chose
+    at two keyframes by geomorphing (AutoSelector.cluster_hierarchies): a dolly changes the cuts,
+    in-between frames draw morphed unions, every visible instance exactly once."""
+    from lod.temporal.selection import KeyframedSelector
+
+    sel = KeyframedSelector(_forced(built, "clusters", 1.0), n=4, mode="current")
+    assert set(sel.cluster_hierarchies()) == {r.key for r in built.reps if r.kind == "clusters"}
+    st = _crowd(40, 5, half_width=6.0, depth=60.0)
+    morphed = 0
+    for f in range(12):
+        cam = Camera.look_at((0, 1.6, 8.0 - 3.0 * f), (0, 1.0, -60.0))
+        dl = sel.select(st, cam, SIZE)
+        ids = _ids(dl)
+        ref = np.sort(_ids(built.fsel.select(st, cam, SIZE)))
+        assert np.array_equal(np.sort(ids), np.unique(ids)) and np.isin(ref, ids).all()
+        morphed += dl.stats["geomorphs"]
+        assert all(b.fade is None for b in dl.batches)
+        st.anim_time = st.anim_time + 1 / 30
+    assert morphed > 0
