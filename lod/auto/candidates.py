@@ -73,6 +73,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
 from lod.clusters import cut as cluster_cut
 from lod.chains import chain as tm_chain
 from lod.drawlist import DrawBatch
@@ -637,17 +638,19 @@ class PointsCandidate(Candidate):
         self.super_nodes = 0
 
 
-def keyframe_deviation(character, keyframes: int, between: int = 3) -> float:
-    """Metres (model space) by which linear interpolation between ``keyframes``
-    poses baked per clip (``sim.keyframes.bake_skinned``, as mode "points"
-    bakes them) departs from the skinned pose: the largest vertex distance
-    over ``between`` times inside every keyframe interval of every clip.
+def keyframe_deviation(character, keyframes: int, pose_error: float = POINTS_POSE_ERROR,
+                       max_keyframes: int = POINTS_MAX_POSES) -> float:
+    """Metres (model space) by which linear interpolation between the poses
+    mode "points" bakes per clip departs from the skinned animation: the
+    largest pose error over every clip (:func:`lod.points.poses.clip_poses`,
+    sampled densely in time; a clip's own jump at its loop point is not
+    counted).
 
     Parameters
     ----------
     character : sim.character.SkinnedCharacter (0.0 for any other kind)
-    keyframes : int >= 2, poses baked per clip
-    between : int >= 1, sample times per interval
+    keyframes : int >= 0, poses baked per clip (0: the fewest within ``pose_error``)
+    pose_error, max_keyframes : the bound and cap of ``keyframes = 0``
 
     Returns
     -------
@@ -655,31 +658,10 @@ def keyframe_deviation(character, keyframes: int, between: int = 3) -> float:
     """
     if getattr(character, "kind", "") != "skinned" or not character.mesh.is_skinned:
         return 0.0
-    from sim.keyframes import bake_skinned
-    from sim.skinning import skin
+    from lod.points.poses import clip_poses
 
-    sk = character.skeleton
-    worst = 0.0
-    for name in character.clips:
-        clip = character.clip(name)
-        anim = bake_skinned(character, name, int(keyframes))
-        times = np.asarray(anim.times, np.float64)
-        pos = [np.asarray(k.positions, np.float64) for k in anim.keyframes]
-        ends = list(times[1:]) + ([times[0] + float(anim.duration)] if anim.loop else [])
-        for k, t1 in enumerate(ends):
-            t0 = float(times[k])
-            a, b = pos[k], pos[(k + 1) % len(pos)]
-            if a.shape != b.shape:
-                continue
-            for j in range(1, int(between) + 1):
-                u = j / (int(between) + 1)
-                t = t0 + u * (float(t1) - t0)
-                if anim.loop and t >= float(anim.duration):
-                    t -= float(anim.duration)
-                true = skin(character.mesh, clip.skinning_matrices(sk, np.array([t]))[0])[0]
-                d = np.linalg.norm((1 - u) * a + u * b - np.asarray(true, np.float64), axis=1)
-                if d.size:
-                    worst = max(worst, float(d.max()))
+    worst = max((cp.error for cp in clip_poses(character, keyframes, pose_error, max_keyframes).values()),
+                default=0.0)
     return worst if np.isfinite(worst) else 0.0
 
 

@@ -25,11 +25,14 @@ mode is the triangle-chain choice of the first version.
 Point error, a decision: issue 7 defines a point hierarchy's error as its
 splat size, and ``points_error = "splat"`` uses exactly that (mode "points"
 at splat size s is the same choice). But a skinned character's point
-hierarchies are built over poses baked at ``keyframes`` times per clip and
-interpolated linearly (Wand & Straßer §3), which departs from the skinned
-pose the other representations and the NoLOD reference draw: 0.73 m at 3
-keyframes, 0.27 m at 9, 0.07 m at 33 for the procedural humanoid
-(:func:`lod.auto.candidates.keyframe_deviation`). Counting only the splat
+hierarchies are built over poses baked per clip and interpolated linearly
+(Wand & Straßer §3), which departs from the skinned pose the other
+representations and the NoLOD reference draw: for the procedural humanoid
+0.27 m at 9 evenly spaced poses, 0.07 m at 33, and 0.033 m with the default
+``keyframes = 0`` (the fewest poses within ``pose_error`` = 2 % of its
+extent, 14-15 per clip; :mod:`lod.points.poses`). The candidate is priced
+with the pose error of the poses its hierarchies were built over (a clip's
+own jump at its loop point not counted). Counting only the splat
 size would let auto show that departure (tens of pixels on a near
 instance) under a bound of 1-3 pixels, so the default is
 ``points_error = "splat+keyframes"``: half the bound goes to the splat size,
@@ -126,6 +129,7 @@ from lod.auto import cost_model
 from lod.chains import chain as tm_chain
 from lod.chains import mode as tm
 from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
+from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
 from lod.auto.plans import _Block, _Plan, _plans_kernel
 from lod.clusters.cut import viewport_scale
 from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES
@@ -160,8 +164,14 @@ PARAMS: dict = {
     "ratio": tm.PARAMS["ratio"],
     "leaf_triangles": Param("int", CLUSTERS_LEAF_TRIANGLES, min=8, max=1_000_000,
                             doc="§4.2 s of the cluster candidate's hierarchies (mode clusters' leaf_triangles)"),
-    "keyframes": Param("int", 9, min=2, max=256,
-                       doc="poses baked per clip for the point candidate's hierarchies (mode points' keyframes)"),
+    "keyframes": Param("int", 0, min=0, max=256,
+                       doc="poses baked per clip for the point candidate's hierarchies, evenly spaced; 0 = the "
+                           "fewest within pose_error (mode points' keyframes)"),
+    "pose_error": Param("float", POINTS_POSE_ERROR, min=1e-4, max=1.0,
+                        doc="pose error bound of the point candidate's baked poses, a fraction of the "
+                            "character's largest rest extent (mode points' pose_error)"),
+    "max_keyframes": Param("int", POINTS_MAX_POSES, min=2, max=4096,
+                           doc="cap on the poses baked per clip (mode points' max_keyframes)"),
 }
 
 
@@ -588,11 +598,14 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     if "points" in names_c and characters:
         from lod.points import mode as points_mode
 
-        pp = {**dict(points_params or {}), "keyframes": int(params.get("keyframes", PARAMS["keyframes"].default))}
+        pp = {**dict(points_params or {}),
+              **{k: params.get(k, PARAMS[k].default) for k in ("keyframes", "pose_error", "max_keyframes")}}
         preps, psel = points_mode.build(characters, names, fps, pp, static_reps=static_reps, progress=progress,
                                         instancing=instancing, clips=clips)
         strict = str(params.get("points_error", PARAMS["points_error"].default)) == "splat+keyframes"
-        dev = [ac.keyframe_deviation(ch, pp["keyframes"]) if strict else 0.0 for ch in characters]
+        # the pose error of the poses the hierarchies were built over (lod.points.poses; loop jumps excluded)
+        dev = [max((cp.error for cp in r.poses.values()), default=0.0) if strict else 0.0
+               for r in preps[:len(characters)]]
         extra.append(ac.PointsCandidate(preps, [r.kind for r in reps],
                                         max_splat=int(params.get("max_splat", PARAMS["max_splat"].default)),
                                         deviation=dev, spheres=[getattr(r, "clip_sphere", None) for r in reps],

@@ -3,6 +3,8 @@
 Modules in data-flow order:
 
 - ``lod.points.config``: the tunable constants, each naming its section.
+- ``lod.points.poses``: the skinned poses each clip is baked to, the fewest within a pose-error bound (§3
+  keyframe animations from skinned clips).
 - ``lod.points.sampling``: candidate samples of moving triangles, area-weighted over a keyframe interval (§3.4.1).
 - ``lod.points.stratify``: stratification of the moving candidates per octree level (§3.4.2).
 - ``lod.points.filter``: prefiltered attributes of the representative samples (§3.5).

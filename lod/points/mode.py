@@ -2,8 +2,10 @@
 (Wand & Straßer 2002, §3) selected per instance and frame.
 
 Build (:func:`build`): every character becomes a keyframe animation (skinned
-characters are baked to ``keyframes`` poses per clip with
-``sim.keyframes.bake_skinned``, §3 "keyframe animations"); every segment
+characters are baked with ``sim.keyframes.bake_skinned``, §3 "keyframe
+animations", at per-clip times :mod:`lod.points.poses` chooses: by default the
+fewest poses whose interpolation stays within ``pose_error`` of the skinned
+animation, or ``keyframes`` evenly spaced ones); every segment
 (keyframe pair) gets its own point/triangle octree (``lod.points.octree``,
 §3.1, §3.3-§3.5), kept in a content-addressed on-disk cache
 (:class:`HierarchyCache`).
@@ -40,6 +42,7 @@ from lod.full.mode import NoLodSelector
 from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
 from lod.points.octree import PointHierarchy
+from lod.points.poses import clip_poses
 from lod.points.traverse import _traverse_kernel, traverse, viewport_scale
 from sim.params import Param
 
@@ -50,7 +53,14 @@ RENDERERS = ("compute", "gl_points")
 PARAMS: dict = {
     "splat_size": Param("int", 2, min=1, max=3, doc="splat size in pixels (§3.2): a node is drawn as points "
                                                     "when its projected spacing is at most this"),
-    "keyframes": Param("int", 9, min=2, max=256, doc="poses baked per clip of a skinned character"),
+    "keyframes": Param("int", 0, min=0, max=256,
+                       doc="poses baked per clip of a skinned character, evenly spaced; 0 = per clip the fewest "
+                           "that keep the pose error within pose_error (lod.points.poses)"),
+    "pose_error": Param("float", C.POINTS_POSE_ERROR, min=1e-4, max=1.0,
+                        doc="largest vertex distance between the interpolated baked poses and the skinned "
+                            "animation, as a fraction of the character's largest rest extent (keyframes = 0)"),
+    "max_keyframes": Param("int", C.POINTS_MAX_POSES, min=2, max=4096,
+                           doc="cap on the poses baked per clip when keyframes = 0"),
     "intervals": Param("int", C.POINTS_TIME_INTERVALS, min=1, max=16,
                        doc="stratification time intervals per keyframe pair (§3.4.2)"),
     "spacing_fraction": Param("float", C.POINTS_SPACING_FRACTION, min=1.0 / 64.0, max=1.0,
@@ -61,10 +71,14 @@ PARAMS: dict = {
 
 
 # ---------------------------------------------------------------------------- build
-def keyframed_character(character, keyframes: int):
+def keyframed_character(character, keyframes: int, pose_error: float = C.POINTS_POSE_ERROR,
+                        max_keyframes: int = C.POINTS_MAX_POSES, poses: dict | None = None):
     """The character as a ``KeyframedCharacter``: skinned characters get every
-    clip baked to ``keyframes`` poses (``sim.keyframes.bake_skinned``), clip
-    order kept so that ``CrowdState.clip`` indices stay valid."""
+    clip baked (``sim.keyframes.bake_skinned``) at the times of
+    :func:`lod.points.poses.clip_poses` (``keyframes`` evenly spaced poses, or
+    with ``keyframes = 0`` the fewest within ``pose_error``), clip order kept so
+    that ``CrowdState.clip`` indices stay valid. ``poses``: a dict the chosen
+    :class:`lod.points.poses.ClipPoses` are stored in (per clip name)."""
     if getattr(character, "kind", None) == "keyframed":
         return character
     if getattr(character, "kind", None) != "skinned":
@@ -72,7 +86,10 @@ def keyframed_character(character, keyframes: int):
     from sim.character import KeyframedCharacter
     from sim.keyframes import bake_skinned
 
-    anims = {name: bake_skinned(character, name, int(keyframes)) for name in character.clips}
+    chosen = clip_poses(character, int(keyframes), float(pose_error), int(max_keyframes))
+    if poses is not None:
+        poses.update(chosen)
+    anims = {name: bake_skinned(character, name, chosen[name].times) for name in character.clips}
     return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims)
 
 
@@ -139,7 +156,9 @@ def build_points_rep(character, name: str, params: dict, cache: HierarchyCache |
     """
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     cache = cache if cache is not None else HierarchyCache()
-    kfc = keyframed_character(character, int(p["keyframes"]))
+    poses: dict = {}
+    kfc = keyframed_character(character, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]),
+                              poses=poses)
     kf = build_keyframed_rep(kfc, key=f"points:{name}")
     bp = dict(intervals=int(p["intervals"]), spacing_fraction=float(p["spacing_fraction"]))
     played = played_segments(kf, clips)
@@ -148,7 +167,7 @@ def build_points_rep(character, name: str, params: dict, cache: HierarchyCache |
         segs = progress(segs, f"point hierarchies {name}")
     built = {s: cache.get_or_build(segment_arrays(kf, s), bp) for s in segs}
     hs = [built[s] if s in built else triangle_hierarchy(*segment_arrays(kf, s)[:3]) for s in range(kf.n_parts)]
-    return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]))
+    return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]), poses=poses)
 
 
 def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None):

@@ -32,6 +32,8 @@ class PointsRep:
         (the triangles stored in the octrees index them) and timing
     hierarchies : list of PointHierarchy, one per segment (global order)
     splat_size : int pixels; renderer : "compute" | "gl_points"
+    poses : clip name -> lod.points.poses.ClipPoses, the poses a skinned
+        character's clips were baked at (empty for keyframed characters)
     """
 
     key: str
@@ -39,6 +41,7 @@ class PointsRep:
     hierarchies: list
     splat_size: int = 2
     renderer: str = "compute"
+    poses: dict = field(default_factory=dict)
 
     kind = "points"
 
