@@ -1,8 +1,9 @@
 # Crowd sandbox: set-up, demo, tests, benchmarks.
 #   make demo    set up, then render scenes/quickstart.toml headless into out/quickstart/
-#   make test    set up, then run the test suite (fails when no test is collected)
+#   make test    set up (and xvfb, chromium for the window and browser tests), then run the test suite
+#                (fails when no test is collected)
 #   make bench   set up, then run the benchmark scenes (short default runs)
-#   make setup   .venv + the package with test extras + system GL libraries and chromium (idempotent)
+#   make setup   .venv + the package with test extras + the system GL libraries (idempotent)
 #   make report  set up, then the frame-time and accuracy report of the seven benchmark scenes
 #                (scripts/report_seeds.sh: out/report_seeds/<scene>/index.html and table.md)
 
@@ -10,9 +11,11 @@ PYTHON   ?= python3
 VENV     ?= .venv
 VPY      := $(VENV)/bin/python
 SENTINEL := $(VENV)/.crowd-setup-done
-# Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL), a virtual X server, and the headless
-# browser the report test opens index.html in (tests/crowd/report/test_report_browser.py)
-SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri xvfb chromium
+# Debian/Ubuntu packages for headless OpenGL (Mesa llvmpipe through EGL): all that rendering (make demo) needs
+SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri
+# and for the tests: a virtual X server (the fly-through's window tests) and the headless browser the report test
+# opens index.html in (tests/crowd/report/test_report_browser.py)
+TEST_PACKAGES   := xvfb chromium
 # benchmark scenes: every scene but the quick start (override: make bench BENCH_SCENES=scenes/office.toml)
 BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.toml)))
 # short default runs: full-detail (lod "none") frames of the big scenes take seconds each on llvmpipe
@@ -20,7 +23,7 @@ BENCH_FRAMES ?= 3
 BENCH_SIZE   ?= 1280x720
 PYTEST_ARGS  ?=
 
-.PHONY: setup system-packages demo test bench report clean
+.PHONY: setup system-packages test-packages apt-packages demo test bench report clean
 
 setup: $(SENTINEL)
 
@@ -32,14 +35,21 @@ $(SENTINEL): pyproject.toml Makefile
 	@touch $(SENTINEL)
 
 system-packages:
+	@$(MAKE) --no-print-directory apt-packages PACKAGES="$(SYSTEM_PACKAGES)"
+
+test-packages:
+	@$(MAKE) --no-print-directory apt-packages PACKAGES="$(TEST_PACKAGES)"
+
+# installs the Debian packages $(PACKAGES) that are missing (root), or names them (otherwise)
+apt-packages:
 	@missing=""; \
 	if command -v dpkg-query >/dev/null 2>&1; then \
-	  for p in $(SYSTEM_PACKAGES); do \
+	  for p in $(PACKAGES); do \
 	    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
 	  done; \
 	  if [ ! -x $(VPY) ] && ! $(PYTHON) -c "import ensurepip" >/dev/null 2>&1; then missing="$$missing python3-venv"; fi; \
 	else \
-	  echo "note: not a Debian/Ubuntu system; make sure EGL and Mesa (llvmpipe) are installed: $(SYSTEM_PACKAGES)"; \
+	  echo "note: not a Debian/Ubuntu system; make sure these are installed: $(PACKAGES)"; \
 	fi; \
 	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
@@ -56,7 +66,7 @@ demo: setup
 	@echo "frames, frames.csv, summary.json and trace.json are in out/quickstart/"
 
 # pytest exit code 5 (no tests collected) is a failure here.
-test: setup
+test: setup test-packages
 	@$(VPY) -m pytest $(PYTEST_ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "error: pytest collected no tests" >&2; exit 1; fi; exit $$rc
 

@@ -3,8 +3,11 @@
 A run writes into a temporary sibling directory ``.<name>.tmp-<pid>`` next to
 the final one and renames it into place only when the run has finished,
 replacing a previous run's directory. On an error or an interrupt the temporary
-directory is removed, so no half-written output is ever left behind. Single
-files are written to a temporary file in the same folder and ``os.replace``-d.
+directory is removed, so no half-written output is ever left behind. A run
+killed outright (SIGKILL, power loss) cannot clean up: the next run into the
+same place removes the temporary siblings whose process is gone
+(:func:`remove_stale_siblings`). Single files are written to a temporary file
+in the same folder and ``os.replace``-d.
 """
 from __future__ import annotations
 
@@ -20,6 +23,32 @@ from lod.atomic_io import write_atomic as _write_atomic
 def temp_sibling(final: Path) -> Path:
     """``.<name>.tmp-<pid>`` beside ``final``."""
     return final.parent / f".{final.name}.tmp-{os.getpid()}"
+
+
+def _alive(pid: int) -> bool:
+    """True when a process ``pid`` exists (or may: one we may not signal counts as alive)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def remove_stale_siblings(final: Path) -> list:
+    """Remove ``.<name>.tmp-<pid>`` / ``.<name>.old-<pid>`` folders beside ``final``
+    left by runs whose process no longer exists; returns the removed paths."""
+    removed = []
+    for kind in ("tmp", "old"):
+        for p in final.parent.glob(f".{final.name}.{kind}-*"):
+            pid = p.name.rsplit("-", 1)[-1]
+            if p.is_dir() and pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+                shutil.rmtree(p, ignore_errors=True)
+                removed.append(p)
+    return removed
 
 
 def check_output_dir(final: str | os.PathLike) -> Path:
@@ -64,6 +93,7 @@ def atomic_dir(final: str | os.PathLike):
     if final.exists() and not final.is_dir():
         raise FileExistsError(f"{final} exists and is not a directory")
     final.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_siblings(final)
     tmp = temp_sibling(final)
     if tmp.exists():
         shutil.rmtree(tmp)

@@ -71,3 +71,29 @@ def test_write_atomic_and_json(tmp_path):
     with pytest.raises(ValueError):
         write_json(tmp_path / "bad.json", {"x": float("nan")})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "s.json"]
+
+
+def test_a_killed_runs_temporary_folder_is_removed_by_the_next_run(tmp_path):
+    """SIGKILL leaves ``.NAME.tmp-PID`` behind; the next run into the same place removes it (its process is
+    gone) but not the folder of a run still in progress, nor unrelated dot-folders."""
+    import signal
+    import subprocess
+    import sys
+
+    final = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    killed = tmp_path / f".run.tmp-{p.pid}"
+    killed.mkdir()
+    (killed / "frames.csv").write_text("half")
+    old = tmp_path / f".run.old-{p.pid}"
+    old.mkdir()
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    live = tmp_path / f".run.tmp-{os.getppid()}"  # a live process (the test runner's parent)
+    live.mkdir()
+    other = tmp_path / ".run.tmp-notapid"
+    other.mkdir()
+    with atomic_dir(final) as tmp:
+        (tmp / "x").write_text("ok")
+    assert not killed.exists() and not old.exists()
+    assert live.is_dir() and other.is_dir() and (final / "x").read_text() == "ok"
