@@ -181,7 +181,29 @@ def build_task(job: BuildJob, cache: str, *after) -> dict:
             os.environ.pop(CACHE_ENV, None)
         else:
             os.environ[CACHE_ENV] = old
-    return {"label": job.label, "asset": job.asset, "seconds": time.time() - start, "reps": len(reps)}
+    seconds = time.time() - start
+    return {"label": job.label, "asset": job.asset, "seconds": seconds, "reps": len(reps),
+            "poses": pose_summary(reps, ch if job.spec is not None else None, seconds)}
+
+
+def pose_summary(reps, character, seconds: float) -> str:
+    """One line on the poses mode points baked per clip (``lod.points.poses``), with the build time and
+    hierarchy bytes per second of clip; "" for representations without baked poses."""
+    parts = []
+    for r in reps:
+        poses = getattr(r, "poses", None)
+        if not poses or character is None:
+            continue
+        from lod.points.poses import character_extent
+
+        dur = sum(float(character.clip(n).duration) for n in poses)
+        clips = ", ".join(f"{n} {len(cp.times)}" + (" (capped)" if cp.capped else "") for n, cp in poses.items())
+        err = 100.0 * max(cp.error for cp in poses.values()) / character_extent(character)
+        line = f"poses per clip: {clips}; pose error <= {err:.2g} % of the extent"
+        if dur > 0:
+            line += f"; {seconds / dur:.2g} s and {r.nbytes / dur / 1e6:.3g} MB per clip second"
+        parts.append(line)
+    return "; ".join(parts)
 
 
 def _user_errors() -> tuple:
@@ -266,11 +288,12 @@ def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None 
 
 def summary(res: BuildResult) -> str:
     """Lines for the terminal: one per job, then the totals."""
-    lines = [f"  {r['label']}: {r['seconds']:.1f} s" for r in res.results]
+    lines = [f"  {r['label']}: {r['seconds']:.1f} s" + (f" ({r['poses']})" if r.get("poses") else "")
+             for r in res.results]
     lines.append(f"built {len(res.results)} hierarchy set(s) in {res.seconds:.1f} s on {res.cluster}; "
                  f"{len(res.new_entries)} new cache entr{'y' if len(res.new_entries) == 1 else 'ies'} in {res.cache}")
     return "\n".join(lines)
 
 
 __all__ = ["CACHED_MODES", "BuildJob", "BuildResult", "build_assets", "build_task", "cache_dir", "expand_assets",
-           "parse_modes", "summary"]
+           "parse_modes", "pose_summary", "summary"]

@@ -121,3 +121,16 @@ def test_bad_assets_are_one_sentence_exit_2(tmp_path, asset, msg):
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 2 and len(lines) == 1 and msg in lines[0] and "Traceback" not in r.stderr, r.stderr
     assert r.stdout == ""
+
+
+def test_build_prints_the_poses_per_clip_and_their_cost(tmp_path, monkeypatch):
+    """``crowd build --mode points`` names the poses baked per clip, the pose error, and the build time and
+    bytes per second of clip."""
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    r = run_cli("build", "generator:humanoid:600", "--mode", "points", "--cluster", "none")
+    assert r.returncode == 0, r.stderr
+    line = next(x for x in r.stdout.splitlines() if "[points]" in x)
+    assert "poses per clip: walk " in line and ", run " in line and "% of the extent" in line
+    assert "MB per clip second" in line
+    pct = float(line.split("pose error <= ")[1].split("%")[0])
+    assert 0.0 < pct <= 2.0

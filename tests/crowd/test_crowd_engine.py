@@ -190,6 +190,13 @@ def test_info_generator_spec():
     assert r.returncode == 0, r.stderr
     assert "joints: 21" in r.stdout and "triangles: 1000" in r.stdout and "walk" in r.stdout
     assert "bounds" in r.stdout
+    # the poses mode points bakes per clip (lod.points.poses), each within the default bound of 2 %
+    assert "points poses per clip (pose_error 2 %" in r.stdout
+    for clip in ("walk", "run"):
+        line = next(x for x in r.stdout.splitlines() if x.strip().startswith(f"{clip}:") and "poses over" in x)
+        n = int(line.split(":")[1].split()[0])
+        pct = float(line.rsplit("(", 1)[1].split("%")[0])
+        assert 2 <= n <= 64 and 0.0 < pct <= 2.0, line
 
 
 @pytest.mark.parametrize("spec, words", [("generator:dragon:1000", "humanoid"), ("generator:humanoid:12", "500"),
