@@ -4,6 +4,8 @@
 #                (fails when no test is collected)
 #   make bench   set up, then run the benchmark scenes (short default runs)
 #   make setup   .venv + the package with test extras + the system GL libraries (idempotent)
+#   make corpus  set up, then every glTF model in ../shared/assets (CORPUS_DIRS) through info, build and a frame in
+#                every LOD mode (scripts/corpus.py; the table goes to docs/corpus.md)
 #   make report  set up, then the frame-time and accuracy report of the seven benchmark scenes
 #                (scripts/report_seeds.sh: out/report_seeds/<scene>/index.html and table.md)
 
@@ -22,8 +24,9 @@ BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.t
 BENCH_FRAMES ?= 3
 BENCH_SIZE   ?= 1280x720
 PYTEST_ARGS  ?=
+CORPUS_DIRS  ?= ../shared/assets
 
-.PHONY: setup system-packages test-packages apt-packages demo test bench report clean
+.PHONY: setup system-packages test-packages apt-packages demo test bench corpus report clean
 
 setup: $(SENTINEL)
 
@@ -78,6 +81,9 @@ bench: setup
 	  $(VPY) -m crowd run $$s --frames $(BENCH_FRAMES) --size $(BENCH_SIZE) --png-every 0 --out out/bench/$$n --quiet || exit $$?; \
 	  $(VPY) -c "import json,sys; s=json.load(open(sys.argv[1])); st=s['stages']; print('  %d frames, mean frame %.1f ms (simulate %.1f, select %.1f, draw %.1f), %d triangles/frame' % (s['frames'], 1e3*st['total']['mean'], 1e3*st['simulate']['mean'], 1e3*st['select']['mean'], 1e3*st['draw']['mean'], s['counts']['triangles']['mean']))" out/bench/$$n/summary.json; \
 	done
+
+corpus: setup
+	$(VPY) scripts/corpus.py $(CORPUS_DIRS) --md docs/corpus.md
 
 report: setup
 	PYTHON=$(VPY) scripts/report_seeds.sh
