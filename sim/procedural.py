@@ -600,3 +600,39 @@ def _quadruped_gait(sk, J, name, *, period, duty, hip, knee, offsets, spine, nec
 
 
 GENERATORS = {"humanoid": humanoid, "quadruped": quadruped}
+
+
+def varied_clip(character: SkinnedCharacter, duration: float, seed: int = 0, name: str = "varied",
+                sources: tuple | None = None) -> Clip:
+    """A long looping clip that never repeats: sections of 2-5 s, each playing one of the character's own
+    clips (``sources``, default all) time-warped to 0.5-1.6x speed, keyed at 30 Hz for every joint
+    (translation and rotation, LINEAR). Deterministic for a seed. For clips of any length (tests of long
+    clips; the pose count of mode points, ``lod.points.poses``).
+    """
+    d = float(duration)
+    if not (d > 0.0) or not np.isfinite(d):
+        raise ValueError(f"varied_clip: expected a positive duration, got {duration!r}")
+    names = list(sources) if sources else list(character.clips)
+    if not names:
+        raise ValueError(f"varied_clip: character {character.name!r} has no clip to vary")
+    rng = np.random.default_rng(seed)
+    times = np.arange(0.0, d, 1.0 / 30.0)
+    which, rate, t_end = np.zeros(times.size, np.int64), np.zeros(times.size), 0.0
+    while t_end < d:
+        n = rng.uniform(2.0, 5.0)
+        sel = (times >= t_end) & (times < t_end + n)
+        which[sel], rate[sel] = rng.integers(0, len(names)), rng.uniform(0.5, 1.6)
+        t_end += n
+    phase = np.concatenate([[0.0], np.cumsum(rate[:-1] / 30.0)])
+    J = character.skeleton.n_joints
+    T, R = np.empty((times.size, J, 3)), np.empty((times.size, J, 4))
+    for c, cn in enumerate(names):
+        m = which == c
+        if m.any():
+            src = character.clips[cn]
+            T[m], R[m], _ = src.sample_times(character.skeleton, phase[m] * max(float(src.duration), 1e-9))
+    chans = []
+    for j in range(J):
+        chans.append(Channel(j, "translation", times.copy(), T[:, j].copy()))
+        chans.append(Channel(j, "rotation", times.copy(), R[:, j].copy()))
+    return Clip(name, d, chans, loop=True)

@@ -12,36 +12,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "fixtures"))
 
 from lod.points import poses as lp  # noqa: E402
 from sim.clip import Channel, Clip  # noqa: E402
-from sim.procedural import humanoid, quadruped  # noqa: E402
+from sim.procedural import humanoid, quadruped, varied_clip  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[4] / "shared" / "assets"
-
-
-def varied_clip(ch, duration: float, seed: int = 0, name: str = "dance") -> Clip:
-    """A looping clip of ``duration`` seconds: sections of 2-5 s, each walking or running at 0.5-1.6x speed
-    (the character's own clips, time-warped), keyed at 30 Hz for every joint."""
-    rng = np.random.default_rng(seed)
-    times = np.arange(0.0, duration, 1.0 / 30.0)
-    src = [ch.clip("walk"), ch.clip("run")]
-    which, rate, t_end = np.zeros(times.size, int), np.zeros(times.size), 0.0
-    while t_end < duration:
-        n = rng.uniform(2.0, 5.0)
-        sel = (times >= t_end) & (times < t_end + n)
-        which[sel], rate[sel] = rng.integers(0, 2), rng.uniform(0.5, 1.6)
-        t_end += n
-    phase = np.concatenate([[0.0], np.cumsum(rate[:-1] / 30.0)])
-    T = np.empty((times.size, ch.skeleton.n_joints, 3))
-    R = np.empty((times.size, ch.skeleton.n_joints, 4))
-    for c in (0, 1):
-        m = which == c
-        if m.any():
-            tr, rot, _ = src[c].sample_times(ch.skeleton, phase[m] * src[c].duration)
-            T[m], R[m] = tr, rot
-    chans = []
-    for j in range(ch.skeleton.n_joints):
-        chans.append(Channel(j, "translation", times.copy(), T[:, j].copy()))
-        chans.append(Channel(j, "rotation", times.copy(), R[:, j].copy()))
-    return Clip(name, float(duration), chans, loop=True)
 
 
 def turn_clip(ch, duration: float = 1.0) -> Clip:
@@ -111,7 +84,7 @@ def test_a_clip_that_holds_still_gets_two_poses(walker):
 
 
 def test_long_varied_clip_gets_poses_where_it_moves(walker):
-    long = varied_clip(walker, 30.0, seed=5)
+    long = varied_clip(walker, 30.0, seed=5, name="dance")
     ch = dataclasses.replace(walker, clips={"walk": walker.clip("walk"), "dance": long})
     bound = 0.02 * lp.character_extent(ch)
     short = lp.choose_poses(ch, ch.clip("walk"), bound)
@@ -127,7 +100,7 @@ def test_long_varied_clip_gets_poses_where_it_moves(walker):
 
 
 def test_the_cap_stops_refinement_and_says_so(walker):
-    long = varied_clip(walker, 10.0, seed=1)
+    long = varied_clip(walker, 10.0, seed=1, name="dance")
     ch = dataclasses.replace(walker, clips={"dance": long})
     bound = 0.01 * lp.character_extent(ch)
     cp = lp.choose_poses(ch, long, bound, max_poses=8)
