@@ -28,6 +28,12 @@ and only the instances of refined nodes go through the per-instance path
 above. Their super-hierarchy draws are ordinary :class:`PointsBatch` es whose
 instances are tree nodes (model matrix of the node, u within the node's
 super-segment; ``instance_ids`` the node's first agent).
+
+Morph targets (glTF 2.0 §3.7.2.2) of a skinned character are baked into the
+keyframes: each keyframe is the pose ``skin ∘ morph`` at its time
+(``sim.skinning.skin_morph`` through ``bake_skinned``), so faces and correctives
+move with the points and triangles, exactly at the key times and linearly in
+between (as every other vertex motion of §3).
 """
 from __future__ import annotations
 
@@ -63,8 +69,9 @@ PARAMS: dict = {
 # ---------------------------------------------------------------------------- build
 def keyframed_character(character, keyframes: int):
     """The character as a ``KeyframedCharacter``: skinned characters get every
-    clip baked to ``keyframes`` poses (``sim.keyframes.bake_skinned``), clip
-    order kept so that ``CrowdState.clip`` indices stay valid."""
+    clip baked to ``keyframes`` poses (``sim.keyframes.bake_skinned``: skin ∘
+    morph when the mesh has morph targets), clip order kept so that
+    ``CrowdState.clip`` indices stay valid."""
     if getattr(character, "kind", None) == "keyframed":
         return character
     if getattr(character, "kind", None) != "skinned":

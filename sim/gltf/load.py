@@ -9,7 +9,8 @@ writes either kind back.
 Notes
 -----
 Follows the Khronos glTF 2.0 specification (version 2.0.1), through the
-modules of :mod:`sim.gltf`; here §3.7.2.2 morph targets (keyframes) and §3.7.3
+modules of :mod:`sim.gltf`; here §3.7.2.2 morph targets (keyframes, or kept
+as :class:`sim.mesh.MorphTargets` on a skinned character) and §3.7.3
 skins (joint matrix = global joint transform x inverse bind matrix; the
 skinned mesh node's own transform is ignored), with the animations of §3.11.
 

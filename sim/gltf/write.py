@@ -17,10 +17,10 @@ A skinned mesh's morph targets (:class:`sim.mesh.MorphTargets`) are written as
 POSITION/NORMAL targets of its primitive over the glTF base (the mesh at
 weights 0), with ``mesh.weights`` the default weights and
 ``mesh.extras.targetNames`` their names; each clip's ``"weights"`` channels
-become one weights channel of the mesh node. A clip whose weights channels do
-not cover every target in one channel is written as one LINEAR channel
-sampled at the union of their key times (exact for LINEAR and for keys that
-coincide; STEP and CUBICSPLINE in-between values are then approximated).
+become one weights channel of the mesh node: exactly when they share their key
+times and interpolation, otherwise as one LINEAR channel sampled at the union
+of their key times (exact for LINEAR channels and constant ones; STEP and
+CUBICSPLINE values between keys are then approximated).
 """
 from __future__ import annotations
 
@@ -233,10 +233,17 @@ def _weights_sampler(clip, mt):
     if mt is None or not mt.n_targets or not chans:
         return None
     M = mt.n_targets
-    c = chans[0]
-    v = np.asarray(c.values, np.float64)
-    if len(chans) == 1 and int(c.joint) == 0 and v.shape[-1] == M:
-        return np.asarray(c.times, np.float64), v, c.interpolation
+    t0, interp = np.asarray(chans[0].times, np.float64), chans[0].interpolation
+    if all(c.interpolation == interp and np.array_equal(np.asarray(c.times, np.float64), t0) for c in chans):
+        # one key list: the columns side by side (default weights, zero tangents where no channel drives)
+        K = t0.shape[0]
+        cubic = interp == "CUBICSPLINE"
+        v = np.zeros((K, 3, M)) if cubic else np.zeros((K, M))
+        (v[:, 1] if cubic else v)[:] = np.asarray(mt.default_weights, np.float64)
+        for c in chans:
+            a, x = int(c.joint), np.asarray(c.values, np.float64)
+            v[..., a:a + x.shape[-1]] = x.reshape(v.shape[:-1] + (x.shape[-1],))
+        return t0, v, interp
     times = np.unique(np.concatenate([np.asarray(x.times, np.float64) for x in chans]))
     only = type(clip)(clip.name, float(times[-1]) + 1.0, chans, loop=False)  # sampling without wrapping
     return times, only.morph_weights(mt, times), "LINEAR"
