@@ -138,8 +138,8 @@ class _GpuRep:
     # collapses (kept for the tables, made on first use), then (vertex array, instance locations, tables)
     morph_source: object = None
     morph: tuple | None = None
-    targets: tuple | None = None  # morph-target textures (render.targets); defines: (TARGETS_DEFINE,) then
-    defines: tuple = ()
+    targets: tuple | None = None  # morph-target textures (render.targets), None for a rep without targets
+    defines: tuple = ()  # preprocessor names of the rep's programs ((TARGETS_DEFINE,) with targets)
 
 
 class Renderer:

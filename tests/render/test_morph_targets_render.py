@@ -204,3 +204,15 @@ def test_chain_geomorph_ends_are_the_two_morphed_levels(gl_ctx, chain, skinning)
         assert np.abs(image(level, (level + 1, 1.0)) - coarse).max() <= 1
         assert (np.abs(fine - coarse).max(axis=2) > 2).sum() > 50  # the levels differ
     r.release()
+
+
+def test_shader_defines_go_after_the_version_line_and_only_into_the_variant():
+    from render.shaders import program_sources, with_defines
+
+    plain = program_sources("skinned")["vertex_shader"]
+    var = program_sources("skinned", defines=(TARGETS_DEFINE,))["vertex_shader"]
+    assert var.splitlines()[0] == plain.splitlines()[0] == "#version 330 core"
+    assert var.splitlines()[1] == "#define MORPH_TARGETS 1" and "#define" not in plain
+    assert var.replace("#define MORPH_TARGETS 1\n", "", 1) == plain
+    with pytest.raises(ValueError, match="GLSL identifier"):
+        with_defines(plain, ("NOT OK",))
