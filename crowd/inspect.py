@@ -221,7 +221,7 @@ def load(asset: str, clustering: str = "error-aware", quiet: bool = False):
     if getattr(ch, "kind", "") != "skinned" or not ch.mesh.is_skinned:
         raise AssetError(f"{asset}: the character has no skin (joints and weights); crowd inspect shows the "
                          f"cluster hierarchy of skinned characters only")
-    sk = build_skinned_rep(ch, key=f"clusters:{ch.name}")
+    sk = build_skinned_rep(ch, key=f"clusters:{ch.name}", morph_targets=False)  # as lod.clusters.mode
     h = cached_hierarchy(ch, sk, {"clustering_method": clustering}, quiet=quiet)
     return ch, h
 

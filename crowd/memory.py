@@ -153,7 +153,14 @@ def character_bytes(character, fps: float) -> tuple[int, int]:
         mesh = m.n_vertices * VERTEX_BYTES + m.n_triangles * TRIANGLE_BYTES
         frames = sum(max(1, int(round(float(c.duration) * fps))) + 1 for c in character.clips.values())
         table = frames * character.skeleton.n_joints * 48
-        return 2 * mesh + 2 * table, mesh + table  # mesh + rep copy; table + per-frame bounds
+        mt = getattr(m, "morph", None)
+        if mt is None:
+            return 2 * mesh + 2 * table, mesh + table  # mesh + rep copy; table + per-frame bounds
+        # morph targets: dense deltas on the CPU; on the GPU at most every moved (vertex, target) pair
+        # (lod.full.targets: 32 bytes each), 8 bytes per vertex and 4 per target and frame
+        pairs = int(((mt.positions != 0).any(2) | (mt.normals != 0).any(2)).sum())
+        gpu = pairs * 32 + m.n_vertices * 8 + frames * mt.n_targets * 4
+        return 2 * mesh + 2 * table + int(mt.positions.nbytes + mt.normals.nbytes) + gpu, mesh + table + gpu
     total = 0
     for a in character.animations.values():
         for s in a.segments:

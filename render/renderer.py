@@ -16,6 +16,8 @@ Draw paths (one program each, shaders in ``render/shaders/``):
 - keyframed: per segment vertex start/end attributes mixed by the instance's u
   (Wand & Straßer 2002, §3).
 - static: the same instancing path without animation.
+- morph targets (``SkinnedRep.targets``): the skinned programs compiled with ``MORPH_TARGETS``
+  morph every vertex before skinning (``render/targets.py``); reps without them use the plain ones.
 
 Instance data: every frame, the instance data of all batches are written into
 one per-frame buffer (orphaned first, so a draw still reading last frame's
@@ -57,6 +59,7 @@ from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.shaders import program_sources
+from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.timing import gpu_seconds
 
 #: bytes per instance in the instance buffer
@@ -135,6 +138,8 @@ class _GpuRep:
     # collapses (kept for the tables, made on first use), then (vertex array, instance locations, tables)
     morph_source: object = None
     morph: tuple | None = None
+    targets: tuple | None = None  # morph-target textures (render.targets), None for a rep without targets
+    defines: tuple = ()  # preprocessor names of the rep's programs ((TARGETS_DEFINE,) with targets)
 
 
 class Renderer:
@@ -223,14 +228,15 @@ class Renderer:
         self._instances = self._track(self.ctx.buffer(reserve=cap * INSTANCE_BYTES, dynamic=True), "crowd.instances")
         self._instance_capacity = cap
 
-    def program(self, name: str, varyings: tuple = ()):
+    def program(self, name: str, varyings: tuple = (), defines: tuple = ()):
         """Compiled program ``name`` (cached). With ``varyings`` it is the
-        vertex-only transform-feedback variant recording those outputs."""
-        key = (name, tuple(varyings))
+        vertex-only transform-feedback variant recording those outputs; with
+        ``defines`` the variant compiled with those preprocessor names."""
+        key = (name, tuple(varyings), tuple(defines))
         if key not in self._programs:
-            src = program_sources(name, fragment=not varyings)
+            src = program_sources(name, fragment=not varyings, defines=tuple(defines))
             prog = self.ctx.program(**src, varyings=list(varyings)) if varyings else self.ctx.program(**src)
-            label = f"render.program.{name}" + (".capture" if varyings else "")
+            label = f"render.program.{name}" + "".join(f"+{d}" for d in defines) + (".capture" if varyings else "")
             self._programs[key] = self._track(prog, label)
         return self._programs[key]
 
@@ -311,8 +317,9 @@ class Renderer:
             objs.append(b)
             return b
 
+        defines = (TARGETS_DEFINE,) if kind == "skinned" and getattr(rep, "targets", None) is not None else ()
         if kind == "skinned":
-            prog = self.program(prog_name(kind, self.skinning))
+            prog = self.program(prog_name(kind, self.skinning), defines=defines)
             joints = np.ascontiguousarray(rep.joint_table, np.float32)
             F, J = joints.shape[0], joints.shape[1]
             maxs = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
@@ -363,7 +370,7 @@ class Renderer:
         objs.append(vao)
         locs = {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}
         # capture VAO (transform feedback; no index buffer: one output per vertex)
-        cprog = self.program(prog_name(kind, self.skinning), ("v_world", "v_normal"))
+        cprog = self.program(prog_name(kind, self.skinning), ("v_world", "v_normal"), defines)
         cvao = ctx.vertex_array(cprog, [c for c in content if c[2] in cprog])
         cvao.label = f"{rep.key}.capture_vao"
         objs.append(cvao)
@@ -373,6 +380,9 @@ class Renderer:
         g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
         # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
+        if defines:  # morph targets (render.targets); g.objects is objs
+            g.targets, g.defines = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key), defines
+            objs.extend(g.targets)
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])
             pvao = ctx.vertex_array(self.program("palette", ("v_row",)), [])
@@ -395,7 +405,8 @@ class Renderer:
                 raise ValueError(f"DrawBatch of {g.key!r} asks for a geomorph, but the representation has no "
                                  f"vertex collapses (a lod.chains.mode chain built with them)")
             r = g.morph_source
-            prog = self.program("skinned_direct_morph" if self.skinning == "direct" else "skinned_morph")
+            prog = self.program("skinned_direct_morph" if self.skinning == "direct" else "skinned_morph",
+                                defines=g.defines)
             vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
                                         index_element_size=4)
             vao.label = f"{g.key}.morph_vao"
@@ -553,6 +564,7 @@ class Renderer:
                     prog["u_morph_weight"].value = min(1.0, max(0.0, weight)) if weight == weight else 0.0
                 if g.joints is not None:
                     g.joints.use(0)
+                use_targets(prog, g.targets)  # no-op without morph targets
                 if i in palette:
                     prog["u_palette_base"].value = palette[i]
                     prog["u_palette_stride"].value = 3 * g.n_joints
@@ -633,6 +645,7 @@ class Renderer:
                 prog["u_palette_stride"].value = 3 * g.n_joints
             if g.joints is not None:
                 g.joints.use(0)
+            use_targets(prog, g.targets)  # no-op without morph targets
             self._bind_instances(g.capture_vao, g.capture_locs, inst, 0)
             g.capture_vao.transform(out, ctx.POINTS, vertices=V, instances=k)
             res = np.frombuffer(out.read(), np.float32).reshape(k, V, 6)

@@ -5,7 +5,11 @@ A program named ``"skinned"`` is made of the stage files ``skinned.vert``
 optional ``skinned.geom``. Sources may pull shared code in with a line
 ``#include "file.glsl"`` (resolved relative to the shader folder, each file at
 most once per program), which lets the draw and the transform-feedback capture
-programs use the very same skinning code.
+programs use the very same skinning code. A program may be compiled with
+preprocessor ``defines`` (``#define NAME 1`` after the ``#version`` line), so
+one file serves variants that ``#ifdef`` code in or out (e.g.
+``MORPH_TARGETS``: the skinned shaders with morph targets, ``targets.glsl``)
+and the variant without the define compiles none of that code.
 """
 from __future__ import annotations
 
@@ -82,9 +86,24 @@ def _program_sources(name: str, fragment: bool) -> tuple:
     return tuple(src.items())
 
 
-def program_sources(name: str, fragment: bool = True) -> dict:
+def with_defines(source: str, defines=()) -> str:
+    """``source`` with ``#define NAME 1`` for every name in ``defines`` after its
+    ``#version`` line (at the top when it has none)."""
+    if not defines:
+        return source
+    for d in defines:
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", str(d)):
+            raise ValueError(f"shader define {d!r}: expected a GLSL identifier")
+    block = "".join(f"#define {d} 1\n" for d in defines)
+    lines = source.splitlines(keepends=True)
+    at = next((i + 1 for i, ln in enumerate(lines) if ln.lstrip().startswith("#version")), 0)
+    return "".join(lines[:at]) + block + "".join(lines[at:])
+
+
+def program_sources(name: str, fragment: bool = True, defines=()) -> dict:
     """Stage sources of program ``name`` as moderngl ``ctx.program`` keywords.
 
-    ``fragment=False`` gives a vertex-only program (transform feedback).
+    ``fragment=False`` gives a vertex-only program (transform feedback);
+    ``defines``: preprocessor names defined in every stage (:func:`with_defines`).
     """
-    return dict(_program_sources(name, bool(fragment)))
+    return {k: with_defines(v, tuple(defines)) for k, v in _program_sources(name, bool(fragment))}

@@ -2,12 +2,12 @@
 
 Modules in data-flow order (asset -> character -> world -> systems stepping the state):
 
-- Characters: ``sim.mesh`` (triangle meshes, skin attributes), ``sim.skeleton`` (joint hierarchies, forward
-  kinematics), ``sim.clip`` (skeletal clips), ``sim.skin_weights`` (weights checked and repaired),
-  ``sim.keyframes`` (keyframe animations of meshes, Wand & Straßer §3), ``sim.character`` (skinned or
-  keyframed), ``sim.procedural`` (generated humanoids and quadrupeds), ``sim.gltf`` (glTF 2.0 import and
-  export, a package), ``sim.skinning`` (CPU linear-blend skinning, the GPU path's reference),
-  ``sim.describe`` (``crowd info``).
+- Characters: ``sim.mesh`` (triangle meshes, skin attributes, morph targets), ``sim.skeleton`` (joint
+  hierarchies, forward kinematics), ``sim.clip`` (skeletal clips, morph weights), ``sim.skin_weights``
+  (weights checked and repaired), ``sim.keyframes`` (keyframe animations of meshes, Wand & Straßer §3),
+  ``sim.character`` (skinned or keyframed), ``sim.procedural`` (generated humanoids and quadrupeds),
+  ``sim.gltf`` (glTF 2.0 import and export, a package), ``sim.skinning`` (CPU linear-blend skinning and
+  skin ∘ morph, the GPU path's reference), ``sim.describe`` (``crowd info``).
 - World: ``sim.state`` (``CrowdState``, structure of arrays), ``sim.placement`` (``[[placement]]`` groups),
   ``sim.terrain`` (heightfields), ``sim.world``, ``sim.math3d``, ``sim.grid`` (neighbour grid).
 - Systems (effects, each imported only when a scene lists it): ``sim.systems`` (registry and fixed-step

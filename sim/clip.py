@@ -1,7 +1,11 @@
-"""Skeletal animation clips: per-joint translation / rotation / scale keys.
+"""Skeletal animation clips: per-joint translation / rotation / scale keys,
+and morph target weights.
 
-Interpolation modes follow glTF 2.0: LINEAR (slerp for rotations), STEP and
-CUBICSPLINE (Hermite with in/out tangents).
+Interpolation modes follow glTF 2.0 (§3.11, Appendix C): LINEAR (slerp for
+rotations), STEP and CUBICSPLINE (Hermite with in/out tangents). A channel of
+path ``"weights"`` animates the weights of a run of morph targets
+(:class:`sim.mesh.MorphTargets`, glTF §3.7.2.2), sampled by
+:meth:`Clip.morph_weights`.
 """
 from __future__ import annotations
 
@@ -11,19 +15,20 @@ import numpy as np
 
 from sim import math3d
 
-PATHS = ("translation", "rotation", "scale")
+PATHS = ("translation", "rotation", "scale", "weights")
 INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
 
 
 @dataclass
 class Channel:
-    """Keys of one joint property.
+    """Keys of one joint property, or of morph target weights.
 
-    joint : int
-    path : "translation" | "rotation" | "scale"
+    joint : int, the joint index; for path "weights" the first morph target
+        whose weight the C columns set (targets ``joint .. joint + C - 1``)
+    path : "translation" | "rotation" | "scale" | "weights"
     times : (K,) float64, strictly increasing
-    values : (K, C) float64, C = 3 or 4; for CUBICSPLINE (K, 3, C) as
-        (in-tangent, value, out-tangent).
+    values : (K, C) float64, C = 3 or 4 (weights: C targets); for CUBICSPLINE
+        (K, 3, C) as (in-tangent, value, out-tangent).
     interpolation : "LINEAR" | "STEP" | "CUBICSPLINE"
     """
 
@@ -144,6 +149,37 @@ class Clip:
         """
         T, R, S = self.sample_times(skeleton, np.array([t], np.float64))
         return T[0], R[0], S[0]
+
+    def has_morph_weights(self) -> bool:
+        """True when a channel animates morph target weights."""
+        return any(ch.path == "weights" for ch in self.channels)
+
+    def morph_weights(self, morph, times) -> np.ndarray:
+        """Morph target weights at many times (glTF 2.0 §3.11, Appendix C).
+
+        Parameters
+        ----------
+        morph : sim.mesh.MorphTargets (or anything with ``default_weights``)
+        times : (N,) float, seconds (wrapped/clamped by :meth:`local_time`)
+
+        Returns
+        -------
+        (N, M) float64: the channels' values, the default weight for targets
+        no channel of this clip drives.
+        """
+        tl = np.atleast_1d(self.local_time(times)).reshape(-1)
+        d = np.asarray(morph.default_weights, np.float64).reshape(-1)
+        out = np.broadcast_to(d, (tl.shape[0], d.shape[0])).copy()
+        for ch in self.channels:
+            if ch.path != "weights":
+                continue
+            v = ch.sample(tl)
+            a = int(ch.joint)
+            if a < 0 or a + v.shape[1] > d.shape[0]:
+                raise ValueError(f"clip {self.name!r}: weights channel drives targets {a}..{a + v.shape[1] - 1}, "
+                                 f"the mesh has {d.shape[0]} morph targets")
+            out[:, a:a + v.shape[1]] = v
+        return out
 
     def skinning_matrices(self, skeleton, times) -> np.ndarray:
         """Skinning matrices at many times, (N, J, 4, 4) float64."""

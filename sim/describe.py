@@ -35,13 +35,14 @@ def describe(character) -> dict:
         ``name``, ``kind`` ("skinned" | "keyframed"), ``source``,
         ``joints`` (int, 0 for keyframed), ``joint_names`` (list[str]),
         ``vertices``, ``triangles`` (of the rest mesh / first keyframe),
-        ``clips`` (list of {name, duration (s), keys, loop}; ``keys`` counts
+        ``morph_targets`` (names of a skinned mesh's morph targets, glTF 2.0
+        §3.7.2.2; empty otherwise), ``clips`` (list of {name, duration (s), keys, loop}; ``keys`` counts
         distinct key times over all channels, or keyframes),
         ``bounds`` ({"rest": box, "animated": box}, box = {min, max, size},
         lists of 3 floats in metres). The rest box is the mesh at the
         skeleton's rest pose (skinned) or the first keyframe; the animated box
         covers every clip sampled at :data:`DESCRIBE_FPS` with CPU skinning
-        (:func:`sim.skinning.skin`), or every keyframe (keyframe animation
+        (:func:`sim.skinning.skin`, ``skin_morph`` with morph targets), or every keyframe (keyframe animation
         interpolates linearly, so keyframes bound every in-between).
     """
     if character.kind == "skinned":
@@ -62,9 +63,11 @@ def _describe_skinned(ch) -> dict:
     for name, clip in ch.clips.items():
         keys = np.unique(np.concatenate([np.asarray(c.times, np.float64).ravel() for c in clip.channels])) if clip.channels else np.zeros(0)
         clips.append({"name": str(name), "duration": float(clip.duration), "keys": int(keys.size), "loop": bool(clip.loop)})
-        mats = clip.skinning_matrices(sk, _sample_times(clip.duration))
-        for m in mats:
-            p, _ = skinning.skin(mesh, m)
+        times = _sample_times(clip.duration)
+        mats = clip.skinning_matrices(sk, times)
+        mw = clip.morph_weights(mesh.morph, times) if mesh.morph is not None else None
+        for k, m in enumerate(mats):
+            p, _ = skinning.skin(mesh, m) if mw is None else skinning.skin_morph(mesh, m, mw[k])
             alo = np.minimum(alo, p.min(0))
             ahi = np.maximum(ahi, p.max(0))
     if not ch.clips:
@@ -77,6 +80,7 @@ def _describe_skinned(ch) -> dict:
         "joint_names": [str(n) for n in sk.names],
         "vertices": mesh.n_vertices,
         "triangles": mesh.n_triangles,
+        "morph_targets": [str(x) for x in mesh.morph.names] if mesh.morph is not None else [],
         "clips": clips,
         "bounds": {"rest": _box(lo, hi), "animated": _box(alo, ahi)},
     }
@@ -106,6 +110,7 @@ def _describe_keyframed(ch) -> dict:
         "joint_names": [],
         "vertices": 0 if first is None else int(len(first.positions)),
         "triangles": 0 if first is None else int(len(first.indices)),
+        "morph_targets": [],
         "clips": clips,
         "bounds": {"rest": _box(lo, hi), "animated": _box(alo, ahi)},
     }

@@ -310,9 +310,11 @@ def bake_skinned(character, clip_name, times) -> KeyframeAnimation:
     Returns
     -------
     KeyframeAnimation with identity segments sharing the mesh's index buffer;
-    its duration and loop flag are the clip's.
+    its duration and loop flag are the clip's. A mesh with morph targets is
+    morphed at the clip's weights before skinning (``sim.skinning.skin_morph``,
+    glTF 2.0 §3.7.2.2), so every keyframe is the pose ``skin ∘ morph`` at its time.
     """
-    from sim.skinning import skin  # local: keyframes must not pull numba in by default
+    from sim.skinning import skin, skin_morph  # local: keyframes must not pull numba in by default
 
     clip = character.clip(clip_name) if hasattr(character, "clip") else character.clips[clip_name]
     d = float(clip.duration)
@@ -323,9 +325,11 @@ def bake_skinned(character, clip_name, times) -> KeyframeAnimation:
     mats = clip.skinning_matrices(character.skeleton, times)
     colors = character.mesh.vertex_colors()
     idx = np.asarray(character.mesh.indices, np.uint32)
+    mt = character.mesh.morph
+    mw = clip.morph_weights(mt, times) if mt is not None else None
     kfs = []
     for i in range(times.shape[0]):
-        p, n = skin(character.mesh, mats[i])
+        p, n = skin(character.mesh, mats[i]) if mw is None else skin_morph(character.mesh, mats[i], mw[i])
         kfs.append(Keyframe(p.astype(np.float32), n.astype(np.float32), colors, idx))
     duration = d if clip.loop else float(times[-1] - times[0])
     if clip.loop and d <= times[-1] - times[0]:

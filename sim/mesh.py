@@ -1,7 +1,13 @@
-"""Triangle meshes with optional skin attributes.
+"""Triangle meshes with optional skin attributes and morph targets.
 
 Conventions (shared by every layer): metres, right-handed, Y up; colours are
 linear RGBA in [0, 1].
+
+Morph targets follow §3.7.2.2 of the glTF 2.0 specification (2.0.1): a target
+is a displacement of every vertex's position and normal, and a mesh is drawn
+at ``base + sum_i w_i * delta_i``. :class:`MorphTargets` stores the deltas and
+the default weights the mesh's own ``positions``/``normals`` already include,
+so code that ignores morph targets sees the mesh at its default weights.
 """
 from __future__ import annotations
 
@@ -27,6 +33,9 @@ class Mesh:
     weights : (V, 4) float32 or None
         Skin weights, rows summing to 1 (skinned meshes only).
     base_color : (4,) float32
+    morph : MorphTargets or None
+        Morph targets (skinned meshes of glTF files); ``positions`` and
+        ``normals`` are the mesh at ``morph.default_weights``.
     """
 
     positions: np.ndarray
@@ -36,6 +45,7 @@ class Mesh:
     joints: np.ndarray | None = None
     weights: np.ndarray | None = None
     base_color: np.ndarray = field(default_factory=lambda: np.array([0.8, 0.8, 0.8, 1.0], np.float32))
+    morph: MorphTargets | None = None
 
     @property
     def n_vertices(self) -> int:
@@ -60,6 +70,45 @@ class Mesh:
         if self.normals is None:
             self.normals = vertex_normals(self.positions, self.indices)
         return self.normals
+
+
+@dataclass
+class MorphTargets:
+    """Morph targets of a mesh (glTF 2.0 §3.7.2.2), dense.
+
+    Attributes
+    ----------
+    positions : (M, V, 3) float32, position delta of every vertex per target
+    normals : (M, V, 3) float32, normal delta (zero where the source gives none)
+    default_weights : (M,) float64, the weights the mesh's ``positions`` and
+        ``normals`` already include (glTF ``mesh.weights`` / ``node.weights``)
+    names : list of M str
+
+    Notes
+    -----
+    At weights w the mesh is ``positions + sum_i (w_i - default_i) * delta_i``
+    (equal to the glTF base plus ``sum_i w_i * delta_i``); normals likewise,
+    then renormalised (:func:`sim.skinning.morph`).
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    default_weights: np.ndarray
+    names: list = field(default_factory=list)
+
+    @property
+    def n_targets(self) -> int:
+        return int(self.positions.shape[0])
+
+    def offsets(self, weights) -> np.ndarray:
+        """``weights - default_weights`` as float64, (..., M); raises ValueError
+        for a wrong last axis or non-finite weights."""
+        w = np.asarray(weights, np.float64)
+        if w.shape[-1:] != (self.n_targets,):
+            raise ValueError(f"morph weights: expected {self.n_targets} per row, got shape {w.shape}")
+        if not np.isfinite(w).all():
+            raise ValueError("morph weights: expected finite values, got NaN or Inf")
+        return w - np.asarray(self.default_weights, np.float64)
 
 
 def vertex_normals(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:

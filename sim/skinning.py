@@ -9,8 +9,15 @@ singular) and are renormalised.
 Two implementations share this contract: :func:`skin_reference` (plain numpy,
 obviously correct) and a numba kernel used by :func:`skin` for large meshes;
 ``tests/sim/test_skinning.py`` compares them.
+
+Morph targets (glTF 2.0 §3.7.2.2) act before skinning: :func:`morph` moves the
+bind-pose vertices by the weighted target deltas and :func:`skin_morph` skins
+the result (``skin ∘ morph``, the order glTF prescribes). This is the CPU
+reference of the GPU path (``render/shaders/targets.glsl``).
 """
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 from numba import njit, prange
@@ -121,11 +128,60 @@ def bind_pose_matrices(skeleton) -> np.ndarray:
     return skeleton.skinning_matrices(*skeleton.rest_pose())
 
 
+def morph(mesh, weights) -> tuple[np.ndarray, np.ndarray]:
+    """Bind-pose vertices moved by morph targets at ``weights`` (glTF 2.0 §3.7.2.2).
+
+    Parameters
+    ----------
+    mesh : sim.mesh.Mesh; without ``morph`` its own positions and normals
+    weights : (M,) float, absolute target weights (``Clip.morph_weights``)
+
+    Returns
+    -------
+    positions : (V, 3) float64, ``positions + sum_i (w_i - default_i) dp_i``
+    normals : (V, 3) float64, likewise with the normal deltas, renormalised
+        (the unmorphed normal where the sum vanishes; never NaN)
+    """
+    p = np.asarray(mesh.positions, np.float64).copy()
+    n0 = np.asarray(mesh.ensure_normals(), np.float64)
+    mt = mesh.morph
+    if mt is None:
+        return p, n0.copy()
+    off = mt.offsets(np.asarray(weights, np.float64).reshape(-1))
+    live = np.flatnonzero(off != 0.0)
+    n = n0.copy()
+    for i in live.tolist():
+        p += off[i] * np.asarray(mt.positions[i], np.float64)
+        n += off[i] * np.asarray(mt.normals[i], np.float64)
+    return p, math3d.normalize_vectors(n, n0) if live.size else n
+
+
+def _morphed_mesh(mesh, weights):
+    p, n = morph(mesh, weights)
+    return dataclasses.replace(mesh, positions=p, normals=n, morph=None)
+
+
+def skin_morph(mesh, skin_mats, weights) -> tuple[np.ndarray, np.ndarray]:
+    """``skin ∘ morph``: the mesh morphed at ``weights`` (:func:`morph`), then
+    linear-blend skinned with ``skin_mats`` (:func:`skin`); same results as
+    :func:`skin` when the mesh has no morph targets. (V, 3) float64 each."""
+    return skin(_morphed_mesh(mesh, weights), skin_mats)
+
+
+def skin_morph_reference(mesh, skin_mats, weights) -> tuple[np.ndarray, np.ndarray]:
+    """Numpy reference of :func:`skin_morph` (through :func:`skin_reference`)."""
+    return skin_reference(_morphed_mesh(mesh, weights), skin_mats)
+
+
 def pose_positions(character, clip_name, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """Skinned (positions, normals) of ``character`` playing ``clip_name`` at time ``t``.
+    """Skinned (positions, normals) of ``character`` playing ``clip_name`` at time ``t``,
+    its morph targets (if any) at the clip's weights applied first (:func:`skin_morph`).
 
     ``clip_name`` may also be a clip index. Returns (V, 3) float64 arrays.
     """
     clip = character.clip(clip_name)
     mats = character.skeleton.skinning_matrices(*clip.sample(character.skeleton, t))
-    return skin(character.mesh, mats)
+    mt = character.mesh.morph
+    if mt is None:
+        return skin(character.mesh, mats)
+    return skin_morph(character.mesh, mats, clip.morph_weights(mt, np.array([t]))[0])

@@ -46,6 +46,13 @@ extends :func:`lod.clusters.mode.cache_key` with this module's source, the
 chain parameters and :data:`FORMAT_VERSION`. Writes are atomic
 (:func:`lod.atomic_io.atomic_open`); a file that fails to load is rebuilt.
 
+Morph targets (glTF 2.0 §3.7.2.2): the chain's rep is the full-detail
+:class:`lod.full.reps.SkinnedRep` with its :class:`lod.full.targets.TargetTable`,
+so every level (whose vertices are original ones) and every geomorph target is
+morphed before skinning like level 0; level 0 draws ``skin ∘ morph`` exactly.
+The multi-pose simplification and the level errors see the skeletal poses only
+(the morph displacements are not part of the error bound).
+
 Keyframed characters fall back to their full-detail representation.
 """
 from __future__ import annotations

@@ -12,4 +12,7 @@ Modules in data-flow order:
 - ``lod.clusters.morph``: geomorphs between two cuts (Friedrich, Polthier & Schmies §3, applied to cuts).
 - ``lod.clusters.mode``: ``ClustersRep``, the hierarchy cache, cluster frustum culling and the selector; the
   mode protocol.
+
+Morph targets (glTF 2.0 §3.7.2.2) are ignored: hierarchies are built from and drawn as the skinned mesh at its
+default morph weights (VDR-AM models skeletal motion only; see ``lod.clusters.mode``).
 """

@@ -19,6 +19,14 @@ is the same few coarse clusters) share their command.
 Characters without a skin (keyframed) fall back to their full-detail
 representation.
 
+Morph targets (glTF 2.0 §3.7.2.2, ``sim.mesh.MorphTargets``) are ignored: the
+hierarchy is built from, and the clusters are drawn as, the skinned mesh at its
+default morph weights (``build_skinned_rep(..., morph_targets=False)``), and the
+cache key is that of the same character without morph targets. VDR-AM models
+articulated (skeletal) motion only (§4: poses are joint transforms); the
+deformation levels, multi-pose quadrics and cut errors would all have to
+account for the morphs. Modes ``"none"`` and ``"triangles"`` draw them.
+
 Cache: a hierarchy is stored under ``$CROWD_CACHE_DIR`` (default
 ``~/.cache/crowd``) as ``clusters-<sha256>.npz``, the key hashing the mesh, the
 skin, the clips (as the baked skinning-matrix table), the build parameters,
@@ -384,7 +392,7 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     for ch, name, f in items:
         key = f"clusters:{name}"
         if getattr(ch, "kind", "") == "skinned" and ch.mesh.is_skinned:
-            sk = build_skinned_rep(ch, fps=f, key=key)
+            sk = build_skinned_rep(ch, fps=f, key=key, morph_targets=False)  # morphs ignored (module docstring)
             h = cached_hierarchy(ch, sk, bp, cache=cache, quiet=progress is False)
             reps.append(ClustersRep(key, sk, h, occlusion=occ, occlusion_every=every))
         else:

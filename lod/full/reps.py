@@ -4,7 +4,10 @@ Representations hold plain numpy arrays only, so ``render`` can upload them
 without knowing any ``sim`` type:
 
 - :class:`SkinnedRep`: bind-pose mesh + skin + the skinning matrices of all
-  clips baked at a fixed rate into one table (linear blend skinning, LBS).
+  clips baked at a fixed rate into one table (linear blend skinning, LBS),
+  and, for a mesh with animated morph targets (glTF 2.0 §3.7.2.2), their
+  sparse deltas and weights baked at the same frames
+  (:class:`lod.full.targets.TargetTable`, blended before skinning).
 - :class:`KeyframedRep`: the segments of keyframe animations (Wand & Straßer
   2002, §3): per segment vertex a start and an end position/normal/colour,
   interpolated linearly by a per-instance parameter ``u``.
@@ -21,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from lod.full.bounds import _skin_all_frames_sphere, _sphere_of_points, frame_aabbs
+from lod.full.targets import TargetTable, build_target_table, clip_offsets, morph_frame_aabbs
 
 #: default rate (frames per second) at which skinned clips are baked
 BAKE_FPS = 30.0
@@ -57,6 +61,11 @@ class SkinnedRep:
     clip_aabb : (C, 2, 3) float32, model-space (min, max) over all baked frames
     clip_sphere : (C, 4) float64, model-space bounding sphere (cx, cy, cz, r)
     frame_aabb : (F_total, 2, 3) float32, model-space (min, max) per baked frame
+    targets : lod.full.targets.TargetTable or None
+        Morph targets whose weights the clips animate, their weights baked at
+        the rows of ``joint_table``; None for a mesh without them (the draw
+        path is then exactly the plain skinned one). With targets the bounds
+        follow :func:`lod.full.targets.morph_frame_aabbs`.
 
     Notes
     -----
@@ -95,6 +104,7 @@ class SkinnedRep:
     clip_aabb: np.ndarray
     clip_sphere: np.ndarray
     frame_aabb: np.ndarray
+    targets: TargetTable | None = None
 
     kind = "skinned"
 
@@ -317,13 +327,17 @@ def _bake_clip_matrices(clip, skeleton, times: np.ndarray) -> np.ndarray:
     return np.asarray(m, np.float64)
 
 
-def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None) -> SkinnedRep:
+def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None,
+                      morph_targets: bool = True) -> SkinnedRep:
     """Bake a ``sim.character.SkinnedCharacter`` into a :class:`SkinnedRep`.
 
     Every clip is sampled at ``round(duration * fps) + 1`` evenly spaced
     times from 0 to ``duration`` inclusive (at least 2), the skinning matrices
     are stored as float32 3x4 rows, and exact whole-animation bounds are
-    computed (see the class Notes).
+    computed (see the class Notes). The morph targets of the mesh (if any) are
+    baked at the same times into ``targets`` (:mod:`lod.full.targets`);
+    ``morph_targets=False`` leaves them out (the mesh at its default weights,
+    as representations that do not draw morphs use it).
     """
     fps = float(fps)
     if not fps > 0.0:
@@ -351,24 +365,39 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None) 
     if idx.size and idx.max() >= pos.shape[0]:
         raise ValueError(f"character {name!r}: mesh.indices: expected values < {pos.shape[0]}")
 
-    tables, offsets, frames, rates, durs, loops, caabb, csph, faabb = [], [], [], [], [], [], [], [], []
-    off = 0
+    all_times = []
     for cname, clip in character.clips.items():
         dur = float(clip.duration)
         if not np.isfinite(dur) or dur < 0.0:
             raise ValueError(f"character {name!r}: clip {cname!r}: duration: expected >= 0 seconds, got {dur}")
-        n_int = max(1, int(round(dur * fps)))
-        times = np.linspace(0.0, dur, n_int + 1)
+        all_times.append(np.linspace(0.0, dur, max(1, int(round(dur * fps))) + 1))
+    targets = None
+    if morph_targets and getattr(mesh, "morph", None) is not None and mesh.morph.n_targets:
+        try:
+            targets, pos, nrm = build_target_table(mesh.morph, clip_offsets(character, all_times), pos, nrm)
+        except ValueError as e:
+            raise ValueError(f"character {name!r}: {e}") from None
+    tables, offsets, frames, rates, durs, loops, caabb, csph, faabb = [], [], [], [], [], [], [], [], []
+    off = 0
+    for (cname, clip), times in zip(character.clips.items(), all_times):
+        dur = float(clip.duration)
+        n_int = times.shape[0] - 1
         m = _bake_clip_matrices(clip, skel, times)[:, :, :3, :]
         _finite(f"character {name!r}: clip {cname!r} skinning matrices", m)
-        fa = frame_aabbs(pos, jn, w, m)
-        # continuous-pose margin: LBS is linear in the matrices, so the gap
-        # between the clip sampled mid-way and the GPU's interpolation is the
-        # LBS of the matrix differences D (see the class Notes)
-        mid = _bake_clip_matrices(clip, skel, 0.5 * (times[:-1] + times[1:]))[:, :, :3, :]
-        dev = frame_aabbs(pos, jn, w, mid - 0.5 * (m[:-1] + m[1:]))
-        pad = SAMPLING_PAD_FACTOR * np.abs(dev).max(axis=(0, 1)) if dev.size else np.zeros(3)
-        fa = fa + np.array([-1.0, 1.0])[None, :, None] * pad
+        mid_t = 0.5 * (times[:-1] + times[1:])
+        mid = _bake_clip_matrices(clip, skel, mid_t)[:, :, :3, :]
+        if targets is not None:
+            mt, rows = mesh.morph, slice(off, off + n_int + 1)
+            mid_off = mt.offsets(clip.morph_weights(mt, mid_t))[:, targets.source]
+            fa = morph_frame_aabbs(targets, pos, jn, w, m, targets.weights[rows], mid, mid_off, SAMPLING_PAD_FACTOR)
+        else:
+            fa = frame_aabbs(pos, jn, w, m)
+            # continuous-pose margin: LBS is linear in the matrices, so the gap
+            # between the clip sampled mid-way and the GPU's interpolation is the
+            # LBS of the matrix differences D (see the class Notes)
+            dev = frame_aabbs(pos, jn, w, mid - 0.5 * (m[:-1] + m[1:]))
+            pad = SAMPLING_PAD_FACTOR * np.abs(dev).max(axis=(0, 1)) if dev.size else np.zeros(3)
+            fa = fa + np.array([-1.0, 1.0])[None, :, None] * pad
         box, sph = _skin_all_frames_sphere(fa)
         tables.append(m.astype(np.float32))
         offsets.append(off)
@@ -393,6 +422,7 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None) 
         clip_aabb=np.asarray(caabb, np.float32),
         clip_sphere=np.asarray(csph, np.float64),
         frame_aabb=np.concatenate(faabb).astype(np.float32),
+        targets=targets,
     )
 
 

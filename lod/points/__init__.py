@@ -14,4 +14,7 @@ Modules in data-flow order:
 - ``lod.points.rep``: ``PointsRep`` (a hierarchy per segment), ``PointsBatch`` and the hierarchy cache.
 - ``lod.points.instancing``: hierarchical instantiation, super-hierarchies of instance groups (§3.6).
 - ``lod.points.mode``: the builder and ``PointsSelector`` (many instances traversed at once); the mode protocol.
+
+Morph targets of skinned characters (glTF 2.0 §3.7.2.2) are baked into the keyframes (``skin ∘ morph`` at every
+key time, ``lod.points.mode.keyframed_character``).
 """

@@ -30,6 +30,12 @@ and only the instances of refined nodes go through the per-instance path
 above. Their super-hierarchy draws are ordinary :class:`PointsBatch` es whose
 instances are tree nodes (model matrix of the node, u within the node's
 super-segment; ``instance_ids`` the node's first agent).
+
+Morph targets (glTF 2.0 §3.7.2.2) of a skinned character are baked into the
+keyframes: each keyframe is the pose ``skin ∘ morph`` at its time
+(``sim.skinning.skin_morph`` through ``bake_skinned``), so faces and correctives
+move with the points and triangles, exactly at the key times and linearly in
+between (as every other vertex motion of §3).
 """
 from __future__ import annotations
 
@@ -74,7 +80,8 @@ PARAMS: dict = {
 def keyframed_character(character, keyframes: int, pose_error: float = C.POINTS_POSE_ERROR,
                         max_keyframes: int = C.POINTS_MAX_POSES, poses: dict | None = None):
     """The character as a ``KeyframedCharacter``: skinned characters get every
-    clip baked (``sim.keyframes.bake_skinned``) at the times of
+    clip baked (``sim.keyframes.bake_skinned``: skin ∘ morph when the mesh has
+    morph targets) at the times of
     :func:`lod.points.poses.clip_poses` (``keyframes`` evenly spaced poses, or
     with ``keyframes = 0`` the fewest within ``pose_error``), clip order kept so
     that ``CrowdState.clip`` indices stay valid. ``poses``: a dict the chosen

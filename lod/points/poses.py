@@ -9,7 +9,7 @@ interpolation stays within a bound of the skinned animation.
 
 Error measure (the *pose error*): the largest distance of any vertex between the
 linear interpolation of the two baked poses around time t and the skinned mesh
-at t, over dense sample times ``t`` (:data:`SAMPLE_FPS` per second, at least
+at t (skin ∘ morph when the mesh has morph targets, as ``bake_skinned`` bakes), over dense sample times ``t`` (:data:`SAMPLE_FPS` per second, at least
 :data:`MIN_SAMPLES` per clip).
 
 Selection (greedy top-down refinement, the Douglas–Peucker scheme applied to a
@@ -111,7 +111,16 @@ class _Curve:
         self.weights = np.asarray(mesh.weights, np.float64)[idx]
         self.S, self.loop, self.d = S, bool(clip.loop), float(clip.duration)
         self.mats = clip.skinning_matrices(character.skeleton, S)
-        self.P = _skin_positions(self.mats, self.joints, self.weights, self.ph).astype(np.float32)
+        morph = getattr(mesh, "morph", None)
+        if morph is not None and morph.n_targets:  # skin ∘ morph (glTF 2.0 §3.7.2.2): morph the bind pose first
+            dw = clip.morph_weights(morph, S) - np.asarray(morph.default_weights, np.float64)[None]  # (N, M)
+            dp = np.asarray(morph.positions, np.float64)[:, idx]  # (M, m, 3)
+            self.P = np.empty((S.shape[0], p.shape[0], 3), np.float32)
+            for i in range(S.shape[0]):
+                ph = np.concatenate([p + np.einsum("k,kvc->vc", dw[i], dp), np.ones((p.shape[0], 1))], axis=1)
+                self.P[i] = _skin_positions(self.mats[i:i + 1], self.joints, self.weights, ph)[0]
+        else:
+            self.P = _skin_positions(self.mats, self.joints, self.weights, self.ph).astype(np.float32)
 
     @property
     def n(self) -> int:
@@ -142,6 +151,8 @@ class _StreamCurve:
     def __init__(self, character, clip, S: np.ndarray):
         self.character, self.S, self.loop, self.d = character, S, bool(clip.loop), float(clip.duration)
         self.mats = clip.skinning_matrices(character.skeleton, S)
+        morph = getattr(character.mesh, "morph", None)
+        self.weights = clip.morph_weights(morph, S) if morph is not None and morph.n_targets else None
         self._keys: dict = {}
 
     @property
@@ -149,8 +160,10 @@ class _StreamCurve:
         return self.S.shape[0]
 
     def _pose(self, k: int) -> np.ndarray:
-        from sim.skinning import skin
+        from sim.skinning import skin, skin_morph
 
+        if self.weights is not None:
+            return skin_morph(self.character.mesh, self.mats[k], self.weights[k])[0]
         return skin(self.character.mesh, self.mats[k])[0]
 
     def _key(self, k: int) -> np.ndarray:

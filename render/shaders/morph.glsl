@@ -6,7 +6,8 @@
 //   u_morph_i (RGBA32I), 2 texels per vertex: (next vertex, height / level of
 //       the cluster or level that removes it, 0, 0), joints;
 //   u_morph_f (RGBA32F), 4 texels per vertex: position, normal, colour, weights.
-// Include after skinning.glsl (the target is skinned like the vertex).
+// Include after skinning.glsl (the target is skinned like the vertex) and,
+// in the MORPH_TARGETS variants, after instance.glsl and targets.glsl.
 uniform isampler2D u_morph_i;
 uniform sampler2D u_morph_f;
 
@@ -50,6 +51,9 @@ void morph_blend(int v, int h, float w, bool palette, int slot, float frame,
     vec4 tc, tw;
     uvec4 tj;
     morph_attributes(x, tp, tn, tc, tj, tw);
+#ifdef MORPH_TARGETS
+    targets_apply(x, i_anim.x, tp, tn);  // the target vertex is morphed like v (targets.glsl)
+#endif
     vec4 q0, q1, q2;
     if (palette) palette_rows(tj, tw, slot, q0, q1, q2);
     else skin_rows(tj, tw, frame, q0, q1, q2);

@@ -1,6 +1,7 @@
 #version 330 core
 #include "instance.glsl"
 #include "skinning.glsl"
+#include "targets.glsl"
 
 in vec3 in_position;
 in vec3 in_normal;
@@ -17,9 +18,14 @@ out vec4 v_color;
 void main() {
     vec4 r0, r1, r2;
     skin_rows(in_joints, in_weights, i_anim.x, r0, r1, r2);
-    vec4 h = vec4(in_position, 1.0);
+    vec3 bp = in_position;
+    vec3 bn = in_normal;
+#ifdef MORPH_TARGETS
+    targets_apply(gl_VertexID, i_anim.x, bp, bn);  // morph, then skin
+#endif
+    vec4 h = vec4(bp, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
-    vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
+    vec3 n = vec3(dot(r0.xyz, bn), dot(r1.xyz, bn), dot(r2.xyz, bn));
     v_world = instance_point(p);
     v_normal = instance_dir(n);
     v_color = in_color;

@@ -5,6 +5,7 @@
 // (morph.glsl; the batch's instances share both).
 #include "instance.glsl"
 #include "skinning.glsl"
+#include "targets.glsl"
 #include "morph.glsl"
 
 in vec3 in_position;
@@ -24,9 +25,14 @@ out vec4 v_color;
 void main() {
     vec4 r0, r1, r2;
     palette_rows(in_joints, in_weights, gl_InstanceID, r0, r1, r2);
-    vec4 h = vec4(in_position, 1.0);
+    vec3 bp = in_position;
+    vec3 bn = in_normal;
+#ifdef MORPH_TARGETS
+    targets_apply(gl_VertexID, i_anim.x, bp, bn);  // morph, then skin
+#endif
+    vec4 h = vec4(bp, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
-    vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
+    vec3 n = vec3(dot(r0.xyz, bn), dot(r1.xyz, bn), dot(r2.xyz, bn));
     vec4 color = in_color;
     morph_blend(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), true, gl_InstanceID, 0.0, p, n, color);
     v_world = instance_point(p);

@@ -9,7 +9,8 @@ writes either kind back.
 Notes
 -----
 Follows the Khronos glTF 2.0 specification (version 2.0.1), through the
-modules of :mod:`sim.gltf`; here §3.7.2.2 morph targets (keyframes) and §3.7.3
+modules of :mod:`sim.gltf`; here §3.7.2.2 morph targets (keyframes, or kept
+as :class:`sim.mesh.MorphTargets` on a skinned character) and §3.7.3
 skins (joint matrix = global joint transform x inverse bind matrix; the
 skinned mesh node's own transform is ignored), with the animations of §3.11.
 
@@ -22,8 +23,15 @@ Where it departs from a full viewer:
   bound with weight 1 to its node's joint, so node animation still plays.
 - Textures are not kept, but sampled into the vertex colours
   (:mod:`sim.gltf.primitives`).
-- Morph targets on a skinned mesh are applied at their default weights; their
-  weight animations are ignored (with a warning).
+- Morph targets on a skinned (or node-animated) model are kept
+  (:class:`sim.mesh.MorphTargets`: POSITION and NORMAL deltas of every
+  target, merged over the meshes, the mesh at its default weights) and their
+  ``weights`` animations become ``"weights"`` channels of the clips
+  (:class:`sim.clip.Channel`, first target in ``joint``), played before
+  skinning (``sim.skinning.skin_morph``). COLOR_0 deltas are applied at the
+  default weights only; a mesh without NORMAL keeps its computed normals
+  unmorphed. Target names come from ``mesh.extras.targetNames`` (prefixed
+  with the node name when several nodes carry targets).
 - More than four influences (``JOINTS_1``/``WEIGHTS_1``) keep the four
   largest, renormalised. When the skeleton's roots hang below different
   parent nodes, every ancestor becomes a joint (``root_transform`` = identity).
@@ -44,9 +52,9 @@ from sim.clip import Channel, Clip
 from sim.errors import AssetError
 from sim.gltf.animation import _read_sampler, _sample_channel
 from sim.gltf.container import _Doc, _is_int
-from sim.gltf.primitives import _bake, _finish_normals, _Prim
+from sim.gltf.primitives import _bake, _bake_deltas, _finish_normals, _Prim
 from sim.gltf.scene_graph import _Graph
-from sim.mesh import Mesh
+from sim.mesh import Mesh, MorphTargets
 from sim.skeleton import Skeleton
 
 #: Two morph weight vectors closer than this are "the same key" (closed loops).
@@ -142,12 +150,31 @@ def _load(doc: _Doc):
         if has_trs:
             warnings.warn(f"{doc.name}: node TRS animations are ignored in a morph-target (keyframed) character", stacklevel=3)
         return _load_keyframed(doc, g, mesh_nodes, prims, morph_nodes)
-    if morph_animated:
-        warnings.warn(f"{doc.name}: morph weight animations on a skinned/node-animated model are ignored", stacklevel=3)
-    return _load_skinned(doc, g, mesh_nodes, skinned_nodes, prims, trs_targets & in_scene)
+    return _load_skinned(doc, g, mesh_nodes, skinned_nodes, prims, trs_targets & in_scene, morph_nodes)
 
 
-def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
+def _target_slots(doc: _Doc, prims, morph_nodes) -> tuple[dict, list]:
+    """First merged target index of every morph node, and the merged target names."""
+    first, names = {}, []
+    for ni in morph_nodes:
+        nd = doc.item("nodes", ni)
+        counts = {len(p.targets) for p in prims[ni]}
+        if len(counts) != 1:
+            doc.fail(f"meshes[{nd['mesh']}]: primitives have different numbers of morph targets "
+                     f"({', '.join(map(str, sorted(counts)))}); glTF 2.0 §3.7.2.2 requires the same number")
+        nt = counts.pop()
+        m = doc.item("meshes", nd["mesh"])
+        ex = m.get("extras") if isinstance(m.get("extras"), dict) else {}
+        tn = ex.get("targetNames")
+        if not (isinstance(tn, list) and len(tn) == nt and all(isinstance(x, str) for x in tn)):
+            tn = [f"target{k}" for k in range(nt)]
+        prefix = f"{nd.get('name') or f'node{ni}'}." if len(morph_nodes) > 1 else ""
+        first[ni] = len(names)
+        names.extend(prefix + x for x in tn)
+    return first, names
+
+
+def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, morph_nodes=()):
     # ---- joint node set
     skins_used = sorted({doc.item("nodes", ni)["skin"] for ni in skinned_nodes})
     skin_joints: dict[int, list[int]] = {}
@@ -242,7 +269,9 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
         names=names, parents=parents, rest_translation=rt, rest_rotation=rr, rest_scale=rs,
         inverse_bind=ib, root_transform=root_transform,
     )
-    # ---- merged mesh
+    # ---- merged mesh (morph targets: deltas of every merged target over all vertices)
+    tfirst, tnames = _target_slots(doc, prims, morph_nodes)
+    DP, DN, DW = [], [], np.zeros(len(tnames))
     P, N, C, T, JO, W = [], [], [], [], [], []
     nv = 0
     zero_total = 0
@@ -251,6 +280,10 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
         for pr in prims[ni]:
             p, n, c = pr.morphed(None)
             tri = pr.tri
+            dp = dn = None
+            if ni in tfirst:
+                dp, dn = pr.deltas()
+                DW[tfirst[ni]:tfirst[ni] + dp.shape[0]] = pr.default_weights
             if ni in skinned_nodes:
                 si = nd["skin"]
                 js = skin_joints[si]
@@ -267,6 +300,8 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
                 jk = jindex[ni]
                 bind = math3d.invert_affine(ib[jk])
                 p, n, tri = _bake(p, n, tri, bind)
+                if dp is not None:
+                    dp, dn = _bake_deltas(dp, dn, bind)
                 jj = np.zeros((p.shape[0], 4), np.int64)
                 jj[:, 0] = jk
                 ww = np.zeros((p.shape[0], 4))
@@ -290,6 +325,12 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
             T.append(tri + nv)
             JO.append(jj)
             W.append(ww)
+            if tnames:
+                DP.append(np.zeros((len(tnames), p.shape[0], 3)))
+                DN.append(np.zeros((len(tnames), p.shape[0], 3)))
+                if dp is not None:
+                    DP[-1][tfirst[ni]:tfirst[ni] + dp.shape[0]] = dp
+                    DN[-1][tfirst[ni]:tfirst[ni] + dp.shape[0]] = dn
             nv += p.shape[0]
     if zero_total:
         warnings.warn(f"{doc.name}: {zero_total} vertices have all-zero skin weights; bound to their mesh node's joint (or joint 0)", stacklevel=3)
@@ -301,6 +342,10 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
         joints=np.concatenate(JO).astype(np.uint16),
         weights=np.concatenate(W).astype(np.float32),
     )
+    if tnames:
+        mesh.morph = MorphTargets(positions=np.concatenate(DP, 1).astype(np.float32),
+                                  normals=np.concatenate(DN, 1).astype(np.float32), default_weights=DW,
+                                  names=tnames)
     # ---- clips
     clips = {}
     used: set = set()
@@ -311,8 +356,17 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated):
         for ci, ch in enumerate(a.get("channels") or []):
             tgt = ch.get("target") or {}
             path_, node = tgt.get("path"), tgt.get("node")
+            if path_ == "weights" and node in tfirst:
+                t, v, interp = _read_sampler(doc, ai, a, ch.get("sampler"), None)
+                nt = len(prims[node][0].targets)
+                if v.shape[-1] != nt:
+                    doc.fail(f"animations[{ai}].channels[{ci}]: {v.shape[-1]} weights per key, "
+                             f"meshes[{doc.item('nodes', node)['mesh']}] has {nt} morph targets")
+                channels.append(Channel(joint=tfirst[node], path="weights", times=t, values=v, interpolation=interp))
+                tmax = max(tmax, float(t[-1]))
+                continue
             if path_ not in ("translation", "rotation", "scale") or node not in jindex:
-                continue  # weights, or a node that affects nothing we draw
+                continue  # a node that affects nothing we draw
             nc = 4 if path_ == "rotation" else 3
             t, v, interp = _read_sampler(doc, ai, a, ch.get("sampler"), (nc,))
             if v.shape[-1] != nc:

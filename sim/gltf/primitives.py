@@ -211,6 +211,19 @@ class _Prim:
                 doc.fail(f"meshes[{mi}].weights (or its node's weights) must be a list of numbers, got {mesh_weights!r}")
             self.default_weights[: mw.size] = mw
 
+    def deltas(self) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, normals) deltas of every morph target, (M, V, 3) float64 each,
+        zero where a target has no POSITION / NORMAL (§3.7.2.2)."""
+        nv = self.positions.shape[0]
+        dp = np.zeros((len(self.targets), nv, 3))
+        dn = np.zeros((len(self.targets), nv, 3))
+        for k, tg in enumerate(self.targets):
+            if "POSITION" in tg:
+                dp[k] = tg["POSITION"]
+            if "NORMAL" in tg:
+                dn[k] = tg["NORMAL"]
+        return dp, dn
+
     def morphed(self, w: np.ndarray | None):
         """(positions, normals or None, colors) with morph weights ``w`` applied."""
         p, n, c = self.positions.copy(), None if self.normals is None else self.normals.copy(), self.colors.copy()
@@ -238,6 +251,19 @@ def _bake(p, n, tri, world):
     if np.linalg.det(world[:3, :3]) < 0:
         tri = tri[:, ::-1]
     return p, n, tri
+
+
+def _bake_deltas(dp, dn, world):
+    """Morph deltas (M, V, 3) moved with a node matrix like :func:`_bake` moves
+    the vertices: positions by its linear part, normals by its cofactor divided
+    by ``|det|^(2/3)`` (exact for rotation times uniform scale, whose baked unit
+    normals the deltas then stay consistent with), flipped when mirrored."""
+    A = np.asarray(world, np.float64)[:3, :3]
+    det = float(np.linalg.det(A))
+    C = math3d.cofactor3(A) / max(abs(det), 1e-300) ** (2.0 / 3.0)
+    if det < 0:
+        C = -C
+    return dp @ A.T, dn @ C.T
 
 
 def _finish_normals(p, n, tri):

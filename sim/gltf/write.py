@@ -12,6 +12,15 @@ Writes glTF 2.0 (specification 2.0.1): §3.6 buffers, buffer views and
 accessors (4-byte aligned, little-endian), §3.7.2 meshes and morph targets,
 §3.7.3 skins, §3.11 animations and chapter 4 (GLB). ``extras.loop`` and
 ``extras.duration`` of each animation record what glTF has no field for.
+
+A skinned mesh's morph targets (:class:`sim.mesh.MorphTargets`) are written as
+POSITION/NORMAL targets of its primitive over the glTF base (the mesh at
+weights 0), with ``mesh.weights`` the default weights and
+``mesh.extras.targetNames`` their names; each clip's ``"weights"`` channels
+become one weights channel of the mesh node: exactly when they share their key
+times and interpolation, otherwise as one LINEAR channel sampled at the union
+of their key times (exact for LINEAR channels and constant ones; STEP and
+CUBICSPLINE values between keys are then approximated).
 """
 from __future__ import annotations
 
@@ -160,10 +169,20 @@ def _export_skinned(ch: SkinnedCharacter, w: _Writer) -> dict:
         "JOINTS_0": w.add(np.asarray(m.joints, np.uint16), "VEC4", 34962),
         "WEIGHTS_0": w.add(_f32(m.weights), "VEC4", 34962),
     }
-    prim = _mesh_primitive(w, m.positions, m.ensure_normals(), m.vertex_colors(), m.indices, extra)
+    mt = m.morph
+    pos, nrm = np.asarray(m.positions, np.float64), np.asarray(m.ensure_normals(), np.float64)
+    if mt is not None:  # the glTF base is the mesh at weights 0
+        d = np.asarray(mt.default_weights, np.float64)
+        pos = pos - np.einsum("m,mvc->vc", d, np.asarray(mt.positions, np.float64))
+        nrm = nrm - np.einsum("m,mvc->vc", d, np.asarray(mt.normals, np.float64))
+    prim = _mesh_primitive(w, pos, nrm, m.vertex_colors(), m.indices, extra)
+    if mt is not None and mt.n_targets:
+        prim["targets"] = [{"POSITION": w.add(_f32(mt.positions[k]), "VEC3", 34962, minmax=True),
+                            "NORMAL": w.add(_f32(mt.normals[k]), "VEC3", 34962)} for k in range(mt.n_targets)]
     ib = w.add(_f32(np.asarray(sk.inverse_bind, np.float64).transpose(0, 2, 1)).reshape(J, 16), "MAT4")
     nodes.append({"name": str(ch.name), "mesh": 0, "skin": 0})
-    scene_nodes.append(len(nodes) - 1)
+    mesh_node = len(nodes) - 1
+    scene_nodes.append(mesh_node)
     skin = {"joints": list(range(J)), "inverseBindMatrices": ib}
     if len(roots) == 1:
         skin["skeleton"] = roots[0]
@@ -183,18 +202,51 @@ def _export_skinned(ch: SkinnedCharacter, w: _Writer) -> dict:
                 "interpolation": c.interpolation,
             })
             channels.append({"sampler": len(samplers) - 1, "target": {"node": int(c.joint), "path": c.path}})
+        wt = _weights_sampler(clip, mt)
+        if wt is not None:
+            t, v, interp = wt
+            samplers.append({"input": w.add(_f32(t), "SCALAR", minmax=True), "output": w.add(_f32(v).ravel(), "SCALAR"),
+                             "interpolation": interp})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": mesh_node, "path": "weights"}})
         if channels:
             anims.append({"name": str(name), "samplers": samplers, "channels": channels,
                           "extras": {"loop": bool(clip.loop), "duration": float(clip.duration)}})
+    gmesh = {"name": str(ch.name), "primitives": [prim]}
+    if mt is not None and mt.n_targets:
+        gmesh["weights"] = [float(x) for x in mt.default_weights]
+        gmesh["extras"] = {"targetNames": [str(x) for x in mt.names]} if len(mt.names) == mt.n_targets else {}
     gl = {
         "scenes": [{"nodes": scene_nodes}],
         "nodes": nodes,
-        "meshes": [{"name": str(ch.name), "primitives": [prim]}],
+        "meshes": [gmesh],
         "skins": [skin],
     }
     if anims:
         gl["animations"] = anims
     return gl
+
+
+def _weights_sampler(clip, mt):
+    """(times (K,), values (K, M) or (K, 3, M), interpolation) of a clip's morph
+    weights as one glTF channel over all M targets, or None (module Notes)."""
+    chans = [c for c in clip.channels if c.path == "weights"]
+    if mt is None or not mt.n_targets or not chans:
+        return None
+    M = mt.n_targets
+    t0, interp = np.asarray(chans[0].times, np.float64), chans[0].interpolation
+    if all(c.interpolation == interp and np.array_equal(np.asarray(c.times, np.float64), t0) for c in chans):
+        # one key list: the columns side by side (default weights, zero tangents where no channel drives)
+        K = t0.shape[0]
+        cubic = interp == "CUBICSPLINE"
+        v = np.zeros((K, 3, M)) if cubic else np.zeros((K, M))
+        (v[:, 1] if cubic else v)[:] = np.asarray(mt.default_weights, np.float64)
+        for c in chans:
+            a, x = int(c.joint), np.asarray(c.values, np.float64)
+            v[..., a:a + x.shape[-1]] = x.reshape(v.shape[:-1] + (x.shape[-1],))
+        return t0, v, interp
+    times = np.unique(np.concatenate([np.asarray(x.times, np.float64) for x in chans]))
+    only = type(clip)(clip.name, float(times[-1]) + 1.0, chans, loop=False)  # sampling without wrapping
+    return times, only.morph_weights(mt, times), "LINEAR"
 
 
 def _export_keyframed(ch: KeyframedCharacter, w: _Writer, path: Path) -> dict:
