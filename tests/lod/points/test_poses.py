@@ -167,3 +167,36 @@ def test_auto_prices_points_with_the_pose_error_of_its_poses(walker):
     dev = ac.keyframe_deviation(ch, 0)
     assert pts.deviation[0] == pytest.approx(dev)
     assert 0.0 < dev <= 0.02 * lp.character_extent(ch)
+
+
+def test_pose_error_includes_morph_targets(monkeypatch):
+    """A skinned character with animated morph targets: the pose error is measured on skin ∘ morph (what mode
+    points bakes), so the chosen poses bound it, on the search subset and on every vertex."""
+    from tiny_characters import tiny_morphed
+
+    from sim.skinning import skin, skin_morph
+
+    ch = tiny_morphed()
+    clip = ch.clip("bend")
+    S = lp.sample_times(clip)
+    mats = clip.skinning_matrices(ch.skeleton, S)
+    w = clip.morph_weights(ch.mesh.morph, S)
+    moved = max(float(np.abs(skin_morph(ch.mesh, mats[k], w[k])[0] - skin(ch.mesh, mats[k])[0]).max())
+                for k in range(S.size))
+    assert moved > 0.05  # the morphs move the mesh beyond the skinning alone
+    bound = 0.01 * lp.character_extent(ch)
+    for sub in (lp.SEARCH_VERTICES, 8):  # all vertices in the search, then a subset verified on every vertex
+        monkeypatch.setattr(lp, "SEARCH_VERTICES", sub)
+        cp = lp.choose_poses(ch, clip, bound)
+        assert cp.error <= bound
+        # the reference: skin ∘ morph at every sample against the interpolated chosen poses
+        keys = [int(np.argmin(np.abs(S - t))) for t in cp.times]
+        P = [skin_morph(ch.mesh, mats[k], w[k])[0] for k in range(S.size)]
+        ends = keys[1:] + [S.size]
+        worst = 0.0
+        for i, j in zip(keys, ends):
+            t1 = S[j] if j < S.size else clip.duration + S[0]
+            for k in range(i + 1, j):
+                u = (S[k] - S[i]) / (t1 - S[i])
+                worst = max(worst, float(np.linalg.norm((1 - u) * P[i] + u * P[j % S.size] - P[k], axis=1).max()))
+        assert worst <= bound * (1 + 1e-6)
