@@ -14,7 +14,7 @@ full detail. Issue 20's acceptance: with the default, the 30 s clip's median
 PSNR within 2 dB of the 1.1 s clip's.
 
 Run:  .venv/bin/python scripts/bench_poses.py [--triangles 3000] [--duration 30] [--frames 12]
-      [--size 640 360] [--pose-error 0.02]
+      [--size 640 360] [--pose-error 0.02] [--max-keyframes 256]
 """
 from __future__ import annotations
 
@@ -51,6 +51,7 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=12)
     ap.add_argument("--size", type=int, nargs=2, default=(640, 360))
     ap.add_argument("--pose-error", type=float, default=None, help="default: the mode's (lod.points.config)")
+    ap.add_argument("--max-keyframes", type=int, default=None, help="default: the mode's cap per clip")
     a = ap.parse_args(argv)
 
     base = humanoid(a.triangles, seed=4)
@@ -63,6 +64,9 @@ def main(argv=None) -> int:
     settings = [("default", {}), ("9 poses", {"keyframes": 9})]
     if a.pose_error is not None:
         settings[0] = (f"pose_error {a.pose_error:g}", {"pose_error": a.pose_error})
+    if a.max_keyframes is not None:
+        settings[0] = (settings[0][0] + f", cap {a.max_keyframes}", {**settings[0][1], "max_keyframes": a.max_keyframes})
+        settings = settings[:1]
     ctx = create_context()
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench-poses-") as d:
