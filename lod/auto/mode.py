@@ -615,4 +615,24 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     return sel.candidate_reps, sel
 
 
-__all__ = ["PARAMS", "CANDIDATES", "AutoSelector", "build", "parse_candidates", "projected_errors"]
+def memory_estimate(characters, params: dict) -> int:
+    """Bytes of the candidates' hierarchies (``crowd.memory``'s hook): the point candidate's as mode points
+    estimates them (:func:`lod.points.mode.memory_estimate` with this mode's pose keys), the cluster
+    candidate's at 80 bytes per triangle."""
+    from lod.points import mode as points_mode
+
+    names = parse_candidates(params.get("candidates", PARAMS["candidates"].default))
+    total = 0
+    if "points" in names:
+        total += points_mode.memory_estimate(characters, {k: params[k] for k in ("keyframes", "pose_error",
+                                                                               "max_keyframes") if k in params})
+    if "clusters" in names:
+        for ch in characters:
+            mesh = getattr(ch, "mesh", None)
+            tris = (int(np.asarray(mesh.indices).reshape(-1, 3).shape[0]) if mesh is not None
+                    else int(getattr(ch, "triangles", 0) or 0))
+            total += 80 * tris
+    return int(total)
+
+
+__all__ = ["PARAMS", "CANDIDATES", "AutoSelector", "build", "memory_estimate", "parse_candidates", "projected_errors"]

@@ -67,5 +67,19 @@ POINTS_EPS = 1e-12
 #: run, where the earlier fixed 9 poses left 8-15 %.
 POINTS_POSE_ERROR = 0.02
 
-#: Cap on the poses baked per clip (each keyframe pair is one point hierarchy).
-POINTS_MAX_POSES = 256
+#: Cap on the poses baked per clip (each keyframe pair is one point hierarchy,
+#: see POINTS_SEGMENT_BYTES_COEF: a 30 s varied clip of
+#: a 3,000-triangle humanoid within 2 % needs ~450 poses, 0.8 GB; the memory
+#: guard of crowd.memory refuses what does not fit, via memory_estimate).
+POINTS_MAX_POSES = 1024
+
+#: Bytes of point hierarchy per character triangle and keyframe segment with the
+#: default parameters grow with the mesh (a finer mesh gets a deeper octree):
+#: POINTS_SEGMENT_BYTES_COEF * triangles ** POINTS_SEGMENT_BYTES_EXP, fitted to
+#: humanoids of 1,000 / 3,000 / 5,000 triangles (420 / 600 / 920 B measured).
+POINTS_SEGMENT_BYTES_COEF = 13.3
+POINTS_SEGMENT_BYTES_EXP = 0.487
+
+#: Segments assumed per generated character before it is built (two clips of
+#: about 15 poses each at the default pose_error)
+GENERATOR_SEGMENTS = 30

@@ -270,6 +270,36 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     return reps + (plan.reps if plan is not None else []), sel
 
 
+def memory_estimate(characters, params: dict) -> int:
+    """Bytes of the point hierarchies mode "points" will build (``crowd.memory``'s hook): per character
+    its triangles x the keyframe segments x the bytes per triangle and segment
+    (:data:`lod.points.config.POINTS_SEGMENT_BYTES_COEF`, growing with the mesh).
+
+    characters : built characters (the segments are counted: for a skinned one the poses
+        :func:`lod.points.poses.clip_poses` chooses, as :func:`build` will) or scene character specs
+        (before building: ``GENERATOR_SEGMENTS`` segments of the spec's triangles; a glTF spec counts 0
+        here and is estimated once built)."""
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    total = 0
+    for ch in characters:
+        kind = getattr(ch, "kind", None)
+        if kind == "skinned":
+            tris = int(np.asarray(ch.mesh.indices).reshape(-1, 3).shape[0])
+            poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
+            segs = sum(len(cp.times) for cp in poses.values())
+        elif kind == "keyframed":
+            segs, tris = 0, 0
+            for a in ch.animations.values():
+                segs += len(a.segments)
+                tris = max(tris, max((int(np.asarray(k.indices).reshape(-1, 3).shape[0]) for k in a.keyframes),
+                                     default=0))
+        else:  # a spec: only generators say their size before building
+            tris = int(getattr(ch, "triangles", 0) or (5000 if getattr(ch, "generator", None) else 0))
+            segs = C.GENERATOR_SEGMENTS
+        total += tris * segs * C.POINTS_SEGMENT_BYTES_COEF * max(tris, 1) ** C.POINTS_SEGMENT_BYTES_EXP
+    return int(total)
+
+
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
 def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,

@@ -200,3 +200,18 @@ def test_pose_error_includes_morph_targets(monkeypatch):
                 u = (S[k] - S[i]) / (t1 - S[i])
                 worst = max(worst, float(np.linalg.norm((1 - u) * P[i] + u * P[j % S.size] - P[k], axis=1).max()))
         assert worst <= bound * (1 + 1e-6)
+
+
+def test_memory_estimate_counts_the_poses(walker, tmp_path):
+    """The memory guard's estimate of mode points grows with the poses a clip needs and is within a factor
+    of two of the hierarchies actually built."""
+    from lod.points import mode as pm
+    from lod.points.rep import HierarchyCache
+
+    ch = dataclasses.replace(walker, clips={"walk": walker.clip("walk")})
+    reps, _ = pm.build([ch], ["w"], [30], {}, cache=HierarchyCache(tmp_path / "c"), progress=False)
+    est = pm.memory_estimate([ch], {})
+    assert 0.5 * reps[0].nbytes <= est <= 2.0 * reps[0].nbytes, (est, reps[0].nbytes)
+    long = dataclasses.replace(walker, clips={"dance": varied_clip(walker, 20.0, seed=2, name="dance")})
+    assert pm.memory_estimate([long], {}) > 10 * est
+    assert pm.memory_estimate([long], {"keyframes": 9}) < 2 * est
