@@ -42,7 +42,9 @@ def describe(character) -> dict:
         skeleton's rest pose (skinned) or the first keyframe; the animated box
         covers every clip sampled at :data:`DESCRIBE_FPS` with CPU skinning
         (:func:`sim.skinning.skin`), or every keyframe (keyframe animation
-        interpolates linearly, so keyframes bound every in-between).
+        interpolates linearly, so keyframes bound every in-between),
+        ``notes`` (list[str], what the importer repaired or made up, e.g.
+        "skin weights normalised on 12 vertices (sums 1.8)"; empty when nothing).
     """
     if character.kind == "skinned":
         return _describe_skinned(character)
@@ -79,6 +81,7 @@ def _describe_skinned(ch) -> dict:
         "triangles": mesh.n_triangles,
         "clips": clips,
         "bounds": {"rest": _box(lo, hi), "animated": _box(alo, ahi)},
+        "notes": [str(n) for n in getattr(ch, "notes", [])],
     }
 
 
@@ -108,4 +111,5 @@ def _describe_keyframed(ch) -> dict:
         "triangles": 0 if first is None else int(len(first.indices)),
         "clips": clips,
         "bounds": {"rest": _box(lo, hi), "animated": _box(alo, ahi)},
+        "notes": [str(n) for n in getattr(ch, "notes", [])],
     }
