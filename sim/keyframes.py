@@ -312,6 +312,7 @@ def bake_skinned(character, clip_name, times) -> KeyframeAnimation:
     KeyframeAnimation with identity segments sharing the mesh's index buffer;
     its duration and loop flag are the clip's.
     """
+    from sim.errors import require_float32
     from sim.skinning import skin  # local: keyframes must not pull numba in by default
 
     clip = character.clip(clip_name) if hasattr(character, "clip") else character.clips[clip_name]
@@ -326,6 +327,7 @@ def bake_skinned(character, clip_name, times) -> KeyframeAnimation:
     kfs = []
     for i in range(times.shape[0]):
         p, n = skin(character.mesh, mats[i])
+        require_float32(character, f"clip {clip.name!r}: skinned positions", p)  # before the float32 cast
         kfs.append(Keyframe(p.astype(np.float32), n.astype(np.float32), colors, idx))
     duration = d if clip.loop else float(times[-1] - times[0])
     if clip.loop and d <= times[-1] - times[0]:

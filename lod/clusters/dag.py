@@ -92,6 +92,7 @@ from lod.atomic_io import atomic_open
 from lod.clusters.config import (CLUSTERS_DEFORM_TOLERANCE, CLUSTERS_LEAF_TRIANGLES, CLUSTERS_POSE_D_FRACTION,
                                  CLUSTERS_POSE_SAMPLES, CLUSTERS_PROGRESS_SECONDS, CLUSTERS_SIMPLIFY_RATIO,
                                  CLUSTERS_SPHERE_PAD)
+from sim.errors import require_float32
 
 CLUSTERINGS = ("error-aware", "octree")
 
@@ -488,8 +489,7 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
             raise ValueError(f"build_cluster_hierarchy: pose_indices must be 'all' or sample indices in "
                              f"0..{mats.shape[0] - 1}, got {pose_indices!r}")
     X_all = skin_poses(mesh, mats)
-    if not np.all(np.isfinite(X_all)):
-        raise ValueError(f"character {character.name!r}: skinning produced NaN or Inf positions")
+    require_float32(character, "skinned positions of the sampled poses", X_all)  # AssetError naming the file
     X_rep = np.ascontiguousarray(X_all[reps])
     V = mesh.n_vertices
     tri = qem.drawable_triangles(mesh.indices)  # a repeated index covers no pixel in any pose (see there)

@@ -73,7 +73,8 @@ def keyframed_character(character, keyframes: int):
     from sim.keyframes import bake_skinned
 
     anims = {name: bake_skinned(character, name, int(keyframes)) for name in character.clips}
-    return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims)
+    return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims,
+                              source=getattr(character, "source", ""))  # messages name the file
 
 
 def segment_arrays(kf: KeyframedRep, s: int) -> tuple:
