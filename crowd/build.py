@@ -280,9 +280,12 @@ def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None 
         description = pool.description
     bad = [r for r in results if "error" in r]
     if bad:
-        more = f" ({len(bad) - 1} more failed; the other {len(results) - len(bad)} builds are in the cache)" \
-            if len(bad) > 1 else f" (the other {len(results) - 1} builds are in the cache)" if len(results) > 1 else ""
-        raise AssetError(bad[0]["error"] + more)
+        # one sentence: the first failure; the modes of one broken file fail alike, so only other causes count
+        others = len(dict.fromkeys(r["error"] for r in bad)) - 1
+        ok = len(results) - len(bad)
+        more = ([f"{others} other failure{'s' if others > 1 else ''}"] if others else []) + \
+            ([f"{ok} other build{'s are' if ok > 1 else ' is'} in the cache"] if ok else [])
+        raise AssetError(bad[0]["error"] + (f" ({'; '.join(more)})" if more else ""))
     return BuildResult(results, cache, sorted(_entries(cache) - before), description, time.time() - t0)
 
 

@@ -286,6 +286,8 @@ def format_description(title: str, d: dict, indent: int = 0) -> str:
         if isinstance(v, dict):
             lines.append(f"{pad}{k}:")
             lines.append(format_description("", v, indent + 1))
+        elif k == "notes" and isinstance(v, list):
+            lines.extend(f"{pad}note: {x}" for x in v)  # one line each, none when nothing was repaired
         elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
             lines.append(f"{pad}{k}: {len(v)}")
             for x in v:

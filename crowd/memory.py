@@ -151,7 +151,10 @@ def character_bytes(character, fps: float) -> tuple[int, int]:
     if character.kind == "skinned":
         m = character.mesh
         mesh = m.n_vertices * VERTEX_BYTES + m.n_triangles * TRIANGLE_BYTES
-        frames = sum(max(1, int(round(float(c.duration) * fps))) + 1 for c in character.clips.values())
+        from lod.full.reps import bake_intervals  # the frames build_rep bakes (long clips at a lower rate)
+
+        durations = [float(c.duration) for c in character.clips.values()]
+        frames = int((bake_intervals(durations, fps) + 1).sum()) if durations else 0
         table = frames * character.skeleton.n_joints * 48
         mt = getattr(m, "morph", None)
         if mt is None:

@@ -16,6 +16,8 @@ class SkinnedCharacter:
 
     clips : dict name -> sim.clip.Clip (insertion order is the clip index used
         in CrowdState.clip).
+    notes : list of str, what the importer repaired or made up (one sentence each, e.g. weights normalised,
+        a rest clip added); ``crowd info`` prints them.
     """
 
     name: str
@@ -23,6 +25,7 @@ class SkinnedCharacter:
     skeleton: Skeleton
     clips: dict = field(default_factory=dict)
     source: str = ""
+    notes: list = field(default_factory=list)
 
     kind = "skinned"
 
@@ -49,11 +52,12 @@ class SkinnedCharacter:
 @dataclass
 class KeyframedCharacter:
     """A keyframe animation (Wand & Straßer §3); ``animations`` maps clip name
-    to KeyframeAnimation (e.g. one per glTF morph animation)."""
+    to KeyframeAnimation (e.g. one per glTF morph animation); ``notes`` as for :class:`SkinnedCharacter`."""
 
     name: str
     animations: dict = field(default_factory=dict)
     source: str = ""
+    notes: list = field(default_factory=list)
 
     kind = "keyframed"
 

@@ -185,3 +185,25 @@ class Clip:
         """Skinning matrices at many times, (N, J, 4, 4) float64."""
         return skeleton.skinning_matrices(*self.sample_times(skeleton, times))
 
+
+#: Name and duration (seconds) of the clip a character without animation is given (:func:`rest_clip`); the same
+#: name and duration as the still keyframe animation of an unanimated morph-target model (``sim.gltf.load``).
+REST_CLIP_NAME = "rest"
+REST_CLIP_SECONDS = 1.0
+
+
+def rest_clip(skeleton, name: str = REST_CLIP_NAME, duration: float = REST_CLIP_SECONDS) -> Clip:
+    """A constant looping clip that holds ``skeleton``'s rest pose: one key, at t = 0, on joint 0's rotation.
+
+    A character without animation (a statue, a prop) is a legitimate character: it is drawn in its rest pose.
+    Giving it this clip, rather than teaching every consumer to accept zero clips, keeps one rule everywhere:
+    every character has at least one clip and clip index 0 exists (``CrowdState.clip``, placements, the baked
+    joint tables of mode ``none``, the pose samples of the point and cluster hierarchies, mode ``auto``). One
+    real key (not an empty channel list) means code that reads key times also sees a well-formed clip.
+    """
+    if skeleton.n_joints < 1:
+        raise ValueError("rest_clip: the skeleton has no joints")
+    q = np.asarray(skeleton.rest_rotation, np.float64)[:1].copy()
+    return Clip(name=name, duration=float(duration),
+                channels=[Channel(joint=0, path="rotation", times=np.zeros(1), values=q, interpolation="STEP")],
+                loop=True)

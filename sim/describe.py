@@ -43,7 +43,9 @@ def describe(character) -> dict:
         skeleton's rest pose (skinned) or the first keyframe; the animated box
         covers every clip sampled at :data:`DESCRIBE_FPS` with CPU skinning
         (:func:`sim.skinning.skin`, ``skin_morph`` with morph targets), or every keyframe (keyframe animation
-        interpolates linearly, so keyframes bound every in-between).
+        interpolates linearly, so keyframes bound every in-between),
+        ``notes`` (list[str], what the importer repaired or made up, e.g.
+        "skin weights normalised on 12 vertices (sums 1.8)"; empty when nothing).
     """
     if character.kind == "skinned":
         return _describe_skinned(character)
@@ -83,6 +85,7 @@ def _describe_skinned(ch) -> dict:
         "morph_targets": [str(x) for x in mesh.morph.names] if mesh.morph is not None else [],
         "clips": clips,
         "bounds": {"rest": _box(lo, hi), "animated": _box(alo, ahi)},
+        "notes": [str(n) for n in getattr(ch, "notes", [])],
     }
 
 
@@ -113,4 +116,5 @@ def _describe_keyframed(ch) -> dict:
         "morph_targets": [],
         "clips": clips,
         "bounds": {"rest": _box(lo, hi), "animated": _box(alo, ahi)},
+        "notes": [str(n) for n in getattr(ch, "notes", [])],
     }

@@ -314,6 +314,7 @@ def bake_skinned(character, clip_name, times) -> KeyframeAnimation:
     morphed at the clip's weights before skinning (``sim.skinning.skin_morph``,
     glTF 2.0 §3.7.2.2), so every keyframe is the pose ``skin ∘ morph`` at its time.
     """
+    from sim.errors import require_float32
     from sim.skinning import skin, skin_morph  # local: keyframes must not pull numba in by default
 
     clip = character.clip(clip_name) if hasattr(character, "clip") else character.clips[clip_name]
@@ -330,6 +331,7 @@ def bake_skinned(character, clip_name, times) -> KeyframeAnimation:
     kfs = []
     for i in range(times.shape[0]):
         p, n = skin(character.mesh, mats[i]) if mw is None else skin_morph(character.mesh, mats[i], mw[i])
+        require_float32(character, f"clip {clip.name!r}: skinned positions", p)  # before the float32 cast
         kfs.append(Keyframe(p.astype(np.float32), n.astype(np.float32), colors, idx))
     duration = d if clip.loop else float(times[-1] - times[0])
     if clip.loop and d <= times[-1] - times[0]:

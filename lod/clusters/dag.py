@@ -49,6 +49,17 @@ Departures and choices:
   resolution up to the cluster holding both sides, so the coarse levels are
   bounded by the border length of their regions: compact merges (and compact
   leaves, :func:`lod.clusters.clustering.compact_partition`) are what let them coarsen.
+- Degenerate input: triangles with a repeated vertex index are left out
+  (:func:`lod.simplify.collapse.drawable_triangles`): they cover no pixel in any
+  pose and the simplifier drops them, so a vertex used only by them vanished
+  without a collapse target and the collapse tracking stopped the build
+  ("cluster N lost track of collapsed vertices"). Everything else people's
+  models hold stays and is handled where it arises: zero-area triangles on
+  distinct vertices (a collapse that keeps one alive is refused, the edge
+  between coincident vertices collapses first at zero cost), duplicate vertices
+  (seams: leaves follow the welded surface), duplicate and two-sided triangles
+  (the link condition), non-manifold edges (locked) and disconnected parts
+  (paired spatially).
 - Geomorph targets (``morph_*``): the vertices each simplification removed and
   the vertex each collapsed onto, for a renderer that blends a child into its
   parent.
@@ -81,6 +92,7 @@ from lod.atomic_io import atomic_open
 from lod.clusters.config import (CLUSTERS_DEFORM_TOLERANCE, CLUSTERS_LEAF_TRIANGLES, CLUSTERS_POSE_D_FRACTION,
                                  CLUSTERS_POSE_SAMPLES, CLUSTERS_PROGRESS_SECONDS, CLUSTERS_SIMPLIFY_RATIO,
                                  CLUSTERS_SPHERE_PAD)
+from sim.errors import require_float32
 
 CLUSTERINGS = ("error-aware", "octree")
 
@@ -477,11 +489,10 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
             raise ValueError(f"build_cluster_hierarchy: pose_indices must be 'all' or sample indices in "
                              f"0..{mats.shape[0] - 1}, got {pose_indices!r}")
     X_all = skin_poses(mesh, mats)
-    if not np.all(np.isfinite(X_all)):
-        raise ValueError(f"character {character.name!r}: skinning produced NaN or Inf positions")
+    require_float32(character, "skinned positions of the sampled poses", X_all)  # AssetError naming the file
     X_rep = np.ascontiguousarray(X_all[reps])
     V = mesh.n_vertices
-    tri = np.asarray(mesh.indices, np.int64).reshape(-1, 3)
+    tri = qem.drawable_triangles(mesh.indices)  # a repeated index covers no pixel in any pose (see there)
     T = tri.shape[0]
     bar.update(1)
     vlevel = deformation.character_deformation(character, mats, X_all)
@@ -560,6 +571,7 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
     sphere = np.zeros((N, 4))
     aabb = np.zeros((N, 2, 3))
     local = np.full(V, -1, np.int64)
+    inside = np.zeros(V, np.bool_)  # the vertices of the cluster being built
     rep = np.arange(V, dtype=np.int64)  # the vertex each original vertex has collapsed into so far
     bar.total = N + _STAGES
     bar.refresh()
@@ -588,8 +600,10 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
             morph_t[i] = verts[remap[gone]]
             rv = np.unique(tri[region[i]])
             cur = rep[rv]
-            if not np.array_equal(verts[local[cur]], cur):  # invariant: every vertex's survivor is in this cluster
+            inside[verts] = True
+            if not inside[cur].all():  # invariant: every vertex's survivor is in this cluster (drawable_triangles)
                 raise RuntimeError(f"cluster hierarchy build: cluster {i} lost track of collapsed vertices")
+            inside[verts] = False
             rep[rv] = verts[remap[local[cur]]]
             fwd, bwd = qem_distance._cluster_hausdorff_sq(X_rep, np.ascontiguousarray(node_tris[i]), rv, rep, vt_ptr, vt_idx,
                                                  tri, owner, i, vnorm, qem_distance.HAUSDORFF_NORMAL_COS)
@@ -615,7 +629,7 @@ def _build(character, names, samples, d_fraction, s, tolerance, clustering_metho
         parent=parent.astype(np.int32), roots=roots.astype(np.int32), height=height.astype(np.int16),
         leaf_lo=leaf_lo.astype(np.int32), leaf_hi=leaf_hi.astype(np.int32), error=error.astype(np.float32),
         sphere=sphere.astype(np.float32), aabb=aabb.astype(np.float32), deformation=deform.astype(np.float32),
-        n_vertices=int(V), n_triangles=int(T), pose_clips=names, pose_times=times,
+        n_vertices=int(V), n_triangles=int(mesh.n_triangles), pose_clips=names, pose_times=times,
         pose_clip=pose_clip.astype(np.int32), representatives=np.asarray(reps, np.int64), params=params)
     mc = np.array([x.shape[0] for x in morph_v], np.int64)
     h.morph_ptr = np.concatenate([[0], np.cumsum(mc)]).astype(np.int64)

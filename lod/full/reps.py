@@ -25,12 +25,17 @@ from numba import njit
 
 from lod.full.bounds import _skin_all_frames_sphere, _sphere_of_points, frame_aabbs
 from lod.full.targets import TargetTable, build_target_table, clip_offsets, morph_frame_aabbs
+from sim.errors import require_float32
 
 #: default rate (frames per second) at which skinned clips are baked
 BAKE_FPS = 30.0
 #: the sampling margin added to skinned bounds is this multiple of the largest
 #: mid-interval gap between the continuous clip and the baked interpolation
 SAMPLING_PAD_FACTOR = 2.0
+#: most baked frames of one skinned character, over all its clips: the rows of its joint texture
+#: (``render/renderer.py``); GL 4.5's smallest allowed GL_MAX_TEXTURE_SIZE. Longer animations are baked at a
+#: lower rate (:func:`bake_intervals`).
+BAKE_MAX_FRAMES = 16384
 
 # ---------------------------------------------------------------------------- reps
 @dataclass
@@ -319,6 +324,27 @@ def _finite(name: str, a: np.ndarray) -> np.ndarray:
     return a
 
 
+def bake_intervals(durations, fps: float, max_frames: int = BAKE_MAX_FRAMES) -> np.ndarray:
+    """(C,) int64 frame intervals baked per clip: ``round(duration * fps)``, at least 1.
+
+    A clip bakes intervals + 1 frames. When all clips together would need more than ``max_frames`` (a
+    60 s clip at 240 fps, or minutes of motion capture), every clip is baked at the same lower rate
+    ``(max_frames - 2 C) / sum(durations)`` instead, so the joint table fits the renderer's texture; the
+    GPU interpolates between baked frames either way (the class Notes of :class:`SkinnedRep` hold for any
+    rate). ValueError when even one interval per clip does not fit (more than ``max_frames / 2`` clips).
+    """
+    d = np.asarray(durations, np.float64).reshape(-1)
+    n = np.maximum(1, np.round(d * float(fps))).astype(np.int64)
+    if int(n.sum()) + d.size <= max_frames:
+        return n
+    spare = max_frames - 2 * d.size
+    if spare < 0:
+        raise ValueError(f"bake_intervals: {d.size} clips need at least {2 * d.size} baked frames, "
+                         f"above the limit {max_frames}")
+    rate = spare / d.sum()  # d.sum() > 0: otherwise n.sum() = C fits
+    return np.maximum(1, np.floor(d * rate)).astype(np.int64)
+
+
 def _bake_clip_matrices(clip, skeleton, times: np.ndarray) -> np.ndarray:
     if hasattr(clip, "skinning_matrices"):
         m = clip.skinning_matrices(skeleton, times)
@@ -332,7 +358,8 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None,
     """Bake a ``sim.character.SkinnedCharacter`` into a :class:`SkinnedRep`.
 
     Every clip is sampled at ``round(duration * fps) + 1`` evenly spaced
-    times from 0 to ``duration`` inclusive (at least 2), the skinning matrices
+    times from 0 to ``duration`` inclusive (at least 2; at a lower rate when all
+    clips would exceed :data:`BAKE_MAX_FRAMES`, :func:`bake_intervals`), the skinning matrices
     are stored as float32 3x4 rows, and exact whole-animation bounds are
     computed (see the class Notes). The morph targets of the mesh (if any) are
     baked at the same times into ``targets`` (:mod:`lod.full.targets`);
@@ -365,12 +392,14 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None,
     if idx.size and idx.max() >= pos.shape[0]:
         raise ValueError(f"character {name!r}: mesh.indices: expected values < {pos.shape[0]}")
 
-    all_times = []
     for cname, clip in character.clips.items():
         dur = float(clip.duration)
         if not np.isfinite(dur) or dur < 0.0:
             raise ValueError(f"character {name!r}: clip {cname!r}: duration: expected >= 0 seconds, got {dur}")
-        all_times.append(np.linspace(0.0, dur, max(1, int(round(dur * fps))) + 1))
+    # frame intervals per clip (a long clip bakes at a lower rate so the joint table fits, bake_intervals)
+    intervals = bake_intervals([float(c.duration) for c in character.clips.values()], fps)
+    all_times = [np.linspace(0.0, float(c.duration), n + 1) for c, n in zip(character.clips.values(),
+                                                                             intervals.tolist())]
     targets = None
     if morph_targets and getattr(mesh, "morph", None) is not None and mesh.morph.n_targets:
         try:
@@ -383,7 +412,7 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None,
         dur = float(clip.duration)
         n_int = times.shape[0] - 1
         m = _bake_clip_matrices(clip, skel, times)[:, :, :3, :]
-        _finite(f"character {name!r}: clip {cname!r} skinning matrices", m)
+        require_float32(character, f"clip {cname!r}: skinning matrices", m)
         mid_t = 0.5 * (times[:-1] + times[1:])
         mid = _bake_clip_matrices(clip, skel, mid_t)[:, :, :3, :]
         if targets is not None:
@@ -398,6 +427,7 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None,
             dev = frame_aabbs(pos, jn, w, mid - 0.5 * (m[:-1] + m[1:]))
             pad = SAMPLING_PAD_FACTOR * np.abs(dev).max(axis=(0, 1)) if dev.size else np.zeros(3)
             fa = fa + np.array([-1.0, 1.0])[None, :, None] * pad
+        require_float32(character, f"clip {cname!r}: skinned positions", fa)  # what bounds and the GPU get
         box, sph = _skin_all_frames_sphere(fa)
         tables.append(m.astype(np.float32))
         offsets.append(off)
@@ -472,8 +502,8 @@ def build_keyframed_rep(character, key: str | None = None) -> KeyframedRep:
                     f"got {t_start}..{t_end}")
             p0 = np.asarray(kf0.positions, np.float32)[src]
             p1 = np.asarray(kf1.positions, np.float32)[dst]
-            _finite(f"character {name!r}: animation {aname!r} positions", p0)
-            _finite(f"character {name!r}: animation {aname!r} positions", p1)
+            require_float32(character, f"animation {aname!r}: positions", p0)
+            require_float32(character, f"animation {aname!r}: positions", p1)
             cols["p0"].append(p0)
             cols["p1"].append(p1)
             cols["n0"].append(np.asarray(kf0.normals, np.float32)[src])

@@ -97,7 +97,8 @@ def keyframed_character(character, keyframes: int, pose_error: float = C.POINTS_
     if poses is not None:
         poses.update(chosen)
     anims = {name: bake_skinned(character, name, chosen[name].times) for name in character.clips}
-    return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims)
+    return KeyframedCharacter(name=getattr(character, "name", "character"), animations=anims,
+                              source=getattr(character, "source", ""))  # messages name the file
 
 
 def segment_arrays(kf: KeyframedRep, s: int) -> tuple:

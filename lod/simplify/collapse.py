@@ -145,6 +145,19 @@ def simplify_reference(positions_per_pose: np.ndarray, indices: np.ndarray, targ
     return alive_t, remap, maxerr, live
 
 
+def drawable_triangles(indices: np.ndarray) -> np.ndarray:
+    """(T', 3) int64: the triangles of ``indices`` (T, 3) without a repeated vertex index.
+
+    A triangle such as (u, u, v) has zero area in every pose, so it covers no pixel and holds no surface;
+    :func:`simplify` drops such triangles from its output, and a vertex used only by them has no collapse
+    target. Whoever tracks where every vertex of its input went (the cluster hierarchy's collapse tracking,
+    :mod:`lod.clusters.dag`) must start from these triangles. Zero-area triangles on distinct (coincident or
+    collinear) vertices stay: they are real topology (they link vertices) and a collapse may remove them.
+    """
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    return t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+
+
 def open_edge_vertices(indices: np.ndarray, n_vertices: int) -> np.ndarray:
     """(V,) bool: vertices on an edge used by one triangle or by more than two."""
     t = np.asarray(indices, np.int64).reshape(-1, 3)
@@ -202,7 +215,7 @@ def simplify(positions_per_pose: np.ndarray, indices: np.ndarray, target_triangl
     target = int(target_triangles)
     if target < 0:
         raise ValueError(f"simplify: target_triangles must be >= 0, got {target_triangles}")
-    t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+    t = drawable_triangles(t)
     lock = open_edge_vertices(t, V)
     if locked_vertices is not None:
         lv = np.asarray(locked_vertices, bool).reshape(-1)

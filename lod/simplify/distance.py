@@ -84,26 +84,39 @@ def _face_normal(X, p, tris, f):  # pragma: no cover - compiled
     return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
 
 
+#: a vertex normal shorter than this fraction of the summed lengths of its face normals has no facing (the
+#: faces cancel: a sheet drawn from both sides on shared vertices) and is set to 0
+NORMAL_CANCEL_FRACTION = 1e-6
+
+
 @njit(cache=True)
 def _vertex_normals(X, tris, out):  # pragma: no cover - compiled
+    mag = np.zeros(X.shape[1])
     for p in range(X.shape[0]):
+        mag[:] = 0.0
         for f in range(tris.shape[0]):
             a, b, c = tris[f, 0], tris[f, 1], tris[f, 2]
             nx, ny, nz = _face_normal(X, p, tris, f)
+            ln = np.sqrt(nx * nx + ny * ny + nz * nz)
             for v in (a, b, c):
                 out[p, v, 0] += nx
                 out[p, v, 1] += ny
                 out[p, v, 2] += nz
+                mag[v] += ln
         for v in range(X.shape[1]):
             ln = np.sqrt(out[p, v, 0] ** 2 + out[p, v, 1] ** 2 + out[p, v, 2] ** 2)
-            if ln > 0.0:
+            if ln > NORMAL_CANCEL_FRACTION * mag[v] and ln > 0.0:
                 out[p, v, 0] /= ln
                 out[p, v, 1] /= ln
                 out[p, v, 2] /= ln
+            else:
+                out[p, v, 0] = out[p, v, 1] = out[p, v, 2] = 0.0
 
 
 def vertex_normals(positions_per_pose: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """(P, V, 3) float64 unit area-weighted vertex normals of a mesh in every pose (0 for unused vertices)."""
+    """(P, V, 3) float64 unit area-weighted vertex normals of a mesh in every pose; 0 for unused vertices, for
+    vertices whose triangles all have zero area and for vertices whose face normals cancel
+    (:data:`NORMAL_CANCEL_FRACTION`): those have no facing (:func:`cluster_hausdorff`)."""
     X = np.ascontiguousarray(positions_per_pose, np.float64)
     if X.ndim == 2:
         X = X[None]
@@ -112,6 +125,24 @@ def vertex_normals(positions_per_pose: np.ndarray, indices: np.ndarray) -> np.nd
     if t.size:
         _vertex_normals(X, t, out)
     return out
+
+
+def vertex_normals_numpy(positions_per_pose: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """numpy reference of :func:`vertex_normals` (same rule for missing and cancelling normals)."""
+    X = np.asarray(positions_per_pose, np.float64)
+    if X.ndim == 2:
+        X = X[None]
+    t = np.asarray(indices, np.int64).reshape(-1, 3)
+    fn = np.cross(X[:, t[:, 1]] - X[:, t[:, 0]], X[:, t[:, 2]] - X[:, t[:, 0]])  # (P, T, 3)
+    out = np.zeros(X.shape)
+    mag = np.zeros(X.shape[:2])
+    for k in range(3):
+        for p in range(X.shape[0]):
+            np.add.at(out[p], t[:, k], fn[p])
+            np.add.at(mag[p], t[:, k], np.linalg.norm(fn[p], axis=1))
+    ln = np.linalg.norm(out, axis=2)
+    ok = (ln > NORMAL_CANCEL_FRACTION * mag) & (ln > 0.0)
+    return np.where(ok[..., None], out / np.where(ok, ln, 1.0)[..., None], 0.0)
 
 
 @njit(cache=True, parallel=True)
@@ -319,13 +350,19 @@ def _cluster_hausdorff(X, tris, region_verts, rep, vt_ptr, vt_idx, orig_tris, tr
             lr = local[r] if r >= 0 else -1
         for p in range(P):
             px, py, pz = X[p, v, 0], X[p, v, 1], X[p, v, 2]
+            nx, ny, nz = 0.0, 0.0, 0.0
             if use_n:
                 nx, ny, nz = vnorm[p, v, 0], vnorm[p, v, 1], vnorm[p, v, 2]
+            # a vertex without a facing (only zero-area triangles around it, or a two-sided sheet on shared
+            # vertices whose normals cancel) is compatible with every triangle: the plain distance
+            un = use_n and nx * nx + ny * ny + nz * nz > 0.0
+            if not un and local[v] >= 0:
+                continue  # a vertex of the simplified surface: distance 0
             best = np.inf
             if lr >= 0:
                 for q in range(fan_ptr[lr], fan_ptr[lr + 1]):
                     f = fan[q] // 3
-                    if use_n and fnrm[p, f, 0] * nx + fnrm[p, f, 1] * ny + fnrm[p, f, 2] * nz <= cos_min:
+                    if un and fnrm[p, f, 0] * nx + fnrm[p, f, 1] * ny + fnrm[p, f, 2] * nz <= cos_min:
                         continue
                     d = _tri_d2(X, p, px, py, pz, tris, f)
                     if d < best:
@@ -334,7 +371,7 @@ def _cluster_hausdorff(X, tris, region_verts, rep, vt_ptr, vt_idx, orig_tris, tr
                 continue  # cannot raise the maximum
             sb = np.sqrt(best) if best < np.inf else np.inf
             for f in range(m):
-                if use_n and fnrm[p, f, 0] * nx + fnrm[p, f, 1] * ny + fnrm[p, f, 2] * nz <= cos_min:
+                if un and fnrm[p, f, 0] * nx + fnrm[p, f, 1] * ny + fnrm[p, f, 2] * nz <= cos_min:
                     continue
                 # skip a triangle whose bounding sphere lies farther than the best distance so far
                 rr = rad[p, f] + sb
@@ -347,7 +384,7 @@ def _cluster_hausdorff(X, tris, region_verts, rep, vt_ptr, vt_idx, orig_tris, tr
                     if best <= fwd:
                         break
                     sb = np.sqrt(best)
-            if best == np.inf and use_n:
+            if best == np.inf and un:
                 # no triangle of the cluster faces this way: the feature is lost from the image; bound it by
                 # the farthest point of the cluster's simplified surface
                 for f in range(m):
@@ -431,7 +468,9 @@ def cluster_hausdorff(positions_per_pose: np.ndarray, simplified: np.ndarray, re
     normal makes a cosine above ``normal_cos`` with the vertex's area-weighted
     normal, and a vertex no triangle of the cluster faces is charged the
     distance to the farthest point of the simplified surface (the feature is
-    gone from the image). This is what bounds the *rendered* silhouette: the
+    gone from the image). A vertex without a facing (:func:`vertex_normals` gives
+    0: only zero-area triangles around it, or a sheet drawn from both sides on
+    shared vertices) measures the plain distance. This is what bounds the *rendered* silhouette: the
     plain distance is small for a limb flattened into a two-sided sheet, which
     rasterises to nothing seen edge-on (VDR-AM §4.3 "Hausdorff distance"; the
     orientation test is our addition, measured in ``scripts/bench_clusters.md``).

@@ -35,6 +35,14 @@ Where it departs from a full viewer:
 - More than four influences (``JOINTS_1``/``WEIGHTS_1``) keep the four
   largest, renormalised. When the skeleton's roots hang below different
   parent nodes, every ancestor becomes a joint (``root_transform`` = identity).
+- Skin weights are normalised to sum to 1; rows that summed to something else
+  in the file (beyond :data:`sim.skin_weights.SUM_TOLERANCE`) are counted in
+  the character's ``notes`` ("skin weights normalised on N vertices (sums
+  1.8)"), which ``crowd info`` prints.
+- A model without animation (a statue, a prop) is a character all the same:
+  a skinned one gets one constant clip ``"rest"`` holding the rest pose
+  (:func:`sim.clip.rest_clip`), a morph-target one a still keyframe of the same
+  name, so every LOD mode draws it in its rest pose (noted in ``notes``).
 
 Every problem with the input raises :class:`sim.errors.AssetError` with one
 sentence naming the file and the offending element.
@@ -48,7 +56,7 @@ import numpy as np
 
 from sim import math3d
 from sim.character import KeyframedCharacter, SkinnedCharacter
-from sim.clip import Channel, Clip
+from sim.clip import REST_CLIP_NAME, REST_CLIP_SECONDS, Channel, Clip, rest_clip
 from sim.errors import AssetError
 from sim.gltf.animation import _read_sampler, _sample_channel
 from sim.gltf.container import _Doc, _is_int
@@ -56,6 +64,7 @@ from sim.gltf.primitives import _bake, _bake_deltas, _finish_normals, _Prim
 from sim.gltf.scene_graph import _Graph
 from sim.mesh import Mesh, MorphTargets
 from sim.skeleton import Skeleton
+from sim.skin_weights import SUM_TOLERANCE
 
 #: Two morph weight vectors closer than this are "the same key" (closed loops).
 GLTF_LOOP_TOL = 1e-6
@@ -275,6 +284,7 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
     P, N, C, T, JO, W = [], [], [], [], [], []
     nv = 0
     zero_total = 0
+    off_count, off_lo, off_hi = 0, np.inf, -np.inf
     for ni in mesh_nodes:
         nd = doc.item("nodes", ni)
         for pr in prims[ni]:
@@ -307,6 +317,12 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
                 ww = np.zeros((p.shape[0], 4))
                 ww[:, 0] = 1.0
                 fallback = jk
+            # weights that do not sum to 1 in the file (all influences, before keeping four): normalised below
+            s = ww.sum(1)
+            off = (s > 1e-12) & (np.abs(s - 1.0) > SUM_TOLERANCE)
+            if np.any(off):
+                off_count += int(off.sum())
+                off_lo, off_hi = min(off_lo, float(s[off].min())), max(off_hi, float(s[off].max()))
             # best four influences, renormalised
             if jj.shape[1] > 4:
                 o = np.argsort(-ww, axis=1, kind="stable")[:, :4]
@@ -334,6 +350,10 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
             nv += p.shape[0]
     if zero_total:
         warnings.warn(f"{doc.name}: {zero_total} vertices have all-zero skin weights; bound to their mesh node's joint (or joint 0)", stacklevel=3)
+    notes = []
+    if off_count:
+        sums = f"{off_lo:.3g}" if off_hi - off_lo < 0.005 else f"{off_lo:.3g} to {off_hi:.3g}"
+        notes.append(f"skin weights normalised on {off_count} vertices (sums {sums})")
     mesh = Mesh(
         positions=np.concatenate(P).astype(np.float32),
         indices=np.concatenate(T).astype(np.uint32).reshape(-1, 3),
@@ -385,7 +405,12 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
         if isinstance(d, (int, float)) and np.isfinite(d) and d >= tmax:
             duration = float(d)
         clips[name] = Clip(name=name, duration=duration if duration > 0 else 1.0 / 30.0, channels=channels, loop=loop)
-    return SkinnedCharacter(name=doc.path.stem, mesh=mesh, skeleton=skeleton, clips=clips, source=str(doc.path))
+    if not clips:
+        # a statue or a prop: drawn in its rest pose by every LOD mode through one constant clip (sim.clip.rest_clip)
+        clips[REST_CLIP_NAME] = rest_clip(skeleton)
+        notes.append(f"no animation: one constant clip {REST_CLIP_NAME!r} ({REST_CLIP_SECONDS:g} s) holds the rest pose")
+    return SkinnedCharacter(name=doc.path.stem, mesh=mesh, skeleton=skeleton, clips=clips, source=str(doc.path),
+                            notes=notes)
 
 
 def _load_keyframed(doc, g: _Graph, mesh_nodes, prims, morph_nodes):
@@ -447,10 +472,13 @@ def _load_keyframed(doc, g: _Graph, mesh_nodes, prims, morph_nodes):
         meshes = [build({ni: w[k] for ni, w in sampled.items()}) for k in range(times.size)]
         name = _unique_name(str(a.get("name") or f"anim{ai}"), used)
         animations[name] = keyframes.from_meshes(name, times, meshes, correspondences=None, loop=loop, duration=duration)
+    notes = []
     if not animations:
-        name = "rest"
-        animations[name] = keyframes.from_meshes(name, np.array([0.0]), [build(None)], correspondences=None, loop=True, duration=1.0)
-    return KeyframedCharacter(name=doc.path.stem, animations=animations, source=str(doc.path))
+        name = REST_CLIP_NAME
+        animations[name] = keyframes.from_meshes(name, np.array([0.0]), [build(None)], correspondences=None, loop=True,
+                                                 duration=REST_CLIP_SECONDS)
+        notes.append(f"no animation: one still keyframe {REST_CLIP_NAME!r} ({REST_CLIP_SECONDS:g} s)")
+    return KeyframedCharacter(name=doc.path.stem, animations=animations, source=str(doc.path), notes=notes)
 
 
 def _unique_name(base: str, used: set) -> str:

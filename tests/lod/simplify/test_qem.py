@@ -211,3 +211,65 @@ def test_cluster_hausdorff_normal_compatible():
     assert compat > plain + 0.1
     n = qem_distance.vertex_normals(X, t)
     assert np.allclose(np.linalg.norm(n[:, rv], axis=2), 1.0)
+
+
+def test_cluster_hausdorff_vertex_without_facing_measures_plain_distance():
+    """A vertex whose normals cancel (a sheet drawn from both sides on shared vertices) or that only zero-area
+    triangles touch has no facing: it is compatible with every triangle (the plain distance). Before, no
+    triangle faced it and it was charged the distance to the farthest point of the cluster."""
+    P, t = grid(4)
+    X = np.stack([P, P * [1.0, 1.2, 1.0]])
+    n = len(P)
+    X = np.concatenate([X, X[:, :1] + [0.5, 0.5, 0.0]], axis=1)  # a vertex on a zero-area triangle only
+    two = np.vstack([t, t[:, ::-1], [[0, 1, n]]])                # both sides + the sliver (0, 1, n) ...
+    X[:, n] = 0.5 * (X[:, 0] + X[:, 1])                          # ... with n on the edge 0-1: zero area
+    rv = np.unique(two)
+    mask = np.ones(len(two), bool)
+    ident = np.arange(X.shape[1])
+    cos = qem_distance.HAUSDORFF_NORMAL_COS
+    f0, _ = qem_distance.cluster_hausdorff(X, two, rv, ident, two, mask, normal_cos=cos)
+    assert f0 == 0.0  # unsimplified: zero (it was the sheet's diagonal)
+    half = two[:len(t) // 2]  # half the sheet, one side: the plain distance to it, not the farthest point
+    plain, _ = qem_distance.cluster_hausdorff(X, half, rv, ident, two, mask)
+    compat, _ = qem_distance.cluster_hausdorff(X, half, rv, ident, two, mask, normal_cos=cos)
+    assert compat == pytest.approx(plain) and plain > 0.1
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_simplify_accounts_for_every_vertex_of_its_drawable_input(seed):
+    """What the cluster hierarchy's collapse tracking relies on: every vertex of the drawable input triangles
+    (no repeated index, ``drawable_triangles``) is in the output or collapsed onto a vertex that is, on inputs
+    with duplicate, two-sided, non-manifold and zero-area triangles."""
+    rng = np.random.default_rng(seed)
+    P, t = sphere_mesh(6)
+    n = len(P)
+    P = np.vstack([P, P[:4], P[:2] + 0.3])                       # coincident copies, fin tips
+    extra = [[0, n, 1], [1, n + 1, 2], [2, 3, n + 2],            # zero-area on coincident vertices
+             [0, 0, n + 3], [5, 5, n + 4], [1, 2, n + 4],        # repeated index, a fin, a two-sided pair
+             [t[3, 0], t[3, 1], n + 5], [t[3, 1], t[3, 0], n + 5]]
+    t = np.vstack([t, t[rng.integers(0, len(t), 5)], t[rng.integers(0, len(t), 5), ::-1], extra])
+    X = np.stack([P, P * [1.0, 1.3, 0.9]])
+    lock = rng.random(len(P)) < 0.1
+    out, remap, _ = qem.simplify(X, t, int(rng.integers(0, len(t) // 2)), locked_vertices=lock)
+    kept = np.zeros(len(P), bool)
+    kept[out.reshape(-1)] = True
+    used = np.unique(qem.drawable_triangles(t))
+    assert kept[remap[used]].all()
+    assert (remap[lock] == np.flatnonzero(lock)).all()  # locked vertices never move
+
+
+def test_vertex_normals_kernel_matches_numpy_reference():
+    """Unit normals, and 0 for unused vertices, zero-area-only vertices and cancelling two-sided sheets."""
+    P, t = grid(3)
+    X = np.stack([P, P * [1.0, 1.5, 1.0] + [0, 0, 0.2]])
+    X = np.concatenate([X, X[:, :2], X[:, 5:6] + 1.0], axis=1)   # two coincident copies, one unused vertex
+    n = P.shape[0]
+    tris = np.vstack([t, t[:4, ::-1], [[n, n + 1, 0]]])  # 4 triangles both sides, one zero-area triangle
+    got = qem_distance.vertex_normals(X, tris)
+    ref = qem_distance.vertex_normals_numpy(X, tris)
+    np.testing.assert_allclose(got, ref, atol=1e-12)
+    ln = np.linalg.norm(got, axis=2)
+    assert (ln[:, [n, n + 1, n + 2]] == 0).all()  # zero-area only, unused
+    both = np.setdiff1d(np.unique(t[:4]), np.unique(t[4:]))  # vertices only on the two-sided triangles
+    assert both.size and (ln[:, both] == 0).all()
+    assert np.allclose(ln[:, np.unique(t[4:])], 1.0)
