@@ -1,7 +1,7 @@
 """scripts/corpus.py: every glTF model under some folders through info, build and one frame in every LOD mode.
 
-On models the tests write (a skinned humanoid, a morph-animated keyframe quadruped, a file that is not glTF) and
-on ../shared/assets when present: no FAILED row, refusals are one sentence, a hang is caught and fails the run."""
+On the generated corpus (scripts/corpus_models.py: every class of real-world character of issue 20, and files no
+representation can draw), a file that is not glTF, and ../shared/assets when present: no FAILED row, refusals are one sentence, a hang is caught and fails the run."""
 import subprocess
 import sys
 from pathlib import Path
@@ -37,36 +37,37 @@ def rows(md_text: str) -> list:
 
 @pytest.fixture(scope="module")
 def generated(tmp_path_factory):
-    from lod.points.mode import keyframed_character
-    from sim.gltf.write import save_glb
-    from sim.procedural import humanoid, quadruped
+    sys.path.insert(0, str(REPO / "scripts"))
+    from corpus_models import write_models
 
     d = tmp_path_factory.mktemp("corpus")
-    save_glb(humanoid(600, seed=2), d / "walker.glb")
-    save_glb(keyframed_character(quadruped(600, seed=1), 4), d / "flag.glb")  # morph-target keyframes
+    write_models(d)
     (d / "broken.glb").write_bytes(b"glTF\x02\x00\x00\x00 this is not a glTF container")
     return d
 
 
 def test_generated_models_every_mode(generated, tmp_path):
+    """Every class of issue 20 (scripts/corpus_models.py) draws in every mode or is refused in one sentence."""
     md = tmp_path / "corpus.md"
     r = corpus(generated, "--md", md, "--size", 96, 64, cache=tmp_path / "cache")
     assert r.returncode == 0, r.stdout + r.stderr
     table = rows(md.read_text())
     by = {(x["model"], x["mode"]): x for x in table}
-    for model in ("walker.glb", "flag.glb"):
+    models = sorted(p.name for p in generated.glob("*.glb"))
+    assert len(models) >= 12 and len(table) == len(models) * len(MODES)
+    for model in models:
+        refused = model.startswith("refused_") or model == "broken.glb"
         for mode in MODES:
             row = by[(model, mode)]
+            if refused:  # one sentence naming the file, in every mode, not FAILED
+                assert row["result"] == "refused" and model in row["note"], row
+                continue
             assert row["result"] == "ok", row
             assert int(row["tris"].replace(",", "")) + int(row["points"].replace(",", "")) > 0, row
             if mode != "none":
                 assert row["psnr"] == "identical" or float(row["psnr"]) > 15.0, row
-    # the walker's point poses follow its clips: a count per clip
-    assert "walk " in by[("walker.glb", "points")]["poses"] and "run " in by[("walker.glb", "points")]["poses"]
-    # a file that is not glTF is refused in one sentence naming it, in every mode, not FAILED
-    for mode in MODES:
-        row = by[("broken.glb", mode)]
-        assert row["result"] == "refused" and "broken.glb" in row["note"], row
+    # the humanoid's point poses follow its clips: a count per clip
+    assert "walk " in by[("humanoid.glb", "points")]["poses"] and "run " in by[("humanoid.glb", "points")]["poses"]
     assert "0 FAILED" in md.read_text()
 
 
