@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.errors import require_float32
+
 #: dense sample times per second of clip at which the pose error is measured
 SAMPLE_FPS = 30.0
 #: fewest sample times per clip (a short clip is still sampled densely)
@@ -115,12 +117,15 @@ class _Curve:
         if morph is not None and morph.n_targets:  # skin ∘ morph (glTF 2.0 §3.7.2.2): morph the bind pose first
             dw = clip.morph_weights(morph, S) - np.asarray(morph.default_weights, np.float64)[None]  # (N, M)
             dp = np.asarray(morph.positions, np.float64)[:, idx]  # (M, m, 3)
-            self.P = np.empty((S.shape[0], p.shape[0], 3), np.float32)
+            P = np.empty((S.shape[0], p.shape[0], 3), np.float64)
             for i in range(S.shape[0]):
                 ph = np.concatenate([p + np.einsum("k,kvc->vc", dw[i], dp), np.ones((p.shape[0], 1))], axis=1)
-                self.P[i] = _skin_positions(self.mats[i:i + 1], self.joints, self.weights, ph)[0]
+                P[i] = _skin_positions(self.mats[i:i + 1], self.joints, self.weights, ph)[0]
         else:
-            self.P = _skin_positions(self.mats, self.joints, self.weights, self.ph).astype(np.float32)
+            P = _skin_positions(self.mats, self.joints, self.weights, self.ph)
+        # the same one-sentence error bake_skinned gives, before any float32 cast warns
+        require_float32(character, f"clip {clip.name!r}: skinned positions", P)
+        self.P = P.astype(np.float32)
 
     @property
     def n(self) -> int:
@@ -150,6 +155,7 @@ class _StreamCurve:
 
     def __init__(self, character, clip, S: np.ndarray):
         self.character, self.S, self.loop, self.d = character, S, bool(clip.loop), float(clip.duration)
+        self.name = clip.name
         self.mats = clip.skinning_matrices(character.skeleton, S)
         morph = getattr(character.mesh, "morph", None)
         self.weights = clip.morph_weights(morph, S) if morph is not None and morph.n_targets else None
@@ -163,8 +169,11 @@ class _StreamCurve:
         from sim.skinning import skin, skin_morph
 
         if self.weights is not None:
-            return skin_morph(self.character.mesh, self.mats[k], self.weights[k])[0]
-        return skin(self.character.mesh, self.mats[k])[0]
+            p = skin_morph(self.character.mesh, self.mats[k], self.weights[k])[0]
+        else:
+            p = skin(self.character.mesh, self.mats[k])[0]
+        require_float32(self.character, f"clip {self.name!r}: skinned positions", p)
+        return p
 
     def _key(self, k: int) -> np.ndarray:
         if k not in self._keys:
