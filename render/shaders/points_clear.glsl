@@ -1,6 +1,6 @@
 #version 430
-// Resets the anchor slots of the point splat to "empty" and their
-// touched-tile flags (render/points.py TILE) to 0. Default: every slot and
+// Resets the anchor slots of the point splat (depth and colour) to "empty" and
+// their touched-tile flags (render/points.py TILE) to 0. Default: every slot and
 // flag, one thread each. TILE_LIST: only the u_count slot tiles listed in
 // Dirty (those the last frame filled), one work group of TILE x TILE threads
 // per TILES_PER_GROUP tiles.
@@ -16,6 +16,7 @@ layout(local_size_x = TILE, local_size_y = TILE) in;
 layout(local_size_x = 256) in;
 #endif
 layout(std430, binding = 3) buffer Depth { uint depth[]; };
+layout(std430, binding = 4) buffer Color { uint color[]; };
 layout(std430, binding = 8) buffer Tiles { uint tiles[]; };
 layout(std430, binding = 10) readonly buffer Dirty { uint dirty[]; };
 uniform uint u_pixels;
@@ -32,12 +33,18 @@ void main() {
         if (e >= u_count) return;
         uint t = dirty[e];
         ivec2 s = ivec2(int(t) % u_tiles_x, int(t) / u_tiles_x) * TILE + ivec2(gl_LocalInvocationID.xy);
-        if (s.x < u_slots.x && s.y < u_slots.y) depth[s.y * u_slots.x + s.x] = 0xFFFFFFFFu;
+        if (s.x < u_slots.x && s.y < u_slots.y) {
+            depth[s.y * u_slots.x + s.x] = 0xFFFFFFFFu;
+            color[s.y * u_slots.x + s.x] = 0xFFFFFFFFu;
+        }
         if (gl_LocalInvocationIndex == 0u) tiles[t] = 0u;
     }
 #else
     uint g = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 256u;
-    if (g < u_pixels) depth[g] = 0xFFFFFFFFu;
+    if (g < u_pixels) {
+        depth[g] = 0xFFFFFFFFu;
+        color[g] = 0xFFFFFFFFu;
+    }
     if (g < u_ntiles) tiles[g] = 0u;
 #endif
 }

@@ -11,7 +11,8 @@
 // first point of an anchor marks the anchor's TILE x TILE tile
 // (render/points.py clears and resolves only marked tiles).
 // COLOR_PASS: the point whose depth won its anchor loads its normal and
-// colour (only then) and writes its lit RGBA8 colour there. The resolve pass takes, per pixel, the nearest of the s x s
+// colour (only then) and writes its lit RGBA8 colour there (atomicMin: of
+// points tied in depth the smallest colour, deterministically). The resolve pass takes, per pixel, the nearest of the s x s
 // anchors whose footprints cover it: the same minimum as scattering into the
 // whole footprint, with one atomic per point instead of s * s.
 // (llvmpipe has no 64-bit atomics, so depth and index cannot be packed into
@@ -99,7 +100,10 @@ void splat_job(uint j) {
             vec4 h = vec4(p, 1.0);
             vec3 world = vec3(dot(m0, h), dot(m1, h), dot(m2, h));
             vec3 nw = vec3(dot(m0.xyz, n), dot(m1.xyz, n), dot(m2.xyz, n));
-            color[slot] = packUnorm4x8(vec4(shade(world, nw, c.rgb), 1.0));
+            // points at the same depth (a tie) all pass the test above: the
+            // smallest packed colour wins, so the image does not depend on the
+            // order the threads run in (a plain store did)
+            atomicMin(color[slot], packUnorm4x8(vec4(shade(world, nw, c.rgb), 1.0)));
         }
 #else
         // the first point of an anchor marks its tile (every writer stores the
