@@ -144,11 +144,11 @@ def hierarchy_selectors(quiet: bool = True):
     dict with "reps" (every rep to upload) and a selector per mode name
     ("auto": all candidates, the default cost model)
     """
-    from lod.auto import mode as auto_mode
-    from lod.clusters import mode as clusters_mode
     from lod.auto import cost_model as cm
-    from lod.points import mode as points_mode
+    from lod.auto import mode as auto_mode
     from lod.chains import mode as triangles_mode
+    from lod.clusters import mode as clusters_mode
+    from lod.points import mode as points_mode
 
     ch = humanoid(HIER_TRIANGLES, 1)
     prog = False if quiet else None

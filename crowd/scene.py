@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from crowd.errors import SceneError
-from lod.modes import mode_names as _mode_names, mode_params as _mode_params
+from lod.modes import mode_names as _mode_names
+from lod.modes import mode_params as _mode_params
 from sim.params import Param, ParamError, validate
 
 #: character generators accepted by ``[[characters]] generator``

@@ -64,8 +64,15 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from sim.config import (BOIDS_ALIGN_TAU, BOIDS_CANDIDATE_FACTOR, BOIDS_COHESION_TAU, BOIDS_COINCIDENT_A,
-                        BOIDS_COINCIDENT_B, BOIDS_CRUISE_TAU, BOIDS_SPEED_EPS)
+from sim.config import (
+    BOIDS_ALIGN_TAU,
+    BOIDS_CANDIDATE_FACTOR,
+    BOIDS_COHESION_TAU,
+    BOIDS_COINCIDENT_A,
+    BOIDS_COINCIDENT_B,
+    BOIDS_CRUISE_TAU,
+    BOIDS_SPEED_EPS,
+)
 from sim.grid import Grid, build_grid, build_grid_numpy, cell_key, keys_numpy
 from sim.params import Param, ParamError
 

@@ -5,9 +5,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.keyframes import KeyframeAnimation
 from sim.mesh import Mesh
 from sim.skeleton import Skeleton
-from sim.keyframes import KeyframeAnimation
 
 
 @dataclass

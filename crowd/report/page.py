@@ -10,7 +10,6 @@ import math
 from crowd.report.runs import STAGE_COLUMNS
 from crowd.report.settings import _fmt_value
 
-
 _CSS = """body{font-family:sans-serif;margin:1.5em;max-width:1200px;color:#222}
 table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 7px;font-size:13px}
 th{background:#eee}td.n{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%}

@@ -35,8 +35,16 @@ from crowd.report.compare import MAD_TO_SIGMA, MIN_REGRESSION, NOISE_K, compare_
 from crowd.report.metrics import aggregate, metrics_task
 from crowd.report.page import render_html
 from crowd.report.plots import _plots
-from crowd.report.runs import (STAGE_COLUMNS, RunData, _checked, _is_reference, _reference_scene, frame_seconds,
-                               run_task, test_sleep_seconds)
+from crowd.report.runs import (
+    STAGE_COLUMNS,
+    RunData,
+    _checked,
+    _is_reference,
+    _reference_scene,
+    frame_seconds,
+    run_task,
+    test_sleep_seconds,
+)
 from crowd.report.settings import expand_settings
 
 #: default number of sampled (compared) frames per run

@@ -73,10 +73,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
-from lod.clusters import cut as cluster_cut
 from lod.chains import chain as tm_chain
+from lod.clusters import cut as cluster_cut
 from lod.drawlist import DrawBatch
+from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
 
 
 @dataclass

@@ -126,15 +126,15 @@ import numpy as np
 
 from lod.auto import candidates as ac
 from lod.auto import cost_model
+from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
+from lod.auto.plans import _Block, _Plan, _plans_kernel
 from lod.chains import chain as tm_chain
 from lod.chains import mode as tm
-from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
-from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
-from lod.auto.plans import _Block, _Plan, _plans_kernel
-from lod.clusters.cut import viewport_scale
 from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES
+from lod.clusters.cut import viewport_scale
 from lod.drawlist import DrawList
 from lod.full.mode import NoLodSelector
+from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
 from sim.params import Param
 
 #: candidate representations mode "auto" can choose among (``[lod] candidates``)

@@ -11,16 +11,16 @@ from pathlib import Path
 
 import numpy as np
 
+from lod.atomic_io import atomic_open
 from lod.clusters import poses
+from lod.clusters.dag import skin_poses
+from lod.clusters.mode import cache_dir, cache_key
+from lod.clusters.morph import NEVER_REMOVED
+from lod.drawlist import DrawBatch
+from lod.full.reps import SkinnedRep
 from lod.simplify import collapse as qem
 from lod.simplify import distance as qem_distance
 from lod.simplify import quadrics as qem_quadrics
-from lod.atomic_io import atomic_open
-from lod.clusters.dag import skin_poses
-from lod.clusters.morph import NEVER_REMOVED
-from lod.clusters.mode import cache_dir, cache_key
-from lod.drawlist import DrawBatch
-from lod.full.reps import SkinnedRep
 
 #: bump when the cached file layout or its meaning changes
 FORMAT_VERSION = 2  # 2: the vertex collapses (geomorph targets)

@@ -82,16 +82,20 @@ import numpy as np
 from numba import njit
 from tqdm import tqdm
 
-from lod.clusters import clustering
-from lod.clusters import deformation
-from lod.clusters import poses
+from lod.atomic_io import atomic_open
+from lod.clusters import clustering, deformation, poses
+from lod.clusters.config import (
+    CLUSTERS_DEFORM_TOLERANCE,
+    CLUSTERS_LEAF_TRIANGLES,
+    CLUSTERS_POSE_D_FRACTION,
+    CLUSTERS_POSE_SAMPLES,
+    CLUSTERS_PROGRESS_SECONDS,
+    CLUSTERS_SIMPLIFY_RATIO,
+    CLUSTERS_SPHERE_PAD,
+)
 from lod.simplify import collapse as qem
 from lod.simplify import distance as qem_distance
 from lod.simplify import quadrics as qem_quadrics
-from lod.atomic_io import atomic_open
-from lod.clusters.config import (CLUSTERS_DEFORM_TOLERANCE, CLUSTERS_LEAF_TRIANGLES, CLUSTERS_POSE_D_FRACTION,
-                                 CLUSTERS_POSE_SAMPLES, CLUSTERS_PROGRESS_SECONDS, CLUSTERS_SIMPLIFY_RATIO,
-                                 CLUSTERS_SPHERE_PAD)
 from sim.errors import require_float32
 
 CLUSTERINGS = ("error-aware", "octree")

@@ -46,8 +46,8 @@ import numpy as np
 from numba import njit
 
 from lod.clusters import cut as cluster_cut
-from lod.clusters.dag import ClusterHierarchy, build_cluster_hierarchy
 from lod.clusters.config import CLUSTERS_DEFAULT_POE, CLUSTERS_LEAF_TRIANGLES
+from lod.clusters.dag import ClusterHierarchy, build_cluster_hierarchy
 from lod.drawlist import DrawBatch, DrawList
 from lod.full.mode import NoLodSelector
 from lod.full.reps import SkinnedRep, build_rep, build_skinned_rep

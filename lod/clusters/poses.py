@@ -25,8 +25,12 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from lod.clusters.config import (CLUSTERS_MDS_DIMS, CLUSTERS_POSE_D_FRACTION, CLUSTERS_POSE_SAMPLES,
-                                 CLUSTERS_POSE_SPLIT_FACTOR)
+from lod.clusters.config import (
+    CLUSTERS_MDS_DIMS,
+    CLUSTERS_POSE_D_FRACTION,
+    CLUSTERS_POSE_SAMPLES,
+    CLUSTERS_POSE_SPLIT_FACTOR,
+)
 
 
 def sample_times(clip, n: int = CLUSTERS_POSE_SAMPLES) -> np.ndarray:

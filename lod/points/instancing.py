@@ -69,9 +69,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from lod.points import config as C
 from lod.full.pack import model_rows
 from lod.full.reps import KeyframedRep
+from lod.points import config as C
 from lod.points.filter import gaussian_filter
 from lod.points.octree import ATTR_DTYPE, PointHierarchy
 from lod.points.sampling import candidate_count, max_area, sample_triangles, triangle_vertices

@@ -42,13 +42,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lod.points import config as C
 from lod.drawlist import DrawList
 from lod.full.mode import NoLodSelector
 from lod.full.reps import KeyframedRep, build_keyframed_rep
-from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
+from lod.points import config as C
 from lod.points.octree import PointHierarchy
 from lod.points.poses import clip_poses
+from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
 from lod.points.traverse import _traverse_kernel, traverse, viewport_scale
 from sim.params import Param
 

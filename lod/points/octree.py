@@ -61,13 +61,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from lod.points import config as C
 from lod.atomic_io import atomic_open
+from lod.points import config as C
 from lod.points.filter import filter_points, filter_set
-from lod.points.sampling import (candidate_count, interval_areas, interval_thinning, max_area, sample_triangles,
-                                 triangle_vertices)
+from lod.points.sampling import (
+    candidate_count,
+    interval_areas,
+    interval_thinning,
+    max_area,
+    sample_triangles,
+    triangle_vertices,
+)
 from lod.points.stratify import choose_interval_times, interval_times, stratify_async, worker_count
-
 
 #: storage type of the points' filtered colours and normals (see PointHierarchy)
 ATTR_DTYPE = np.float16

@@ -38,7 +38,6 @@ from numba import njit
 
 from lod.points.config import POINTS_BIN_RATIO, POINTS_MAX_CANDIDATES, POINTS_SAFETY_FACTOR
 
-
 # --------------------------------------------------------------------------- geometry helpers
 
 def triangle_vertices(p: np.ndarray, indices: np.ndarray) -> np.ndarray:

@@ -47,10 +47,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from lod.view import Camera
 from sim.mesh import Mesh
 from sim.terrain import Terrain
-
-from lod.view import Camera
 
 #: default screen-space error bound (pixels)
 TERRAIN_LOD_TAU = 1.0

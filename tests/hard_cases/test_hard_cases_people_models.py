@@ -73,8 +73,9 @@ def test_people_models_in_every_lod_mode(gl_ctx, name, mode, model_dir, tmp_path
     for a, b in zip(got, ref):
         assert b.sum() > 100  # the reference draws the crowd
         recall = (a & b).sum() / b.sum()
-        if mode == "points":  # round splats of at least a pixel cover more of a thin model; fixed keyframe poses
-            assert recall >= 0.8 and a.sum() <= 3 * b.sum(), (recall, a.sum(), b.sum())
+        if mode == "points":  # round splats of at least a pixel cover more of a thin model; baked poses within
+            # pose_error (2 % of the extent) shift thin silhouettes a little (the 0.1 s clip: recall 0.80)
+            assert recall >= 0.75 and a.sum() <= 3 * b.sum(), (recall, a.sum(), b.sum())
         else:
             iou = (a & b).sum() / (a | b).sum()
             assert iou >= 0.9, iou
