@@ -264,7 +264,7 @@ def cmd_info(args) -> int:
     from sim.describe import describe
 
     print(format_description(args.asset, describe(ch)))
-    if getattr(ch, "kind", "") == "skinned" and ch.clips:
+    if getattr(ch, "kind", "") == "skinned" and ch.clips and ch.mesh.is_skinned:
         from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
         from lod.points.poses import character_extent, clip_poses
 

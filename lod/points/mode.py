@@ -284,7 +284,7 @@ def memory_estimate(characters, params: dict) -> int:
     total = 0
     for ch in characters:
         kind = getattr(ch, "kind", None)
-        if kind == "skinned":
+        if kind == "skinned" and ch.mesh.is_skinned:
             tris = int(np.asarray(ch.mesh.indices).reshape(-1, 3).shape[0])
             poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
             segs = sum(len(cp.times) for cp in poses.values())
@@ -294,6 +294,8 @@ def memory_estimate(characters, params: dict) -> int:
                 segs += len(a.segments)
                 tris = max(tris, max((int(np.asarray(k.indices).reshape(-1, 3).shape[0]) for k in a.keyframes),
                                      default=0))
+        elif kind is not None:  # a character points cannot bake: nothing built for it here
+            continue
         else:  # a spec: only generators say their size before building
             tris = int(getattr(ch, "triangles", 0) or (5000 if getattr(ch, "generator", None) else 0))
             segs = C.GENERATOR_SEGMENTS

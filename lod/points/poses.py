@@ -96,7 +96,8 @@ def _skin_positions(mats: np.ndarray, joints: np.ndarray, weights: np.ndarray, p
 
 def _loop_jump(curve, i: int, j: int) -> bool:
     """True for an interval that wraps through the loop point and is no longer
-    than one sample spacing: the clip's own jump (module docstring)."""
+    than 1 / SAMPLE_FPS (one frame of full detail's 30 fps bake): the clip's own
+    jump (module docstring)."""
     return curve.loop and j == curve.n and curve.d + curve.S[0] - curve.S[i] <= 1.0 / SAMPLE_FPS + 1e-9
 
 
