@@ -69,7 +69,8 @@ demo: setup
 	@echo "frames, frames.csv, summary.json and trace.json are in out/quickstart/"
 
 # pytest exit code 5 (no tests collected) is a failure here.
-test: setup test-packages
+test: setup
+	@$(MAKE) --no-print-directory test-packages
 	@$(VPY) -m pytest $(PYTEST_ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "error: pytest collected no tests" >&2; exit 1; fi; exit $$rc
 

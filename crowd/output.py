@@ -40,12 +40,20 @@ def _alive(pid: int) -> bool:
 
 def remove_stale_siblings(final: Path) -> list:
     """Remove ``.<name>.tmp-<pid>`` / ``.<name>.old-<pid>`` folders beside ``final``
-    left by runs whose process no longer exists; returns the removed paths."""
+    left by runs whose process no longer exists; returns the removed paths.
+
+    A run killed between its two renames (:func:`atomic_dir`) left no ``final``
+    but the previous, complete output as ``.old-<pid>``: that one is moved back
+    to ``final`` instead of removed. Only processes of this PID namespace are
+    seen: a run writing to the same folder from another container counts as gone."""
     removed = []
-    for kind in ("tmp", "old"):
-        for p in final.parent.glob(f".{final.name}.{kind}-*"):
+    for kind in ("old", "tmp"):
+        for p in sorted(final.parent.glob(f".{final.name}.{kind}-*")):
             pid = p.name.rsplit("-", 1)[-1]
             if p.is_dir() and pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+                if kind == "old" and not final.exists():
+                    os.replace(p, final)
+                    continue
                 shutil.rmtree(p, ignore_errors=True)
                 removed.append(p)
     return removed

@@ -4,7 +4,7 @@ One generated humanoid with two clips: its 1.1 s walk and a 30 s varied clip
 (``sim.procedural.varied_clip``: its walk and run, time-warped section by
 section). Mode points is built for each setting: the default (per clip the
 fewest poses within ``pose_error``, ``lod.points.poses``) and the earlier fixed
-9 poses per clip. One agent is drawn close up (camera 3 m away at chest
+9 poses per clip (with ``--max-keyframes``: the default with that cap only). One agent is drawn close up (camera 3 m away at chest
 height, 640x360) at a dozen times spread over each clip, by mode none (full
 detail, the reference) and by mode points; the table gives per setting and
 clip the poses baked, the pose error (largest vertex distance between the

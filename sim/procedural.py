@@ -630,7 +630,7 @@ def varied_clip(character: SkinnedCharacter, duration: float, seed: int = 0, nam
         m = which == c
         if m.any():
             src = character.clips[cn]
-            T[m], R[m], _ = src.sample_times(character.skeleton, phase[m] * max(float(src.duration), 1e-9))
+            T[m], R[m], _ = src.sample_times(character.skeleton, phase[m])  # phase: seconds of the source clip
     chans = []
     for j in range(J):
         chans.append(Channel(j, "translation", times.copy(), T[:, j].copy()))

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lod.points.config import POINTS_MAX_POSES
 from sim.errors import require_float32
 
 #: dense sample times per second of clip at which the pose error is measured
@@ -43,6 +44,8 @@ SAMPLE_FPS = 30.0
 MIN_SAMPLES = 16
 #: vertices the search measures (evenly strided); every vertex is verified after
 SEARCH_VERTICES = 4096
+#: samples whose interpolation error is evaluated at once (bounds the scratch memory)
+CHUNK = 64
 
 
 @dataclass
@@ -94,11 +97,16 @@ def _skin_positions(mats: np.ndarray, joints: np.ndarray, weights: np.ndarray, p
     return out
 
 
+def _spacing(clip) -> float:
+    """Seconds between two of the clip's dense samples (:func:`sample_times`)."""
+    d = float(clip.duration)
+    return d / max(1, sample_times(clip).shape[0] - (0 if clip.loop else 1)) if d > 0.0 and np.isfinite(d) else 0.0
+
+
 def _loop_jump(curve, i: int, j: int) -> bool:
     """True for an interval that wraps through the loop point and is no longer
-    than 1 / SAMPLE_FPS (one frame of full detail's 30 fps bake): the clip's own
-    jump (module docstring)."""
-    return curve.loop and j == curve.n and curve.d + curve.S[0] - curve.S[i] <= 1.0 / SAMPLE_FPS + 1e-9
+    than one sample spacing: the clip's own jump (module docstring)."""
+    return curve.loop and j == curve.n and curve.d + curve.S[0] - curve.S[i] <= curve.spacing * (1 + 1e-9)
 
 
 class _Curve:
@@ -114,19 +122,20 @@ class _Curve:
         self.weights = np.asarray(mesh.weights, np.float64)[idx]
         self.S, self.loop, self.d = S, bool(clip.loop), float(clip.duration)
         self.mats = clip.skinning_matrices(character.skeleton, S)
+        self.spacing = _spacing(clip)
         morph = getattr(mesh, "morph", None)
-        if morph is not None and morph.n_targets:  # skin ∘ morph (glTF 2.0 §3.7.2.2): morph the bind pose first
+        if morph is not None and morph.n_targets:
             dw = clip.morph_weights(morph, S) - np.asarray(morph.default_weights, np.float64)[None]  # (N, M)
             dp = np.asarray(morph.positions, np.float64)[:, idx]  # (M, m, 3)
-            P = np.empty((S.shape[0], p.shape[0], 3), np.float64)
-            for i in range(S.shape[0]):
+        self.P = np.empty((S.shape[0], p.shape[0], 3), np.float32)
+        for i in range(S.shape[0]):  # one sample at a time: no (samples, vertices) float64 array
+            ph = self.ph
+            if morph is not None and morph.n_targets:  # skin ∘ morph (glTF 2.0 §3.7.2.2): morph the bind pose first
                 ph = np.concatenate([p + np.einsum("k,kvc->vc", dw[i], dp), np.ones((p.shape[0], 1))], axis=1)
-                P[i] = _skin_positions(self.mats[i:i + 1], self.joints, self.weights, ph)[0]
-        else:
-            P = _skin_positions(self.mats, self.joints, self.weights, self.ph)
-        # the same one-sentence error bake_skinned gives, before any float32 cast warns
-        require_float32(character, f"clip {clip.name!r}: skinned positions", P)
-        self.P = P.astype(np.float32)
+            q = _skin_positions(self.mats[i:i + 1], self.joints, self.weights, ph)[0]
+            # the same one-sentence error bake_skinned gives, before any float32 cast warns
+            require_float32(character, f"clip {clip.name!r}: skinned positions", q)
+            self.P[i] = q
 
     @property
     def n(self) -> int:
@@ -141,13 +150,17 @@ class _Curve:
         b = self.P[j % self.n].astype(np.float64)
         t0 = self.S[i]
         t1 = self.S[j] if j < self.n else self.d + self.S[0]
-        ks = np.arange(i + 1, j)
-        u = (self.S[ks] - t0) / (t1 - t0)
-        lerp = (1.0 - u)[:, None, None] * a[None] + u[:, None, None] * b[None]
-        err = np.linalg.norm(lerp - self.P[ks], axis=2).max(axis=1)
-        w = int(np.argmax(err))
-        e = float(err[w])
-        return (e if np.isfinite(e) else math.inf), int(ks[w])
+        best, arg = -1.0, -1
+        for c0 in range(i + 1, j, CHUNK):  # in chunks: a long first interval holds half the clip's samples
+            ks = np.arange(c0, min(c0 + CHUNK, j))
+            u = (self.S[ks] - t0) / (t1 - t0)
+            lerp = (1.0 - u)[:, None, None] * a[None] + u[:, None, None] * b[None]
+            err = np.linalg.norm(lerp - self.P[ks], axis=2).max(axis=1) if ks.size and a.size else np.zeros(ks.size)
+            w = int(np.argmax(err))
+            e = float(err[w]) if np.isfinite(err[w]) else math.inf
+            if e > best:
+                best, arg = e, int(ks[w])
+        return best, arg
 
 
 class _StreamCurve:
@@ -156,7 +169,7 @@ class _StreamCurve:
 
     def __init__(self, character, clip, S: np.ndarray):
         self.character, self.S, self.loop, self.d = character, S, bool(clip.loop), float(clip.duration)
-        self.name = clip.name
+        self.name, self.spacing = clip.name, _spacing(clip)
         self.mats = clip.skinning_matrices(character.skeleton, S)
         morph = getattr(character.mesh, "morph", None)
         self.weights = clip.morph_weights(morph, S) if morph is not None and morph.n_targets else None
@@ -190,14 +203,15 @@ class _StreamCurve:
         best, arg = -1.0, -1
         for k in range(i + 1, j):
             u = (self.S[k] - t0) / (t1 - t0)
-            e = float(np.linalg.norm((1.0 - u) * a + u * b - self._pose(k), axis=1).max())
+            d = np.linalg.norm((1.0 - u) * a + u * b - self._pose(k), axis=1)
+            e = float(d.max()) if d.size else 0.0
             e = e if np.isfinite(e) else math.inf
             if e > best:
                 best, arg = e, k
         return best, arg
 
 
-def _refine(curve, keys: list, bound: float, max_poses: int) -> tuple[list, bool]:
+def _refine(curve, keys: list, bound: float, max_poses: int) -> tuple[list, bool, float]:
     """Split the worst interval at its worst sample until all are within
     ``bound`` or ``max_poses`` keys exist. keys: sorted sample indices.
     Returns (sorted keys, capped, the largest interval error left)."""
@@ -238,7 +252,7 @@ def clip_error(character, clip, times: np.ndarray) -> tuple[float, list]:
     return worst, out
 
 
-def choose_poses(character, clip, bound: float, max_poses: int = 256) -> ClipPoses:
+def choose_poses(character, clip, bound: float, max_poses: int = POINTS_MAX_POSES) -> ClipPoses:
     """The fewest poses (greedy) keeping the pose error of ``clip`` within ``bound`` metres.
 
     Parameters
@@ -254,7 +268,7 @@ def choose_poses(character, clip, bound: float, max_poses: int = 256) -> ClipPos
     """
     max_poses = max(2, int(max_poses))
     S = sample_times(clip)
-    if S.shape[0] < 2:
+    if S.shape[0] < 2 or np.asarray(character.mesh.positions).shape[0] == 0:
         return ClipPoses(np.zeros(1), 0.0, float(bound))
     V = int(np.asarray(character.mesh.positions).shape[0])
     sub = None if V <= SEARCH_VERTICES else np.unique(np.linspace(0, V - 1, SEARCH_VERTICES).astype(np.int64))
@@ -278,7 +292,7 @@ def uniform_poses(character, clip, count: int) -> ClipPoses:
     return ClipPoses(times, float(err), math.inf)
 
 
-def clip_poses(character, keyframes: int, pose_error: float, max_poses: int = 256) -> dict:
+def clip_poses(character, keyframes: int, pose_error: float, max_poses: int = POINTS_MAX_POSES) -> dict:
     """Clip name -> :class:`ClipPoses` for every clip of a skinned character:
     ``keyframes`` evenly spaced poses when > 0, else the fewest within
     ``pose_error`` times the character's extent (:func:`character_extent`)."""

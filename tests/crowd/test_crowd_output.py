@@ -97,3 +97,25 @@ def test_a_killed_runs_temporary_folder_is_removed_by_the_next_run(tmp_path):
         (tmp / "x").write_text("ok")
     assert not killed.exists() and not old.exists()
     assert live.is_dir() and other.is_dir() and (final / "x").read_text() == "ok"
+
+
+def test_a_run_killed_between_its_renames_gets_its_previous_output_back(tmp_path):
+    """Killed after moving the previous output aside and before moving the new one in: no ``final``, a complete
+    ``.old-PID`` and a ``.tmp-PID``. The next run puts the previous output back before it starts."""
+    import signal
+    import subprocess
+    import sys
+
+    from crowd.output import remove_stale_siblings
+
+    final = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    old = tmp_path / f".run.old-{p.pid}"
+    old.mkdir()
+    (old / "summary.json").write_text("{}")
+    (tmp_path / f".run.tmp-{p.pid}").mkdir()
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    remove_stale_siblings(final)
+    assert (final / "summary.json").read_text() == "{}"
+    assert not old.exists() and not (tmp_path / f".run.tmp-{p.pid}").exists()
