@@ -162,16 +162,19 @@ def _load(doc: _Doc):
     return _load_skinned(doc, g, mesh_nodes, skinned_nodes, prims, trs_targets & in_scene, morph_nodes)
 
 
-def _target_slots(doc: _Doc, prims, morph_nodes) -> tuple[dict, list]:
-    """First merged target index of every morph node, and the merged target names."""
+def _target_slots(doc: _Doc, prims, morph_nodes, notes: list | None = None) -> tuple[dict, list]:
+    """First merged target index of every morph node, and the merged target names.
+
+    glTF 2.0 §3.7.2.2 asks every primitive of a mesh for the same number of targets; a file that breaks this is
+    read leniently: the missing targets of the shorter primitives are zero deltas (noted in ``notes``)."""
     first, names = {}, []
     for ni in morph_nodes:
         nd = doc.item("nodes", ni)
         counts = {len(p.targets) for p in prims[ni]}
-        if len(counts) != 1:
-            doc.fail(f"meshes[{nd['mesh']}]: primitives have different numbers of morph targets "
-                     f"({', '.join(map(str, sorted(counts)))}); glTF 2.0 §3.7.2.2 requires the same number")
-        nt = counts.pop()
+        if len(counts) != 1 and notes is not None:
+            notes.append(f"meshes[{nd['mesh']}]: primitives have different numbers of morph targets "
+                         f"({', '.join(map(str, sorted(counts)))}); the missing ones are read as zero deltas")
+        nt = max(counts)
         m = doc.item("meshes", nd["mesh"])
         ex = m.get("extras") if isinstance(m.get("extras"), dict) else {}
         tn = ex.get("targetNames")
@@ -279,7 +282,8 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
         inverse_bind=ib, root_transform=root_transform,
     )
     # ---- merged mesh (morph targets: deltas of every merged target over all vertices)
-    tfirst, tnames = _target_slots(doc, prims, morph_nodes)
+    target_notes: list = []
+    tfirst, tnames = _target_slots(doc, prims, morph_nodes, target_notes)
     DP, DN, DW = [], [], np.zeros(len(tnames))
     P, N, C, T, JO, W = [], [], [], [], [], []
     nv = 0
@@ -350,7 +354,7 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
             nv += p.shape[0]
     if zero_total:
         warnings.warn(f"{doc.name}: {zero_total} vertices have all-zero skin weights; bound to their mesh node's joint (or joint 0)", stacklevel=3)
-    notes = []
+    notes = list(target_notes)
     if off_count:
         sums = f"{off_lo:.3g}" if off_hi - off_lo < 0.005 else f"{off_lo:.3g} to {off_hi:.3g}"
         notes.append(f"skin weights normalised on {off_count} vertices (sums {sums})")
@@ -378,7 +382,7 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
             path_, node = tgt.get("path"), tgt.get("node")
             if path_ == "weights" and node in tfirst:
                 t, v, interp = _read_sampler(doc, ai, a, ch.get("sampler"), None)
-                nt = len(prims[node][0].targets)
+                nt = max(len(p.targets) for p in prims[node])
                 if v.shape[-1] != nt:
                     doc.fail(f"animations[{ai}].channels[{ci}]: {v.shape[-1]} weights per key, "
                              f"meshes[{doc.item('nodes', node)['mesh']}] has {nt} morph targets")
