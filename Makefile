@@ -4,8 +4,8 @@
 #                (fails when no test is collected)
 #   make bench   set up, then run the benchmark scenes (short default runs)
 #   make setup   .venv + the package with test extras + the system GL libraries (idempotent)
-#   make corpus  set up, then every glTF model in ../shared/assets (CORPUS_DIRS) through info, build and a frame in
-#                every LOD mode (scripts/corpus.py; the table goes to docs/corpus.md)
+#   make corpus  set up, then every glTF model in ../shared/assets (CORPUS_DIRS) and the generated corpus through
+#                info, build and a frame in every LOD mode (scripts/corpus.py; the table goes to docs/corpus.md)
 #   make report  set up, then the frame-time and accuracy report of the seven benchmark scenes
 #                (scripts/report_seeds.sh: out/report_seeds/<scene>/index.html and table.md)
 
@@ -84,7 +84,7 @@ bench: setup
 	done
 
 corpus: setup
-	$(VPY) scripts/corpus.py $(CORPUS_DIRS) --md docs/corpus.md
+	$(VPY) scripts/corpus.py $(CORPUS_DIRS) --with-generated --md docs/corpus.md
 
 report: setup
 	PYTHON=$(VPY) scripts/report_seeds.sh
