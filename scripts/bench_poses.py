@@ -53,6 +53,14 @@ def main(argv=None) -> int:
     ap.add_argument("--pose-error", type=float, default=None, help="default: the mode's (lod.points.config)")
     ap.add_argument("--max-keyframes", type=int, default=None, help="default: the mode's cap per clip")
     a = ap.parse_args(argv)
+    if not 500 <= a.triangles <= 200_000:
+        ap.error(f"--triangles: expected 500 ..= 200000, got {a.triangles}")
+    if not (a.duration > 0.0 and a.frames >= 1 and min(a.size) >= 16):
+        ap.error("--duration must be > 0 s, --frames >= 1 and --size at least 16 x 16")
+    if a.pose_error is not None and not 1e-4 <= a.pose_error <= 1.0:
+        ap.error(f"--pose-error: expected 1e-4 ..= 1 (a fraction of the character's size), got {a.pose_error}")
+    if a.max_keyframes is not None and not 2 <= a.max_keyframes <= 4096:
+        ap.error(f"--max-keyframes: expected 2 ..= 4096, got {a.max_keyframes}")
 
     base = humanoid(a.triangles, seed=4)
     ch = dataclasses.replace(base, clips={"walk": base.clip("walk"),

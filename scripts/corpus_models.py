@@ -47,7 +47,16 @@ def main(argv=None) -> int:
     if len(argv) != 1:
         print("usage: scripts/corpus_models.py DIR", file=sys.stderr)
         return 2
-    for p in write_models(argv[0]):
+    out = Path(argv[0])
+    if out.exists() and not out.is_dir():
+        print(f"{out}: exists and is not a folder; give a folder to write the models into", file=sys.stderr)
+        return 2
+    try:
+        paths = write_models(out)
+    except OSError as e:
+        print(f"{out}: cannot write the models there ({e.strerror})", file=sys.stderr)
+        return 2
+    for p in paths:
         print(p)
     return 0
 

@@ -98,23 +98,39 @@ def main(argv=None) -> int:
         lod.setdefault(mode, {})[k] = _value(v)
     scenes = sorted((ROOT / "scenes").glob("*.toml"))
     if a.scenes:
+        unknown = sorted(set(a.scenes) - {s.stem for s in scenes})
+        if unknown:
+            ap.error(f"--scenes: no scenes/{unknown[0]}.toml; accepted: {', '.join(s.stem for s in scenes)}")
         scenes = [s for s in scenes if s.stem in a.scenes]
     modes = a.modes or list(mode_names())
+    for m in set(modes) | set(lod):
+        if m not in mode_names():
+            ap.error(f"unknown LOD mode {m!r}; accepted: {', '.join(mode_names())}")
+    old = None
+    if a.compare:
+        try:
+            old = Path(a.compare).read_text(encoding="utf-8").splitlines()
+        except OSError as e:
+            ap.error(f"--compare {a.compare}: cannot read it ({e.strerror})")
+    from crowd.report.runs import _user_errors
+    from lod.atomic_io import write_atomic
+
     lines = []
     for s in scenes:
         for m in modes:
             t0 = time.perf_counter()
-            got = run_one(s, m, a.frames, tuple(a.size), lod)
+            try:
+                got = run_one(s, m, a.frames, tuple(a.size), lod)
+            except _user_errors() as e:  # e.g. a --lod key the mode does not accept: one sentence, exit 2
+                print(f"frame_digests: {s.name} in mode {m}: {str(e).splitlines()[0]}", file=sys.stderr)
+                return 2
             lines += got
             print(f"{s.stem:12s} {m:10s} {time.perf_counter() - t0:7.1f} s  " + " ".join(x.split()[-1][:12] for x in got),
                   flush=True)
     out = Path(a.out)
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    tmp.replace(out)
+    write_atomic(out, "\n".join(lines) + "\n")
     print(f"{len(lines)} lines -> {out}")
-    if a.compare:
-        old = Path(a.compare).read_text(encoding="utf-8").splitlines()
+    if old is not None:
         diff = sorted(set(old) ^ set(lines))
         for line in diff:
             print(("- " if line in old else "+ ") + line)

@@ -266,6 +266,8 @@ def choose_poses(character, clip, bound: float, max_poses: int = POINTS_MAX_POSE
     -------
     ClipPoses (at least 2 poses for a clip of positive duration; at most ``max_poses``)
     """
+    if not (math.isfinite(float(bound)) and float(bound) > 0.0):
+        raise ValueError(f"pose error bound: expected a positive number of metres, got {bound!r}")
     max_poses = max(2, int(max_poses))
     S = sample_times(clip)
     if S.shape[0] < 2 or np.asarray(character.mesh.positions).shape[0] == 0:
