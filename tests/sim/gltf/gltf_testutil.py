@@ -10,11 +10,12 @@ from __future__ import annotations
 import base64
 import json
 import os
-import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from gltf_builder import GltfBuilder, write_glb  # noqa: F401 (re-exported to the tests)
 
 from sim import math3d
 from sim.character import SkinnedCharacter
@@ -43,48 +44,6 @@ def skin_positions(mesh: Mesh, mats: np.ndarray) -> np.ndarray:
     p = np.c_[mesh.positions.astype(np.float64), np.ones(mesh.n_vertices)]
     M = np.einsum("vk,vkij->vij", mesh.weights.astype(np.float64), mats[mesh.joints.astype(np.int64)])
     return np.einsum("vij,vj->vi", M, p)[:, :3]
-
-
-class GltfBuilder:
-    """Tiny independent glTF writer for hand-made test files."""
-
-    def __init__(self):
-        self.blob = bytearray()
-        self.gltf = {"asset": {"version": "2.0"}, "buffers": [], "bufferViews": [], "accessors": []}
-
-    def view(self, raw: bytes, stride: int | None = None) -> int:
-        while len(self.blob) % 4:
-            self.blob.append(0)
-        v = {"buffer": 0, "byteOffset": len(self.blob), "byteLength": len(raw)}
-        if stride:
-            v["byteStride"] = stride
-        self.blob += raw
-        self.gltf["bufferViews"].append(v)
-        return len(self.gltf["bufferViews"]) - 1
-
-    def acc(self, arr, typ: str, ct: int | None = None, normalized: bool = False, **extra) -> int:
-        arr = np.ascontiguousarray(arr)
-        ct = ct or {np.float32: 5126, np.uint32: 5125, np.uint16: 5123, np.uint8: 5121}[arr.dtype.type]
-        nc = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[typ]
-        a = {"bufferView": self.view(arr.tobytes()), "componentType": ct, "count": arr.size // nc, "type": typ}
-        if normalized:
-            a["normalized"] = True
-        a.update(extra)
-        self.gltf["accessors"].append(a)
-        return len(self.gltf["accessors"]) - 1
-
-    def finish(self) -> tuple[dict, bytes]:
-        self.gltf["buffers"] = [{"byteLength": len(self.blob)}]
-        return self.gltf, bytes(self.blob)
-
-
-def write_glb(path: Path, gltf: dict, blob: bytes) -> Path:
-    js = json.dumps(gltf).encode()
-    js += b" " * (-len(js) % 4)
-    blob = blob + b"\0" * (-len(blob) % 4)
-    body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(blob), 0x004E4942) + blob
-    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
-    return path
 
 
 def write_gltf(path: Path, gltf: dict, blob: bytes, external: str | None = None) -> Path:
