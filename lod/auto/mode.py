@@ -629,7 +629,7 @@ def memory_estimate(characters, params: dict) -> int:
     if "clusters" in names:
         for ch in characters:
             mesh = getattr(ch, "mesh", None)
-            tris = (int(np.asarray(mesh.indices).reshape(-1, 3).shape[0]) if mesh is not None
+            tris = (mesh.n_triangles if mesh is not None
                     else int(getattr(ch, "triangles", 0) or 0))
             total += 80 * tris
     return int(total)

@@ -285,7 +285,7 @@ def memory_estimate(characters, params: dict) -> int:
     for ch in characters:
         kind = getattr(ch, "kind", None)
         if kind == "skinned" and ch.mesh.is_skinned:
-            tris = int(np.asarray(ch.mesh.indices).reshape(-1, 3).shape[0])
+            tris = ch.mesh.n_triangles
             poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
             segs = sum(len(cp.times) for cp in poses.values())
         elif kind == "keyframed":

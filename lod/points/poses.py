@@ -297,14 +297,24 @@ def uniform_poses(character, clip, count: int) -> ClipPoses:
 def clip_poses(character, keyframes: int, pose_error: float, max_poses: int = POINTS_MAX_POSES) -> dict:
     """Clip name -> :class:`ClipPoses` for every clip of a skinned character:
     ``keyframes`` evenly spaced poses when > 0, else the fewest within
-    ``pose_error`` times the character's extent (:func:`character_extent`)."""
-    bound = float(pose_error) * character_extent(character)
-    out = {}
-    for name in character.clips:
-        clip = character.clip(name)
-        out[name] = (uniform_poses(character, clip, keyframes) if int(keyframes) > 0
-                     else choose_poses(character, clip, bound, max_poses))
-    return out
+    ``pose_error`` times the character's extent (:func:`character_extent`).
+
+    The result is kept on the character (keyed by the parameters, its mesh and
+    clip objects): the memory guard and the build of one run ask for the same
+    poses, and the search is the costly part for long clips."""
+    key = (int(keyframes), float(pose_error), int(max_poses), id(character.mesh),
+           tuple((n, id(c)) for n, c in character.clips.items()))
+    memo = character.__dict__.setdefault("_clip_poses", {})
+    if key not in memo:
+        bound = float(pose_error) * character_extent(character)
+        out = {}
+        for name in character.clips:
+            clip = character.clip(name)
+            out[name] = (uniform_poses(character, clip, keyframes) if int(keyframes) > 0
+                         else choose_poses(character, clip, bound, max_poses))
+        memo.clear()  # one entry: the parameters of the run at hand
+        memo[key] = out
+    return dict(memo[key])
 
 
 __all__ = ["ClipPoses", "MIN_SAMPLES", "SAMPLE_FPS", "SEARCH_VERTICES", "character_extent", "choose_poses",
