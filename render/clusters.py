@@ -46,6 +46,7 @@ from numba import njit
 from lod.clusters.morph import collapse_table
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
+from render.tint import TintStream, instance_words
 
 #: bytes of one DrawElementsIndirectCommand (count, instanceCount, firstIndex, baseVertex, baseInstance)
 COMMAND_BYTES = 20
@@ -273,7 +274,8 @@ class Drawer:
         self.ctx = renderer.ctx
         self.strategy = strategy
         self._reps: dict = {}
-        self._objects: list = []
+        self._objects: list = [TintStream(self.ctx, "clusters.instance_tints")]
+        self._tints = self._objects[0]  # colour words beside _inst (render/tint.py)
         self._inst = None
         self._inst_cap = 0
         self._ind = None
@@ -362,7 +364,7 @@ class Drawer:
         vao = self.ctx.vertex_array(prog, [c for c in st.content if c[2] in prog], index_buffer=ibo,
                                     index_element_size=es)
         vao.label = f"{st.key}.vao_{program}_{'frame' if frame else 'ranges'}"
-        locs = {a: prog[a].location for a in ("i_m0", "i_m1", "i_m2", "i_anim") if a in prog}
+        locs = {a: prog[a].location for a in ("i_m0", "i_m1", "i_m2", "i_anim", "i_tint") if a in prog}
         st.vaos[key] = (vao, ibo, locs)
         st.objects.append(vao)
         return vao, locs
@@ -439,7 +441,8 @@ class Drawer:
                 continue
             data = np.concatenate(data)
             data[:, PALETTE_SLOT_FLOAT] = np.arange(k, dtype=np.float32)
-            items.append(SimpleNamespace(st=st, key=key, tint=tint, fade=fade, k=k, data=data,
+            words = instance_words(self.renderer.tint_table, np.concatenate(ids), tint)
+            items.append(SimpleNamespace(st=st, key=key, tint=tint, fade=fade, k=k, data=data, words=words,
                                          offsets=np.concatenate(offs + [np.array([base], np.int64)]),
                                          clusters=np.concatenate(cls), ids=np.concatenate(ids),
                                          part=np.concatenate(part), first_row=np.concatenate(first),
@@ -468,17 +471,18 @@ class Drawer:
             cmd = cmd[cmd[:, 0] > 0]
         else:
             cmd = range_commands(h.tri_start, co, cc, counts, starts)
-        return data, cmd, idx, counts.shape[0]
+        return data, it.words[sub[order]], cmd, idx, counts.shape[0]
 
     def _submit(self, items, subsets, pbases, stats) -> None:
         """Draw ``subsets[j]`` (instance indices) of every item: one multi-draw-indirect per item."""
         r, ctx = self.renderer, self.ctx
-        plans, datas, cmds, idxs = [], [], [], []
+        plans, datas, cmds, idxs, words = [], [], [], [], []
         n_cmd = n_idx = n_inst = 0
         for it, sub, pb in zip(items, subsets, pbases):
             if sub.size == 0:
                 continue
-            data, cmd, idx, n_groups = self._plan(it, sub, n_idx)
+            data, w, cmd, idx, n_groups = self._plan(it, sub, n_idx)
+            words.append(w)
             plans.append((it, pb, n_inst, data.shape[0], n_cmd, cmd.shape[0]))
             datas.append(data)
             cmds.append(cmd)
@@ -501,6 +505,7 @@ class Drawer:
         inst = self._grow("_inst", all_data.nbytes, "clusters.instances")
         inst.orphan(self._inst_cap)
         inst.write(all_data)
+        self._tints.write(np.concatenate(words))
         all_cmd = np.ascontiguousarray(np.concatenate(cmds), np.uint32)
         ind = self._grow("_ind", all_cmd.nbytes, "clusters.indirect")
         ind.orphan(self._ind_cap)
@@ -525,11 +530,9 @@ class Drawer:
                 prog["u_morph_f"].value = MORPH_FLOAT_UNIT
             prog["u_palette_base"].value = int(pb)
             prog["u_palette_stride"].value = 3 * st.skin.n_joints
-            if "u_tint" in prog:
-                prog["u_tint"].value = it.tint
             if "u_fade" in prog:
                 prog["u_fade"].value = getattr(it, "fade", (0.0, 0.0))
-            r._bind_instances(vao, locs, inst, off * INSTANCE_FLOATS * 4)
+            r._bind_instances(vao, locs, inst, off * INSTANCE_FLOATS * 4, self._tints)
             vao.render_indirect(ind, mode=ctx.TRIANGLES, count=nc, first=c0)
             stats["draws"] += 1
 

@@ -46,6 +46,7 @@ import numpy as np
 
 from lod.drawlist import fade_uniform
 from render.shaders import load_source, program_sources
+from render.tint import batch_words
 
 #: threads per work group of the splat passes (they stride over each job's points); 8 is
 #: llvmpipe's SIMD width and measured 2x faster than 64 there (mean job: 160
@@ -520,8 +521,6 @@ class Drawer:
             prog["u_sun"].value = tuple((s / np.linalg.norm(s)).tolist())
         if "u_ambient" in prog:
             prog["u_ambient"].value = AMBIENT
-        if "u_tint" in prog:
-            prog["u_tint"].value = (0.0, 0.0, 0.0, 0.0)
         if "u_fade" in prog:
             prog["u_fade"].value = (0.0, 0.0)
         for k, v in vals.items():
@@ -550,6 +549,8 @@ class Drawer:
         if not np.isfinite(inst).all():
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
         self._buffer("instances", inst).bind_to_storage_buffer(1)
+        # colour words per instance row (variation, debug colour: render/tint.py, shaders/tint.glsl)
+        self._buffer("tints", batch_words(batches, self.r.tint_table)).bind_to_storage_buffer(12)
         w, h = self.r.size
         vp = np.asarray(view_proj, np.float64)
         # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.temporal.selection) draw together

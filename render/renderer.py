@@ -61,6 +61,7 @@ from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.shaders import program_sources
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.timing import gpu_seconds
+from render.tint import TintStream, batch_words
 
 #: bytes per instance in the instance buffer
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
@@ -87,6 +88,7 @@ DEBUG_ENV = "CROWD_GL_DEBUG"
 MAX_TRIANGLES_IN_FLIGHT = 100_000
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
+_DRAW_ATTRS = (*_INSTANCE_ATTRS, "i_tint")  # + the colour words (render/tint.py)
 
 
 def joint_attribute(joints: np.ndarray, make_buffer) -> tuple:
@@ -192,6 +194,9 @@ class Renderer:
         self._instance_capacity = 0
         self._instances = None
         self._grow_instances(INITIAL_INSTANCES)
+        #: (n agents,) uint32 variation words (render.tint.variation_table) or None; the app sets it
+        self.tint_table = None
+        self._tint = self._track(TintStream(ctx), "crowd.instance_tints")
         self.palette_width = PALETTE_WIDTH
         self._palette_buf = None
         self._palette_tex = None
@@ -368,7 +373,7 @@ class Renderer:
         vao = ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4)
         vao.label = f"{rep.key}.vao"
         objs.append(vao)
-        locs = {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}
+        locs = {a: prog[a].location for a in _DRAW_ATTRS if a in prog}
         # capture VAO (transform feedback; no index buffer: one output per vertex)
         cprog = self.program(prog_name(kind, self.skinning), ("v_world", "v_normal"), defines)
         cvao = ctx.vertex_array(cprog, [c for c in content if c[2] in cprog])
@@ -413,7 +418,7 @@ class Renderer:
             tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key)
             g.objects.extend([vao, *tex])
             self._objects.extend([vao, *tex])
-            g.morph = (vao, {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}, tex)
+            g.morph = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog}, tex)
         vao, locs, (ti, tf) = g.morph
         ti.use(MORPH_INT_UNIT)
         tf.use(MORPH_FLOAT_UNIT)
@@ -447,11 +452,12 @@ class Renderer:
         return [*self._reps, *self._plugin_reps]
 
     # ------------------------------------------------------------------ drawing
-    def _bind_instances(self, vao, locs: dict, buffer, offset: int) -> None:
+    def _bind_instances(self, vao, locs: dict, buffer, offset: int, tints=None) -> None:
         for i, name in enumerate(_INSTANCE_ATTRS):
             loc = locs.get(name)
             if loc is not None:
                 vao.bind(loc, "f", buffer, "4f", offset=offset + 16 * i, stride=INSTANCE_BYTES, divisor=1)
+        (self._tint if tints is None else tints).bind(vao, locs.get("i_tint"), offset // INSTANCE_BYTES)
 
     def _render_instanced(self, g: _GpuRep, prog, palette_base, offset: int, vertices: int, first: int,
                           k: int, vao=None, locs=None) -> None:
@@ -523,6 +529,7 @@ class Renderer:
             self._grow_instances(total)
             self._instances.orphan(self._instance_capacity * INSTANCE_BYTES)
             self._instances.write(data)
+            self._tint.write(batch_words(batches, self.tint_table))  # colour words (render/tint.py)
         t1 = time.perf_counter()
         view_proj = np.asarray(drawlist.proj, np.float64) @ np.asarray(drawlist.view, np.float64)
         self.fbo.use()
@@ -568,9 +575,6 @@ class Renderer:
                 if i in palette:
                     prog["u_palette_base"].value = palette[i]
                     prog["u_palette_stride"].value = 3 * g.n_joints
-                if "u_tint" in prog:
-                    tint = getattr(b, "tint", None)
-                    prog["u_tint"].value = tuple(float(c) for c in tint) if tint is not None else (0.0, 0.0, 0.0, 0.0)
                 if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
                     prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
                 self._bind_instances(vao, locs, self._instances, offset)
@@ -613,46 +617,10 @@ class Renderer:
         return timings
 
     def capture(self, key: str, instance_data: np.ndarray, part: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Vertex positions and normals as the draw shader computes them.
+        """Vertex positions and normals as the draw shader computes them (``render.capture``)."""
+        from render.capture import capture
 
-        Runs the representation's vertex shader (the same GLSL, via transform
-        feedback) for each instance and returns camera-relative world
-        positions (k, V, 3) float32 and un-normalised normals (k, V, 3) float32,
-        V = vertices of the representation (all segments for keyframed reps;
-        ``part`` is unused and kept for symmetry with draws).
-        """
-        g = self._reps[key]
-        data = np.ascontiguousarray(instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
-        k = data.shape[0]
-        V = g.n_vertices
-        ctx = self.ctx
-        inst = ctx.buffer(data.tobytes())
-        out = ctx.buffer(reserve=max(1, k * V * 24))
-        try:
-            # a draw needs a complete framebuffer even with rasterisation
-            # discarded, and a headless context's default one is not
-            self.fbo.use()
-            prog = g.capture_vao.program
-            if "u_view_proj" in prog:
-                prog["u_view_proj"].write(np.eye(4, dtype=np.float32).tobytes())
-            if "u_joints" in prog:
-                prog["u_joints"].value = 0
-            if "u_palette" in prog:
-                base = self._build_palette([(g, inst, 0, k)])[0]
-                self.fbo.use()
-                prog["u_palette"].value = 1
-                prog["u_palette_base"].value = base
-                prog["u_palette_stride"].value = 3 * g.n_joints
-            if g.joints is not None:
-                g.joints.use(0)
-            use_targets(prog, g.targets)  # no-op without morph targets
-            self._bind_instances(g.capture_vao, g.capture_locs, inst, 0)
-            g.capture_vao.transform(out, ctx.POINTS, vertices=V, instances=k)
-            res = np.frombuffer(out.read(), np.float32).reshape(k, V, 6)
-        finally:
-            out.release()
-            inst.release()
-        return res[:, :, :3].copy(), res[:, :, 3:].copy()
+        return capture(self, key, instance_data, part)
 
     # ------------------------------------------------------------------ output
     def read_pixels(self) -> np.ndarray:

@@ -28,6 +28,6 @@ void main() {
     vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
     v_world = instance_point(p);
     v_normal = instance_dir(n);
-    v_color = in_color;
+    v_color = tint_color(in_color, i_tint);
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }

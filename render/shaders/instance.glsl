@@ -1,9 +1,13 @@
 // Per-instance data (instanced attributes, divisor 1): rows 0..2 of the
-// camera-relative model matrix and four animation floats (lod/drawlist.py).
+// camera-relative model matrix and four animation floats (lod/drawlist.py),
+// and the instance's colour words (variation, debug; render/tint.py), read by
+// tint_color (tint.glsl; unbound they are 0: true colours).
 in vec4 i_m0;
 in vec4 i_m1;
 in vec4 i_m2;
 in vec4 i_anim;
+in uvec2 i_tint;
+#include "tint.glsl"
 
 vec3 instance_point(vec3 p) {
     vec4 h = vec4(p, 1.0);

@@ -20,6 +20,6 @@ void main() {
     float u = clamp(i_anim.x, 0.0, 1.0);
     v_world = instance_point(mix(in_position0, in_position1, u));
     v_normal = instance_dir(mix(in_normal0, in_normal1, u));
-    v_color = mix(in_color0, in_color1, u);
+    v_color = tint_color(mix(in_color0, in_color1, u), i_tint);
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }

@@ -7,7 +7,6 @@ in vec4 v_color;
 
 uniform vec3 u_sun;       // unit direction towards the sun, world
 uniform float u_ambient;
-uniform vec4 u_tint;     // debug colouring: rgb mixed in with weight a (0 = true colours)
 #include "fade.glsl"
 
 out vec4 f_color;
@@ -19,6 +18,5 @@ void main() {
     float lv = dot(v_world, v_world);
     vec3 head = lv > 1e-20 ? -v_world * inversesqrt(lv) : vec3(0.0, 0.0, 1.0);
     float diffuse = 0.55 * abs(dot(n, u_sun)) + 0.35 * abs(dot(n, head));
-    vec3 base = mix(v_color.rgb, u_tint.rgb, u_tint.a);
-    f_color = vec4(base * (u_ambient + diffuse), 1.0);
+    f_color = vec4(v_color.rgb * (u_ambient + diffuse), 1.0);  // v_color: tinted (tint.glsl)
 }

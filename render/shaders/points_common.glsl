@@ -18,6 +18,9 @@ struct Sample {
 layout(std430, binding = 1) readonly buffer Instances { vec4 inst[]; };
 // jobs: (first sample, count, instance, exclusive prefix of counts)
 layout(std430, binding = 2) readonly buffer Jobs { uvec4 jobs[]; };
+// per-instance colour words (variation, debug), as the triangle paths' i_tint (tint.glsl)
+layout(std430, binding = 12) readonly buffer Tints { uvec2 tints[]; };
+#include "tint.glsl"
 
 uniform uint u_njobs;
 uniform vec3 u_sun;

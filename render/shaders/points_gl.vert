@@ -19,7 +19,7 @@ void main() {
     sample_at(pts[it.x], inst_u(i), p, n, c);
     v_world = inst_point(i, p);
     v_normal = inst_dir(i, n);
-    v_color = c;
+    v_color = tint_color(c, tints[i]);
     gl_PointSize = u_splat;
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }

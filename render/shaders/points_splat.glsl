@@ -103,7 +103,7 @@ void splat_job(uint j) {
             // points at the same depth (a tie) all pass the test above: the
             // smallest packed colour wins, so the image does not depend on the
             // order the threads run in (a plain store did)
-            atomicMin(color[slot], packUnorm4x8(vec4(shade(world, nw, c.rgb), 1.0)));
+            atomicMin(color[slot], packUnorm4x8(vec4(shade(world, nw, tint_color(c, tints[i]).rgb), 1.0)));
         }
 #else
         // the first point of an anchor marks its tile (every writer stores the

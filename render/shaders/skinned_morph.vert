@@ -37,6 +37,6 @@ void main() {
     morph_blend(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), true, gl_InstanceID, 0.0, p, n, color);
     v_world = instance_point(p);
     v_normal = instance_dir(n);
-    v_color = color;
+    v_color = tint_color(color, i_tint);
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }

@@ -14,6 +14,6 @@ out vec4 v_color;
 void main() {
     v_world = instance_point(in_position);
     v_normal = instance_dir(in_normal);
-    v_color = in_color;
+    v_color = tint_color(in_color, i_tint);
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }
