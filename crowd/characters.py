@@ -38,7 +38,30 @@ def build_character(spec: CharacterSpec):
         # warning naming the asset; NaN weights are refused in one sentence
         repair_mesh_weights(ch.mesh, str(spec.file or spec.generator), ch.skeleton.n_joints)
     ch.name = spec.name
+    if spec.variation is not None:
+        set_variation_mask(ch, dict(spec.variation).get("regions"))
     return ch
+
+
+def set_variation_mask(ch, regions=None) -> None:
+    """Write the colour-variation mask into the alpha of the character's vertex
+    colours (render/tint.py: 1 varies, 0 keeps its colour): 1 on the vertices of
+    ``regions`` (names of ``ch.regions``), everywhere when ``regions`` is None.
+    The alpha reaches every representation with the colours (chains, clusters,
+    point samples), so every LOD mode varies the same parts."""
+    import numpy as np
+
+    meshes = [ch.mesh] if ch.kind == "skinned" else [k for a in ch.animations.values() for k in a.keyframes]
+    for m in meshes:
+        col = np.array(m.vertex_colors() if hasattr(m, "vertex_colors") else m.colors, np.float32, copy=True)
+        if regions is None:
+            col[:, 3] = 1.0
+        else:
+            sel = np.zeros(col.shape[0], bool)
+            for r in regions:
+                sel |= np.asarray(ch.regions[r], bool)
+            col[:, 3] = sel.astype(np.float32)
+        m.colors = col
 
 
 def clip_names(character) -> list:

@@ -375,6 +375,7 @@ class Engine:
             from render.renderer import Renderer
 
             self.renderer = Renderer(self.scene.render.size)
+            self.renderer.tint_table = self.tint_table
             for rep in [*self.reps, *self.statics]:
                 self.renderer.upload(rep)
         return self.renderer
@@ -397,12 +398,24 @@ class Engine:
 
         self.close()
         self.renderer = Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx)
+        self.renderer.tint_table = self.tint_table
         for reps, _ in self._modes.values():
             for rep in reps:
                 self.renderer.upload(rep)
         for rep in self.statics:
             self.renderer.upload(rep)
         return self.renderer
+
+    @property
+    def tint_table(self):
+        """(n agents,) uint32 colour-variation words (``render.tint.variation_table``: from the scene
+        seed and each agent's index and character), or None when no character varies."""
+        if not hasattr(self, "_tint_table"):
+            from render.tint import variation_table
+
+            vs = [dict(c.variation) if c.variation else None for c in self.scene.characters]
+            self._tint_table = variation_table(self.scene.seed, self.world.state.character, vs) if any(vs) else None
+        return self._tint_table
 
     @property
     def static_keys(self) -> frozenset:

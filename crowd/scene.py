@@ -56,7 +56,20 @@ CHARACTER_SCHEMA = {
     "seed": Param("int", None, min=0, doc="generator seed; default: scene seed"),
     "scale": Param("float", 1.0, doc="uniform scale, > 0"),
     "fps": Param("int", 30, min=1, max=240, doc="clip baking rate"),
+    "variation": Param("table", None, doc="per-agent colour variation (VARIATION_SCHEMA), or false; "
+                       "default: DEFAULT_VARIATION for generated humanoids, none otherwise"),
 }
+#: keys of ``[[characters]] variation`` (render/tint.py): per-agent hue/saturation/value shifts, or a palette
+VARIATION_SCHEMA = {
+    "hue": Param("float", 0.0, min=0.0, max=0.5, doc="largest hue shift, turns (each agent: uniform in +-hue)"),
+    "saturation": Param("float", 0.0, min=0.0, max=0.95, doc="largest relative saturation change"),
+    "value": Param("float", 0.0, min=0.0, max=0.95, doc="largest relative value (brightness) change"),
+    "palette": Param("list", None, doc="[[r, g, b], ...] in [0, 1]: each agent takes one, instead of the shifts"),
+    "regions": Param("list", None, doc="named regions that vary (generated humanoid: skin, hair, shirt, trousers, "
+                     "shoes); default: shirt and trousers of a humanoid, the whole mesh otherwise"),
+}
+#: the variation of a generated humanoid that sets none (``variation = false`` turns it off)
+DEFAULT_VARIATION = {"hue": 0.08, "saturation": 0.15, "value": 0.15, "regions": ("shirt", "trousers")}
 #: default ``triangles`` of a generated character
 DEFAULT_TRIANGLES = 5000
 
@@ -108,6 +121,7 @@ class CharacterSpec:
     seed: int
     scale: float
     fps: int
+    variation: tuple | None = None  # ((key, value), ...) of VARIATION_SCHEMA, or None: no colour variation
 
     def spec(self) -> str:
         """Short human-readable source, e.g. ``generator:humanoid:5000`` or the file path."""
@@ -341,7 +355,7 @@ class _Parser:
         out, names = [], {}
         for i, t in enumerate(self.array_of_tables("characters", True)):
             where = f"characters[{i}]"
-            c = validate(CHARACTER_SCHEMA, t, where)
+            c = validate(CHARACTER_SCHEMA, {k: v for k, v in t.items() if k != "variation"}, where)
             if not c["name"]:
                 self.fail(f"{where}.name", "expected a non-empty string")
             if c["name"] in names:
@@ -366,8 +380,39 @@ class _Parser:
                 triangles = DEFAULT_TRIANGLES
             out.append(CharacterSpec(name=c["name"], generator=c["generator"], file=file, triangles=triangles,
                                      seed=c["seed"] if c["seed"] is not None else scene_seed,
-                                     scale=c["scale"], fps=c["fps"]))
+                                     scale=c["scale"], fps=c["fps"],
+                                     variation=self.variation(t.get("variation"), f"{where}.variation", c["generator"])))
         return out
+
+    def variation(self, v, where: str, generator: str | None):
+        """The validated ``variation`` of a character as ((key, value), ...), or None (none)."""
+        if v is None:
+            return tuple(DEFAULT_VARIATION.items()) if generator == "humanoid" else None
+        if v is False:
+            return None
+        if not isinstance(v, dict):
+            self.fail(where, f"expected a table {{ hue = 0.06, value = 0.15, ... }} or false, got {v!r}")
+        c = validate(VARIATION_SCHEMA, v, where)
+        pal = c["palette"]
+        if pal is not None:
+            if not pal or not all(isinstance(p, list) and len(p) == 3 and all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) and 0.0 <= x <= 1.0 for x in p) for p in pal):
+                self.fail(f"{where}.palette", f"expected a non-empty list of [r, g, b] in [0, 1], got {pal!r}")
+            c["palette"] = tuple(tuple(float(x) for x in p) for p in pal)
+        if c["regions"] is not None:
+            from sim.procedural import HUMANOID_REGIONS
+
+            if generator != "humanoid":
+                self.fail(f"{where}.regions", "only a generated humanoid has named regions; leave it out to vary "
+                          "the whole mesh")
+            bad = [r for r in c["regions"] if r not in HUMANOID_REGIONS]
+            if bad or not c["regions"]:
+                self.fail(f"{where}.regions", f"expected a non-empty list of {', '.join(HUMANOID_REGIONS)}, "
+                          f"got {c['regions']!r}")
+            c["regions"] = tuple(c["regions"])
+        elif generator == "humanoid":
+            c["regions"] = DEFAULT_VARIATION["regions"]
+        return tuple(c.items())
 
     # -- [[placement]] -------------------------------------------------------------------------------------------------
     def placements(self, characters: list) -> list:

@@ -18,6 +18,8 @@ class SkinnedCharacter:
         in CrowdState.clip).
     notes : list of str, what the importer repaired or made up (one sentence each, e.g. weights normalised,
         a rest clip added); ``crowd info`` prints them.
+    regions : dict name -> (V,) bool, named parts of the mesh (e.g. a generated humanoid's "shirt");
+        the scene's colour variation can be limited to some of them.
     """
 
     name: str
@@ -26,6 +28,7 @@ class SkinnedCharacter:
     clips: dict = field(default_factory=dict)
     source: str = ""
     notes: list = field(default_factory=list)
+    regions: dict = field(default_factory=dict)
 
     kind = "skinned"
 

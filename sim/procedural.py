@@ -331,6 +331,8 @@ HUMANOID_JOINTS = [
     "r_thigh", "r_shin", "r_foot", "r_toe",
 ]
 
+#: variation regions of the generated humanoid (``SkinnedCharacter.regions``), by vertex
+HUMANOID_REGIONS = ("skin", "hair", "shirt", "trousers", "shoes")
 SKIN_TONES = np.array([[0.93, 0.72, 0.58], [0.80, 0.56, 0.40], [0.62, 0.42, 0.28], [0.40, 0.26, 0.17], [0.98, 0.80, 0.68]])
 HAIR = np.array([[0.08, 0.05, 0.03], [0.30, 0.18, 0.08], [0.75, 0.60, 0.30], [0.45, 0.12, 0.05], [0.55, 0.55, 0.55]])
 TROUSERS = np.array([[0.10, 0.14, 0.30], [0.20, 0.20, 0.22], [0.35, 0.28, 0.18], [0.12, 0.25, 0.14], [0.50, 0.45, 0.38]])
@@ -357,7 +359,8 @@ def humanoid(triangles: int = 5000, seed: int = 0) -> SkinnedCharacter:
     Returns
     -------
     SkinnedCharacter with 21 joints (root "hips") and looping clips "walk" and
-    "run" (in place; ``Clip.speed`` is the matching ground speed).
+    "run" (in place; ``Clip.speed`` is the matching ground spee);
+    ``regions`` maps each of HUMANOID_REGIONS to its vertices (bool mask).
     """
     triangles = _check_triangles(triangles)
     rng = np.random.default_rng([int(seed), 0x4855])
@@ -416,22 +419,31 @@ def humanoid(triangles: int = 5000, seed: int = 0) -> SkinnedCharacter:
         ]
     head_c = 0.5 * (at("head") + at("head", 0.19))
 
+    labels = []  # region index (HUMANOID_REGIONS) of every vertex, part by part
+
     def recolor(pi, part, pts, col):
+        lab = np.full(pts.shape[0], next(k for k, c in enumerate((skin, hair, shirt, trousers, shoes))
+                                         if c is part.color), np.int8)
         if part.bone == J["head"] and part is parts[4]:
             rel = pts - head_c
             face = (rel[:, 2] > 0.02) & (rel[:, 1] < 0.06 * h)
             hairy = (rel[:, 1] > -0.02) & ~face
             col[hairy] = hair
+            lab[hairy] = 1
+        labels.append(lab)
         return col
 
     mesh = _build_mesh(parts, triangles, sk, rng, recolor=recolor)
+    lab = np.concatenate(labels)
+    regions = {name: lab == k for k, name in enumerate(HUMANOID_REGIONS)}
     clips = {
         "walk": _humanoid_gait(sk, J, "walk", period=1.1, duty=0.62, hip=0.5, knee_st=0.18, knee_sw=1.05,
                                arm=0.38, elbow=0.3, lean=0.03, twist=0.07),
         "run": _humanoid_gait(sk, J, "run", period=0.72, duty=0.38, hip=0.62, knee_st=0.45, knee_sw=1.9,
                               arm=0.6, elbow=1.35, lean=0.16, twist=0.12),
     }
-    return SkinnedCharacter(f"humanoid-{seed}", mesh, sk, clips, source=f"procedural:humanoid triangles={triangles} seed={seed}")
+    return SkinnedCharacter(f"humanoid-{seed}", mesh, sk, clips, source=f"procedural:humanoid triangles={triangles} seed={seed}",
+                            regions=regions)
 
 
 def _humanoid_gait(sk, J, name, *, period, duty, hip, knee_st, knee_sw, arm, elbow, lean, twist) -> Clip:
