@@ -391,7 +391,7 @@ class _Parser:
         if v is False:
             return None
         if not isinstance(v, dict):
-            self.fail(where, f"expected a table {{ hue = 0.06, value = 0.15, ... }} or false, got {v!r}")
+            self.fail(where, f"expected a table {{ hue = 0.08, value = 0.15, ... }} or false, got {v!r}")
         c = validate(VARIATION_SCHEMA, v, where)
         pal = c["palette"]
         if pal is not None:

@@ -1,0 +1,136 @@
+"""Per-agent colour variation in rendered pixels (render/tint.py, [[characters]] variation): an agent
+has the same colour in every LOD mode at the same frame, the colours are a function of the scene seed,
+and the fly-through's debug colours (lod.debug_colors) reach mode points too."""
+import numpy as np
+import pytest
+from crowd_testutil import tiny_scene
+
+from crowd.engine import Engine
+from crowd.scene import load_scene
+from lod.debug_colors import REPRESENTATION_COLORS, TINT_WEIGHT, apply_tints
+from lod.view import Camera
+
+MODES = ("none", "triangles", "points", "clusters", "auto")
+#: pixels of error of the coarse pass (coarser chain levels, cluster cuts and point nodes)
+COARSE_POE = 6.0
+W, H = 240, 160
+#: a strong variation, so that agents differ far more than the LOD modes' own colour differences
+STRONG = 'variation = { hue = 0.45, saturation = 0.3, value = 0.3, regions = ["shirt", "trousers"] }'
+
+
+def _scene(tmp_path, variation=STRONG, seed=1, name="v.toml"):
+    text = tiny_scene(replace={"rows = 2": "rows = 1", "cols = 2": "cols = 4", "seed = 1": f"seed = {seed}",
+                               'triangles = 600': f'triangles = 600\nseed = 7\n{variation}'})
+    p = tmp_path / name
+    p.write_text(text)
+    return load_scene(p)
+
+
+def _camera(e):
+    pos = np.asarray(e.world.state.position, np.float64)
+    c = pos.mean(axis=0)
+    return Camera.look_at(c + (0.0, 1.1, 5.5), c + (0.0, 0.95, 0.0), fov_y=50)
+
+
+def _agent_boxes(e, cam):
+    """Per agent, the pixel box around its shirt and trousers (0.55 m .. 1.45 m up, +-0.18 m)."""
+    pos = np.asarray(e.world.state.position, np.float64)
+    boxes = []
+    for p in pos:
+        corners = np.array([p + (-0.18, 0.55, 0.0), p + (0.18, 1.45, 0.0)])
+        px = cam.project(corners, (W, H))
+        x0, x1 = sorted(px[:, 0])
+        y0, y1 = sorted(px[:, 1])
+        boxes.append((int(x0), int(np.ceil(x1)), int(y0), int(np.ceil(y1))))
+    return boxes
+
+
+def _agent_means(img, boxes):
+    out = []
+    for x0, x1, y0, y1 in boxes:
+        patch = img[max(y0, 0):y1, max(x0, 0):x1].reshape(-1, 3).astype(np.float64)
+        fg = patch[patch.max(axis=1) > 12]
+        assert fg.shape[0] > 30, "the agent covers too few pixels of its box"
+        out.append(fg.mean(axis=0))
+    return np.array(out)
+
+
+def _render(e, cam, mode, color_by="none"):
+    r = e._open_renderer()
+    e.set_lod_mode(mode)
+    dl = e.select(cam, (W, H))
+    apply_tints(dl, color_by, statics=e.static_keys)
+    r.draw(dl, (0.0, 0.0, 0.0))
+    return r.read_pixels(), dl
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    """Frame 0 of the strong-variation scene and of the same scene without variation, in every mode."""
+    tmp = tmp_path_factory.mktemp("variation")
+    out = {}
+    for key, var in (("on", STRONG), ("off", "variation = false")):
+        with Engine(_scene(tmp, var, name=f"{key}.toml"), overrides={"size": (W, H)}, quiet=True) as e:
+            cam = _camera(e)
+            boxes = _agent_boxes(e, cam)
+            for m in MODES:
+                img, dl = _render(e, cam, m)
+                out[key, m] = (img, dl)
+            e.settings.poe = COARSE_POE  # coarser levels of every mode at the same view
+            for m in MODES[1:]:
+                out[key, m, "coarse"] = _render(e, cam, m)
+            e.settings.poe = 1.0
+            out["boxes"] = boxes
+    return out
+
+
+def test_same_agent_same_colour_in_every_mode(frames):
+    boxes = frames["boxes"]
+    ref = _agent_means(frames["on", "none"][0], boxes)
+    plain = _agent_means(frames["off", "none"][0], boxes)
+    # the variation is visible: every agent differs from its untinted self, and agents differ from each other
+    shift = np.abs(ref - plain).max(axis=1)
+    assert shift.max() > 40 and shift.mean() > 15, shift
+    d = np.abs(ref[:, None] - ref[None]).max(axis=2)
+    assert d[~np.eye(4, dtype=bool)].min() > 12, d
+    for m in [*MODES[1:], *((m, "coarse") for m in MODES[1:])]:
+        img, dl = frames[("on", m) if isinstance(m, str) else ("on", *m)]
+        off_img = frames[("off", m) if isinstance(m, str) else ("off", *m)][0]
+        assert dl.n_instances == 4
+        means = _agent_means(img, boxes)
+        # a LOD mode changes the geometry a little, never the tint: within 7 levels of 255 per channel
+        # (measured: at most 4.1, triangle chain level 2)
+        assert np.abs(means - ref).max() < 7, (m, means - ref)
+        off = _agent_means(off_img, boxes)
+        # and the tint moves every agent's colour as it does at full detail
+        assert np.abs((means - off) - (ref - plain)).max() < 7, m
+
+
+def test_variation_depends_on_the_seed_only(tmp_path):
+    imgs = {}
+    for tag, seed in (("a", 1), ("b", 1), ("c", 2)):
+        with Engine(_scene(tmp_path, seed=seed, name=f"{tag}.toml"), overrides={"size": (W, H)}, quiet=True) as e:
+            cam = _camera(e)
+            boxes = _agent_boxes(e, cam)
+            imgs[tag] = (_render(e, cam, "none")[0], boxes)
+    assert np.array_equal(imgs["a"][0], imgs["b"][0])
+    a, c = _agent_means(*imgs["a"]), _agent_means(*imgs["c"])
+    assert np.abs(a - c).max(axis=1).max() > 20
+
+
+def test_debug_colour_in_mode_points(tmp_path):
+    with Engine(_scene(tmp_path, "variation = false"), overrides={"size": (W, H)}, quiet=True) as e:
+        cam = _camera(e)
+        boxes = _agent_boxes(e, cam)
+        plain, _ = _render(e, cam, "points")
+        tinted, dl = _render(e, cam, "points", "representation")
+    assert dl.points > 0 and all(b.representation == "points" for b in dl.batches)
+    rgb = np.asarray(REPRESENTATION_COLORS["points"])
+    p, t = _agent_means(plain, boxes), _agent_means(tinted, boxes)
+    # the colour of every agent moved towards the debug colour: lit (u_ambient + diffuse) times
+    # mix(base, debug, TINT_WEIGHT); its chromaticity is nearly the debug colour's
+    chrom = t / t.sum(axis=1, keepdims=True)
+    want = rgb / rgb.sum()
+    assert np.abs(chrom - want).max() < 0.08, chrom
+    assert np.abs(t - p).max(axis=1).min() > 20
+    assert TINT_WEIGHT > 0.5
