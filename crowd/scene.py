@@ -390,8 +390,10 @@ class _Parser:
             return tuple(DEFAULT_VARIATION.items()) if generator == "humanoid" else None
         if v is False:
             return None
+        if v is True:  # the default amounts, on any character
+            v = {k: x for k, x in DEFAULT_VARIATION.items() if k != "regions"}
         if not isinstance(v, dict):
-            self.fail(where, f"expected a table {{ hue = 0.08, value = 0.15, ... }} or false, got {v!r}")
+            self.fail(where, f"expected a table {{ hue = 0.08, value = 0.15, ... }}, true or false, got {v!r}")
         c = validate(VARIATION_SCHEMA, v, where)
         pal = c["palette"]
         if pal is not None:

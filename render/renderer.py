@@ -29,6 +29,11 @@ of 500 one-triangle instances, a frame took 14 ms this way against 19.5 ms
 when orphaning and writing the buffer once per batch, so the per-frame buffer
 with offsets is the path kept (it is also the layout a real GPU prefers).
 
+Colour words: beside the instance data, a per-frame stream of two uint32 per
+instance (the agent's colour variation, the batch's debug colour;
+``render/tint.py``) bound as ``i_tint``; every vertex shader applies them with
+``tint_color`` (``shaders/tint.glsl``), as the other drawers do.
+
 Bounded driver memory: Mesa llvmpipe (22.3, ``lp_setup.c``) bins triangles
 into "scenes" of at most 36 MB that its rasterizer threads consume; when the
 binner (this thread) is ahead of them it allocates another scene, up to 64,

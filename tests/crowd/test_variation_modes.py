@@ -134,3 +134,41 @@ def test_debug_colour_in_mode_points(tmp_path):
     assert np.abs(chrom - want).max() < 0.08, chrom
     assert np.abs(t - p).max(axis=1).min() > 20
     assert TINT_WEIGHT > 0.5
+
+
+@pytest.mark.parametrize("line,needle", [
+    ("variation = 3", "characters[0].variation: expected a table"),
+    ("variation = { hue = 0.7 }", "characters[0].variation.hue"),
+    ("variation = { tone = 0.1 }", "characters[0].variation.tone: unknown key"),
+    ("variation = { palette = [[1.0, 0.5]] }", "characters[0].variation.palette"),
+    ("variation = { palette = [] }", "characters[0].variation.palette"),
+    ('variation = { regions = ["hat"] }', "characters[0].variation.regions"),
+])
+def test_bad_variation_is_one_line_exit_2(tmp_path, line, needle):
+    from crowd_testutil import run_cli
+
+    p = tmp_path / "bad.toml"
+    p.write_text(tiny_scene(replace={'triangles = 600': f'triangles = 600\n{line}'}))
+    r = run_cli("validate", p)
+    assert r.returncode == 2 and needle in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+
+
+def test_variation_defaults_and_masks(tmp_path):
+    from crowd.characters import build_character
+    from crowd.scene import DEFAULT_VARIATION
+
+    s = _scene(tmp_path, variation="")
+    assert dict(s.characters[0].variation) == DEFAULT_VARIATION  # on by default for a generated humanoid
+    assert _scene(tmp_path, "variation = false").characters[0].variation is None
+    ch = build_character(s.characters[0])
+    alpha = ch.mesh.colors[:, 3]
+    want = ch.regions["shirt"] | ch.regions["trousers"]
+    assert np.array_equal(alpha, want.astype(np.float32)) and 0 < want.mean() < 1
+    p = tmp_path / "q.toml"
+    p.write_text(tiny_scene(replace={'generator = "humanoid"': 'generator = "quadruped"'}))
+    assert load_scene(p).characters[0].variation is None  # other characters: off unless asked
+    p.write_text(tiny_scene(replace={'generator = "humanoid"': 'generator = "quadruped"\nvariation = { value = 0.2 }'}))
+    q = load_scene(p).characters[0]
+    assert dict(q.variation)["regions"] is None
+    assert (build_character(q).mesh.colors[:, 3] == 1.0).all()  # the whole mesh varies
