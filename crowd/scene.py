@@ -69,7 +69,7 @@ VARIATION_SCHEMA = {
                      "shoes); default: shirt and trousers of a humanoid, the whole mesh otherwise"),
 }
 #: the variation of a generated humanoid that sets none (``variation = false`` turns it off)
-DEFAULT_VARIATION = {"hue": 0.08, "saturation": 0.15, "value": 0.15, "regions": ("shirt", "trousers")}
+DEFAULT_VARIATION = {"hue": 0.15, "saturation": 0.3, "value": 0.25, "regions": ("shirt", "trousers")}
 #: default ``triangles`` of a generated character
 DEFAULT_TRIANGLES = 5000
 
@@ -393,7 +393,7 @@ class _Parser:
         if v is True:  # the default amounts, on any character
             v = {k: x for k, x in DEFAULT_VARIATION.items() if k != "regions"}
         if not isinstance(v, dict):
-            self.fail(where, f"expected a table {{ hue = 0.08, value = 0.15, ... }}, true or false, got {v!r}")
+            self.fail(where, f"expected a table {{ hue = 0.15, value = 0.25, ... }}, true or false, got {v!r}")
         c = validate(VARIATION_SCHEMA, v, where)
         pal = c["palette"]
         if pal is not None:
