@@ -39,7 +39,13 @@ def build_character(spec: CharacterSpec):
         repair_mesh_weights(ch.mesh, str(spec.file or spec.generator), ch.skeleton.n_joints)
     ch.name = spec.name
     if spec.variation is not None:
-        set_variation_mask(ch, dict(spec.variation).get("regions"))
+        regions = dict(spec.variation).get("regions")
+        missing = [r for r in regions or () if r not in getattr(ch, "regions", {})]
+        if missing:
+            have = ", ".join(sorted(getattr(ch, "regions", {}))) or "none"
+            raise AssetError(f"{spec.file or spec.generator}: characters {spec.name!r}: variation.regions: "
+                             f"{missing[0]!r} is not a region of this model; it has: {have}")
+        set_variation_mask(ch, regions)
     return ch
 
 

@@ -66,7 +66,7 @@ VARIATION_SCHEMA = {
     "value": Param("float", 0.0, min=0.0, max=0.95, doc="largest relative value (brightness) change"),
     "palette": Param("list", None, doc="[[r, g, b], ...] in [0, 1]: each agent takes one, instead of the shifts"),
     "regions": Param("list", None, doc="named regions that vary (generated humanoid: skin, hair, shirt, trousers, "
-                     "shoes); default: shirt and trousers of a humanoid, the whole mesh otherwise"),
+                     "shoes; glTF: material:N); default: shirt and trousers of a humanoid, the whole mesh otherwise"),
 }
 #: the variation of a generated humanoid that sets none (``variation = false`` turns it off)
 DEFAULT_VARIATION = {"hue": 0.15, "saturation": 0.3, "value": 0.25, "regions": ("shirt", "trousers")}
@@ -404,13 +404,15 @@ class _Parser:
         if c["regions"] is not None:
             from sim.procedural import HUMANOID_REGIONS
 
-            if generator != "humanoid":
-                self.fail(f"{where}.regions", "only a generated humanoid has named regions; leave it out to vary "
+            if generator == "quadruped":
+                self.fail(f"{where}.regions", "a generated quadruped has no named regions; leave it out to vary "
                           "the whole mesh")
-            bad = [r for r in c["regions"] if r not in HUMANOID_REGIONS]
-            if bad or not c["regions"]:
-                self.fail(f"{where}.regions", f"expected a non-empty list of {', '.join(HUMANOID_REGIONS)}, "
-                          f"got {c['regions']!r}")
+            if generator == "humanoid":
+                ok, accepted = (lambda r: r in HUMANOID_REGIONS), ", ".join(HUMANOID_REGIONS)
+            else:  # a glTF model: its materials (checked against the file when the character is built)
+                ok, accepted = (lambda r: isinstance(r, str) and re.fullmatch(r"material:\d+", r)), "\"material:N\""
+            if not c["regions"] or not all(isinstance(r, str) and ok(r) for r in c["regions"]):
+                self.fail(f"{where}.regions", f"expected a non-empty list of {accepted}, got {c['regions']!r}")
             c["regions"] = tuple(c["regions"])
         elif generator == "humanoid":
             c["regions"] = DEFAULT_VARIATION["regions"]

@@ -285,7 +285,7 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
     target_notes: list = []
     tfirst, tnames = _target_slots(doc, prims, morph_nodes, target_notes)
     DP, DN, DW = [], [], np.zeros(len(tnames))
-    P, N, C, T, JO, W = [], [], [], [], [], []
+    P, N, C, T, JO, W, MAT = [], [], [], [], [], [], []
     nv = 0
     zero_total = 0
     off_count, off_lo, off_hi = 0, np.inf, -np.inf
@@ -342,6 +342,7 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
             P.append(p)
             N.append(_finish_normals(p, n, tri))
             C.append(c)
+            MAT.append(np.full(p.shape[0], -1 if pr.material is None else int(pr.material), np.int64))
             T.append(tri + nv)
             JO.append(jj)
             W.append(ww)
@@ -413,8 +414,10 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
         # a statue or a prop: drawn in its rest pose by every LOD mode through one constant clip (sim.clip.rest_clip)
         clips[REST_CLIP_NAME] = rest_clip(skeleton)
         notes.append(f"no animation: one constant clip {REST_CLIP_NAME!r} ({REST_CLIP_SECONDS:g} s) holds the rest pose")
+    mat = np.concatenate(MAT)  # each vertex's material: regions "material:N" of the colour variation
+    regions = {f"material:{m}": mat == m for m in np.unique(mat) if m >= 0}
     return SkinnedCharacter(name=doc.path.stem, mesh=mesh, skeleton=skeleton, clips=clips, source=str(doc.path),
-                            notes=notes)
+                            notes=notes, regions=regions)
 
 
 def _load_keyframed(doc, g: _Graph, mesh_nodes, prims, morph_nodes):

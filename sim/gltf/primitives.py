@@ -115,6 +115,7 @@ class _Prim:
 
     def __init__(self, doc: _Doc, mi: int, pi: int, prim: dict, mesh_weights):
         self.where = where = f"meshes[{mi}].primitives[{pi}]"
+        self.material = prim.get("material")  # index, or None (the default material)
         doc.ctx = where
         attrs = prim.get("attributes") or {}
         if "POSITION" not in attrs:

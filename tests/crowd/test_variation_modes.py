@@ -172,3 +172,49 @@ def test_variation_defaults_and_masks(tmp_path):
     q = load_scene(p).characters[0]
     assert dict(q.variation)["regions"] is None
     assert (build_character(q).mesh.colors[:, 3] == 1.0).all()  # the whole mesh varies
+
+
+def _two_material_glb(path):
+    """A static two-primitive glTF model: primitive 0 with material 0 (red), primitive 1 with material 1 (green)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
+    from gltf_builder import GltfBuilder, write_glb
+
+    b = GltfBuilder()
+    prims = []
+    for k in range(2):
+        pos = np.array([[k, 0, 0], [k + 1, 0, 0], [k, 1, 0]], np.float32)
+        prims.append({"attributes": {"POSITION": b.acc(pos, "VEC3", min=pos.min(0).tolist(), max=pos.max(0).tolist())},
+                      "indices": b.acc(np.array([0, 1, 2], np.uint16), "SCALAR"), "material": k})
+    b.gltf.update(meshes=[{"primitives": prims}], nodes=[{"mesh": 0}], scenes=[{"nodes": [0]}], scene=0,
+                  materials=[{"pbrMetallicRoughness": {"baseColorFactor": c}} for c in ([1, 0, 0, 1], [0, 1, 0, 1])])
+    return write_glb(path, *b.finish())
+
+
+def test_gltf_material_regions(tmp_path):
+    from crowd.characters import build_character
+    from crowd.errors import AssetError
+
+    glb = _two_material_glb(tmp_path / "two.glb")
+    p = tmp_path / "g.toml"
+    for regions, want in (('["material:1"]', [0, 0, 0, 1, 1, 1]), ("", [1] * 6)):
+        line = f"variation = {{ hue = 0.2{', regions = ' + regions if regions else ''} }}"
+        p.write_text(tiny_scene(replace={'generator = "humanoid"': f'file = "{glb.name}"\n{line}',
+                                         "triangles = 600": ""}))
+        ch = build_character(load_scene(p).characters[0])
+        assert sorted(ch.regions) == ["material:0", "material:1"]
+        assert ch.mesh.colors[:, 3].tolist() == want
+        assert np.allclose(ch.mesh.colors[:3, :3], [1, 0, 0]) and np.allclose(ch.mesh.colors[3:, :3], [0, 1, 0])
+    p.write_text(tiny_scene(replace={'generator = "humanoid"': f'file = "{glb.name}"\n'
+                                     'variation = { hue = 0.2, regions = ["material:7"] }', "triangles = 600": ""}))
+    with pytest.raises(AssetError, match=r"variation.regions: 'material:7' is not a region of this model; "
+                                         r"it has: material:0, material:1"):
+        build_character(load_scene(p).characters[0])
+    p.write_text(tiny_scene(replace={'generator = "humanoid"': f'file = "{glb.name}"\n'
+                                     'variation = { regions = ["shirt"] }', "triangles = 600": ""}))
+    from crowd.errors import SceneError
+
+    with pytest.raises(SceneError, match=r'variation.regions: expected a non-empty list of "material:N"'):
+        load_scene(p)
