@@ -135,9 +135,15 @@ def instance_words(table, ids, tint=None) -> np.ndarray:
     return out
 
 
+#: representation families never varied (scenery: terrain, props); their instance ids are not agents
+UNVARIED = ("static",)
+
+
 def batch_words(batches, table) -> np.ndarray:
-    """(sum k, 2) uint32 words of ``batches`` in order (the order of their instance data)."""
-    parts = [instance_words(table, b.instance_ids, getattr(b, "tint", None)) for b in batches]
+    """(sum k, 2) uint32 words of ``batches`` in order (the order of their instance data); batches of
+    the :data:`UNVARIED` families get no variation (their debug colour still applies)."""
+    parts = [instance_words(None if b.rep.split(":", 1)[0] in UNVARIED else table, b.instance_ids,
+                            getattr(b, "tint", None)) for b in batches]
     return np.concatenate(parts) if parts else np.zeros((0, TINT_WORDS), np.uint32)
 
 

@@ -169,3 +169,5 @@ def test_batch_words_follow_ids_and_carry_the_debug_tint():
     assert w[:, 0].tolist() == [33, 11, 0, 22, 0]  # scenery (id < 0) and unknown ids: no variation
     assert w[:2, 1].tolist() == [0, 0] and (w[2:, 1] == debug_word((1.0, 0.0, 0.0, 0.75))).all()
     assert (batch_words([b1], None)[:, 0] == 0).all()
+    scenery = DrawBatch("static:terrain", 0, np.array([0, 1], np.int32), np.zeros((2, 16), np.float32))
+    assert (batch_words([scenery], table) == 0).all()  # ids of scenery are not agents
