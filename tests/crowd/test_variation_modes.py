@@ -76,6 +76,10 @@ def frames(tmp_path_factory):
             for m in MODES:
                 img, dl = _render(e, cam, m)
                 out[key, m] = (img, dl)
+            drawer = e.renderer.uploaded_drawer("points")
+            drawer.path = "gl_points"  # the GL_POINTS reference path of the point drawer
+            out[key, "points", "gl_points"] = _render(e, cam, "points")
+            drawer.path = None
             e.settings.poe = COARSE_POE  # coarser levels of every mode at the same view
             for m in MODES[1:]:
                 out[key, m, "coarse"] = _render(e, cam, m)
@@ -88,15 +92,17 @@ def test_same_agent_same_colour_in_every_mode(frames):
     boxes = frames["boxes"]
     ref = _agent_means(frames["on", "none"][0], boxes)
     plain = _agent_means(frames["off", "none"][0], boxes)
-    # the variation is visible: every agent differs from its untinted self, and agents differ from each other
+    # the variation is visible (agents move off their untinted colour), and agents differ from each other
     shift = np.abs(ref - plain).max(axis=1)
     assert shift.max() > 40 and shift.mean() > 15, shift
     d = np.abs(ref[:, None] - ref[None]).max(axis=2)
     assert d[~np.eye(4, dtype=bool)].min() > 12, d
-    for m in [*MODES[1:], *((m, "coarse") for m in MODES[1:])]:
+    for m in [*MODES[1:], *((m, "coarse") for m in MODES[1:]), ("points", "gl_points")]:
         img, dl = frames[("on", m) if isinstance(m, str) else ("on", *m)]
         off_img = frames[("off", m) if isinstance(m, str) else ("off", *m)][0]
         assert dl.n_instances == 4
+        if m in ("points", ("points", "gl_points")):  # the splat's colour pass (GL points) is compared too
+            assert dl.points > 0
         means = _agent_means(img, boxes)
         # a LOD mode changes the geometry a little, never the tint: within 7 levels of 255 per channel
         # (measured: at most 4.1, triangle chain level 2)
