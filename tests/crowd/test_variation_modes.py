@@ -124,21 +124,23 @@ def test_variation_depends_on_the_seed_only(tmp_path):
     assert np.abs(a - c).max(axis=1).max() > 20
 
 
-def test_debug_colour_in_mode_points(tmp_path):
+def test_debug_colour_in_every_mode_points_included(tmp_path):
     with Engine(_scene(tmp_path, "variation = false"), overrides={"size": (W, H)}, quiet=True) as e:
         cam = _camera(e)
         boxes = _agent_boxes(e, cam)
-        plain, _ = _render(e, cam, "points")
-        tinted, dl = _render(e, cam, "points", "representation")
-    assert dl.points > 0 and all(b.representation == "points" for b in dl.batches)
-    rgb = np.asarray(REPRESENTATION_COLORS["points"])
-    p, t = _agent_means(plain, boxes), _agent_means(tinted, boxes)
-    # the colour of every agent moved towards the debug colour: lit (u_ambient + diffuse) times
-    # mix(base, debug, TINT_WEIGHT); its chromaticity is nearly the debug colour's
-    chrom = t / t.sum(axis=1, keepdims=True)
-    want = rgb / rgb.sum()
-    assert np.abs(chrom - want).max() < 0.08, chrom
-    assert np.abs(t - p).max(axis=1).min() > 20
+        for mode in ("points", "none", "triangles", "clusters"):
+            plain, _ = _render(e, cam, mode)
+            tinted, dl = _render(e, cam, mode, "representation")
+            assert all(b.representation == mode for b in dl.batches)
+            if mode == "points":
+                assert dl.points > 0  # splats, not only the hierarchy's triangles
+            rgb = np.asarray(REPRESENTATION_COLORS[mode])
+            p, t = _agent_means(plain, boxes), _agent_means(tinted, boxes)
+            # every agent's colour moved to the debug colour: lit (u_ambient + diffuse) times
+            # mix(base, debug, TINT_WEIGHT), whose chromaticity is nearly the debug colour's
+            chrom = t / t.sum(axis=1, keepdims=True)
+            assert np.abs(chrom - rgb / rgb.sum()).max() < 0.08, (mode, chrom)
+            assert np.abs(t - p).max(axis=1).min() > 12, mode
     assert TINT_WEIGHT > 0.5
 
 
