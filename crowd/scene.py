@@ -381,7 +381,8 @@ class _Parser:
             out.append(CharacterSpec(name=c["name"], generator=c["generator"], file=file, triangles=triangles,
                                      seed=c["seed"] if c["seed"] is not None else scene_seed,
                                      scale=c["scale"], fps=c["fps"],
-                                     variation=self.variation(t.get("variation"), f"{where}.variation", c["generator"])))
+                                     variation=self.variation(t.get("variation"), f"{where}.variation",
+                                                              c["generator"])))
         return out
 
     def variation(self, v, where: str, generator: str | None):
@@ -397,8 +398,11 @@ class _Parser:
         c = validate(VARIATION_SCHEMA, v, where)
         pal = c["palette"]
         if pal is not None:
-            if not pal or not all(isinstance(p, list) and len(p) == 3 and all(
-                    isinstance(x, (int, float)) and not isinstance(x, bool) and 0.0 <= x <= 1.0 for x in p) for p in pal):
+            def rgb(p):
+                return isinstance(p, list) and len(p) == 3 and all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) and 0.0 <= x <= 1.0 for x in p)
+
+            if not pal or not all(rgb(p) for p in pal):
                 self.fail(f"{where}.palette", f"expected a non-empty list of [r, g, b] in [0, 1], got {pal!r}")
             c["palette"] = tuple(tuple(float(x) for x in p) for p in pal)
         if c["regions"] is not None:

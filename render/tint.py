@@ -52,8 +52,8 @@ def hash_uniform(seed: int, ids, salt: int) -> np.ndarray:
     in any order; another seed or salt gives independent ones."""
     ids = np.asarray(ids, np.int64).astype(np.uint64)
     with np.errstate(over="ignore"):
-        z = ids * np.uint64(0x9E3779B97F4A7C15) + np.uint64((int(seed) * 0x632BE59BD9B4E019 + int(salt) * 0x85EBCA77C2B2AE63)
-                                                               & 0xFFFFFFFFFFFFFFFF)
+        key = (int(seed) * 0x632BE59BD9B4E019 + int(salt) * 0x85EBCA77C2B2AE63) & 0xFFFFFFFFFFFFFFFF
+        z = ids * np.uint64(0x9E3779B97F4A7C15) + np.uint64(key)
         z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
         z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
         z = z ^ (z >> np.uint64(31))
