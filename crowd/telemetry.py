@@ -5,7 +5,8 @@ Files of a run (all written into the run's atomic output directory):
 ``frames.csv``
     one row per frame: ``frame, sim_time, total, simulate, select, upload,
     draw, finish, gpu, sys.<name>..., instances, culled, triangles, points,
-    batches, samples_passed``. Times are seconds (wall clock,
+    batches, props, samples_passed``; ``props`` counts the triangles of props and
+    obstacle solids (``crowd.world``), ``triangles`` those of the characters. Times are seconds (wall clock,
     ``time.perf_counter``); ``gpu`` is the GL timer-query time, blank when the
     driver has none. ``sys.<name>`` is the wall time of schedule step
     ``<name>`` summed over the frame's sub-steps.
@@ -35,7 +36,7 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-COUNTS = ("instances", "culled", "triangles", "points", "batches")
+COUNTS = ("instances", "culled", "triangles", "points", "batches", "props")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 
