@@ -10,9 +10,11 @@ the multi-pose quadrics nor the locked borders of the characters' chains
 
 Each level's geometric error is a sampled symmetric Hausdorff distance to the
 full mesh (metres, model space): ``max(max_a d(a, B), max_b d(b, A))`` over
-area-uniform samples a of the full surface A and b of the level's surface B,
-each distance taken to a denser sample of the other surface with a k-d tree
-(scipy ``cKDTree``). The errors are made monotone (a level's error is at least
+area-uniform samples a of the full surface A and b of the level's surface B
+(and their vertices), ``d`` the exact point-to-triangle distance (Ericson
+§5.1.5) to the nearest of the candidate triangles that a k-d tree of a dense
+surface sample proposes (scipy ``cKDTree``; an upper bound of the
+point-to-surface distance, exact when the nearest triangle is a candidate). The errors are made monotone (a level's error is at least
 its finer neighbour's), level 0's is 0, and a level whose error exceeds
 :data:`MAX_ERROR_FRACTION` of the bounding radius is dropped (too coarse to be
 worth drawing: the LOD rule would show it only below a pixel anyway).
@@ -51,8 +53,12 @@ MIN_TRIANGLES = 8
 STALL_FRACTION = 0.9
 #: a level whose error exceeds this fraction of the bounding radius is not kept
 MAX_ERROR_FRACTION = 0.5
-#: samples per surface for the Hausdorff error (and 4x as many as targets)
+#: samples per surface for the Hausdorff error
 ERROR_SAMPLES = 4000
+#: candidate triangles of each sample's point-to-surface distance (those of its nearest surface samples)
+NEAREST_TRIANGLES = 12
+#: area-uniform surface samples locating the candidate triangles
+TARGET_SAMPLES = 40000
 #: seed of the error sampling (chains are deterministic)
 ERROR_SEED = 7
 
@@ -117,16 +123,71 @@ def sample_surface(v: np.ndarray, f: np.ndarray, n: int, rng) -> np.ndarray:
     return np.concatenate([pts, v[np.unique(f)]])
 
 
-def hausdorff(va, fa, vb, fb, samples: int = ERROR_SAMPLES, seed: int = ERROR_SEED) -> float:
-    """Sampled symmetric Hausdorff distance (metres) between two triangle meshes (module docstring)."""
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(n, 3) closest points to ``p`` (n, 3) on triangles (a, b, c) (n, 3 each), by the Voronoi-region
+    tests of Ericson, *Real-Time Collision Detection*, §5.1.5 (vectorised; degenerate triangles give a
+    corner or edge point, never NaN)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
+    bp = p - b
+    d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
+    cp = p - c
+    d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    safe = lambda x: np.where(np.abs(x) > 1e-300, x, 1.0)  # noqa: E731
+    den = safe(va + vb + vc)
+    out = a + ab * (vb / den)[:, None] + ac * (vc / den)[:, None]  # inside the face
+    # edges (checked before corners so that corners win where both hold)
+    m = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+    w = (d4 - d3) / safe((d4 - d3) + (d5 - d6))
+    out = np.where(m[:, None], b + w[:, None] * (c - b), out)
+    m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    out = np.where(m[:, None], a + (d2 / safe(d2 - d6))[:, None] * ac, out)
+    m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    out = np.where(m[:, None], a + (d1 / safe(d1 - d3))[:, None] * ab, out)
+    out = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, out)
+    out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)
+    out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)
+    return out
+
+
+def distance_to_mesh(points: np.ndarray, v: np.ndarray, f: np.ndarray, k: int = NEAREST_TRIANGLES,
+                     seed: int = ERROR_SEED) -> np.ndarray:
+    """(n,) distance from each point to the triangles ``f`` of ``v``: the exact point-triangle distance
+    to candidate triangles, those of the ``k`` nearest of a dense area-uniform sample of the surface
+    (plus every centroid) found with a k-d tree (scipy ``cKDTree``). An upper bound of the true
+    distance, equal to it whenever the nearest triangle is among the candidates."""
     from scipy.spatial import cKDTree
 
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    rng = np.random.default_rng(seed)
+    n = TARGET_SAMPLES
+    tot = float(area.sum())
+    ids = np.concatenate([np.arange(len(f)), rng.choice(len(f), n, p=area / tot) if tot > 0 else
+                          rng.integers(0, len(f), n)])
+    r1, r2 = rng.random(len(ids)), rng.random(len(ids))
+    r1[:len(f)] = r2[:len(f)] = 1.0 / 3.0
+    flip = r1 + r2 > 1.0
+    r1, r2 = np.where(flip, 1 - r1, r1), np.where(flip, 1 - r2, r2)
+    t = tri[ids]
+    targets = t[:, 0] + r1[:, None] * (t[:, 1] - t[:, 0]) + r2[:, None] * (t[:, 2] - t[:, 0])
+    k = min(int(k), len(ids))
+    _, near = cKDTree(targets).query(points, k=k)
+    cand = ids[np.asarray(near).reshape(len(points), k)]
+    p = np.repeat(points, k, axis=0)
+    t = tri[cand.reshape(-1)]
+    q = closest_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
+    return np.sqrt(((q - p) ** 2).sum(1)).reshape(-1, k).min(1)
+
+
+def hausdorff(va, fa, vb, fb, samples: int = ERROR_SAMPLES, seed: int = ERROR_SEED) -> float:
+    """Sampled symmetric Hausdorff distance (metres) between two triangle meshes: the largest
+    point-to-surface distance (:func:`distance_to_mesh`) of area-uniform samples of either surface
+    (and its vertices) to the other surface."""
     rng = np.random.default_rng(seed)
     a, b = sample_surface(va, fa, samples, rng), sample_surface(vb, fb, samples, rng)
-    da, db = sample_surface(va, fa, 4 * samples, rng), sample_surface(vb, fb, 4 * samples, rng)
-    ab = cKDTree(db).query(a)[0].max()
-    ba = cKDTree(da).query(b)[0].max()
-    return float(max(ab, ba))
+    return float(max(distance_to_mesh(a, vb, fb).max(), distance_to_mesh(b, va, fa).max()))
 
 
 def _flat(v: np.ndarray, f: np.ndarray, colors_of) -> tuple:
@@ -197,7 +258,7 @@ def cache_dir() -> Path:
 
 def chain_key(mesh, max_levels: int, ratio: float) -> str:
     """sha256 hex of everything a chain depends on."""
-    h = hashlib.sha256(f"props-format-{FORMAT_VERSION}-{max_levels}-{ratio!r}-{ERROR_SAMPLES}-{ERROR_SEED}".encode())
+    h = hashlib.sha256(f"props-format-{FORMAT_VERSION}-{max_levels}-{ratio!r}-{ERROR_SAMPLES}-{ERROR_SEED}-{NEAREST_TRIANGLES}-{TARGET_SAMPLES}".encode())
     for a in (mesh.positions, mesh.faces, mesh.colors):
         a = np.ascontiguousarray(a)
         h.update(str((a.dtype.str, a.shape)).encode())
