@@ -31,15 +31,15 @@ def test_chain_levels_shrink_and_errors_are_monotone(blob):
 
 
 def test_level_errors_bound_an_independent_denser_measure(blob):
-    """Each level's stored error is (within sampling) at least the Hausdorff distance measured
-    again with other, denser samples."""
+    """Each level's stored error is at least the Hausdorff distance measured again with other,
+    denser samples (the stored one carries lod.props.chain.ERROR_SAFETY)."""
     mesh, rep = blob
     v0, f0 = mesh.positions, mesh.faces
     for lvl in range(1, rep.n_levels):
         tri = rep.indices[rep.level_first[lvl]:rep.level_first[lvl] + rep.level_count[lvl]]
         v, f = rep.positions.astype(np.float64), tri.astype(np.int64)
-        again = hausdorff(v0, f0, v, f, samples=12000, seed=123)
-        assert again <= rep.level_error[lvl] * 1.15 + 1e-4, (lvl, again, rep.level_error[lvl])
+        again = hausdorff(v0, f0, v, f, samples=32000, seed=123)
+        assert again <= rep.level_error[lvl], (lvl, again, rep.level_error[lvl])
 
 
 @pytest.mark.parametrize("poe", [0.5, 1.0, 4.0])
