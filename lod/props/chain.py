@@ -189,13 +189,14 @@ def distance_to_mesh(points: np.ndarray, v: np.ndarray, f: np.ndarray, k: int = 
     return np.sqrt(((q - p) ** 2).sum(1)).reshape(-1, k).min(1)
 
 
-def hausdorff(va, fa, vb, fb, samples: int = ERROR_SAMPLES, seed: int = ERROR_SEED) -> float:
+def hausdorff(va, fa, vb, fb, samples: int = ERROR_SAMPLES, seed: int = ERROR_SEED,
+              k: int = NEAREST_TRIANGLES) -> float:
     """Sampled symmetric Hausdorff distance (metres) between two triangle meshes: the largest
     point-to-surface distance (:func:`distance_to_mesh`) of area-uniform samples of either surface
     (and its vertices) to the other surface."""
     rng = np.random.default_rng(seed)
     a, b = sample_surface(va, fa, samples, rng), sample_surface(vb, fb, samples, rng)
-    return float(max(distance_to_mesh(a, vb, fb).max(), distance_to_mesh(b, va, fa).max()))
+    return float(max(distance_to_mesh(a, vb, fb, k).max(), distance_to_mesh(b, va, fa, k).max()))
 
 
 def _flat(v: np.ndarray, f: np.ndarray, colors_of) -> tuple:
