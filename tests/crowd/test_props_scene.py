@@ -99,3 +99,20 @@ def test_run_counts_prop_triangles_and_memory(tmp_path):
     from crowd.memory import estimate_scene
 
     assert estimate_scene(load_scene(tmp_path / "s.toml")).parts["props"] > 12 * 3 * 40
+
+
+def test_with_terrain_the_terrain_is_the_ground_and_solids_stand_on_it(tmp_path):
+    text = tiny_scene(effects='["animation", {name = "obstacles", circles = [{center = [3.0, 4.0], radius = 1.0, '
+                              'height = 2.0}]}]',
+                      append='\n[terrain]\nsize = [40.0, 40.0]\norigin = [-20.0, 0.0, -20.0]\nresolution = 33\n'
+                             'height_scale = 6.0\n')
+    (tmp_path / "s.toml").write_text(text)
+    with Engine(load_scene(tmp_path / "s.toml"), quiet=True) as e:
+        assert e.scenery.selector.ground is None  # the terrain (a static rep) is drawn instead
+        (rep, rows), = e.scenery.selector.groups
+        world = rep.positions.astype(np.float64) + rows[0, :, 3]
+        terrain = e.world.resources["terrain"]
+        ring = world[world[:, 1] < world[:, 1].max() - 1e-3]  # the bottom corners
+        h = terrain.height(ring[:, 0], ring[:, 2])
+        assert np.allclose(ring[:, 1], h - 0.05, atol=1e-4)  # sunk a little into the terrain: no gap
+        assert world[:, 1].max() == pytest.approx(terrain.height(ring[:, 0], ring[:, 2]).max() + 2.0, abs=1e-4)
