@@ -109,7 +109,7 @@ def test_with_terrain_the_terrain_is_the_ground_and_solids_stand_on_it(tmp_path)
     (tmp_path / "s.toml").write_text(text)
     with Engine(load_scene(tmp_path / "s.toml"), quiet=True) as e:
         assert e.scenery.selector.ground is None  # the terrain (a static rep) is drawn instead
-        (rep, rows), = e.scenery.selector.groups
+        (rep, rows, _, _), = e.scenery.selector.groups
         world = rep.positions.astype(np.float64) + rows[0, :, 3]
         terrain = e.world.resources["terrain"]
         ring = world[world[:, 1] < world[:, 1].max() - 1e-3]  # the bottom corners
