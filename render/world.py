@@ -121,7 +121,9 @@ class Drawer:
             self._light(prog, view_proj)
             prog["u_extent"].value = float(d[12])
             prog["u_plane_y"].value = float(d[7])
-            prog["u_grid_phase"].value = (float(d[13]), float(d[14]))
+            # phase (camera xz mod 100 at selection) minus the translation a re-framed (frozen) selection
+            # adds (crowd.fly.reframe): the grid stays put in the world when the camera moves
+            prog["u_grid_phase"].value = (float(d[13] - d[3]), float(d[14] - d[11]))
             prog["u_ground_color"].value = tuple(float(c) for c in rep.color)
             self.ground_vao.render(ctx.TRIANGLE_STRIP, vertices=4)
         if not meshes:
