@@ -107,8 +107,10 @@ class Drawer:
         d = np.asarray(self.light_dir, np.float64)
         n = float(np.linalg.norm(d))
         d = d / n if n > 0 and np.isfinite(n) else np.array([0.0, 1.0, 0.0])
-        prog["u_light_dir"].value = tuple(d.tolist())
-        prog["u_ambient"].value = float(self.ambient)
+        if "u_light_dir" in prog:  # a variant may not use the light
+            prog["u_light_dir"].value = tuple(d.tolist())
+        if "u_ambient" in prog:
+            prog["u_ambient"].value = float(self.ambient)
 
     def draw(self, batches, drawlist, view_proj) -> None:
         ctx = self.ctx
@@ -123,7 +125,8 @@ class Drawer:
             prog["u_plane_y"].value = float(d[7])
             # phase (camera xz mod 100 at selection) minus the translation a re-framed (frozen) selection
             # adds (crowd.fly.reframe): the grid stays put in the world when the camera moves
-            prog["u_grid_phase"].value = (float(d[13] - d[3]), float(d[14] - d[11]))
+            if "u_grid_phase" in prog:
+                prog["u_grid_phase"].value = (float(d[13] - d[3]), float(d[14] - d[11]))
             prog["u_ground_color"].value = tuple(float(c) for c in rep.color)
             self.ground_vao.render(ctx.TRIANGLE_STRIP, vertices=4)
         if not meshes:
