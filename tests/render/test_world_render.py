@@ -181,3 +181,31 @@ def test_ground_far_from_the_origin_draws_as_near_it(gl_ctx):
     assert imgs[0][-20:].std() > 1.0  # grid lines near the camera
     for im in imgs[1:]:
         assert np.abs(im - imgs[0]).mean() < 0.5 and np.abs(im - imgs[0]).max() <= 40
+
+
+def test_ground_covers_the_frame_to_the_horizon(gl_ctx):
+    """A level camera sees ground on every pixel below the horizon (up to the few rows where the
+    plane meets the far plane) and background above it, also 1e7 m from the origin."""
+    from lod.drawlist import DrawList
+    from lod.props.select import WorldSelector
+    from lod.props.solids import GroundRep
+    from lod.view import Camera
+    from render.renderer import Renderer
+
+    sel = WorldSelector([], GroundRep())
+    bg = np.round(np.asarray(BG) * 255).astype(int)
+    with Renderer(SIZE, ctx=gl_ctx) as r:
+        r.upload(sel.ground)
+        for off in (0.0, 1e7):
+            cam = Camera.look_at((off, 1.7, off), (off + 10.0, 1.7, off), fov_y=50.0, far=1000.0)
+            batches, _ = sel.select(cam, SIZE)
+            dl = DrawList(origin=cam.position, view=cam.view_matrix().astype(np.float32),
+                          proj=cam.projection(SIZE[0] / SIZE[1]).astype(np.float32), size=SIZE, batches=batches)
+            r.draw(dl, BG)
+            img = r.read_pixels().astype(int)
+            ground = np.abs(img - bg).max(axis=2) > 8
+            horizon = SIZE[1] // 2  # the horizon of a level camera is the middle row
+            # the plane ends at the far plane: 1.7 m below the eye at 1000 m, i.e. 1.7 / 1000 * focal px below
+            gap = int(np.ceil(1.7 / 1000.0 * SIZE[1] / (2 * np.tan(np.radians(25.0))))) + 2
+            assert ground[horizon + gap:].all(), off
+            assert not ground[:horizon - 1].any(), off
