@@ -91,3 +91,13 @@ def test_obstacle_shapes_take_height_and_visible():
         validate(OBSTACLE_PARAMS, {"circles": [{"center": [0, 0], "radius": 1.0, "height": -1}]}, "e")
     with pytest.raises(ParamError, match="points"):
         validate(OBSTACLE_PARAMS, {"polygons": [{"points": [[0, 5], [1, 5], [0, 6]], "colour": 1}]}, "e")
+
+
+def test_non_finite_vertices_never_reach_a_prop(tmp_path):
+    """trimesh drops the faces of a NaN vertex (then the file holds no triangles); whichever check
+    refuses it, the error is one sentence and nothing non-finite is returned."""
+    p = tmp_path / "nan.obj"
+    p.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(AssetError, match="no triangles|NaN, infinite") as e:
+        load_prop_mesh(p)
+    assert "\n" not in str(e.value)

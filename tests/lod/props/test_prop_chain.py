@@ -135,3 +135,16 @@ def test_obstacle_solids_cover_their_shapes_and_skip_hidden_ones():
     r = np.hypot(top[:, 0] - 5, top[:, 2] - 5)
     assert len(top) and r.min() >= 1.0 - 1e-9  # every rim vertex is outside the circle: the polygon holds it
     assert obstacle_solids(ObstacleSet()) is None
+
+
+def test_degenerate_props_give_a_valid_single_level_chain(tmp_path):
+    from sim.props import PropMesh
+
+    one = PropMesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]), np.ones((3, 4), np.float32))
+    rep = cached_chain(one, "one", cache=False)
+    assert rep.n_levels == 1 and rep.level_count.tolist() == [1] and np.isfinite(rep.normals).all()
+    # coincident corners (zero-area triangles) beside a real one: the zero-area ones are dropped
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0]])
+    rep = cached_chain(PropMesh(pts, np.array([[0, 1, 2], [0, 3, 3], [0, 0, 0]]), np.ones((4, 4), np.float32)),
+                       "deg", cache=False)
+    assert rep.level_count[0] == 1 and np.isfinite(rep.positions).all() and np.isfinite(rep.sphere).all()
