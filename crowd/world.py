@@ -30,7 +30,16 @@ class Scenery:
         return frozenset(r.key for r in self.reps)
 
     def add(self, drawlist, camera, size, poe: float, lod_mode: str):
-        """Append this frame's world batches to ``drawlist`` (returned); level 0 in LOD mode ``none``."""
+        """Append this frame's world batches to ``drawlist`` (returned); level 0 in LOD mode ``none``.
+
+        The world is selected from the DrawList's own camera (its ``origin`` and view rotation), which a
+        keyframed selection in "delayed" mode takes from an earlier frame than ``camera``."""
+        origin = np.asarray(drawlist.origin, np.float64)
+        if not np.array_equal(origin, camera.position):
+            from lod.view import Camera
+
+            rot = np.asarray(drawlist.view, np.float64)[:3, :3].T
+            camera = Camera(origin, rot, camera.fov_y, camera.near, camera.far)
         batches, stats = self.selector.select(camera, size, poe=poe, full_detail=(lod_mode == "none"))
         drawlist.batches.extend(batches)
         drawlist.stats.update(stats)

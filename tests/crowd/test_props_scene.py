@@ -116,3 +116,30 @@ def test_with_terrain_the_terrain_is_the_ground_and_solids_stand_on_it(tmp_path)
         h = terrain.height(ring[:, 0], ring[:, 2])
         assert np.allclose(ring[:, 1], h - 0.05, atol=1e-4)  # sunk a little into the terrain: no gap
         assert world[:, 1].max() == pytest.approx(terrain.height(ring[:, 0], ring[:, 2]).max() + 2.0, abs=1e-4)
+
+
+def test_world_batches_follow_the_drawlist_camera():
+    """A keyframed selection in "delayed" mode draws with an earlier camera: the world's batches are
+    relative to the DrawList's origin, not to the camera handed in."""
+    from crowd.world import Scenery
+    from lod.drawlist import DrawList
+    from lod.props.chain import PropChainRep
+    from lod.props.select import WorldSelector
+    from lod.props.solids import GroundRep
+    from lod.view import Camera
+
+    rep = PropChainRep("props:0:x", np.zeros((3, 3), np.float32), np.zeros((3, 3), np.float32),
+                       np.ones((3, 4), np.float32), np.arange(3, dtype=np.uint32).reshape(1, 3),
+                       np.zeros(1, np.int64), np.ones(1, np.int64), np.zeros(1), np.array([0.0, 0, 0, 1]))
+    rows = np.zeros((1, 3, 4))
+    rows[0, :, :3] = np.eye(3)
+    sc = Scenery(WorldSelector([(rep, rows)], GroundRep()))
+    drawn = Camera.look_at((0.0, 2.0, 10.0), (0.0, 0.0, 0.0))
+    later = Camera.look_at((3.0, 5.0, 12.0), (0.0, 0.0, 0.0))
+    dl = DrawList(origin=drawn.position, view=drawn.view_matrix().astype(np.float32),
+                  proj=drawn.projection(2.0).astype(np.float32), size=(64, 32))
+    sc.add(dl, later, (64, 32), 1.0, "none")
+    prop = next(b for b in dl.batches if b.rep == "props:0:x")
+    ground = next(b for b in dl.batches if b.rep == "world:ground")
+    assert np.allclose(prop.instance_data[0, [3, 7, 11]], -drawn.position, atol=1e-5)
+    assert ground.instance_data[0, 7] == pytest.approx(-2.0)
