@@ -71,6 +71,9 @@ class Plan:
                  f"agents: {self.state.n} in {len(self.agents_per_placement)} placement group(s) "
                  f"({', '.join(map(str, self.agents_per_placement))})",
                  f"effects: {', '.join(s.effect_names) or 'none'}",
+                 *([f"props: {sum(p.instances for p in s.props)} of {len(s.props)} mesh file(s) ("
+                    + ", ".join(f"{p.name}: {p.instances} x {p.triangles} triangles" for p in s.props) + ")"]
+                   if s.props else []),
                  f"triangles per frame (full detail, before culling): {self.triangles_per_frame():,}",
                  f"frames: {s.frames} at dt {s.dt:g} s x {s.substeps} substep(s); "
                  f"{s.render.size[0]}x{s.render.size[1]}; lod {s.lod_mode!r}; output {s.output_dir}"]
