@@ -47,6 +47,7 @@ class Drawer:
         self._reps: dict = {}  # key -> dict(vao, locs, n_indices, objects) or ("ground", rep)
         self._buf = None
         self._cap = 0
+        self.ground_vao = None  # one quad for every ground rep (made on the first upload of one)
 
     def _track(self, obj, label):
         try:
@@ -68,7 +69,7 @@ class Drawer:
         ctx = self.ctx
         if not hasattr(rep, "indices"):  # the ground
             prog = self.r.program("world_ground")
-            if "ground_vao" not in self.__dict__:
+            if self.ground_vao is None:
                 quad = np.array([[-1, -1], [1, -1], [-1, 1], [1, 1]], np.float32)
                 vbo = self._track(ctx.buffer(quad.tobytes()), "world.ground.vbo")
                 self.ground_vao = self._track(ctx.vertex_array(prog, [(vbo, "2f", "in_corner")]), "world.ground.vao")
@@ -170,3 +171,4 @@ class Drawer:
                 pass
         self._objects.clear()
         self._reps.clear()
+        self.ground_vao, self._buf, self._cap = None, None, 0
