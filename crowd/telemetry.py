@@ -20,7 +20,7 @@ Files of a run (all written into the run's atomic output directory):
     "frame" track, per system on the "systems" track (laid end to end inside
     the frame's simulate span: the schedule reports durations, not start
     times), GPU time on the "gpu" track, and counter ("C") events for
-    triangles, instances and points.
+    triangles, instances, points and props (triangles of props and obstacle solids).
 """
 from __future__ import annotations
 
@@ -164,7 +164,7 @@ class Telemetry:
                 draw_off = r.stages.get("draw", (0.0, 0.0))[0]
                 ev.append({"name": "gpu", "cat": "gpu", "ph": "X", "pid": _PID, "tid": _TID_GPU,
                            "ts": t0 + draw_off * us, "dur": r.gpu * us, "args": {"frame": r.frame}})
-            for c in ("triangles", "instances", "points"):
+            for c in ("triangles", "instances", "points", "props"):
                 ev.append({"name": c, "cat": "count", "ph": "C", "pid": _PID, "ts": t0,
                            "args": {c: int(r.counts.get(c, 0))}})
         return {"traceEvents": ev, "displayTimeUnit": "ms"}
