@@ -11,3 +11,10 @@ vec3 world_shade(vec3 base, vec3 normal, vec3 rel_pos) {
     float lambert = max(dot(n, u_light_dir), 0.0);
     return base * (u_ambient + (1.0 - u_ambient) * lambert);
 }
+
+// world_shade for the ground plane (normal +Y, or -Y seen from below): the same Lambert term without the
+// per-pixel normal work (the ground covers most pixels). Extend it together with world_shade.
+vec3 world_shade_ground(vec3 base, vec3 rel_pos) {
+    float lambert = max(rel_pos.y <= 0.0 ? u_light_dir.y : -u_light_dir.y, 0.0);
+    return base * (u_ambient + (1.0 - u_ambient) * lambert);
+}
