@@ -10,7 +10,9 @@ Three figures, measured in one run:
    the minimum and median over ``--repeat`` frames of an empty frame, the ground, the props and
    obstacle solids, and all of it (upload + draw + finish, seconds of ``Renderer.draw``); the
    differences to the empty frame are the world's cost. Frames of each kind are interleaved, so
-   machine load drifts onto all of them alike.
+   machine load drifts onto all of them alike; the CPU time of the process (all threads, llvmpipe's
+   included) per frame is printed too: on a shared machine it is the figure the load inflates least
+   (the wall time of an unloaded 2-core machine is about half of it: llvmpipe renders on both cores).
 
 Usage::
 
@@ -64,6 +66,14 @@ def props_lod() -> list:
     return out
 
 
+def _cpu() -> float:
+    """CPU seconds of this process, all threads (llvmpipe's too): a cost other jobs' load does not inflate."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
 def world_draw(size, repeat: int) -> list:
     from crowd.engine import Engine
     from crowd.scene import load_scene
@@ -84,17 +94,23 @@ def world_draw(size, repeat: int) -> list:
                                proj=cam.projection(size[0] / size[1]).astype(np.float32), size=size, batches=bs)
                    for k, bs in kinds.items()}
             ms = {k: [] for k in kinds}
+            cpu = {k: 0.0 for k in kinds}
             for i in range(repeat + 2):
                 for k, dl in dls.items():
+                    c0 = _cpu()
                     t = r.draw(dl, sc.render.background)
                     if i >= 2:  # warm-up frames compile shaders and grow buffers
+                        cpu[k] += _cpu() - c0
                         ms[k].append(1e3 * sum(float(t[s] or 0.0) for s in ("upload", "draw", "finish")))
             base = np.min(ms["empty"])
+            cbase = cpu["empty"] / repeat * 1e3
             out.append(f"  {name} ({stats['props']:,} prop/solid triangles, {stats['props_instances']} instances, "
                        f"selection {sel_ms:.2f} ms):")
             for k, v in ms.items():
-                out.append(f"    {k:>13}: min {np.min(v):6.2f} ms, median {np.median(v):6.2f} ms"
-                           + ("" if k == "empty" else f"  (min - empty: {np.min(v) - base:5.2f} ms)"))
+                c = cpu[k] / repeat * 1e3
+                out.append(f"    {k:>13}: min {np.min(v):6.2f} ms, median {np.median(v):6.2f} ms, CPU {c:6.2f} ms"
+                           + ("" if k == "empty" else f"  (min - empty: {np.min(v) - base:5.2f} ms, "
+                                                      f"CPU - empty: {c - cbase:5.2f} ms)"))
     return out
 
 
