@@ -71,6 +71,9 @@ class Plan:
                  f"agents: {self.state.n} in {len(self.agents_per_placement)} placement group(s) "
                  f"({', '.join(map(str, self.agents_per_placement))})",
                  f"effects: {', '.join(s.effect_names) or 'none'}",
+                 *([f"props: {sum(p.instances for p in s.props)} of {len(s.props)} mesh file(s) ("
+                    + ", ".join(f"{p.name}: {p.instances} x {p.triangles} triangles" for p in s.props) + ")"]
+                   if s.props else []),
                  f"triangles per frame (full detail, before culling): {self.triangles_per_frame():,}",
                  f"frames: {s.frames} at dt {s.dt:g} s x {s.substeps} substep(s); "
                  f"{s.render.size[0]}x{s.render.size[1]}; lod {s.lod_mode!r}; output {s.output_dir}"]
@@ -209,6 +212,9 @@ class Engine:
         self.reps, self.statics = self._build_reps()
         self.selector = self._build_selector()
         self.terrain_lod = self._build_terrain_lod()
+        from crowd.world import build_scenery
+
+        self.scenery = build_scenery(scene, self.world)  # ground, obstacle solids, props (crowd.world)
         lp = dict(scene.lod_params)
         self.settings = LiveSettings(lod_mode=scene.lod_mode, poe=float(lp.get("poe", LiveSettings.poe)),
                                      splat_size=float(lp.get("splat_size", LiveSettings.splat_size)),
@@ -376,7 +382,7 @@ class Engine:
 
             self.renderer = Renderer(self.scene.render.size)
             self.renderer.tint_table = self.tint_table
-            for rep in [*self.reps, *self.statics]:
+            for rep in [*self.reps, *self.statics, *self.scenery.reps]:
                 self.renderer.upload(rep)
         return self.renderer
 
@@ -402,7 +408,7 @@ class Engine:
         for reps, _ in self._modes.values():
             for rep in reps:
                 self.renderer.upload(rep)
-        for rep in self.statics:
+        for rep in [*self.statics, *self.scenery.reps]:
             self.renderer.upload(rep)
         return self.renderer
 
@@ -420,14 +426,15 @@ class Engine:
     @property
     def static_keys(self) -> frozenset:
         """Representation keys of the scenery (terrain), never tinted by colour-by."""
-        return frozenset(r.key for r in self.statics)
+        return frozenset(r.key for r in self.statics) | self.scenery.keys
 
     def select(self, camera, size):
         """The DrawList of the current state seen by ``camera`` at ``size`` (the
         selection ``run`` makes each frame, statics included)."""
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
         self.apply_live_settings()
-        return self.selector.select(self.world.state, camera, size, statics=static_draws)
+        dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+        return self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
 
     def apply_live_settings(self) -> None:
         """Hand the live LOD settings to the current selector: pixels of error
@@ -521,6 +528,7 @@ class Engine:
                 camera = self.camera_at(self.world.time)
                 camera, metrics = self.terrain_frame(camera, renderer)
                 dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+                self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
                 t2 = time.perf_counter()
                 stages["select"] = (t1 - t_frame, t2 - t1)
                 if "keyframe" in dl.stats:  # keyframed selection (lod.temporal.selection)
@@ -555,7 +563,7 @@ class Engine:
                           "culled": dl.stats.get("culled", 0),
                           "triangles": dl.stats.get("triangles", dl.triangles),
                           "points": dl.stats.get("points", dl.points),
-                          "batches": len(dl.batches)}
+                          "batches": len(dl.batches), "props": dl.stats.get("props", 0)}
                 tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
                                     total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
                                     counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))

@@ -226,6 +226,10 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     tris = sum(placement_agents(p.kind, p.params) * _triangles(scene.characters[p.character], chars[p.character])
                for p in scene.placements)
     parts["driver"] = min(tris * BINNED_BYTES_PER_TRIANGLE, DRIVER_SCENES * DRIVER_SCENE_BYTES)
+    if getattr(scene, "props", ()):
+        from crowd.world import props_bytes
+
+        parts["props"] = props_bytes(scene)
     lod = _mode_estimate(scene, characters)
     if lod:
         parts["lod"] = lod

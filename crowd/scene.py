@@ -38,7 +38,7 @@ LOD_MODES = _mode_names()
 PLACEMENT_COMMON = ("kind", "character", "clip")
 #: keys accepted at the top level of a scene document
 TOP_LEVEL_KEYS = ("name", "seed", "dt", "substeps", "frames", "effects", "characters", "placement",
-                  "terrain", "camera", "render", "lod", "output")
+                  "props", "terrain", "camera", "render", "lod", "output")
 
 TOP_SCHEMA = {
     "name": Param("str", None, doc="scene name; default: file stem"),
@@ -94,6 +94,7 @@ RENDER_SCHEMA = {
     "size": Param("list", [1280, 720], doc="[width, height] pixels, each 16 ..= 8192"),
     "background": Param("vec3", [0.1, 0.1, 0.12], doc="linear RGB in [0, 1]"),
     "png_every": Param("int", 0, min=0, doc="write every k-th frame as PNG; 0 = none"),
+    "ground": Param("bool", True, doc="draw the ground plane and its grid (not with [terrain]: it is the ground)"),
 }
 SIZE_RANGE = (16, 8192)
 
@@ -145,6 +146,21 @@ class PlacementSpec:
 
 
 @dataclass(frozen=True)
+class PropSpec:
+    """One ``[[props]]`` table (``sim.props.PROP_PARAMS``), its file read and checked.
+
+    file : absolute Path of the mesh file; params : validated dict; triangles : int of the file
+    """
+
+    name: str
+    file: Path
+    params: dict
+    triangles: int
+    instances: int
+    index: int = 0
+
+
+@dataclass(frozen=True)
 class EffectSpec:
     """One listed effect with its parameters validated against the module's PARAMS."""
 
@@ -182,6 +198,7 @@ class RenderSpec:
     size: tuple
     background: tuple
     png_every: int
+    ground: bool = True
 
 
 @dataclass(frozen=True)
@@ -210,6 +227,7 @@ class Scene:
     lod_params: tuple = ()  # ((key, value), ...) of the [lod] table besides mode (lod.modes PARAMS)
     terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal.terrain_keyframes)
     lod_common: tuple = ()  # ((key, value), ...): the [lod] keys of every mode (lod.temporal.selection)
+    props: tuple = ()  # PropSpec of every [[props]] table
 
     @property
     def effect_names(self) -> list:
@@ -315,6 +333,7 @@ class _Parser:
         characters = self.characters(top["seed"])
         placements = self.placements(characters)
         effects = self.effects()
+        props = self.props(effects)
         terrain = self.terrain()
         self.effect_requirements(effects, placements, terrain)
         camera = self.camera()
@@ -336,7 +355,7 @@ class _Parser:
                      lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain,
                      lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"),
                      terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else (),
-                     lod_common=tuple(lod_common.items()))
+                     lod_common=tuple(lod_common.items()), props=tuple(props))
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:
@@ -485,6 +504,49 @@ class _Parser:
             out.append(EffectSpec(name=name, params=params, index=i))
         return out
 
+    # -- [[props]] -----------------------------------------------------------------------------------------------------
+    def props(self, effects: list) -> list:
+        """Validate ``[[props]]``, read their files; the footprints of ``obstacle = true`` props are
+        added to the ``obstacles`` effect (listed for them with its defaults when the scene has none)."""
+        tables = self.array_of_tables("props", False)
+        if not tables:
+            return []
+        import sim.props as sp
+        from sim.errors import AssetError
+
+        out, extra = [], {"circles": [], "boxes": [], "polygons": []}
+        for i, t in enumerate(tables):
+            where = f"props[{i}]"
+            cfg = sp.validate_prop(t, where)
+            file = (self.base / cfg["file"]).resolve()
+            if file.suffix.lower() not in sp.PROP_SUFFIXES:
+                self.fail(f"{where}.file", f"expected a mesh file ({', '.join(sp.PROP_SUFFIXES)}), got {cfg['file']!r}")
+            try:
+                mesh = sp.load_prop_mesh(file, cfg["up"])
+            except AssetError as e:
+                self.fail(f"{where}.file", str(e))
+            pos, yaw, scale = sp.prop_instances(cfg)
+            if cfg["obstacle"]:
+                try:
+                    fp = sp.footprint(mesh, cfg["footprint"], file.name)
+                except AssetError as e:
+                    self.fail(f"{where}.footprint", str(e))
+                for k, v in sp.placed_obstacles(fp, pos, yaw, scale).items():
+                    extra[k] += v
+            out.append(PropSpec(name=cfg["name"] or f"props[{i}]", file=file, params=cfg,
+                                triangles=mesh.n_triangles, instances=len(pos), index=i))
+        if any(extra.values()):
+            from sim.obstacles import PARAMS as OBSTACLE_PARAMS
+
+            at = next((k for k, e in enumerate(effects) if e.name == "obstacles"), None)
+            if at is None:
+                effects.append(EffectSpec("obstacles", validate(OBSTACLE_PARAMS, {}, "effects"), len(effects)))
+                at = len(effects) - 1
+            e = effects[at]
+            params = {**e.params, **{k: list(e.params.get(k, [])) + v for k, v in extra.items()}}
+            effects[at] = dataclasses.replace(e, params=params)
+        return out
+
     def effect_requirements(self, effects: list, placements: list, terrain) -> None:
         """Effects that need another part of the scene (checked here, before anything is built)."""
         for e in effects:
@@ -583,7 +645,7 @@ class _Parser:
         bg = r["background"]
         if not all(0.0 <= x <= 1.0 for x in bg):
             self.fail("render.background", f"expected three numbers in [0, 1], got {raw['background']!r}")
-        return RenderSpec(size=size, background=tuple(bg), png_every=r["png_every"])
+        return RenderSpec(size=size, background=tuple(bg), png_every=r["png_every"], ground=r["ground"])
 
 
 def parse_size(value: Any) -> tuple | None:

@@ -5,7 +5,8 @@ Files of a run (all written into the run's atomic output directory):
 ``frames.csv``
     one row per frame: ``frame, sim_time, total, simulate, select, upload,
     draw, finish, gpu, sys.<name>..., instances, culled, triangles, points,
-    batches, samples_passed``. Times are seconds (wall clock,
+    batches, props, samples_passed``; ``props`` counts the triangles of props and
+    obstacle solids (``crowd.world``), ``triangles`` those of the characters. Times are seconds (wall clock,
     ``time.perf_counter``); ``gpu`` is the GL timer-query time, blank when the
     driver has none. ``sys.<name>`` is the wall time of schedule step
     ``<name>`` summed over the frame's sub-steps.
@@ -19,7 +20,7 @@ Files of a run (all written into the run's atomic output directory):
     "frame" track, per system on the "systems" track (laid end to end inside
     the frame's simulate span: the schedule reports durations, not start
     times), GPU time on the "gpu" track, and counter ("C") events for
-    triangles, instances and points.
+    triangles, instances, points and props (triangles of props and obstacle solids).
 """
 from __future__ import annotations
 
@@ -35,7 +36,7 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-COUNTS = ("instances", "culled", "triangles", "points", "batches")
+COUNTS = ("instances", "culled", "triangles", "points", "batches", "props")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 
@@ -163,7 +164,7 @@ class Telemetry:
                 draw_off = r.stages.get("draw", (0.0, 0.0))[0]
                 ev.append({"name": "gpu", "cat": "gpu", "ph": "X", "pid": _PID, "tid": _TID_GPU,
                            "ts": t0 + draw_off * us, "dur": r.gpu * us, "args": {"frame": r.frame}})
-            for c in ("triangles", "instances", "points"):
+            for c in ("triangles", "instances", "points", "props"):
                 ev.append({"name": c, "cat": "count", "ph": "C", "pid": _PID, "ts": t0,
                            "args": {c: int(r.counts.get(c, 0))}})
         return {"traceEvents": ev, "displayTimeUnit": "ms"}

@@ -123,6 +123,7 @@ def prog_name(kind: str, skinning: str = "palette") -> str:
 PLUGIN_KINDS: dict[str, str] = {
     "clusters": "render.clusters",
     "points": "render.points",
+    "world": "render.world",  # ground, obstacle solids, props (lod.props)
 }
 
 

@@ -42,11 +42,14 @@ from numba import njit, prange
 from sim.config import OBSTACLES_CCD_EPS, OBSTACLES_CCD_ITERATIONS, OBSTACLES_CONTACT, OBSTACLES_EPS
 from sim.params import Param, ParamError, validate
 
+#: drawing keys of every shape (render only: the simulation ignores them)
+_DRAW = {"height": Param("float", 1.0, min=0.0, max=1e4, doc="height of the drawn solid, metres"),
+         "visible": Param("bool", True, doc="draw the shape as a solid (false: it only stops agents)")}
 _CIRCLE = {"center": Param("vec2", doc="centre [x, z], metres"),
-           "radius": Param("float", min=1e-6, doc="metres")}
+           "radius": Param("float", min=1e-6, doc="metres"), **_DRAW}
 _BOX = {"center": Param("vec2", doc="centre [x, z], metres"),
         "size": Param("vec2", doc="full extent [sx, sz], metres (> 0)"),
-        "yaw": Param("float", 0.0, doc="rotation about +Y, degrees")}
+        "yaw": Param("float", 0.0, doc="rotation about +Y, degrees"), **_DRAW}
 
 
 class _TableList(Param):
@@ -76,22 +79,24 @@ class _Polygons(Param):
         out = []
         for i, t in enumerate(value):
             w = f"{key}[{i}]"
-            if not isinstance(t, dict) or set(t) != {"points"}:
-                raise ParamError(w, f"expected a table with only `points = [[x, z], ...]`, got {t!r}")
+            if not isinstance(t, dict) or "points" not in t or not set(t) <= {"points", *_DRAW}:
+                raise ParamError(w, f"expected a table {{points = [[x, z], ...]}} (optional height, visible), "
+                                 f"got {t!r}")
             pts = t["points"]
             if not isinstance(pts, list) or len(pts) < 3:
                 raise ParamError(f"{w}.points", f"expected at least 3 points [x, z], got {pts!r}")
             pts = [Param("vec2").check(f"{w}.points[{j}]", p) for j, p in enumerate(pts)]
             if abs(_area(np.array(pts))) < 1e-12:
                 raise ParamError(f"{w}.points", "expected a polygon of non-zero area")
-            out.append({"points": pts})
+            out.append({"points": pts, **validate(_DRAW, {k: v for k, v in t.items() if k != "points"}, w)})
         return out
 
 
 PARAMS: dict[str, Param] = {
     "circles": _TableList(_CIRCLE, "[{center = [x, z], radius = r}, ...]"),
     "boxes": _TableList(_BOX, "[{center = [x, z], size = [sx, sz], yaw = deg}, ...]"),
-    "polygons": _Polygons("list", [], doc="[{points = [[x, z], ...]}, ...] simple polygons, either winding"),
+    "polygons": _Polygons("list", [], doc="[{points = [[x, z], ...]}, ...] simple polygons, either winding "
+                                          "(each shape also takes height = metres, visible = bool: its drawn solid)"),
     "agent_radius": Param("float", 0.4, min=0.0, max=100.0, doc="agent body radius kept clear of obstacles, m"),
     "margin": Param("float", 2.0, min=1e-3, max=1000.0, doc="force-field reach beyond agent_radius, m"),
     "lookahead": Param("float", 1.0, min=0.0, max=60.0, doc="look-ahead time of the second probe, s"),
@@ -112,9 +117,14 @@ class ObstacleSet:
     verts : (V, 2) float64, polygon vertices (x, z), polygons back to back
     pstart : (P + 1,) int64, polygon k is ``verts[pstart[k]:pstart[k+1]]``
     pbound : (P, 3) float64, bounding circle (x, z, r) of every polygon
+    circle_draw, poly_draw : (C, 2) and (P, 2) float64, per shape (height m, visible 0/1) of its drawn
+        solid (boxes first, then polygons, as in ``pstart``); the simulation ignores them
     """
 
     def __init__(self, circles=(), boxes=(), polygons=()):
+        draw = lambda t: (float(t.get("height", 1.0)), float(bool(t.get("visible", True))))  # noqa: E731
+        self.circle_draw = np.array([draw(c) for c in circles], np.float64).reshape(-1, 2)
+        self.poly_draw = np.array([draw(t) for t in [*boxes, *polygons]], np.float64).reshape(-1, 2)
         self.circles = np.array([[c["center"][0], c["center"][1], c["radius"]] for c in circles],
                                 np.float64).reshape(-1, 3)
         polys = []

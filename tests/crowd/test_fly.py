@@ -50,7 +50,9 @@ def press(app, key):
 
 
 def all_ids(dl):
-    return np.concatenate([b.instance_ids for b in dl.batches if b.instance_ids.size] or [np.zeros(0, np.int32)])
+    """Agent ids of the crowd's batches (the world's ground and props are not agents: crowd.world)."""
+    return np.concatenate([b.instance_ids for b in dl.batches if b.instance_ids.size
+                           and b.representation not in ("world", "props")] or [np.zeros(0, np.int32)])
 
 
 # -- window and rendering ----------------------------------------------------------------------------------------------
