@@ -20,7 +20,9 @@ STRONG = 'variation = { hue = 0.45, saturation = 0.3, value = 0.3, regions = ["s
 
 def _scene(tmp_path, variation=STRONG, seed=1, name="v.toml"):
     text = tiny_scene(replace={"rows = 2": "rows = 1", "cols = 2": "cols = 4", "seed = 1": f"seed = {seed}",
-                               'triangles = 600': f'triangles = 600\nseed = 7\n{variation}'})
+                               'triangles = 600': f'triangles = 600\nseed = 7\n{variation}',
+                               # agents against a black background: their pixels are the ones above black
+                               "png_every = 1": "png_every = 1\nground = false"})
     p = tmp_path / name
     p.write_text(text)
     return load_scene(p)
