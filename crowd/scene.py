@@ -38,7 +38,7 @@ LOD_MODES = _mode_names()
 PLACEMENT_COMMON = ("kind", "character", "clip")
 #: keys accepted at the top level of a scene document
 TOP_LEVEL_KEYS = ("name", "seed", "dt", "substeps", "frames", "effects", "characters", "placement",
-                  "terrain", "camera", "render", "lod", "output")
+                  "terrain", "camera", "render", "lod", "output", "measurement")
 
 TOP_SCHEMA = {
     "name": Param("str", None, doc="scene name; default: file stem"),
@@ -85,7 +85,9 @@ RENDER_SCHEMA = {
 SIZE_RANGE = (16, 8192)
 
 LOD_SCHEMA = {"mode": Param("str", "none", choices=LOD_MODES)}
-OUTPUT_SCHEMA = {"dir": Param("str", None, doc="relative to the working directory; default out/<name>")}
+OUTPUT_SCHEMA = {"dir": Param("str", None, doc="relative to the working directory; default out/<name>"),
+                 "trajectories": Param("bool", False, doc="write trajectories.txt (PedPy's text format; "
+                                       "crowd.trajectories) with the run's outputs")}
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -196,6 +198,8 @@ class Scene:
     lod_params: tuple = ()  # ((key, value), ...) of the [lod] table besides mode (lod.modes PARAMS)
     terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal.terrain_keyframes)
     lod_common: tuple = ()  # ((key, value), ...): the [lod] keys of every mode (lod.temporal.selection)
+    trajectories: bool = False  # [output] trajectories: write trajectories.txt (crowd.trajectories)
+    measurements: tuple = ()  # crowd.measurement.MeasurementSpec of the [[measurement]] tables
 
     @property
     def effect_names(self) -> list:
@@ -316,13 +320,17 @@ class _Parser:
         if out["dir"] is not None and not out["dir"].strip():
             self.fail("output.dir", "expected a non-empty directory path")
         out_dir = Path(out["dir"] if out["dir"] is not None else Path("out") / name)
+        from crowd.measurement import parse_measurements
+
+        measurements = parse_measurements(doc.get("measurement"), self.fail)
         return Scene(path=self.path.absolute(), name=name, seed=top["seed"], dt=top["dt"],
                      substeps=top["substeps"], frames=top["frames"], characters=tuple(characters),
                      placements=tuple(placements), effects=tuple(effects), camera=camera, render=render,
                      lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain,
                      lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"),
                      terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else (),
-                     lod_common=tuple(lod_common.items()))
+                     lod_common=tuple(lod_common.items()), trajectories=out["trajectories"],
+                     measurements=measurements)
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:
