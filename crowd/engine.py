@@ -221,6 +221,7 @@ class Engine:
 
         sc = self.scene
         world = World(state=self.plan.state, characters=self.plan.characters, seed=sc.seed)
+        world.resources["character_radius"] = [c.radius for c in sc.characters]  # [[characters]] radius (avoidance)
         if sc.terrain is not None:
             import sim.terrain
 

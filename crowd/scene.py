@@ -56,6 +56,8 @@ CHARACTER_SCHEMA = {
     "seed": Param("int", None, min=0, doc="generator seed; default: scene seed"),
     "scale": Param("float", 1.0, doc="uniform scale, > 0"),
     "fps": Param("int", 30, min=1, max=240, doc="clip baking rate"),
+    "radius": Param("float", None, min=0.001, max=100.0,
+                    doc="body radius at scale 1, metres (effect avoidance); default: the footprint"),
 }
 #: default ``triangles`` of a generated character
 DEFAULT_TRIANGLES = 5000
@@ -110,6 +112,7 @@ class CharacterSpec:
     seed: int
     scale: float
     fps: int
+    radius: float | None = None  # body radius at scale 1 (avoidance); None = the character's footprint
 
     def spec(self) -> str:
         """Short human-readable source, e.g. ``generator:humanoid:5000`` or the file path."""
@@ -374,7 +377,7 @@ class _Parser:
                 triangles = DEFAULT_TRIANGLES
             out.append(CharacterSpec(name=c["name"], generator=c["generator"], file=file, triangles=triangles,
                                      seed=c["seed"] if c["seed"] is not None else scene_seed,
-                                     scale=c["scale"], fps=c["fps"]))
+                                     scale=c["scale"], fps=c["fps"], radius=c["radius"]))
         return out
 
     # -- [[placement]] -------------------------------------------------------------------------------------------------
