@@ -76,6 +76,13 @@ def segments_intersect(a, b, c, d) -> bool:
             or (o3 == 0 and _on_segment(c, d, a)) or (o4 == 0 and _on_segment(c, d, b)))
 
 
+def collinear(pts) -> bool:
+    """All points of ``pts`` on one line (or all equal)."""
+    a = pts[0]
+    b = next((q for q in pts if q != a), None)
+    return b is None or all(_orient(a, b, c) == 0 for c in pts)
+
+
 def simple_polygon_problem(pts) -> str | None:
     """None when the ring ``pts`` is a simple polygon, else what is wrong (a phrase).
 
@@ -138,6 +145,8 @@ def parse_measurements(doc_value, fail) -> tuple:
                 pts = pts[:-1]  # a closed ring written out
             if len(pts) < 3:
                 fail(f"{where}.polygon", f"expected at least 3 [x, z] points, got {len(pts)}")
+            if collinear(pts):
+                fail(f"{where}.polygon", "expected a polygon of non-zero area, got collinear points")
             problem = simple_polygon_problem(pts)
             if problem is not None:
                 fail(f"{where}.polygon", f"expected a simple polygon (edges meet only at shared corners): {problem}")

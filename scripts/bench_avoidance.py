@@ -409,6 +409,8 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", default=None, help="comma-separated agent counts of the speed figure "
                     "(default 10000,50000,100000)")
     ap.add_argument("--million", type=int, default=1_000_000, help="agents of the ours-only speed run (0 = skip)")
+    ap.add_argument("--densities", default=None, help="comma-separated nominal corridor densities /m^2 "
+                    "(default 0.5,0.75,1,1.5,2,2.5,3,3.5,4; quick 1,2)")
     ap.add_argument("--steps", type=int, default=None, help="timed steps per size (default 10; quick 3)")
     ap.add_argument("--warmup", type=int, default=2, help="untimed steps before (default 2)")
     ap.add_argument("--md", default=str(Path(__file__).with_suffix(".md")), help="markdown output")
@@ -429,6 +431,12 @@ def _main(a) -> int:
         sizes = [int(s) for s in (a.sizes or ("2000" if q else "10000,50000,100000")).split(",")]
     except ValueError:
         raise BenchError(f"--sizes {a.sizes!r}: expected comma-separated integers") from None
+    try:
+        dens = tuple(float(x) for x in a.densities.split(",")) if a.densities else ((1.0, 2.0) if q else DENSITIES)
+    except ValueError:
+        raise BenchError(f"--densities {a.densities!r}: expected comma-separated numbers") from None
+    if not all(0.0 < d <= 4.5 for d in dens):
+        raise BenchError(f"--densities {a.densities!r}: expected densities in (0, 4.5] per m^2")
     if n_bottle < 2 or steps < 1 or a.warmup < 0 or any(s < 2 for s in sizes) or a.million < 0:
         raise BenchError("--agents and --sizes need >= 2 agents, --steps >= 1, --warmup and --million >= 0")
     million = 0 if q else a.million
@@ -500,7 +508,6 @@ def _main(a) -> int:
     out()
 
     # 2. corridor
-    dens = (1.0, 2.0) if q else DENSITIES
     window = (1.0, 5.0) if q else CORRIDOR_WINDOW
     out(f"## Corridor: speed against density (Weidmann 1993: v0 = {WEIDMANN_V0} m/s, rho_max = {WEIDMANN_RHO_MAX} "
         f"/m², gamma = {WEIDMANN_GAMMA} /m²)")
