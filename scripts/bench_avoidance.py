@@ -288,7 +288,7 @@ def corridor_ours(density: float, seed: int = 19, window=CORRIDOR_WINDOW, time_g
             for f in range(frames):
                 world.step(DT)
                 w.write(f, world.state.position)
-        res = analyse(path, [area])[0]["area"]
+        res = analyse(path, [area], voronoi=False)[0]["area"]
     t = np.asarray(res["time"])
     sel = (t >= window[0]) & (t <= window[1])
     rho = float(np.mean(np.asarray(res["density"])[sel])) if sel.any() else math.nan
@@ -325,9 +325,90 @@ def _timing_ours(n: int, warmup: int, steps: int) -> dict:
         t = time.perf_counter()
         world.step(DT, 1, systems)
         ms.append((time.perf_counter() - t) * 1e3)
-    grown = rss_bytes() - before
-    return {"ms_per_step": ms, "rss_bytes": grown, "state_bytes": world.state.nbytes(), "n": n,
+    return {"ms_per_step": ms, "state_bytes": world.state.nbytes(), "n": n,
             "systems_ms": {k: 1e3 * v / steps for k, v in systems.items()}}
+
+
+def why_ours(n: int, warmup: int, steps: int) -> dict:
+    """Where our step's time goes (1 thread, ms): the whole step with and without the obstacles effect (open plane),
+    and the overlap check of ``avoidance.resolve`` alone on the start positions (no overlap: 0 passes, one grid
+    build and one scan) with the grid layout as shipped (``sim.config.GRID_DENSE_FACTOR``) and with a dense grid
+    (factor 8: the resolve grid's 0.4 m cells are 6.25 per agent here, so the shipped factor 4 hashes them)."""
+    import numba
+
+    import sim.grid as grid
+    from sim.avoidance.resolve import resolve
+
+    prev = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        pos, room, target = room_positions(n)
+        out = {}
+        for label, boxes in (("with walls", _boxes_around(*room)), ("open plane", [])):
+            world = our_world(pos, [[list(target)]], boxes)
+            for _ in range(warmup):
+                world.step(DT)
+            ms = []
+            for _ in range(steps):
+                t = time.perf_counter()
+                world.step(DT)
+                ms.append((time.perf_counter() - t) * 1e3)
+            out[label] = statistics.median(ms)
+            del world
+        p = np.zeros((n, 3))
+        p[:, 0], p[:, 2] = pos[:, 0], pos[:, 1]
+        r = np.full(n, RADIUS)
+        shipped = grid.GRID_DENSE_FACTOR
+        for label, factor in (("resolve check, shipped grid", shipped), ("resolve check, dense grid", 8)):
+            grid.GRID_DENSE_FACTOR = factor
+            try:
+                resolve(p, r, None, None, 16)
+                ts = []
+                for _ in range(max(3, steps)):
+                    t = time.perf_counter()
+                    resolve(p, r, None, None, 16)
+                    ts.append((time.perf_counter() - t) * 1e3)
+            finally:
+                grid.GRID_DENSE_FACTOR = shipped
+            out[label] = statistics.median(ts)
+        return out
+    finally:
+        numba.set_num_threads(prev)
+
+
+def memory_probe(n: int) -> dict:
+    """Resident memory of our speed scenario with ``n`` agents, measured in this (fresh) process: a 100-agent world
+    first (imports, compiled kernels loaded), then the growth of the resident set from before the n-agent world is
+    built to after two steps (``rss_bytes``), and of the peak (``peak_bytes``, VmHWM)."""
+    pos, room, target = room_positions(100)
+    w = our_world(pos, [[list(target)]], _boxes_around(*room))
+    w.step(DT)
+    w.step(DT)
+    del w
+    pos, room, target = room_positions(n)
+    before, peak0 = rss_bytes(), _vm_hwm()
+    world = our_world(pos, [[list(target)]], _boxes_around(*room))
+    world.step(DT)
+    world.step(DT)
+    return {"rss_bytes": rss_bytes() - before, "peak_bytes": _vm_hwm() - peak0, "n": n}
+
+
+def _vm_hwm() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def memory_ours(n: int) -> dict:
+    """:func:`memory_probe` in a fresh interpreter (this one has run other worlds: freed memory would hide growth)."""
+    r = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--memory-probe", str(n)], capture_output=True,
+                       text=True, timeout=3600, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    if r.returncode != 0:
+        last = (r.stderr.strip().splitlines() or ["no output"])[-1]
+        raise BenchError(f"memory probe of {n} agents failed: {last}")
+    return json.loads(r.stdout)
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -415,7 +496,12 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=2, help="untimed steps before (default 2)")
     ap.add_argument("--md", default=str(Path(__file__).with_suffix(".md")), help="markdown output")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--no-why", dest="why", action="store_false", help="skip the 'why' table (where our time goes)")
+    ap.add_argument("--memory-probe", type=int, help=argparse.SUPPRESS)  # internal: memory_ours's subprocess
     a = ap.parse_args(argv)
+    if a.memory_probe:
+        print(json.dumps(memory_probe(a.memory_probe)))
+        return 0
     try:
         return _main(a)
     except BenchError as e:
@@ -543,8 +629,9 @@ def _main(a) -> int:
     out("## Speed: ms per step (median), same scenario")
     out()
     out(f"Square room, agents 1 m apart on a grid in its west half walking to the middle of the east wall; "
-        f"median of {steps} steps after {a.warmup} warm-up steps. Bytes per agent = resident memory growth "
-        "(world build + steps) / agents.")
+        f"median of {steps} steps after {a.warmup} warm-up steps. Bytes per agent = growth of the resident set from "
+        "before the world is built to after two steps (ours: in a fresh interpreter whose kernels are loaded; "
+        "JuPedSim: from before its Simulation is made to after the timed steps), / agents; ours' peak in brackets.")
     out()
     nt = numba.config.NUMBA_NUM_THREADS
     out(f"| agents | ours ms/step ({nt} threads) | ours ms/step (1 thread) | JuPedSim ms/step (1 thread) | "
@@ -558,11 +645,13 @@ def _main(a) -> int:
         m1 = statistics.median(o1["ms_per_step"]) if o1 else None
         j = timing_peer(py, n, a.warmup, steps) if (py and n != million) else None
         mj = statistics.median(j["ms_per_step"]) if j else None
+        mem = memory_ours(n)
         breakdown.append((n, o["systems_ms"], nt))
         if o1:
             breakdown.append((n, o1["systems_ms"], 1))
         out(f"| {n:,} | {mo:.2f} | {_f(m1)} | {_f(mj)} | {_f(mj / mo if mj else None, '{:.1f}x')} | "
-            f"{_f(mj / m1 if (mj and m1) else None, '{:.1f}x')} | {o['rss_bytes'] / n:,.0f} | "
+            f"{_f(mj / m1 if (mj and m1) else None, '{:.1f}x')} | {mem['rss_bytes'] / n:,.0f} "
+            f"({mem['peak_bytes'] / n:,.0f}) | "
             f"{_f(j['rss_bytes'] / n if j else None, '{:,.0f}')} |")
     out()
     out("Targets: JuPedSim / ours >= 10 at 10 K and 50 K; ours <= 300 ms/step at 1 M.")
@@ -574,6 +663,16 @@ def _main(a) -> int:
     out("| ---: | ---: | " + " | ".join("---:" for _ in names) + " |")
     for n, o, th in breakdown:
         out(f"| {n:,} | {th} | " + " | ".join(f"{o.get(k, 0.0):.2f}" for k in names) + " |")
+    if not q and a.why:
+        out()
+        out("Why (ours, 1 thread, median ms per step; measured in this run):")
+        out()
+        rows = [(n, why_ours(n, a.warmup, steps)) for n in sizes + ([million] if million else [])]
+        keys = list(rows[0][1])
+        out("| agents | " + " | ".join(keys) + " |")
+        out("| ---: | " + " | ".join("---:" for _ in keys) + " |")
+        for n, w in rows:
+            out(f"| {n:,} | " + " | ".join(f"{w[k]:.1f}" for k in keys) + " |")
     if not a.no_write:
         from lod.atomic_io import write_atomic
 

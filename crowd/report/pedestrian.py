@@ -60,13 +60,14 @@ def _finite(x):
     return x if math.isfinite(x) else None
 
 
-def analyse(traj_file: str | Path, measurements) -> list:
+def analyse(traj_file: str | Path, measurements, voronoi: bool = True) -> list:
     """PedPy measures of every measurement of a run.
 
     Parameters
     ----------
     traj_file : a run's trajectories.txt
     measurements : sequence of crowd.measurement.MeasurementSpec
+    voronoi : compute the Voronoi density (up to VORONOI_MAX_ROWS rows); False: left out
 
     Returns
     -------
@@ -84,9 +85,8 @@ def analyse(traj_file: str | Path, measurements) -> list:
     df = traj.data
     speed = pedpy.compute_individual_speed(traj_data=traj, frame_step=max(1, round(SPEED_WINDOW_S / 2 * fps)),
                                            speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)
-    voronoi = None
-    voronoi_note = None
-    if any(m.polygon is not None for m in measurements):
+    want_voronoi, voronoi, voronoi_note = voronoi, None, None
+    if want_voronoi and any(m.polygon is not None for m in measurements):
         if len(df) <= VORONOI_MAX_ROWS:
             x0, x1 = float(df.x.min()) - VORONOI_MARGIN, float(df.x.max()) + VORONOI_MARGIN
             y0, y1 = float(df.y.min()) - VORONOI_MARGIN, float(df.y.max()) + VORONOI_MARGIN
