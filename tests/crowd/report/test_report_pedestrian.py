@@ -103,3 +103,21 @@ def test_weidmann_reference_curve():
     assert float(weidmann_speed(1e-9)) == pytest.approx(1.34)
     assert float(weidmann_speed(1.0)) == pytest.approx(1.34 * (1 - np.exp(-1.913 * (1 - 1 / 5.4))))
     assert np.all(np.diff(weidmann_speed(np.linspace(0.1, 5.4, 50))) < 0)  # decreasing
+
+
+def test_empty_area_and_uncrossed_line(tmp_path):
+    from crowd.measurement import MeasurementSpec
+    from crowd.report.pedestrian import analyse, plots
+    from crowd.trajectories import TrajectoryWriter
+
+    p = tmp_path / "t.txt"
+    with TrajectoryWriter(p, "t", 3, 0.1) as w:
+        for f in range(20):
+            w.write(f, np.array([[0.0, 0.0, 0.1 * f], [1.0, 0.0, 0.1 * f], [2.0, 0.0, 0.1 * f]]))
+    far = MeasurementSpec("far", polygon=((50, 50), (51, 50), (51, 51)), line=((50, 0), (51, 0)))
+    (m,) = analyse(p, [far])
+    assert m["area"]["frames_occupied"] == 0 and m["area"]["mean_density"] is None and m["area"]["density"] == []
+    assert m["line"]["crossings"] == 0 and m["line"]["mean_flow"] is None and m["line"]["specific_flow"] is None
+    (tmp_path / "plots").mkdir()
+    paths = plots(tmp_path, "s", "t", [m])
+    assert paths["far"]["fd"] is None and (tmp_path / paths["far"]["series"]).is_file()
