@@ -469,7 +469,12 @@ def _machine() -> str:
             cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), cpu)
     except OSError:
         pass
-    return (f"{cpu}, {os.cpu_count()} logical CPUs, numba {numba.__version__} with "
+    try:
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, timeout=10).stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        commit = "unknown"
+    return (f"commit {commit}; {cpu}, {os.cpu_count()} logical CPUs, numba {numba.__version__} with "
             f"{numba.config.NUMBA_NUM_THREADS} threads (threading layer {numba.config.THREADING_LAYER}, "
             f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}), numpy {np.__version__}, Python "
             f"{platform.python_version()}; load average at start {os.getloadavg()[0]:.2f}")

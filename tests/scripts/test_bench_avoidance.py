@@ -54,13 +54,17 @@ def test_positions(bench):
 def test_tiny_bottleneck_and_corridor_without_jupedsim(bench):
     import numba
 
-    numba.set_num_threads(1)
-    pos = bench.dart_positions(6, (-3.0, -1.0, -1.0, 1.0), 0.5, seed=1)
-    r = bench.bottleneck_ours(pos, 60.0)
+    prev = numba.get_num_threads()
+    numba.set_num_threads(1)  # as the script's behaviour runs
+    try:
+        pos = bench.dart_positions(6, (-3.0, -1.0, -1.0, 1.0), 0.5, seed=1)
+        r = bench.bottleneck_ours(pos, 60.0)
+        c = bench.corridor_ours(0.5, window=(0.5, 2.0))
+    finally:
+        numba.set_num_threads(prev)
     f = bench.door_flow(r["crossing_times"])
     assert f["crossed"] == 6 and 0 < f["evacuation_time"] < 60 and f["mean_flow"] > 0
     assert r["min_distance"] >= 2 * bench.RADIUS * 0.99  # no overlap
-    c = bench.corridor_ours(0.5, window=(0.5, 2.0))
     assert c["agents"] == 72 and 0 < c["density"] < 1.0 and 0 < c["speed"] <= bench.V0 + 1e-6
     assert c["error"] == pytest.approx(abs(c["speed"] - c["weidmann"]) / c["weidmann"])
 
