@@ -5,7 +5,7 @@ PedPy's (x, y) are the sandbox's floor (x, z)) and each measurement (:mod:`crowd
 
 - area (polygon): per frame the classic density N/A (``pedpy.compute_classic_density``), the Voronoi density
   (``compute_individual_voronoi_polygons`` + ``compute_voronoi_density``, walkable area = bounding box of all
-  trajectories grown by :data:`VORONOI_MARGIN`; only when the trajectories have at most
+  trajectories grown by :data:`VORONOI_MARGIN` (obstacles are not cut out); only when the trajectories have at most
   :data:`VORONOI_MAX_ROWS` rows, else left out and said so), the mean of the individual speeds of the agents
   inside (``compute_individual_speed`` with a centred window of :data:`SPEED_WINDOW_S` seconds, single-sided at
   the ends of a trajectory; ``compute_mean_speed_per_frame``), and the specific flow J_s = rho v (1/(m s));
@@ -31,8 +31,9 @@ SPEED_WINDOW_S = 0.5
 FLOW_WINDOW_S = 5.0
 #: Voronoi densities only up to this many trajectory rows (agents x frames): the per-frame Voronoi is slow
 VORONOI_MAX_ROWS = 200_000
-#: margin of the walkable area around the trajectories' bounding box (Voronoi cells), metres
-VORONOI_MARGIN = 1.0
+#: margin of the walkable area around the trajectories' bounding box (Voronoi cells), metres: about a body radius,
+#: so where walls bound the crowd the box is about the walkable area (a wider one dilutes the cells next to walls)
+VORONOI_MARGIN = 0.25
 #: Weidmann (1993) fundamental diagram: free speed m/s, jam density 1/m^2, gamma 1/m^2
 WEIDMANN_V0, WEIDMANN_RHO_MAX, WEIDMANN_GAMMA = 1.34, 5.4, 1.913
 
