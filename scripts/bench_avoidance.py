@@ -18,12 +18,12 @@ T = 0.65 s was chosen once from a sweep of T = 0.5 / 0.65 / 0.8 s over the corri
 
 Figures:
 
-1. bottleneck: a 10 m x 10 m room (x in [-10, 0], z in [-5, 5]) empties through a 1.0 m door in a 0.4 m thick wall
-   (x in [0, 0.4], z in [-0.5, 0.5]); agents walk to a waypoint 0.5 m beyond the door (WAYPOINT), then on
-   towards five exits (agent i: exit i mod 5; JuPedSim: exit polygons, ours: the same directions).
-   Evacuation time = the last agent's first crossing of x = 0.4; mean flow = (N - 1) / (t_N - t_1) over the crossing
-   times; specific flow = flow / door width. Targets: ours vs JuPedSim within 10 % (time and flow); specific flow
-   in 1.2 - 2.2 /(m s) (Seyfried et al. 2009, Kretz et al. 2006).
+1. bottleneck: ``scenes/bottleneck.toml`` (``--bottleneck``; a funnel room 10 m deep emptying through a 1.0 m door at
+   x = 0; its agents, walls, goals and cfsm parameters) on both sides: JuPedSim gets the scene's walls (its walkable
+   area: the bounding box minus them), its agents' start positions and its goals paths as waypoint and exit stages.
+   Evacuation time = the last agent's first crossing of x = 0.4 (LINE_X); mean flow = (N - 1) / (t_N - t_1) over
+   the crossing times; specific flow = flow / door width. Targets: ours vs JuPedSim within 10 % (time and flow);
+   specific flow in 1.2 - 2.2 /(m s) (Seyfried et al. 2009, Kretz et al. 2006).
 2. corridor: 70 m x 4 m corridor, unidirectional; agents start at density rho (dart throwing, 0.42 m apart at
    least) in x in [-30, 10], z in [-1.8, 1.8] and walk to +x; PedPy (crowd.report.pedestrian.analyse on the run's
    trajectories.txt) measures the classic density and mean individual speed in the area x in [-12, -8] over
@@ -240,15 +240,65 @@ def bottleneck_boxes() -> list:
             {"center": [(x0 + w0) / 2, z0 - t / 2], "size": [w0 - x0 + t, t]}]
 
 
-def bottleneck_ours(positions: np.ndarray, max_time: float, time_gap: float = TIME_GAP) -> dict:
-    """Our bottleneck run: crossing times of x = LINE_X, smallest pair distance seen."""
+def load_bottleneck(path) -> dict:
+    """The bottleneck scene (``scenes/bottleneck.toml``) as both sides need it: the validated scene, its agents'
+    start positions (n, 2) (the scene's placement and seed, ``crowd.engine.plan``), the goals, avoidance and
+    obstacles tables, and the obstacles as polygons and circles (``sim.obstacles.ObstacleSet``, boxes made polygons).
+
+    Raises BenchError when the scene lacks one of those effects or is invalid."""
+    from crowd.engine import plan
+    from crowd.errors import CrowdError
+    from crowd.scene import load_scene
+    from sim.obstacles import ObstacleSet
+
+    try:
+        scene = load_scene(path)
+    except CrowdError as e:
+        raise BenchError(str(e)) from None
+    eff = {e.name: e.params for e in scene.effects}
+    missing = [k for k in ("goals", "avoidance", "obstacles") if k not in eff]
+    if missing or eff["avoidance"]["model"] != "cfsm":
+        raise BenchError(f"{path}: the bottleneck scene needs the effects goals, avoidance (model cfsm) and obstacles")
+    pl = plan(scene)
+    obs = ObstacleSet(eff["obstacles"].get("circles", ()), eff["obstacles"].get("boxes", ()),
+                      eff["obstacles"].get("polygons", ()))
+    polys = [obs.verts[obs.pstart[k]:obs.pstart[k + 1]].tolist() for k in range(obs.pstart.shape[0] - 1)]
+    from sim.avoidance.effect import body_radii
+    from sim.world import World
+
+    w = World(state=pl.state, characters=pl.characters, seed=scene.seed)
+    w.resources["character_radius"] = [c.radius for c in scene.characters]
+    radius = body_radii(w, eff["avoidance"])  # as the effect sizes the bodies
+    return {"scene": scene, "plan": pl, "positions": pl.state.position[:, [0, 2]].copy(), "effects": eff,
+            "polygons": polys, "circles": obs.circles.tolist(), "radius": radius}
+
+
+def bottleneck_ours(b: dict, max_time: float, time_gap: float | None = None) -> dict:
+    """Our run of the bottleneck scene ``b`` (:func:`load_bottleneck`): its effects but animation (not needed),
+    ``time_gap`` overriding the scene's; crossing times of x = LINE_X, smallest pair distance seen."""
     from scipy.spatial import cKDTree
 
-    wx, wz = WAYPOINT
-    # then on in the directions of JuPedSim's exits (centres (11.5, z))
-    paths = [[[wx, wz], [30.0, wz + (z - wz) * (30.0 - wx) / (11.5 - wx)]] for z in EXIT_Z]
-    world = our_world(positions, paths, bottleneck_boxes(), time_gap=time_gap)
-    n = positions.shape[0]
+    from sim.state import CrowdState
+    from sim.world import World
+
+    src = b["plan"].state
+    st = CrowdState(**{k: v.copy() for k, v in src.arrays().items()})
+    world = World(state=st, characters=b["plan"].characters, seed=b["scene"].seed)
+    world.resources["character_radius"] = [c.radius for c in b["scene"].characters]
+    for e in b["scene"].effects:
+        if e.name == "animation":
+            continue
+        cfg = dict(e.params)
+        if e.name == "avoidance" and time_gap is not None:
+            cfg["time_gap"] = time_gap
+        world.install(e.name, cfg)
+    return _run_bottleneck(world, max_time)
+
+
+def _run_bottleneck(world, max_time: float) -> dict:
+    from scipy.spatial import cKDTree
+
+    n = world.state.n
     crossing = np.full(n, np.nan)
     min_d = math.inf
     steps, t0 = 0, time.perf_counter()
@@ -264,6 +314,15 @@ def bottleneck_ours(positions: np.ndarray, max_time: float, time_gap: float = TI
             min_d = min(min_d, float(d[:, 1].min()))
     return {"crossing_times": [None if math.isnan(c) else float(c) for c in crossing], "steps": steps,
             "min_distance": min_d, "wall_seconds": time.perf_counter() - t0}
+
+
+def square_bottleneck_ours(positions: np.ndarray, max_time: float, time_gap: float = TIME_GAP) -> dict:
+    """Our run of a square-room bottleneck (the tests' tiny case; ``bottleneck_boxes``): crossing times of
+    x = LINE_X, smallest pair distance seen."""
+    wx, wz = WAYPOINT
+    # then on in the directions of JuPedSim's exits (centres (11.5, z))
+    paths = [[[wx, wz], [30.0, wz + (z - wz) * (30.0 - wx) / (11.5 - wx)]] for z in EXIT_Z]
+    return _run_bottleneck(our_world(positions, paths, bottleneck_boxes(), time_gap=time_gap), max_time)
 
 
 def corridor_ours(density: float, seed: int = 19, window=CORRIDOR_WINDOW, time_gap: float = None) -> dict:
@@ -439,6 +498,27 @@ def run_peer(python: str, job: dict, positions: np.ndarray, timeout: float = 360
     return json.loads(r.stdout)
 
 
+def scene_bottleneck_peer(python: str, b: dict, max_time: float) -> dict:
+    """JuPedSim's run of the bottleneck scene ``b`` (:func:`load_bottleneck`): walkable area = the bounding box of
+    agents, obstacles and waypoints grown by 2 m minus the obstacles; each goals path's waypoints but the last are
+    waypoint stages (distance = arrive_radius), the last an exit (a 2 m square around it); agent i takes path
+    i mod paths (the scene's ``assign = "cycle"``); the scene's cfsm parameters."""
+    g, av = b["effects"]["goals"], b["effects"]["avoidance"]
+    if g.get("assign", "cycle") != "cycle":
+        raise BenchError("the bottleneck scene's goals must assign paths by agent (assign = \"cycle\")")
+    rad = {float(r) for r in b["radius"]}
+    if len(rad) != 1:
+        raise BenchError("the bottleneck scene's agents must share one body radius (JuPedSim job: one radius)")
+    radius = rad.pop()
+    job = {"kind": "bottleneck_scene", "dt": float(b["scene"].dt),
+           "model": {k: float(av[k]) for k in MODEL},
+           "agent": {"time_gap": float(av["time_gap"]), "desired_speed": float(av["v0"] or g["speed"]),
+                     "radius": radius},
+           "polygons": b["polygons"], "circles": b["circles"], "paths": g["paths"],
+           "arrive_radius": float(g["arrive_radius"]), "line_x": LINE_X, "max_time": max_time}
+    return run_peer(python, job, b["positions"])
+
+
 def bottleneck_peer(python: str, positions: np.ndarray, max_time: float) -> dict:
     job = {"kind": "bottleneck", "dt": DT, "model": MODEL,
            "agent": {"time_gap": TIME_GAP, "desired_speed": V0, "radius": RADIUS},
@@ -491,7 +571,8 @@ def main(argv=None) -> int:
     ap.add_argument("--peers-python", metavar="PATH", help=f"interpreter with jupedsim (default ${PEERS_ENV}, else "
                     f"{DEFAULT_PEERS})")
     ap.add_argument("--no-peers", action="store_true", help="skip the JuPedSim side")
-    ap.add_argument("--agents", type=int, default=None, help="bottleneck agents (default 150; quick 40)")
+    ap.add_argument("--bottleneck", default=str(ROOT / "scenes" / "bottleneck.toml"), metavar="SCENE",
+                    help="the bottleneck scene (default scenes/bottleneck.toml)")
     ap.add_argument("--sizes", default=None, help="comma-separated agent counts of the speed figure "
                     "(default 10000,50000,100000)")
     ap.add_argument("--million", type=int, default=1_000_000, help="agents of the ours-only speed run (0 = skip)")
@@ -516,7 +597,6 @@ def main(argv=None) -> int:
 
 def _main(a) -> int:
     q = a.quick
-    n_bottle = a.agents if a.agents is not None else (40 if q else 150)
     steps = a.steps if a.steps is not None else (3 if q else 10)
     try:
         sizes = [int(s) for s in (a.sizes or ("2000" if q else "10000,50000,100000")).split(",")]
@@ -528,8 +608,8 @@ def _main(a) -> int:
         raise BenchError(f"--densities {a.densities!r}: expected comma-separated numbers") from None
     if not all(0.0 < d <= 4.5 for d in dens):
         raise BenchError(f"--densities {a.densities!r}: expected densities in (0, 4.5] per m^2")
-    if n_bottle < 2 or steps < 1 or a.warmup < 0 or any(s < 2 for s in sizes) or a.million < 0:
-        raise BenchError("--agents and --sizes need >= 2 agents, --steps >= 1, --warmup and --million >= 0")
+    if steps < 1 or a.warmup < 0 or any(s < 2 for s in sizes) or a.million < 0:
+        raise BenchError("--sizes needs >= 2 agents, --steps >= 1, --warmup and --million >= 0")
     million = 0 if q else a.million
     py = None if a.no_peers else peers_python(a.peers_python)
     machine = _machine()
@@ -549,11 +629,17 @@ def _main(a) -> int:
 
     numba.set_num_threads(1)
     # 1. bottleneck
-    pos = dart_positions(n_bottle, (-9.8, -1.2, -4.6, 4.6), 0.5, seed=23)
+    b = load_bottleneck(a.bottleneck)
+    n_bottle = b["positions"].shape[0]
     max_time = 40.0 + 2.0 * n_bottle
-    ours = bottleneck_ours(pos, max_time)
+    ours = bottleneck_ours(b, max_time)
     fo = door_flow(ours["crossing_times"])
-    out(f"## Bottleneck: {n_bottle} agents, 1.0 m door")
+    out(f"## Bottleneck: `{a.bottleneck}`, {n_bottle} agents, 1.0 m door")
+    out()
+    out("The scene's geometry, agents (its placement and seed) and parameters on both sides; JuPedSim's walkable area "
+        "is the bounding box of agents, walls and waypoints grown by 2 m minus the walls, each goals path's "
+        "waypoints its waypoint stages (distance = arrive_radius) and the last one an exit (2 m square); agent i "
+        "takes path i mod 5 on both sides. Ours runs the scene's effects but animation through `World.step`.")
     out()
     out(f"Ours against JuPedSim with JuPedSim's default parameters (T = {TIME_GAP:g} s) on both sides; the "
         f"specific flow against the data (1.2 - 2.2 /(m s)) with the empirical parameter set (T = "
@@ -570,10 +656,10 @@ def _main(a) -> int:
     row(f"ours (cfsm), T = {TIME_GAP:g} s", fo, ours)
     fj = None
     if py:
-        jps = bottleneck_peer(py, pos, max_time)
+        jps = scene_bottleneck_peer(py, b, max_time)
         fj = door_flow(jps["crossing_times"])
         row(f"JuPedSim {jps['jupedsim']}, T = {TIME_GAP:g} s", fj, jps)
-    emp = bottleneck_ours(pos, max_time, time_gap=EMPIRICAL_TIME_GAP)
+    emp = bottleneck_ours(b, max_time, time_gap=EMPIRICAL_TIME_GAP)
     fe = door_flow(emp["crossing_times"])
     row(f"ours (cfsm), T = {EMPIRICAL_TIME_GAP:g} s (empirical set)", fe, emp)
     out()

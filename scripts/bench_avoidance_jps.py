@@ -11,6 +11,9 @@ Jobs (keys besides ``kind``):
   [x, z, distance], ``outside`` [x1, z0, z1] (walkable area beyond the wall up to x1), ``line_x``, ``max_time``
   -> ``crossing_times`` (first time each agent's x exceeds line_x, seconds, null if never), ``steps``,
   ``min_distance`` (smallest centre distance of any pair at any sampled step), ``wall_seconds``.
+- ``bottleneck_scene``: ``positions``, ``dt``, ``model``, ``agent``, ``polygons`` (wall polygons [[x, z], ...]),
+  ``circles`` ([x, z, r]), ``paths`` (goals paths: waypoints, the last one the exit), ``arrive_radius``, ``line_x``,
+  ``max_time`` -> as ``bottleneck``.
 - ``timing``: ``positions`` (.npy), ``room`` [x0, x1, z0, z1], ``target`` [x, z], ``dt``, ``model``, ``agent``,
   ``warmup``, ``steps`` -> ``ms_per_step`` (list), ``rss_bytes`` (resident set growth from before the
   simulation to after the steps), ``n``.
@@ -52,18 +55,54 @@ def bottleneck(job: dict) -> dict:
         jd = jps.JourneyDescription([wp, ex])
         jd.set_transition_for_stage(wp, jps.Transition.create_fixed_transition(ex))
         journeys.append((sim.add_journey(jd), wp))
+    return _evacuate(sim, jps, pos, journeys, job)
+
+
+def bottleneck_scene(job: dict) -> dict:
+    """A bottleneck scene's run (bench_avoidance.scene_bottleneck_peer builds the job from the scene file)."""
+    import jupedsim as jps
+    import numpy as np
+    import shapely
+
+    pos = np.load(job["positions"])
+    walls = [shapely.Polygon(p) for p in job["polygons"]] + [shapely.Point(x, z).buffer(r, 32)
+                                                             for x, z, r in job["circles"]]
+    pts = [tuple(p) for p in pos] + [tuple(q) for path in job["paths"] for q in path]
+    pts += [c for w in walls for c in w.exterior.coords]
+    xs, zs = [p[0] for p in pts], [p[1] for p in pts]
+    box = shapely.box(min(xs) - 2.0, min(zs) - 2.0, max(xs) + 2.0, max(zs) + 2.0)
+    area = box.difference(shapely.union_all(walls)) if walls else box
+    if area.geom_type == "MultiPolygon":  # the part the agents are in
+        area = max(area.geoms, key=lambda g: sum(g.contains(shapely.Point(p)) for p in pos))
+    sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(**job["model"]), geometry=area, dt=job["dt"])
+    journeys = []
+    for path in job["paths"]:
+        *via, (ex, ez) = path
+        stages = [sim.add_waypoint_stage((float(x), float(z)), job["arrive_radius"]) for x, z in via]
+        stages.append(sim.add_exit_stage(_rect(ex - 1.0, ex + 1.0, ez - 1.0, ez + 1.0)))
+        jd = jps.JourneyDescription(stages)
+        for a, b in zip(stages, stages[1:]):
+            jd.set_transition_for_stage(a, jps.Transition.create_fixed_transition(b))
+        journeys.append((sim.add_journey(jd), stages[0]))
+    return _evacuate(sim, jps, pos, journeys, job)
+
+
+def _evacuate(sim, jps, pos, journeys, job) -> dict:
+    import numpy as np
+    from scipy.spatial import cKDTree
+
     ids = []
     for i, (x, z) in enumerate(pos):
-        jid, wp = journeys[i % len(journeys)]
+        jid, first = journeys[i % len(journeys)]
         ids.append(sim.add_agent(jps.CollisionFreeSpeedModelAgentParameters(
-            position=(float(x), float(z)), journey_id=jid, stage_id=wp, **job["agent"])))
+            position=(float(x), float(z)), journey_id=jid, stage_id=first, **job["agent"])))
     index = {a: i for i, a in enumerate(ids)}
     crossing = [None] * len(ids)
     line_x, max_steps = float(job["line_x"]), int(round(job["max_time"] / job["dt"]))
     min_d = float("inf")
     t0 = time.perf_counter()
     steps = 0
-    while sim.agent_count() > 0 and steps < max_steps:
+    while sim.agent_count() > 0 and steps < max_steps and any(c is None for c in crossing):
         sim.iterate()
         steps += 1
         t = steps * job["dt"]
@@ -76,8 +115,6 @@ def bottleneck(job: dict) -> dict:
                 crossing[i] = t
         if steps % 10 == 0 and len(xy) > 1:
             p = np.asarray(xy)
-            from scipy.spatial import cKDTree
-
             d, _ = cKDTree(p).query(p, k=2)
             min_d = min(min_d, float(d[:, 1].min()))
     return {"crossing_times": crossing, "steps": steps, "min_distance": min_d if min_d < float("inf") else None,
@@ -113,7 +150,7 @@ def main() -> int:
     job = json.load(sys.stdin)
     import jupedsim as jps
 
-    out = {"bottleneck": bottleneck, "timing": timing}[job["kind"]](job)
+    out = {"bottleneck": bottleneck, "bottleneck_scene": bottleneck_scene, "timing": timing}[job["kind"]](job)
     out["jupedsim"] = jps.__version__
     json.dump(out, sys.stdout)
     return 0

@@ -58,7 +58,7 @@ def test_tiny_bottleneck_and_corridor_without_jupedsim(bench):
     numba.set_num_threads(1)  # as the script's behaviour runs
     try:
         pos = bench.dart_positions(6, (-3.0, -1.0, -1.0, 1.0), 0.5, seed=1)
-        r = bench.bottleneck_ours(pos, 60.0)
+        r = bench.square_bottleneck_ours(pos, 60.0)
         c = bench.corridor_ours(0.5, window=(0.5, 2.0))
     finally:
         numba.set_num_threads(prev)
@@ -76,3 +76,13 @@ def test_options_and_missing_peers(bench, tmp_path, monkeypatch, capsys):
     assert err.count("\n") == 1 and "make bench-peers" in err
     assert bench.main(["--quick", "--no-peers", "--sizes", "1,x"]) == 2
     assert bench.main(["--quick", "--no-peers", "--densities", "9"]) == 2
+
+
+def test_the_shipped_bottleneck_scene_loads(bench):
+    b = bench.load_bottleneck(bench.ROOT / "scenes" / "bottleneck.toml")
+    n = b["positions"].shape[0]
+    assert n == b["scene"].placements[0].params["count"] and np.all(b["positions"][:, 0] < 0)  # inside the room
+    assert np.allclose(b["radius"], b["radius"][0]) and len(b["polygons"]) >= 1
+    assert all(len(p) >= 3 for p in b["polygons"])
+    with pytest.raises(bench.BenchError):
+        bench.load_bottleneck(bench.ROOT / "scenes" / "quickstart.toml")  # no avoidance/obstacles
