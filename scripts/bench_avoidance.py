@@ -634,7 +634,8 @@ def _main(a) -> int:
     max_time = 40.0 + 2.0 * n_bottle
     ours = bottleneck_ours(b, max_time)
     fo = door_flow(ours["crossing_times"])
-    out(f"## Bottleneck: `{a.bottleneck}`, {n_bottle} agents, 1.0 m door")
+    shown = os.path.relpath(a.bottleneck, ROOT) if os.path.abspath(a.bottleneck).startswith(str(ROOT)) else a.bottleneck
+    out(f"## Bottleneck: `{shown}`, {n_bottle} agents, 1.0 m door")
     out()
     out("The scene's geometry, agents (its placement and seed) and parameters on both sides; JuPedSim's walkable area "
         "is the bounding box of agents, walls and waypoints grown by 2 m minus the walls, each goals path's "
