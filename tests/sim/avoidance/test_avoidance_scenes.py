@@ -66,3 +66,8 @@ def test_exhibition_full_scene_five_seconds():
 
     d, _ = cKDTree(w.state.position[:, [0, 2]]).query(w.state.position[:, [0, 2]], k=2)
     assert (d[:, 1] < 0.7 * 0.99).mean() <= 0.001
+
+
+def test_office_no_overlap():
+    sc, w = world_from_scene("office", scene_edit=_few_triangles)
+    run_checked(w, 100, sc.dt)
