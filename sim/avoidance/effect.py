@@ -30,7 +30,7 @@ PARAMS: dict[str, Param] = {
     "radius": Param("float", 0.0, min=0.0, max=100.0,
                     doc="body radius of every agent, metres; 0 = per character ([[characters]] radius, else "
                         "footprint) times the agent's scale"),
-    "resolve_iterations": Param("int", 16, min=0, max=1000,
+    "resolve_iterations": Param("int", 50, min=0, max=1000,
                                 doc="passes of the hard no-overlap projection per step; 0 = off"),
     # cfsm (JuPedSim names and defaults)
     "time_gap": Param("float", 1.0, min=0.1, max=10.0, doc="cfsm: T, seconds"),
@@ -131,7 +131,7 @@ class Avoidance:
         self.n = -1
         self.prev = self.vstart = self.radius = self.base_rate = None
         self.grid = self.scratch = None
-        self.last = {"resolve_passes": 0, "resolve_overlap": 0.0}
+        self.last = {"resolve_passes": 0, "resolve_overlap": 0.0, "frozen": 0}
 
     def sync(self, world) -> None:
         st = world.state
@@ -197,8 +197,13 @@ class Avoidance:
 
         obs = world.resources.get("obstacles")
         clearance = np.maximum(self.radius, float(world.resources.get("obstacles.agent_radius", 0.0)))
-        passes, worst = resolve(st.position, self.radius, clearance, obs, it)
-        self.last = {"resolve_passes": passes, "resolve_overlap": worst}
+        frozen = np.zeros(st.n, bool)
+        passes, worst = resolve(st.position, self.radius, clearance, obs, it, grid=self.grid, prev=self.prev,
+                                frozen=frozen)
+        if frozen.any():
+            st.velocity[frozen, 0] = 0.0
+            st.velocity[frozen, 2] = 0.0
+        self.last = {"resolve_passes": passes, "resolve_overlap": worst, "frozen": int(frozen.sum())}
 
 
 def install(world, cfg: dict) -> None:

@@ -8,7 +8,8 @@ makes the constraint hold after every step, in the manner of position-based
 dynamics (Müller, Heidelberger, Hennix & Ratcliff, *Position based dynamics*,
 2007, §3.3, Jacobi form): every overlapping pair is pushed apart along its
 centre line, each agent by half of the overlap (to ``RESOLVE_TARGET`` times the
-contact distance), all agents from the same snapshot, then agents are
+contact distance; an agent moves at most its radius per pass), all agents
+from the same snapshot, then agents are
 projected out of obstacles (per-agent clearance); repeated until no pair
 overlaps or ``iterations`` passes were made (the rest is resolved in the next
 steps: a jam of many coincident agents unfolds over a few steps).
@@ -16,7 +17,14 @@ Coincident agents part along the hashed antisymmetric direction of
 :func:`sim.avoidance.neighbors.coincident_dir`.
 
 Only positions move; velocities stay the model's (so a deep initial overlap
-does not turn into a speed). Each agent writes only its own row and sums its
+does not turn into a speed). If overlaps remain after the passes (a crowd
+pressed against walls, where the obstacle projection undoes the pushes, can
+converge slowly), the last resort is a velocity clamp: every agent still
+overlapping by more than ``RESOLVE_FREEZE`` returns to its start-of-step
+position (and the caller zeroes its velocity), repeated until none does. The
+start-of-step state had no overlap (induction from the first steps), so this
+always ends overlap-free unless the scene started with overlaps that the
+passes have not yet removed. Each agent writes only its own row and sums its
 neighbours in the grid's fixed order: deterministic for any thread count. The
 first pass reuses nothing but costs one grid build and one scan when no pair
 overlaps (the usual case).
@@ -37,6 +45,11 @@ from sim.obstacles import _sdf_point
 RESOLVE_TARGET = 1.0 + 1e-4
 #: obstacle projection passes per resolve iteration (corners between two obstacles)
 RESOLVE_OBSTACLE_PASSES = 4
+#: after the passes, agents still overlapping by more than this fraction of r_i + r_j go back to
+#: their start-of-step position (a velocity clamp) ...
+RESOLVE_FREEZE = 1e-3
+#: ... in at most this many rounds (each round reverts every agent still overlapping)
+RESOLVE_FREEZE_ROUNDS = 16
 
 
 @njit(cache=True, parallel=True)
@@ -72,6 +85,10 @@ def _push_kernel(S, order, cx, cz, start, gx, gz, dense, mask, target, disp, wor
                     hx, hz = coincident_dir(i, order[m])
                     mx -= push * hx
                     mz -= push * hz
+        mm = math.sqrt(mx * mx + mz * mz)
+        if mm > ri:  # at most one radius per pass: a pile unfolds over passes, nobody is thrown away
+            mx *= ri / mm
+            mz *= ri / mm
         disp[i, 0] = mx
         disp[i, 1] = mz
         worst[i] = w
@@ -94,7 +111,20 @@ def _apply_kernel(pos, disp, clearance, circles, verts, pstart, pbound, has_obs,
         pos[i, 2] = pz
 
 
-def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 16):
+@njit(cache=True)
+def max_move(position, prev):
+    """Largest XZ distance between ``position`` and ``prev`` (n, 3) (serial, exact)."""
+    m = 0.0
+    for i in range(position.shape[0]):
+        dx, dz = position[i, 0] - prev[i, 0], position[i, 2] - prev[i, 2]
+        d = dx * dx + dz * dz
+        if d > m:
+            m = d
+    return math.sqrt(m)
+
+
+def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 16, grid=None, prev=None,
+            frozen=None):
     """Push overlapping agents apart in place (module docstring).
 
     Parameters
@@ -104,6 +134,12 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
     clearance : (n,) float64 distances kept from obstacles (default: radius)
     obstacles : sim.obstacles.ObstacleSet or None
     iterations : int >= 0, largest number of passes
+    grid, prev : optional grid built on positions ``prev`` (n, 3) (the model's, at the start of the step):
+        the first pass reuses it when its cell is at least 2 r_max RESOLVE_TARGET plus twice the largest
+        move since ``prev`` (every overlapping pair is then within the 3 x 3 cells of the old grid), which
+        spares a grid build in the usual step without overlaps; ``prev`` is also where agents still
+        overlapping after the passes return to (the velocity clamp)
+    frozen : (n,) bool output or None: set True for agents returned to ``prev``
 
     Returns
     -------
@@ -123,10 +159,14 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
     S = np.empty((n, 3), np.float64)
     disp = np.empty((n, 2), np.float64)
     worst = np.empty(n, np.float64)
-    grid = None
     w = 0.0
+    cell = 2.0 * rmax * RESOLVE_TARGET
+    reuse = (grid is not None and prev is not None and prev.shape == position.shape and grid.order.shape[0] == n
+             and grid.cell >= cell + 2.0 * float(max_move(position, prev)))
+    own = None  # resolve's own grid (the caller's is only read)
     for it in range(iterations):
-        grid = build_grid(position, 2.0 * rmax * RESOLVE_TARGET, out=grid)
+        if not (it == 0 and reuse):
+            grid = own = build_grid(position, cell, out=own)
         gather(position, radius, grid.order, S)
         _push_kernel(S, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense, grid.mask,
                      RESOLVE_TARGET, disp, worst)
@@ -134,5 +174,20 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
         if w <= 0.0:
             return it, 0.0
         _apply_kernel(position, disp, clearance, circles, verts, pstart, pbound, has_obs, RESOLVE_OBSTACLE_PASSES)
+    if prev is None or prev.shape != position.shape:
+        return iterations, w
+    for _ in range(RESOLVE_FREEZE_ROUNDS):
+        grid = own = build_grid(position, cell, out=own)
+        gather(position, radius, grid.order, S)
+        _push_kernel(S, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense, grid.mask,
+                     RESOLVE_TARGET, disp, worst)
+        bad = worst > RESOLVE_FREEZE
+        w = float(worst.max())
+        if not bad.any():
+            break
+        position[bad, 0] = prev[bad, 0]
+        position[bad, 2] = prev[bad, 2]
+        if frozen is not None:
+            frozen |= bad
     return iterations, w
 
