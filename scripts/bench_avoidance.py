@@ -390,9 +390,11 @@ def _timing_ours(n: int, warmup: int, steps: int) -> dict:
 
 def why_ours(n: int, warmup: int, steps: int) -> dict:
     """Where our step's time goes (1 thread, ms): the whole step with and without the obstacles effect (open plane),
-    and the overlap check of ``avoidance.resolve`` alone on the start positions (no overlap: 0 passes, one grid
-    build and one scan) with the grid layout as shipped (``sim.config.GRID_DENSE_FACTOR``) and with a dense grid
-    (factor 8: the resolve grid's 0.4 m cells are 6.25 per agent here, so the shipped factor 4 hashes them)."""
+    and the overlap check of ``avoidance.resolve`` called alone on the start positions without a grid to reuse (no
+    overlap: one grid build and one scan; in a step the first pass reuses the model's grid, so this is the cost of
+    every further pass when agents do overlap) with the grid layout as shipped (``sim.config.GRID_DENSE_FACTOR``)
+    and with a dense grid (factor 8: the resolve grid's 0.4 m cells are 6.25 per agent here, so the shipped factor 4
+    hashes them)."""
     import numba
 
     import sim.grid as grid
