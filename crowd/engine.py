@@ -227,6 +227,7 @@ class Engine:
 
         sc = self.scene
         world = World(state=self.plan.state, characters=self.plan.characters, seed=sc.seed)
+        world.resources["character_radius"] = [c.radius for c in sc.characters]  # [[characters]] radius (avoidance)
         if sc.terrain is not None:
             import sim.terrain
 
@@ -495,6 +496,18 @@ class Engine:
             raise SimulationError(f"{sc.path}: frame {self.world.frame}: {e} after the step "
                                   f"(effects: {', '.join(sc.effect_names) or 'none'}); nothing was written") from None
 
+    def _trajectory_writer(self, tmp: Path):
+        """A :class:`crowd.trajectories.TrajectoryWriter` of ``tmp/trajectories.txt`` when the scene asks for
+        trajectories (``[output] trajectories``), else a null context yielding None."""
+        from contextlib import nullcontext
+
+        if not getattr(self.scene, "trajectories", False):
+            return nullcontext(None)
+        from crowd.trajectories import TRAJECTORY_FILE, TrajectoryWriter
+
+        sc = self.scene
+        return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps)
+
     def run(self, frames: int | None = None, out_dir: str | Path | None = None,
             png_every: int | None = None) -> RunResult:
         """Run ``frames`` frames, writing telemetry (and PNGs) atomically to ``out_dir``.
@@ -515,7 +528,7 @@ class Engine:
         tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
         pngs = []
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
-        with atomic_dir(out_dir) as tmp:
+        with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj:
             if png_every:
                 (tmp / "frames").mkdir()
             run_start = time.perf_counter()
@@ -557,8 +570,11 @@ class Engine:
                     p = tmp / "frames" / f"frame_{f:05d}.png"
                     renderer.save_png(p)
                     pngs.append(out_dir / "frames" / p.name)
+                if traj is not None:  # streamed: one frame in memory (crowd.trajectories)
+                    traj.write(f, self.world.state.position)
                 t_end = time.perf_counter()
-                stages["png"] = (t_png - t_frame, t_end - t_png)  # read-back + encode; 0 on frames without one
+                # output writes: PNG read-back + encode (0 on frames without one), trajectory lines
+                stages["png"] = (t_png - t_frame, t_end - t_png)
                 counts = {"instances": dl.stats.get("instances", dl.n_instances),
                           "culled": dl.stats.get("culled", 0),
                           "triangles": dl.stats.get("triangles", dl.triangles),
@@ -570,7 +586,8 @@ class Engine:
             digest = self.world.state.digest()
             extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
                      "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
-                     "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs)}
+                     "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs),
+                     "trajectories": traj.path.name if traj is not None else None}
             from render.context import gl_info
 
             summary = tel.write(tmp, sc.name, extra, machine_info(gl_info(renderer.ctx)))

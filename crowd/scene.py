@@ -38,7 +38,7 @@ LOD_MODES = _mode_names()
 PLACEMENT_COMMON = ("kind", "character", "clip")
 #: keys accepted at the top level of a scene document
 TOP_LEVEL_KEYS = ("name", "seed", "dt", "substeps", "frames", "effects", "characters", "placement",
-                  "props", "terrain", "camera", "render", "lod", "output")
+                  "props", "terrain", "camera", "render", "lod", "output", "measurement")
 
 TOP_SCHEMA = {
     "name": Param("str", None, doc="scene name; default: file stem"),
@@ -58,6 +58,8 @@ CHARACTER_SCHEMA = {
     "fps": Param("int", 30, min=1, max=240, doc="clip baking rate"),
     "variation": Param("table", None, doc="per-agent colour variation (VARIATION_SCHEMA), or false; "
                        "default: DEFAULT_VARIATION for generated humanoids, none otherwise"),
+    "radius": Param("float", None, min=0.001, max=100.0,
+                    doc="body radius at scale 1, metres (effect avoidance); default: the footprint"),
 }
 #: keys of ``[[characters]] variation`` (render/tint.py): per-agent hue/saturation/value shifts, or a palette
 VARIATION_SCHEMA = {
@@ -99,7 +101,9 @@ RENDER_SCHEMA = {
 SIZE_RANGE = (16, 8192)
 
 LOD_SCHEMA = {"mode": Param("str", "none", choices=LOD_MODES)}
-OUTPUT_SCHEMA = {"dir": Param("str", None, doc="relative to the working directory; default out/<name>")}
+OUTPUT_SCHEMA = {"dir": Param("str", None, doc="relative to the working directory; default out/<name>"),
+                 "trajectories": Param("bool", False, doc="write trajectories.txt (PedPy's text format; "
+                                       "crowd.trajectories) with the run's outputs")}
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -123,6 +127,7 @@ class CharacterSpec:
     scale: float
     fps: int
     variation: tuple | None = None  # ((key, value), ...) of VARIATION_SCHEMA, or None: no colour variation
+    radius: float | None = None  # body radius at scale 1 (avoidance); None = the character's footprint
 
     def spec(self) -> str:
         """Short human-readable source, e.g. ``generator:humanoid:5000`` or the file path."""
@@ -228,6 +233,8 @@ class Scene:
     terrain_lod: tuple = ()  # ((key, value), ...): the [terrain] table's view-dependent LOD keys (lod.temporal.terrain_keyframes)
     lod_common: tuple = ()  # ((key, value), ...): the [lod] keys of every mode (lod.temporal.selection)
     props: tuple = ()  # PropSpec of every [[props]] table
+    trajectories: bool = False  # [output] trajectories: write trajectories.txt (crowd.trajectories)
+    measurements: tuple = ()  # crowd.measurement.MeasurementSpec of the [[measurement]] tables
 
     @property
     def effect_names(self) -> list:
@@ -349,13 +356,17 @@ class _Parser:
         if out["dir"] is not None and not out["dir"].strip():
             self.fail("output.dir", "expected a non-empty directory path")
         out_dir = Path(out["dir"] if out["dir"] is not None else Path("out") / name)
+        from crowd.measurement import parse_measurements
+
+        measurements = parse_measurements(doc.get("measurement"), self.fail)
         return Scene(path=self.path.absolute(), name=name, seed=top["seed"], dt=top["dt"],
                      substeps=top["substeps"], frames=top["frames"], characters=tuple(characters),
                      placements=tuple(placements), effects=tuple(effects), camera=camera, render=render,
                      lod_mode=lod["mode"], output_dir=out_dir.absolute(), terrain=terrain,
                      lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"),
                      terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else (),
-                     lod_common=tuple(lod_common.items()), props=tuple(props))
+                     lod_common=tuple(lod_common.items()), props=tuple(props), trajectories=out["trajectories"],
+                     measurements=measurements)
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:
@@ -399,7 +410,7 @@ class _Parser:
                 triangles = DEFAULT_TRIANGLES
             out.append(CharacterSpec(name=c["name"], generator=c["generator"], file=file, triangles=triangles,
                                      seed=c["seed"] if c["seed"] is not None else scene_seed,
-                                     scale=c["scale"], fps=c["fps"],
+                                     scale=c["scale"], fps=c["fps"], radius=c["radius"],
                                      variation=self.variation(t.get("variation"), f"{where}.variation",
                                                               c["generator"])))
         return out

@@ -58,3 +58,11 @@ OBSTACLES_CONTACT = 1e-4
 # --- sim.terrain --------------------------------------------------------------
 #: Largest heightfield resolution (samples per side).
 TERRAIN_MAX_RESOLUTION = 8192
+
+# --- sim.avoidance ------------------------------------------------------------
+#: Body radius (m) of an agent whose character index has no character (tests,
+#: empty character lists); characters default to their footprint.
+AVOIDANCE_DEFAULT_RADIUS = 0.25
+#: Speeds (m/s) below this count as "no preferred motion" (heading and
+#: animation rate are then left as the movers set them).
+AVOIDANCE_SPEED_EPS = 1e-9

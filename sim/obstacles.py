@@ -410,6 +410,7 @@ def install(world, cfg: dict) -> None:
     ``obstacles.project`` (after boids, before terrain_follow and animation)."""
     obs = ObstacleSet.from_config(cfg)
     world.resources["obstacles"] = obs
+    world.resources["obstacles.agent_radius"] = float(cfg.get("agent_radius", 0.4))  # read by avoidance.resolve
     r, m = float(cfg.get("agent_radius", 0.4)), float(cfg.get("margin", 2.0))
     la, s, ws = float(cfg.get("lookahead", 1.0)), float(cfg.get("strength", 8.0)), float(cfg.get("w_slide", 0.5))
 

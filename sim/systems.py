@@ -23,6 +23,7 @@ EFFECTS: dict[str, str] = {
     "goals": "sim.goals",
     "terrain_follow": "sim.terrain_follow",
     "instancing": "sim.instancing",
+    "avoidance": "sim.avoidance.effect",
 }
 
 

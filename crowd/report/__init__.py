@@ -9,6 +9,7 @@ HTML/table):
 - :mod:`crowd.report.metrics`: image error of the sampled frames against the reference, aggregates, Pareto front
 - :mod:`crowd.report.compare`: ``--compare``, frame-time regressions against a baseline report
 - :mod:`crowd.report.plots`: the matplotlib figures
+- :mod:`crowd.report.pedestrian`: PedPy density, speed, flow and fundamental diagram of ``[[measurement]]`` areas
 - :mod:`crowd.report.page`: the self-contained index.html (tables, plots, sample frames)
 - :mod:`crowd.report.pipeline`: ``build_report``, all of the above; writes the report directory atomically
 """

@@ -94,6 +94,10 @@ def render_html(data: dict) -> str:
                    f"<img src='{e(p['flicker'])}' alt='flicker'>")
         out.append(f"<h3>Accuracy against time ({e(sc['pareto_error'])})</h3>"
                    f"<img src='{e(p['pareto'])}' alt='pareto'>")
+        if sc.get("pedestrian"):
+            from crowd.report.pedestrian import html_section
+
+            out.append(html_section(sc))
         out.append("<h3>Sample frames</h3><table class='samples'><tr><th>setting</th><th>frame</th><th>frame</th>"
                    "<th>NoLOD reference</th><th>error map</th><th>PSNR / SSIM / FLIP</th></tr>")
         for s in sc["settings"]:

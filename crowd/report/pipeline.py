@@ -14,12 +14,14 @@ The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
 
     index.html         self-contained page (relative links only; crowd.report.page)
     report.json        every number of the page (non-finite values as null)
-    plots/*.png        matplotlib (Agg) figures (crowd.report.plots)
+    plots/*.png        matplotlib (Agg) figures (crowd.report.plots; crowd.report.pedestrian for scenes with
+                       [[measurement]] areas or lines: PedPy density, speed, flow, fundamental diagram)
     samples/*.png      sampled frames, references and error maps
     runs/<scene>/<setting>/   the runs' own outputs (frames.csv, summary.json, ...)
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import shutil
@@ -34,6 +36,7 @@ from crowd.report.cluster import DEFAULT_CLUSTER, ClusterPool
 from crowd.report.compare import MAD_TO_SIGMA, MIN_REGRESSION, NOISE_K, compare_reports
 from crowd.report.metrics import aggregate, metrics_task
 from crowd.report.page import render_html
+from crowd.report.pedestrian import scene_measures
 from crowd.report.plots import _plots
 from crowd.report.runs import (
     STAGE_COLUMNS,
@@ -111,6 +114,10 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     from render.image import write_png
 
     all_settings = [(Path(p), expand_settings(p, sweeps, size=size, frames=frames)) for p in scene_paths]
+    for _, settings in all_settings:  # pedestrian measures (crowd.report.pedestrian) need the first run's trajectories
+        s0 = settings[0]
+        if getattr(s0.scene, "measurements", ()) and not s0.scene.trajectories:
+            s0.scene = dataclasses.replace(s0.scene, trajectories=True)
     names = [s[0].scene.name for _, s in all_settings]
     slugs = _unique_slugs(names)
     out = check_output_dir(out)
@@ -221,6 +228,9 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
                 if data["machine"] is None:
                     data["machine"] = run.summary.get("machine")
             _plots(tmp, scene_entry, runs_of[si])
+            ped = scene_measures(tmp, slug, names[si], runs_of[si][0], settings[0].scene.measurements)
+            if ped is not None:
+                scene_entry["pedestrian"] = ped
             data["scenes"].append(scene_entry)
         if baseline is not None:
             rows = compare_reports(data, baseline)

@@ -154,6 +154,6 @@ def test_quickstart_is_100_humanoids_walking_on_a_camera_path():
 
     scene = load_scene(REPO / "scenes" / "quickstart.toml")
     p = plan(scene)
-    assert p.state.n == 100 and scene.effect_names == ["animation"]
+    assert p.state.n == 100 and scene.effect_names == ["animation", "avoidance"]
     assert abs(p.triangles(0) - 5000) <= 100 and len(scene.camera.keys) >= 2
     assert scene.render.size == (1280, 720) and scene.frames == 120 and scene.render.png_every == 30
