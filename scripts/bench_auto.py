@@ -225,11 +225,18 @@ def main(argv=None) -> int:
         # to 2x on llvmpipe, so the median of the per-frame ratios is the steadier figure)
         fa, fb = o["frames"]["auto-splat"], o["frames"][best_name]
         paired = statistics.median(x / y for x, y in zip(fa, fb)) if fa and len(fa) == len(fb) else float("nan")
+        # against the fastest single mode of each frame (the strictest pairing), for both autos
+        fmin = [min(v) for v in zip(*(o["frames"][n] for n in ("triangles", "clusters", "points")))]
+        strict = {n: statistics.median(x / y for x, y in zip(o["frames"][n], fmin)) for n in ("auto", "auto-splat")
+                  if len(o["frames"][n]) == len(fmin) and fmin}
         cells = " ".join(f"{('~' if o['est'][n] else '') + format(t[n], '.3f'):>12}" for n in CASES)
         ps = " ".join(f"{o['psnr'][n]:.1f}" if o["psnr"][n] is not None else "-" for n in CASES[1:])
         pe = f"{100 * statistics.median(o['pred_err']):.0f} %" if o["pred_err"] else "-"
         print(f"{o['scene']:<11} {cells}  {t['auto'] / best:9.2f}  {t['auto-splat'] / best:10.2f}  {paired:6.2f}"
               f"  {ps:>37}  {pe:>8}  {o['reps']}")
+        print(f"  paired per frame: auto / {best_name} {statistics.median(x / y for x, y in zip(o['frames']['auto'], fb)):.3f}, "
+              f"auto-splat / {best_name} {paired:.3f}; against each frame's fastest single mode: "
+              + ", ".join(f"{n} {v:.3f}" for n, v in strict.items()))
         print("  selection s (median): " + " ".join(f"{n} {v:.3f}" for n, v in o["sel"].items())
               + f"; auto plans {o['plans'].get('auto')}, auto-splat plans {o['plans'].get('auto-splat')}")
         if "budget" in o:

@@ -472,9 +472,9 @@ class AutoSelector:
         dl.stats["triangles"] = int(sum(x.triangles for x in out))
         dl.stats["batches"] = len(out)
         dl.stats["levels"] = [int(x) for x in levels]
-        prior_pred = self.prior.predict(dl)
+        self._last_features = cost_model.features(dl)  # once: the prediction is linear in these counts
+        prior_pred = float(self.prior.vector[0] + self.prior.vector[1:] @ self._last_features)
         predicted = prior_pred * self.plan_factor(plan_name)
-        self._last_features = cost_model.features(dl)
         self._last_prior_pred = prior_pred
         self._last_plan = plan_name
         dl.stats["auto"] = {"levels": [int(x) for x in levels], "representations": per_cand, "options": tel.counts,

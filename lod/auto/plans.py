@@ -246,19 +246,24 @@ def price_plans(candidates, groups, coefficients, fc: dict, fixed=(0.0, frozense
     opt = np.full((nb, N), np.inf)
     sk = np.zeros((nb, N), np.bool_)
     col_cand = np.zeros(int(cbase[-1]), np.int64)  # the candidate row of every option column
-    # gather the blocks (a list comprehension per row, no per-group pricing)
+    # gather the blocks side by side (concatenations, no per-group pricing)
     blocks = [(gi, x) for gi, (_, opts, _) in enumerate(groups) for x in opts]
-    for r in range(nb):
-        mine = [(gi, x) for gi, x in blocks if row[x.cand.name] == r]
-        if not mine:
-            continue
-        at = np.concatenate([np.arange(ibase[gi], ibase[gi + 1]) for gi, _ in mine])
-        bmin[r, at] = np.concatenate([x.bmin for _, x in mine])
-        barg[r, at] = np.concatenate([x.barg + cbase[gi] for gi, x in mine])
-        opt[r, at] = np.concatenate([x.opt for _, x in mine])
-        sk[r, at] = np.concatenate([x.skipped if x.skipped is not None else np.zeros(x.bmin.shape[0], np.bool_)
-                                    for _, x in mine])
-        col_cand[np.concatenate([np.arange(cbase[gi] + x.a, cbase[gi] + x.a + x.m) for gi, x in mine])] = r
+    brow = np.array([row[x.cand.name] for _, x in blocks], np.int64)
+    bgrp = np.array([gi for gi, _ in blocks], np.int64)
+    ba = np.array([x.a for _, x in blocks], np.int64)
+    bm = np.array([x.m for _, x in blocks], np.int64)
+    bk = ks[bgrp] if blocks else np.zeros(0, np.int64)
+    # every block's instances (global) and option columns (global), in block order
+    inst = np.repeat(ibase[bgrp] - np.concatenate([[0], np.cumsum(bk)[:-1]]), bk) + np.arange(int(bk.sum()))
+    cols = np.repeat(cbase[bgrp] + ba - np.concatenate([[0], np.cumsum(bm)[:-1]]), bm) + np.arange(int(bm.sum()))
+    r_of = np.repeat(brow, bk)
+    if blocks:
+        bmin[r_of, inst] = np.concatenate([x.bmin for _, x in blocks])
+        barg[r_of, inst] = np.concatenate([x.barg for _, x in blocks]) + np.repeat(cbase[bgrp], bk)
+        opt[r_of, inst] = np.concatenate([x.opt for _, x in blocks])
+        sk[r_of, inst] = np.concatenate([x.skipped if x.skipped is not None else np.zeros(x.bmin.shape[0], np.bool_)
+                                         for _, x in blocks])
+        col_cand[cols] = np.repeat(brow, bm)
     use = _use_mixed_rows(candidates, row, bmin, fc, fixed[1])
     pure = np.array([row[n] for n in names], np.int64)
     tri = row[names[0]]
