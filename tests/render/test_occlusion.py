@@ -180,3 +180,22 @@ def test_occlusion_with_nothing_hidden_and_gl_points_draws_everything(gl_ctx, ba
         assert d.last_counts["occluded_point_jobs"] == 0
     finally:
         r.release()
+
+
+def test_occlusion_key_of_mode_points_reaches_the_drawer():
+    """`[lod] occlusion` is a key of mode points, and the engine's toggle (`O` in crowd fly) sets it on the
+    open renderer's points drawer."""
+    from types import SimpleNamespace
+
+    from crowd.engine import Engine
+    from lod import modes
+
+    p = modes.mode_params("points")["occlusion"]
+    assert p.default is False
+    pts, clu = SimpleNamespace(occlusion=False), SimpleNamespace(on=None)
+    clu.set_occlusion = lambda on: setattr(clu, "on", on)
+    fake = SimpleNamespace(_modes={}, renderer=SimpleNamespace(uploaded_drawer={"points": pts, "clusters": clu}.get))
+    Engine.apply_occlusion(fake, True)
+    assert pts.occlusion is True and clu.on is True
+    Engine.apply_occlusion(fake, False)
+    assert pts.occlusion is False and clu.on is False
