@@ -7,7 +7,9 @@ Per frame of the walk (consecutive frames at the scene's dt, so the previous fra
 a running engine would have): one simulation step, one selection, then the same DrawList drawn with
 occlusion culling off and on, in alternating order, in one process and one renderer. Prints per pair
 the frame times (select + draw + read-back), their ratio, the jobs / points / triangles occlusion left
-out and the PSNR of the culled image against the unculled one; then the medians.
+out and the PSNR of the culled image against the unculled one; then the medians. Besides wall time, the CPU
+time of the draw (``time.process_time``: every thread of the process, llvmpipe's rasterizer threads included)
+is paired too: on a shared machine it measures the work done rather than the share of the cores obtained.
 
 Run:  .venv/bin/python scripts/bench_occlusion.py [--frames 12] [--warmup 2] [--size 1280x720]
       [--start 0.0] [--scene-camera]
@@ -84,25 +86,29 @@ def main(argv=None) -> int:
             res = {}
             for on in ((False, True) if f % 2 == 0 else (True, False)):
                 d.occlusion = on
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 r.draw(dl)
                 img = r.read_pixels()
-                res[on] = (sel + time.perf_counter() - t0, img, dict(d.last_counts))
+                res[on] = (sel + time.perf_counter() - t0, img, dict(d.last_counts), time.process_time() - c0)
             if f < a.warmup:
                 continue
             c = res[True][2]
             row = {"off": res[False][0], "on": res[True][0], "ratio": res[False][0] / res[True][0],
+                   "cpu_off": res[False][3], "cpu_on": res[True][3], "cpu_ratio": res[False][3] / res[True][3],
                    "psnr": psnr(res[True][1], res[False][1]), "select": sel,
                    "points": dl.stats["points"], "triangles": dl.stats["triangles"], **c}
             rows.append(row)
             print(f"  frame {f - a.warmup}: off {row['off'] * 1e3:.1f} ms, on {row['on'] * 1e3:.1f} ms, "
-                  f"{row['ratio']:.2f}x; culled {c['occluded_point_jobs']:,} point jobs "
+                  f"{row['ratio']:.2f}x (draw CPU time of all threads {row['cpu_off'] * 1e3:.0f} / "
+                  f"{row['cpu_on'] * 1e3:.0f} ms, {row['cpu_ratio']:.2f}x); culled {c['occluded_point_jobs']:,} point jobs "
                   f"({c['occluded_points']:,} of {row['points']:,} points), {c['occluded_tri_jobs']:,} triangle "
                   f"jobs ({c['occluded_triangles']:,} of {row['triangles']:,} triangles); "
                   f"PSNR {row['psnr']:.1f} dB", flush=True)
     med = lambda k: statistics.median(x[k] for x in rows)  # noqa: E731
     print(f"median: off {med('off') * 1e3:.1f} ms, on {med('on') * 1e3:.1f} ms (select {med('select') * 1e3:.1f}); "
-          f"paired ratio {med('ratio'):.2f}x (target >= 1.8x); points culled "
+          f"paired ratio {med('ratio'):.2f}x (target >= 1.8x); draw CPU time (all threads: the work, less "
+          f"sensitive to other jobs) off {med('cpu_off') * 1e3:.0f} ms, on {med('cpu_on') * 1e3:.0f} ms, paired "
+          f"{med('cpu_ratio'):.2f}x; points culled "
           f"{med('occluded_points') / max(med('points'), 1):.0%}, triangles culled "
           f"{med('occluded_triangles') / max(med('triangles'), 1):.0%}; PSNR min "
           f"{min(x['psnr'] for x in rows):.1f} dB (target >= 40); load average "
