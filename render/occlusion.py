@@ -32,7 +32,10 @@ VDR-AM §5.2) with a depth pyramid instead of one GL query per box:
    jobs are not drawn; the others are drawn as in step 2, then the colour pass
    and the resolve run over all drawn points. The instances with a job not
    hidden by that pyramid (drawn first or after the test) are the next
-   frame's visible set, so an instance that became hidden leaves it.
+   frame's visible set, so an instance that became hidden leaves it. A frame
+   whose test finds less than :data:`OCCLUSION_MIN_SHARE` of the work hidden
+   turns the culling off for :data:`OCCLUSION_RETRY_FRAMES` frames (its cost
+   would not be paid back), then it is tried again.
 
 The test only ever drops a job none of whose pixels can win the depth test
 against geometry already in this frame's buffers, so the image is the one
@@ -49,6 +52,12 @@ from numba import njit
 #: share of the frame's work (points + TRIANGLE_WEIGHT x triangles) drawn untested first, nearest jobs first
 #: (with the instances found visible in the previous frame); the rest is tested against their depth
 OCCLUSION_FIRST_SHARE = 0.1
+#: a frame whose test finds less than this share of the work hidden (every job tested, the first ones too)
+#: stops the culling for OCCLUSION_RETRY_FRAMES frames: where little is hidden (a view over the heads) the
+#: test's own cost (bounds, read-back, pyramid, split draws) is not paid back
+OCCLUSION_MIN_SHARE = 0.1
+#: frames drawn without the test after a frame that found too little hidden (then it is tried again)
+OCCLUSION_RETRY_FRAMES = 8
 #: weight of one triangle against one point when the first share is measured
 TRIANGLE_WEIGHT = 4.0
 #: a job is hidden when its nearest window depth exceeds the farthest occluder depth over its rectangle by

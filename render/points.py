@@ -87,10 +87,10 @@ SAMPLE_BYTES = 32
 SAMPLE_WORDS = SAMPLE_BYTES // 4
 #: point splat paths
 PATHS = ("compute", "gl_points")
-#: keys of ``Drawer.last_counts``: points and triangles drawn, and the jobs (nodes of instances) occlusion
-#: culling left out with their points and triangles
+#: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
+#: culling left out with their points and triangles, and 1 when the culling was paused this frame
 COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
-          "occluded_triangles")
+          "occluded_triangles", "occlusion_paused")
 
 
 def sample_box(*positions) -> tuple[np.ndarray, float]:
@@ -277,6 +277,7 @@ class Drawer:
         self.last_counts = dict.fromkeys(COUNTS, 0)
         #: occlusion culling of hierarchy nodes (render.occlusion; compute path, no MSAA)
         self.occlusion = False
+        self._occl_pause = 0  # frames left without the test (render.occlusion.OCCLUSION_RETRY_FRAMES)
         self._pvs = np.zeros(0, np.int64)  # keys of the jobs visible in the last frame (render.occlusion.job_key)
         w, h = renderer.size
         self._pixels = (w + MARGIN) * (h + MARGIN)  # anchor slots
@@ -475,6 +476,10 @@ class Drawer:
         # occlusion culling (render.occlusion): the nearest share first, the rest tested against its depth
         # (a frame of triangles only draws them all: nothing splatted to test afterwards)
         occl = bool(self.occlusion and path == "compute" and not getattr(self.r, "samples", 0) and groups)
+        if occl and self._occl_pause > 0:  # the last test found too little hidden (render.occlusion)
+            self._occl_pause -= 1
+            self.last_counts["occlusion_paused"] = 1
+            occl = False
         hidden = self._occlusion_split(by_fade, tris, groups, vp, splat) if occl else None
         self._draw_triangles(tris, vp, None if hidden is None else hidden[0])
         if not groups:
@@ -515,6 +520,13 @@ class Drawer:
             pt_hid = [occ.occluded(r, z, pyr) for r, z, _ in hidden[3]]
             self._pvs = np.unique(np.concatenate([b[2][~m] for b, m in zip(hidden[2] + hidden[3],
                                                                               tri_hid + pt_hid)]))
+            work = sum(occ.TRIANGLE_WEIGHT * float(j[:, 1].astype(np.float64).sum()) for _, _, _, j in tris) + \
+                sum(float(j[:, 1].astype(np.float64).sum()) for _, j in groups)
+            hid = sum(occ.TRIANGLE_WEIGHT * float(j[m, 1].astype(np.float64).sum())
+                      for (_, _, _, j), m in zip(tris, tri_hid)) + \
+                sum(float(j[m, 1].astype(np.float64).sum()) for (_, j), m in zip(groups, pt_hid))
+            if hid < occ.OCCLUSION_MIN_SHARE * work:
+                self._occl_pause = occ.OCCLUSION_RETRY_FRAMES
             tri_vis = [(~a) & ~m for a, m in zip(tri_first, tri_hid)]
             pt_vis = [(~a) & ~m for a, m in zip(pt_first, pt_hid)]
             self._draw_triangles(tris, vp, tri_vis)

@@ -123,7 +123,8 @@ def _state(positions):
     return st
 
 
-def test_occlusion_keeps_the_image_and_culls_the_hidden_balls(gl_ctx, ball):
+def test_occlusion_keeps_the_image_and_culls_the_hidden_balls(gl_ctx, ball, monkeypatch):
+    monkeypatch.setattr(occ, "OCCLUSION_MIN_SHARE", 0.0)  # never paused here (the hidden balls are far: little work)
     rep, sel = ball
     r = Renderer(SIZE, ctx=gl_ctx)
     try:
@@ -160,7 +161,8 @@ def test_occlusion_keeps_the_image_and_culls_the_hidden_balls(gl_ctx, ball):
         r.release()
 
 
-def test_occlusion_with_nothing_hidden_and_gl_points_draws_everything(gl_ctx, ball):
+def test_occlusion_with_nothing_hidden_and_gl_points_draws_everything(gl_ctx, ball, monkeypatch):
+    monkeypatch.setattr(occ, "OCCLUSION_MIN_SHARE", 0.0)
     rep, sel = ball
     r = Renderer(SIZE, ctx=gl_ctx)
     try:
@@ -199,3 +201,26 @@ def test_occlusion_key_of_mode_points_reaches_the_drawer():
     assert pts.occlusion is True and clu.on is True
     Engine.apply_occlusion(fake, False)
     assert pts.occlusion is False and clu.on is False
+
+
+def test_occlusion_pauses_where_little_is_hidden(gl_ctx, ball, monkeypatch):
+    """A frame whose test finds less than OCCLUSION_MIN_SHARE of the work hidden draws the next
+    OCCLUSION_RETRY_FRAMES frames without the test (same image), then tests again."""
+    monkeypatch.setattr(occ, "OCCLUSION_RETRY_FRAMES", 2)
+    rep, sel = ball
+    r = Renderer(SIZE, ctx=gl_ctx)
+    try:
+        r.upload(rep)
+        d = r.drawer("points")
+        dl = sel.select(_state(WALL), CAM, SIZE)  # nothing hidden
+        r.draw(dl)
+        ref = r.read_pixels()
+        d.occlusion = True
+        paused = []
+        for _ in range(4):
+            r.draw(dl)
+            np.testing.assert_array_equal(r.read_pixels(), ref)
+            paused.append(d.last_counts["occlusion_paused"])
+        assert paused == [0, 1, 1, 0]
+    finally:
+        r.release()
