@@ -59,7 +59,11 @@ corrected prediction is within ``EXPLORE_MARGIN`` of the best is drawn once,
 so that the correction is measured rather than assumed. A plan that draws
 what an earlier plan draws (the mixed plan equal to a pure one, or pure plans
 that coincide, e.g. when every agent is in a super node) shares that plan's
-name and measurements.
+name and measurements. The plans are priced over every group of every
+character in one pass (:func:`lod.auto.plans.price_plans`: the candidates'
+per-group blocks side by side, one kernel call), not group by group; the
+per-group loop it replaced (:func:`lod.auto.plans.price_plans_loop`) is kept
+as the reference the tests compare its choices with.
 
 Selection work: a candidate may give a cost lower bound per instance
 (:meth:`lod.auto.candidates.Candidate.cost_lower_bound`, the cluster cut:
