@@ -477,7 +477,8 @@ class AutoSelector:
         dl.stats["batches"] = len(out)
         dl.stats["levels"] = [int(x) for x in levels]
         self._last_features = cost_model.features(dl)  # once: the prediction is linear in these counts
-        prior_pred = float(self.prior.vector[0] + self.prior.vector[1:] @ self._last_features)
+        v = self.prior.vector
+        prior_pred = float(v[0] + v[1:] @ self._last_features)
         predicted = prior_pred * self.plan_factor(plan_name)
         self._last_prior_pred = prior_pred
         self._last_plan = plan_name
