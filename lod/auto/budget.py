@@ -28,11 +28,6 @@ PLAN_FRAMES = 8
 #: an unmeasured plan predicted within this fraction of the best plan is drawn once to measure it
 #: (about the cost model's median error), during the first ``EXPLORE_FRAMES`` frames of a selector
 EXPLORE_MARGIN = 0.3
-#: ... or within this many times the calibration's own held-out error (``CostModel.validation_rel_error``)
-#: when that is larger: a calibration measured on a loaded machine (held-out error 40 %) misjudges whole
-#: plans by more than EXPLORE_MARGIN (office, 2 Dec: the points plan predicted 1.47x the mixed one, measured
-#: 0.6x), and an unexplored plan is never measured
-EXPLORE_ERROR_FACTOR = 2.0
 EXPLORE_FRAMES = 3
 
 #: clamp of the adaptive bound, pixels

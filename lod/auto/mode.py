@@ -55,9 +55,7 @@ predicted factor (the median over its observed frames, see
 :meth:`AutoSelector.plan_factor`; an unmeasured plan gets the median over
 all frames), and the plan with the lowest corrected prediction is drawn.
 During the first ``EXPLORE_FRAMES`` frames, a plan never measured whose
-corrected prediction is within ``EXPLORE_MARGIN`` of the best (or within
-``EXPLORE_ERROR_FACTOR`` times the calibration's held-out error, when larger)
-is drawn once,
+corrected prediction is within ``EXPLORE_MARGIN`` of the best is drawn once,
 so that the correction is measured rather than assumed. A plan that draws
 what an earlier plan draws (the mixed plan equal to a pure one, or pure plans
 that coincide, e.g. when every agent is in a super node) shares that plan's
@@ -132,8 +130,7 @@ import numpy as np
 
 from lod.auto import candidates as ac
 from lod.auto import cost_model
-from lod.auto.budget import (ADAPT_FRAMES, EXPLORE_ERROR_FACTOR, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES,
-                             BudgetController)
+from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
 from lod.auto.plans import _Block, price_plans, price_plans_loop
 from lod.chains import chain as tm_chain
 from lod.chains import mode as tm
@@ -312,13 +309,6 @@ class AutoSelector:
         self._last_features = None
         self._last_plan = None
 
-    def _explore_margin(self) -> float:
-        """How far above the best an unmeasured plan may be predicted and still be tried once:
-        EXPLORE_MARGIN, or EXPLORE_ERROR_FACTOR x the calibration's held-out error when larger."""
-        err = getattr(self.prior, "validation_rel_error", None)
-        err = float(err) if err is not None and np.isfinite(err) else 0.0
-        return max(EXPLORE_MARGIN, EXPLORE_ERROR_FACTOR * err)
-
     def plan_factor(self, name: str) -> float:
         """Measured / predicted (stored calibration) of frame plan ``name``:
         the median (log space) over its last ``PLAN_FRAMES`` observed frames,
@@ -457,7 +447,7 @@ class AutoSelector:
         if self.explore and self.controller is None and self.adapt and self._frames < EXPLORE_FRAMES:
             # a plan never measured whose prediction is within the model's error of the best is tried once
             cands = [n for n in plans if n != best and n not in self._plan_ratio and plans[n].alias is None
-                     and corrected(n) <= (1.0 + self._explore_margin()) * corrected(best)]
+                     and corrected(n) <= (1.0 + EXPLORE_MARGIN) * corrected(best)]
             if cands and plans[best].measured_as(best) in self._plan_ratio:
                 best = min(cands, key=corrected)
         plan_name = plans[best].measured_as(best)

@@ -735,27 +735,3 @@ def test_one_pass_pricing_chooses_the_plans_of_the_per_group_loop(built, monkeyp
                         chosen.add(sel.select(st, cam, SIZE).stats["auto"]["plan"])
     assert len(seen) >= 2 * 3 * 4 * 4 * 3 and max(g for g, _ in seen) >= 2
     assert {"triangles", "mixed"} <= chosen and len(chosen) >= 3, chosen
-
-
-def test_exploration_margin_follows_the_calibration_error(built):
-    """An unmeasured plan is tried when predicted within EXPLORE_MARGIN of the best, or within
-    EXPLORE_ERROR_FACTOR x the calibration's held-out error when that is larger."""
-    loose = cost_model.CostModel(dict(MODEL.coefficients), validation_rel_error=0.42)
-    a = am.AutoSelector(built.tri_reps, poe=1.0, model=MODEL)
-    b = am.AutoSelector(built.tri_reps, poe=1.0, model=loose)
-    assert a._explore_margin() == pytest.approx(am_budget.EXPLORE_MARGIN)
-    assert b._explore_margin() == pytest.approx(am_budget.EXPLORE_ERROR_FACTOR * 0.42)
-    # a plan predicted 1.5x the best is explored (once, in the first frames) under the loose calibration only
-    st = _crowd(200, 4, depth=200.0)
-    seen = {}
-    for name, model in (("tight", cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0})),
-                        ("loose", cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0},
-                                                       validation_rel_error=0.5))):
-        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=built.sel.candidates[1:], adapt=True)
-        plans = []
-        for _ in range(am_budget.EXPLORE_FRAMES + 1):
-            dl = sel.select(st, CAM, SIZE)
-            plans.append(dl.stats["auto"]["plan"])
-            sel.observe(model.predict(dl), select_seconds=0.0)
-        seen[name] = set(plans)
-    assert seen["loose"] >= seen["tight"] and len(seen["loose"]) >= len(seen["tight"])
