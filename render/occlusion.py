@@ -426,3 +426,44 @@ def job_boxes(batches, key: str, hierarchies, which: str) -> tuple:
         z = np.zeros((0, 3))
         return z, z, np.zeros((0, 12)), np.zeros(0, np.int64)
     return np.concatenate(los), np.concatenate(his), np.concatenate(models), np.concatenate(ids)
+
+
+@njit(cache=True)
+def _batch_bounds_kernel(box0, box1, nodes, rows, data, vp, w, h, pad, rect, zmin):  # pragma: no cover
+    J = nodes.shape[0]
+    lo = np.empty((1, 3))
+    hi = np.empty((1, 3))
+    model = np.empty((1, 12))
+    for j in range(J):
+        r = rows[j]
+        u = data[r, 12]
+        if not (u == u):
+            u = 0.0
+        u = min(max(u, 0.0), 1.0)
+        n = nodes[j]
+        for a in range(3):
+            lo[0, a] = (1.0 - u) * box0[n, 0, a] + u * box1[n, 0, a]
+            hi[0, a] = (1.0 - u) * box0[n, 1, a] + u * box1[n, 1, a]
+        for a in range(12):
+            model[0, a] = data[r, a]
+        _bounds_kernel(lo, hi, model, vp, w, h, pad, rect[j:j + 1], zmin[j:j + 1])
+
+
+def batch_bounds(h, jobs, data, which: str, view_proj, size, pad: float) -> tuple:
+    """:func:`job_bounds` of one batch's jobs in one numba call: node boxes at each
+    instance's u (:func:`node_boxes`) projected with the instance's model rows, without
+    the intermediate arrays of :func:`job_boxes` (the drawer's per-frame path; the tests
+    compare it with ``job_boxes`` + ``job_bounds``).
+
+    h : the batch's PointHierarchy; jobs : (J, 3) int64 (row, start, count), counts > 0;
+    data : (k, 16) instance data; returns (rect (J, 4) int64, zmin (J,) float64, nodes (J,) int64)."""
+    jobs = np.asarray(jobs, np.int64).reshape(-1, 3)
+    nodes = job_nodes(h, jobs[:, 1], which)
+    w, hh = int(size[0]), int(size[1])
+    rect = np.empty((jobs.shape[0], 4), np.int64)
+    zmin = np.empty(jobs.shape[0], np.float64)
+    _batch_bounds_kernel(np.ascontiguousarray(h.box0, np.float64), np.ascontiguousarray(h.box1, np.float64), nodes,
+                         np.ascontiguousarray(jobs[:, 0]), np.ascontiguousarray(data, np.float64).reshape(-1, 16),
+                         np.ascontiguousarray(view_proj, np.float64), float(w), float(hh), float(pad), rect, zmin)
+    r, z = _clamp_rects(rect, zmin, w, hh)
+    return r, z, nodes

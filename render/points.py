@@ -616,8 +616,22 @@ class Drawer:
         rep_no = {k: i for i, k in enumerate(self._reps)}
 
         def bounds(bs, key, which):  # (rect, zmin, key of the job: rep number mixed into occ.job_key)
-            lo, hi, model, ids = occ.job_boxes(bs, key, self._reps[key].hier, which)
-            return occ.job_bounds(lo, hi, model, vp, size, pad) + (ids ^ np.int64(rep_no[key] << 56),)
+            rs, zs, ks = [], [], []
+            for b in bs:  # the order of job_table: batches of rep ``key`` in order, jobs with a count
+                if b.rep != key:
+                    continue
+                j = np.asarray(getattr(b, which), np.int64).reshape(-1, 3)
+                j = j[j[:, 2] > 0]
+                if not j.shape[0]:
+                    continue
+                r_, z_, nodes = occ.batch_bounds(self._reps[key].hier[b.part], j, b.instance_data, which, vp, size,
+                                                 pad)
+                rs.append(r_)
+                zs.append(z_)
+                ks.append(occ.job_key(0, np.asarray(b.instance_ids, np.int64).reshape(-1)[j[:, 0]], nodes))
+            if not rs:
+                return np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64)
+            return np.concatenate(rs), np.concatenate(zs), np.concatenate(ks) ^ np.int64(rep_no[key] << 56)
 
         tb = [bounds(by_fade[f], k, "tri_jobs") for f, k, _, _ in tris]
         pb = []

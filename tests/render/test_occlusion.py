@@ -224,3 +224,27 @@ def test_occlusion_pauses_where_little_is_hidden(gl_ctx, ball, monkeypatch):
         assert paused == [0, 1, 1, 0]
     finally:
         r.release()
+
+
+def test_batch_bounds_equal_job_boxes_then_job_bounds(ball):
+    """The drawer's fused per-batch kernel gives the bounds of job_boxes + job_bounds, job for job."""
+    rep, sel = ball
+    st = _state(WALL + HIDDEN + PARTLY)
+    st.anim_time[:] = np.linspace(0.0, 0.95, st.n)
+    dl = sel.select(st, CAM, SIZE)
+    vp = CAM.projection(SIZE[0] / SIZE[1]) @ CAM.view_matrix()
+    n = 0
+    for b in dl.batches:
+        for which in ("point_jobs", "tri_jobs"):
+            j = getattr(b, which)
+            j = j[j[:, 2] > 0]
+            if not j.shape[0]:
+                continue
+            lo, hi, model, _ = occ.job_boxes([b], b.rep, rep.hierarchies, which)
+            r1, z1 = occ.job_bounds(lo, hi, model, vp, SIZE, 3.0)
+            r2, z2, nodes = occ.batch_bounds(rep.hierarchies[b.part], j, b.instance_data, which, vp, SIZE, 3.0)
+            np.testing.assert_array_equal(r1, r2)
+            np.testing.assert_allclose(z1, z2, rtol=0, atol=1e-12)
+            np.testing.assert_array_equal(nodes, occ.job_nodes(rep.hierarchies[b.part], j[:, 1], which))
+            n += j.shape[0]
+    assert n > 20
