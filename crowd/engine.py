@@ -465,7 +465,8 @@ class Engine:
 
     def apply_occlusion(self, on: bool) -> None:
         """Occlusion culling (VDR-AM §5.2) of the cluster representations on or off:
-        sets ``occlusion`` on the LOD reps and on the open renderer's per-rep state."""
+        sets ``occlusion`` on the LOD reps and on the open renderer's per-rep state;
+        and of the point-hierarchy nodes (``render.occlusion``) on the points drawer."""
         for reps, _ in self._modes.values():
             for rep in reps:
                 if hasattr(rep, "occlusion") and getattr(rep, "kind", "") == "clusters":
@@ -473,6 +474,9 @@ class Engine:
         d = self.renderer.uploaded_drawer("clusters") if self.renderer is not None else None
         if d is not None:  # render.clusters keeps its own state per uploaded rep
             d.set_occlusion(bool(on))
+        d = self.renderer.uploaded_drawer("points") if self.renderer is not None else None
+        if d is not None:
+            d.occlusion = bool(on)
 
     def close(self) -> None:
         if self.renderer is not None:

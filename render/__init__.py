@@ -13,7 +13,9 @@ Modules in data-flow order (representations and DrawList in, pixels and timings 
   shaders blend before skinning (``lod.full.targets``); not the geomorphs below.
 - ``render.morph``: the geomorph tables the morph shaders follow (``lod.chains``, ``lod.clusters``).
 - ``render.clusters``: the drawer of ``lod.clusters`` cuts (VDR-AM; occlusion culling §5.2).
-- ``render.points``: the drawer of ``lod.points`` hierarchies (compute-shader splats and GL_POINTS).
+- ``render.points``: the drawer of ``lod.points`` hierarchies (compute-shader splats and GL_POINTS);
+  ``render.points_jobs`` its CPU job helpers; ``render.occlusion`` its occlusion culling of hierarchy nodes
+  (max-depth pyramid of the likely occluders; Wand & Straßer have none).
 - ``render.timing``: which GPU timer-query readings to believe (llvmpipe).
 - ``render.image``: PNG output written atomically.
 - ``render.window``: the glfw window of the fly-through.

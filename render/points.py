@@ -45,6 +45,9 @@ import moderngl
 import numpy as np
 
 from lod.drawlist import fade_uniform
+from render import occlusion as occ
+from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs,  # noqa: F401 (re-exported)
+                                 rect_vertices, resolve_rects)
 from render.shaders import load_source, program_sources
 from render.tint import batch_words
 
@@ -85,6 +88,10 @@ SAMPLE_BYTES = 32
 SAMPLE_WORDS = SAMPLE_BYTES // 4
 #: point splat paths
 PATHS = ("compute", "gl_points")
+#: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
+#: culling left out with their points and triangles, and 1 when the culling was paused this frame
+COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
+          "occluded_triangles", "occlusion_paused")
 
 
 def sample_box(*positions) -> tuple[np.ndarray, float]:
@@ -227,122 +234,9 @@ def _with_prefix(j: np.ndarray) -> np.ndarray:
     return np.concatenate([j, pre[:, None]], axis=1).astype(np.uint32)
 
 
-#: triangle ranges whose (unique vertices, local corners) a rep keeps (render/points.py
-#: indexed_triangle_jobs); past it the cache is emptied (ranges are octree nodes: a few thousand)
-TRI_RANGE_CACHE = 200_000
-
-
-def indexed_triangle_jobs(jobs: np.ndarray, corners: np.ndarray, cache: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Indexed form of triangle jobs (first triangle, count, instance, prefix).
-
-    Returns (items (V, 2) uint32 (vertex, instance) — each vertex a job's
-    triangles use once, in job order — and index (3 T,) uint32 into items,
-    the triangles in job order). ``corners`` (T_all, 3) are the rep's
-    triangles' global vertex indices; ``cache`` maps a (first, count) range
-    to its unique vertices and local corner indices (filled here)."""
-    j = np.asarray(jobs, np.int64).reshape(-1, 4)
-    if not j.shape[0]:
-        return np.zeros((0, 2), np.uint32), np.zeros(0, np.uint32)
-    keys = (j[:, 0] << 32) | j[:, 1]
-    uk, inv = np.unique(keys, return_inverse=True)
-    if len(cache) > TRI_RANGE_CACHE:
-        cache.clear()
-    verts, local = [], []
-    for k in uk.tolist():
-        e = cache.get(k)
-        if e is None:
-            f, c = k >> 32, k & 0xFFFFFFFF
-            u, li = np.unique(corners[f:f + c].reshape(-1), return_inverse=True)
-            e = cache[k] = (u.astype(np.uint32), li.astype(np.uint32))
-        verts.append(e[0])
-        local.append(e[1])
-    nv = np.array([v.shape[0] for v in verts], np.int64)
-    ni = np.array([v.shape[0] for v in local], np.int64)
-    pv = np.concatenate(verts)
-    pi = np.concatenate(local)
-    ov = np.zeros(nv.shape[0], np.int64)
-    np.cumsum(nv[:-1], out=ov[1:])
-    oi = np.zeros(ni.shape[0], np.int64)
-    np.cumsum(ni[:-1], out=oi[1:])
-
-    def gather(off, n):  # the concatenated ranges [off[k], off[k] + n[k]) of every job
-        nj = n[inv]
-        tot = int(nj.sum())
-        start = np.zeros(nj.shape[0], np.int64)
-        np.cumsum(nj[:-1], out=start[1:])
-        return np.repeat(off[inv] - start, nj) + np.arange(tot), nj, start
-
-    gv, njv, vbase = gather(ov, nv)
-    items = np.empty((gv.shape[0], 2), np.uint32)
-    items[:, 0] = pv[gv]
-    items[:, 1] = np.repeat(j[:, 2], njv)
-    gi, nji, _ = gather(oi, ni)
-    index = (pi[gi].astype(np.int64) + np.repeat(vbase, nji)).astype(np.uint32)
-    return items, index
-
-
-def expand_jobs(jobs: np.ndarray) -> np.ndarray:
-    """(total, 2) uint32 (sample, instance) per work item of a job table
-    (the GL_POINTS path draws one vertex per item)."""
-    counts = jobs[:, 1].astype(np.int64)
-    total = int(counts.sum())
-    out = np.empty((total, 2), np.uint32)
-    rep_start = np.repeat(jobs[:, 0].astype(np.int64) - jobs[:, 3].astype(np.int64), counts)
-    out[:, 0] = rep_start + np.arange(total)
-    out[:, 1] = np.repeat(jobs[:, 2], counts)
-    return out
-
-
-def resolve_rects(flags: np.ndarray, size, tile: int, margin: int, splat: int) -> np.ndarray:
-    """(R, 4) int64 pixel rectangles (x0, y0, x1, y1), half-open, that hold
-    every pixel a filled anchor can cover.
-
-    flags : (ty, tx) bool, the anchor-slot tiles the depth pass filled (slot
-        (sx, sy) = pixel anchor + margin, tile (sy // tile, sx // tile))
-    size : (width, height) pixels; splat : footprint side s (1..3 <= margin + 1)
-
-    Pixel p reads the slots p + margin - d for 0 <= d < s, so a block of
-    tile x tile pixels is needed when a flagged tile meets its slot range; the
-    blocks of a row are merged into runs (few, wide rectangles).
-    """
-    w, h = int(size[0]), int(size[1])
-    f = np.asarray(flags, bool)
-    ty, tx = f.shape
-    s = int(splat)
-    # summed-area table of the flags: any flag in a tile range in O(1)
-    sat = np.zeros((ty + 1, tx + 1), np.int64)
-    sat[1:, 1:] = f.astype(np.int64).cumsum(0).cumsum(1)
-
-    def ranges(n_px, n_tiles):
-        p0 = np.arange(0, n_px, tile)
-        p1 = np.minimum(p0 + tile, n_px)
-        lo = np.clip((p0 + margin - s + 1) // tile, 0, n_tiles - 1)
-        hi = np.clip((p1 - 1 + margin) // tile, 0, n_tiles - 1)
-        return p0, p1, lo, hi + 1
-
-    x0, x1, lx, hx = ranges(w, tx)
-    y0, y1, ly, hy = ranges(h, ty)
-    cnt = sat[np.ix_(hy, hx)] - sat[np.ix_(ly, hx)] - sat[np.ix_(hy, lx)] + sat[np.ix_(ly, lx)]
-    need = cnt > 0  # (pixel tile rows, pixel tile columns)
-    pad = np.zeros((need.shape[0], need.shape[1] + 2), np.int8)
-    pad[:, 1:-1] = need
-    d = np.diff(pad, axis=1)
-    rows, starts = np.nonzero(d == 1)
-    _, ends = np.nonzero(d == -1)  # same row order: each run's start then end
-    if not rows.shape[0]:
-        return np.zeros((0, 4), np.int64)
-    return np.stack([x0[starts], y0[rows], x1[ends - 1], y1[rows]], axis=1).astype(np.int64)
-
-
-def rect_vertices(rects: np.ndarray, size) -> np.ndarray:
-    """(6 R, 2) float32 NDC corners of two triangles per pixel rectangle."""
-    r = np.asarray(rects, np.float64).reshape(-1, 4)
-    w, h = float(size[0]), float(size[1])
-    xa, ya, xb, yb = (2.0 * r[:, 0] / w - 1.0, 2.0 * r[:, 1] / h - 1.0, 2.0 * r[:, 2] / w - 1.0,
-                      2.0 * r[:, 3] / h - 1.0)
-    v = np.stack([np.stack([xa, ya], 1), np.stack([xb, ya], 1), np.stack([xa, yb], 1),
-                  np.stack([xb, yb], 1), np.stack([xa, yb], 1), np.stack([xb, ya], 1)], axis=1)
-    return v.reshape(-1, 2).astype(np.float32)
+def _sub(jobs: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """The rows ``mask`` of a job table, prefixes recomputed."""
+    return _with_prefix(jobs[np.asarray(mask, bool)][:, :3].astype(np.int64))
 
 
 class _GpuPoints:
@@ -381,7 +275,11 @@ class Drawer:
         self._bufs: dict = {}
         self._progs: dict = {}
         self._vaos: dict = {}  # kind -> (buffer, vertex array) of the per-frame buffers (_vao_of)
-        self.last_counts = {"points": 0, "triangles": 0}
+        self.last_counts = dict.fromkeys(COUNTS, 0)
+        #: occlusion culling of hierarchy nodes (render.occlusion; compute path, no MSAA)
+        self.occlusion = False
+        self._occl_pause = 0  # frames left without the test (render.occlusion.OCCLUSION_RETRY_FRAMES)
+        self._pvs = np.zeros(0, np.int64)  # keys of the jobs visible in the last frame (render.occlusion.job_key)
         w, h = renderer.size
         self._pixels = (w + MARGIN) * (h + MARGIN)  # anchor slots
         self._slot_tiles = (-(-(w + MARGIN) // TILE), -(-(h + MARGIN) // TILE))
@@ -466,7 +364,8 @@ class Drawer:
         self._reps[rep.key] = _GpuPoints(rep.key, objs, (lo, scale), verts, corners, pbase, tbase,
                                          int(getattr(rep, "splat_size", 2)), getattr(rep, "renderer", "compute"))
         self._reps[rep.key].tri_corners = tri_corners
-        self._reps[rep.key].tri_ranges = {}  # (first, count) -> (unique vertices, local corner indices)
+        self._reps[rep.key].tri_ranges = {}
+        self._reps[rep.key].hier = rep.hierarchies  # node boxes for occlusion culling (render.occlusion)  # (first, count) -> (unique vertices, local corner indices)
 
     def _append_points(self, packed: np.ndarray) -> int:
         """Append packed samples to the buffer all reps share (grown by
@@ -537,7 +436,7 @@ class Drawer:
         """Draw point batches (``lod.points.rep.PointsBatch``) of this frame."""
         ctx = self.ctx
         batches = [b for b in batches if b.rep in self._reps and b.n_instances]
-        self.last_counts = {"points": 0, "triangles": 0}
+        self.last_counts = dict.fromkeys(COUNTS, 0)
         if not batches:
             return
         offs, rows = {}, 0
@@ -557,55 +456,47 @@ class Drawer:
         by_fade: dict = {}
         for b in batches:
             by_fade.setdefault(fade_uniform(getattr(b, "fade", None)), []).append(b)
-        # 1. triangles selected by the traversal
-        tprog = self._program("points_tri")
-        self._uniforms(tprog, vp)
-        for fade, key, g in [(f, k, g) for f in by_fade for k, g in self._reps.items()]:
-            jobs = job_table(by_fade[fade], key, g.tbase, "tri_jobs", offs)
-            if not jobs.shape[0]:
-                continue
-            if "u_fade" in tprog:
-                tprog["u_fade"].value = fade
-            total = int(jobs[-1, 1]) + int(jobs[-1, 3])
-            # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
-            # vertex shared by several triangles is transformed once
-            items, index = indexed_triangle_jobs(jobs, g.tri_corners, g.tri_ranges)
-            self._buffer("tri_items", items).bind_to_storage_buffer(7)
-            g.verts.bind_to_storage_buffer(5)
-            ibo = self._buffer("tri_index", index)
-            vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
-                                                                                index_element_size=4))
-            vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
-            self.last_counts["triangles"] += total
-        # 2. points: one job table per fade over every rep (their samples share one buffer)
+        first = next(g for b in batches for k, g in self._reps.items() if k == b.rep)
+        path = self.path or first.path
+        # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
+        # the [lod] splat_size
+        splat = int(drawlist.options.get("splat_size", first.splat))
+        # 1. the traversal's jobs: triangle tables per (fade, rep), point tables per fade over every
+        # rep (their samples share one buffer)
+        tris = [(f, k, g, job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
+                for f in by_fade for k, g in self._reps.items()]
+        tris = [t for t in tris if t[3].shape[0]]
         groups = []
         for fade, bs in by_fade.items():
             parts = [job_table(bs, key, g.pbase, "point_jobs", offs) for key, g in self._reps.items()]
             parts = [j for j in parts if j.shape[0]]
             if parts:
-                jobs = _merge_jobs(parts)
-                groups.append((fade, jobs, int(jobs[-1, 1]) + int(jobs[-1, 3])))
+                groups.append((fade, _merge_jobs(parts)))
+        if groups and path not in PATHS:
+            raise ValueError(f"points drawer: path must be one of {PATHS}, got {path!r}")
+        # occlusion culling (render.occlusion): the nearest share first, the rest tested against its depth
+        # (a frame of triangles only draws them all: nothing splatted to test afterwards)
+        occl = bool(self.occlusion and path == "compute" and not getattr(self.r, "samples", 0) and groups)
+        if occl and self._occl_pause > 0:  # the last test found too little hidden (render.occlusion)
+            self._occl_pause -= 1
+            self.last_counts["occlusion_paused"] = 1
+            occl = False
+        hidden = self._occlusion_split(by_fade, tris, groups, vp, splat) if occl else None
+        self._draw_triangles(tris, vp, None if hidden is None else hidden[0])
         if not groups:
             return
-        first = next(g for b in batches for k, g in self._reps.items() if k == b.rep)
-        path = self.path or first.path
-        if path not in PATHS:
-            raise ValueError(f"points drawer: path must be one of {PATHS}, got {path!r}")
-        # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
-        # the [lod] splat_size
-        splat = int(drawlist.options.get("splat_size", first.splat))
-        self.last_counts["points"] = sum(t for _, _, t in groups)
         self._points.bind_to_storage_buffer(0)
         if path == "gl_points":
+            self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in groups)
             prog = self._program("points_gl")
             self._uniforms(prog, vp)
             ctx.enable(ctx.PROGRAM_POINT_SIZE)
-            for fade, jobs, total in groups:
+            for fade, jobs in groups:
                 self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
                 if "u_fade" in prog:
                     prog["u_fade"].value = fade
                 prog["u_splat"].value = float(splat)
-                self._empty_for(prog).render(moderngl.POINTS, vertices=total)
+                self._empty_for(prog).render(moderngl.POINTS, vertices=int(jobs[-1, 1]) + int(jobs[-1, 3]))
             ctx.disable(ctx.PROGRAM_POINT_SIZE)
             return
         self._depth.bind_to_storage_buffer(3)
@@ -614,18 +505,45 @@ class Drawer:
         ctx.memory_barrier()  # the last frame's resolve has read the keys
         self._clear()
         ctx.memory_barrier()
-        common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
-                  f"TILE {TILE}")
-        for defines in ((), ("COLOR_PASS",)):
-            cs = self._compute("points_splat", defines + common)
-            self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
-            for fade, jobs, total in groups:
-                self._buffer("point_jobs", jobs).bind_to_storage_buffer(2)
-                if "u_fade" in cs:
-                    cs["u_fade"].value = fade
-                cs["u_njobs"].value = int(jobs.shape[0])
-                self._dispatch(cs, int(jobs.shape[0]), SPLAT_JOBS_PER_GROUP)
-                ctx.memory_barrier()
+        if hidden is None:
+            drawn = [(f, j) for f, j in groups]
+            self._splat(drawn, vp, splat, color=False)
+        else:
+            tri_first, pt_first = hidden[0], hidden[1]
+            self._splat([(f, _sub(j, m)) for (f, j), m in zip(groups, pt_first)], vp, splat, color=False)
+            # 2. the depth so far (triangles and splat anchors) as a max-depth pyramid; test the rest
+            ctx.memory_barrier()
+            pyr = occ.depth_pyramid(occ.occluder_depth(
+                np.frombuffer(self.r.fbo.read(attachment=-1, dtype="f4", components=1), np.float32),
+                np.frombuffer(self._depth.read(size=4 * self._pixels), np.uint32), (w, h), MARGIN, splat))
+            # every job is tested: the untested first ones too, for the next frame's visible set
+            tri_hid = [occ.occluded(r, z, pyr) for r, z, _ in hidden[2]]
+            pt_hid = [occ.occluded(r, z, pyr) for r, z, _ in hidden[3]]
+            self._pvs = np.unique(np.concatenate([b[2][~m] for b, m in zip(hidden[2] + hidden[3],
+                                                                              tri_hid + pt_hid)]))
+            work = sum(occ.TRIANGLE_WEIGHT * float(j[:, 1].astype(np.float64).sum()) for _, _, _, j in tris) + \
+                sum(float(j[:, 1].astype(np.float64).sum()) for _, j in groups)
+            hid = sum(occ.TRIANGLE_WEIGHT * float(j[m, 1].astype(np.float64).sum())
+                      for (_, _, _, j), m in zip(tris, tri_hid)) + \
+                sum(float(j[m, 1].astype(np.float64).sum()) for (_, j), m in zip(groups, pt_hid))
+            if hid < occ.OCCLUSION_MIN_SHARE * work:
+                self._occl_pause = occ.OCCLUSION_RETRY_FRAMES
+            tri_vis = [(~a) & ~m for a, m in zip(tri_first, tri_hid)]
+            pt_vis = [(~a) & ~m for a, m in zip(pt_first, pt_hid)]
+            self._draw_triangles(tris, vp, tri_vis)
+            self._splat([(f, _sub(j, m)) for (f, j), m in zip(groups, pt_vis)], vp, splat, color=False)
+            c = self.last_counts
+            for (_, _, _, j), a, v in zip(tris, tri_first, tri_vis):
+                c["occluded_tri_jobs"] += int((~a & ~v).sum())
+                c["occluded_triangles"] += int(j[~a & ~v, 1].astype(np.int64).sum())
+            drawn = []
+            for (f, j), a, v in zip(groups, pt_first, pt_vis):
+                c["occluded_point_jobs"] += int((~a & ~v).sum())
+                c["occluded_points"] += int(j[~a & ~v, 1].astype(np.int64).sum())
+                drawn.append((f, _sub(j, a | v)))
+        drawn = [(f, j) for f, j in drawn if j.shape[0]]
+        self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in drawn)
+        self._splat(drawn, vp, splat, color=True)
         # 3. resolve: the pixels the filled anchor tiles reach (the next frame's clear resets
         # only those tiles)
         tx, ty = self._slot_tiles
@@ -645,6 +563,89 @@ class Drawer:
         vao = self._vao_of("resolve_vao", vbo, lambda: self.ctx.vertex_array(rprog, [(vbo, "2f", "in_pos")]))
         self.r.fbo.use()
         vao.render(moderngl.TRIANGLES, vertices=verts.shape[0])
+
+    def _draw_triangles(self, tris, vp, masks=None) -> None:
+        """Draw triangle job tables [(fade, key, gpu rep, jobs)], only the rows of
+        ``masks`` (a bool array per table) when given."""
+        tprog = self._program("points_tri")
+        self._uniforms(tprog, vp)
+        for i, (fade, key, g, jobs) in enumerate(tris):
+            if masks is not None:
+                jobs = _sub(jobs, masks[i])
+            if not jobs.shape[0]:
+                continue
+            if "u_fade" in tprog:
+                tprog["u_fade"].value = fade
+            # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
+            # vertex shared by several triangles is transformed once
+            items, index = indexed_triangle_jobs(jobs, g.tri_corners, g.tri_ranges)
+            self._buffer("tri_items", items).bind_to_storage_buffer(7)
+            g.verts.bind_to_storage_buffer(5)
+            ibo = self._buffer("tri_index", index)
+            vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
+                                                                                index_element_size=4))
+            vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
+            self.last_counts["triangles"] += int(jobs[-1, 1]) + int(jobs[-1, 3])
+
+    def _splat(self, groups, vp, splat: int, color: bool) -> None:
+        """One splat pass (depth keys, or with ``color`` the colour of the winners)
+        over point job tables [(fade, jobs)]."""
+        w, h = self.r.size
+        common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
+                  f"TILE {TILE}")
+        cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common)
+        self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
+        for fade, jobs in groups:
+            if not jobs.shape[0]:
+                continue
+            self._buffer("point_jobs", jobs).bind_to_storage_buffer(2)
+            if "u_fade" in cs:
+                cs["u_fade"].value = fade
+            cs["u_njobs"].value = int(jobs.shape[0])
+            self._dispatch(cs, int(jobs.shape[0]), SPLAT_JOBS_PER_GROUP)
+            self.ctx.memory_barrier()
+
+    def _occlusion_split(self, by_fade, tris, groups, vp, splat: int) -> tuple:
+        """Screen bounds of every job (its node's box at its instance's u) and the
+        nearest share drawn before the occlusion test (render.occlusion).
+
+        Returns (tri_first, pt_first: a bool mask per table, tri_bounds, pt_bounds:
+        a (rect, zmin) pair per table)."""
+        size = self.r.size
+        pad = float(splat) + 1.0  # the splat footprint (and a pixel of rounding) around the box
+
+        rep_no = {k: i for i, k in enumerate(self._reps)}
+
+        def bounds(bs, key, which):  # (rect, zmin, key of the job: rep number mixed into occ.job_key)
+            rs, zs, ks = [], [], []
+            for b in bs:  # the order of job_table: batches of rep ``key`` in order, jobs with a count
+                if b.rep != key:
+                    continue
+                j = np.asarray(getattr(b, which), np.int64).reshape(-1, 3)
+                j = j[j[:, 2] > 0]
+                if not j.shape[0]:
+                    continue
+                r_, z_, nodes = occ.batch_bounds(self._reps[key].hier[b.part], j, b.instance_data, which, vp, size,
+                                                 pad)
+                rs.append(r_)
+                zs.append(z_)
+                ks.append(occ.job_key(0, np.asarray(b.instance_ids, np.int64).reshape(-1)[j[:, 0]], nodes))
+            if not rs:
+                return np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64)
+            return np.concatenate(rs), np.concatenate(zs), np.concatenate(ks) ^ np.int64(rep_no[key] << 56)
+
+        tb = [bounds(by_fade[f], k, "tri_jobs") for f, k, _, _ in tris]
+        pb = []
+        for fade, _ in groups:
+            parts = [bounds(by_fade[fade], k, "point_jobs") for k in self._reps]
+            pb.append(tuple(np.concatenate([p[i] for p in parts]) for i in range(3)))
+        z = np.concatenate([b[1] for b in tb + pb])
+        work = np.concatenate([occ.TRIANGLE_WEIGHT * t[3][:, 1].astype(np.float64) for t in tris]
+                              + [j[:, 1].astype(np.float64) for _, j in groups])
+        first = occ.first_share(z, work) | np.isin(np.concatenate([b[2] for b in tb + pb]), self._pvs)
+        cuts = np.cumsum([b[1].shape[0] for b in tb + pb])[:-1]
+        masks = np.split(first, cuts)
+        return masks[:len(tb)], masks[len(tb):], tb, pb
 
     def _clear(self) -> None:
         """Reset the anchor slots (and tile flags) the last frame filled: all

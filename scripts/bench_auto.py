@@ -33,7 +33,11 @@ minutes per segment of a 100k-triangle character on the shared machine.
 
 Run:  .venv/bin/python scripts/bench_auto.py [--scenes grid office] [--frames 1] [--warmup 1]
       [--poe 1.0] [--splat 2] [--keyframes 3] [--intervals 1] [--size 1280 720] [--nolod-max 20]
-      [--budget stampede] [--budget-frames 16]
+      [--budget stampede] [--budget-frames 16] [--pricing-frames 15 [--pricing-only]]
+
+``--pricing-frames N`` first times auto's selection alone on N frames with its frame plans priced in one pass
+over all groups (``lod.auto.plans.price_plans``, the default) and with the per-group loop it replaced,
+alternating, and checks that both draw the same lists.
 """
 from __future__ import annotations
 
@@ -90,11 +94,53 @@ def build_cases(eng, args, model):
     return out
 
 
+def pricing_section(eng, cases, args) -> dict:
+    """Selection time of auto with the frame plans priced in one pass over all groups
+    (``lod.auto.plans.price_plans``) and with the per-group loop it replaced (``price_plans_loop``),
+    alternating on the same simulated frames (no drawing); also checks both draw the same lists."""
+    size = tuple(args.size)
+    statics = [(s.key, np.eye(4)) for s in eng.statics]
+    out = {}
+    for name in ("auto", "auto-splat"):
+        sel = cases[name][1]
+        frames0 = sel._frames  # these selections are not observed: the timed run still explores from its start
+        t = {True: [], False: []}
+        groups = []
+        for k in range(args.pricing_frames):
+            cam = eng.camera_at(eng.world.frame * eng.scene.dt)
+            lists = {}
+            for one in ((True, False) if k % 2 == 0 else (False, True)):
+                sel._plans = (lambda f, g, b, fx=(0.0, frozenset()), one=one:
+                              type(sel)._plans(sel, f, g, b, fx, one_pass=one))
+                a = time.perf_counter()
+                dl = sel.select(eng.world.state, cam, size, statics=statics)
+                t[one].append(time.perf_counter() - a)
+                lists[one] = [(x.rep, x.part, x.level, tuple(np.asarray(x.instance_ids).tolist())) for x in dl.batches]
+            del sel._plans
+            sel._frames = frames0
+            if lists[True] != lists[False]:
+                raise SystemExit(f"bench_auto: {name}: one-pass and per-group pricing drew different lists")
+            groups.append(sum(1 for x in dl.batches))
+            eng.step()
+        out[name] = (statistics.median(t[True]), statistics.median(t[False]), statistics.median(groups))
+        print(f"  {name} selection: one pass {1e3 * out[name][0]:.2f} ms, per-group loop {1e3 * out[name][1]:.2f} ms "
+              f"(median of {args.pricing_frames} alternating frames; {out[name][2]:.0f} batches drawn; same lists)",
+              flush=True)
+    return out
+
+
 def bench_scene(path: Path, args, model) -> dict:
     size = tuple(args.size)
     eng = Engine(load_scene(path), overrides={"size": size}, quiet=True)
     sc = eng.scene
     cases = build_cases(eng, args, model)
+    if args.pricing_frames:
+        for _ in range(args.steps):
+            eng.step()
+        pricing = pricing_section(eng, cases, args)
+        if args.pricing_only:
+            eng.close()
+            return {"scene": path.stem, "pricing": pricing}
     r = Renderer(size)
     for reps, _ in cases.values():
         for rep in reps:
@@ -206,6 +252,9 @@ def main(argv=None) -> int:
                     "not drawn")
     ap.add_argument("--budget", default="", help="scene to run budget mode on (e.g. stampede)")
     ap.add_argument("--budget-frames", type=int, default=16)
+    ap.add_argument("--pricing-frames", type=int, default=0, help="frames of auto's selection timed with the "
+                    "one-pass plan pricing against the per-group loop it replaced (0: skip)")
+    ap.add_argument("--pricing-only", action="store_true", help="only that selection timing (no drawing)")
     args = ap.parse_args(argv)
     with Renderer((64, 64)) as probe:
         model = cost_model.load(gl_info(probe.ctx).get("GL_RENDERER") or "")
@@ -218,6 +267,8 @@ def main(argv=None) -> int:
     print(f"\n{'scene':<11} " + " ".join(f"{n + ' s':>12}" for n in CASES) + "  auto/best  splat/best"
           "  paired  PSNR dB (tri clu pts auto auto-splat)  pred err  auto reps")
     for o in rows:
+        if "t" not in o:
+            continue
         t = o["t"]
         best_name = min(("triangles", "clusters", "points"), key=lambda n: t[n])
         best = t[best_name]
@@ -225,18 +276,25 @@ def main(argv=None) -> int:
         # to 2x on llvmpipe, so the median of the per-frame ratios is the steadier figure)
         fa, fb = o["frames"]["auto-splat"], o["frames"][best_name]
         paired = statistics.median(x / y for x, y in zip(fa, fb)) if fa and len(fa) == len(fb) else float("nan")
+        # against the fastest single mode of each frame (the strictest pairing), for both autos
+        fmin = [min(v) for v in zip(*(o["frames"][n] for n in ("triangles", "clusters", "points")))]
+        strict = {n: statistics.median(x / y for x, y in zip(o["frames"][n], fmin)) for n in ("auto", "auto-splat")
+                  if len(o["frames"][n]) == len(fmin) and fmin}
         cells = " ".join(f"{('~' if o['est'][n] else '') + format(t[n], '.3f'):>12}" for n in CASES)
         ps = " ".join(f"{o['psnr'][n]:.1f}" if o["psnr"][n] is not None else "-" for n in CASES[1:])
         pe = f"{100 * statistics.median(o['pred_err']):.0f} %" if o["pred_err"] else "-"
         print(f"{o['scene']:<11} {cells}  {t['auto'] / best:9.2f}  {t['auto-splat'] / best:10.2f}  {paired:6.2f}"
               f"  {ps:>37}  {pe:>8}  {o['reps']}")
+        print(f"  paired per frame: auto / {best_name} {statistics.median(x / y for x, y in zip(o['frames']['auto'], fb)):.3f}, "
+              f"auto-splat / {best_name} {paired:.3f}; against each frame's fastest single mode: "
+              + ", ".join(f"{n} {v:.3f}" for n, v in strict.items()))
         print("  selection s (median): " + " ".join(f"{n} {v:.3f}" for n, v in o["sel"].items())
               + f"; auto plans {o['plans'].get('auto')}, auto-splat plans {o['plans'].get('auto-splat')}")
         if "budget" in o:
             b = o["budget"]
             print(f"  budget mode: budget {b['budget']:.3f} s, p95 {b['p95']:.3f} s "
                   f"({100 * (b['p95'] / b['budget'] - 1):+.0f} %), final bound {b['bounds'][-1]:.2f}")
-    allp = [e for o in rows for e in o["pred_err"]]
+    allp = [e for o in rows for e in o.get("pred_err", ())]
     if allp:
         print(f"median |predicted - measured| / measured over all auto frames: {100 * statistics.median(allp):.0f} %")
     return 0

@@ -59,7 +59,11 @@ corrected prediction is within ``EXPLORE_MARGIN`` of the best is drawn once,
 so that the correction is measured rather than assumed. A plan that draws
 what an earlier plan draws (the mixed plan equal to a pure one, or pure plans
 that coincide, e.g. when every agent is in a super node) shares that plan's
-name and measurements.
+name and measurements. The plans are priced over every group of every
+character in one pass (:func:`lod.auto.plans.price_plans`: the candidates'
+per-group blocks side by side, one kernel call), not group by group; the
+per-group loop it replaced (:func:`lod.auto.plans.price_plans_loop`) is kept
+as the reference the tests compare its choices with.
 
 Selection work: a candidate may give a cost lower bound per instance
 (:meth:`lod.auto.candidates.Candidate.cost_lower_bound`, the cluster cut:
@@ -127,7 +131,7 @@ import numpy as np
 from lod.auto import candidates as ac
 from lod.auto import cost_model
 from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
-from lod.auto.plans import _Block, _Plan, _plans_kernel
+from lod.auto.plans import _Block, price_plans, price_plans_loop
 from lod.chains import chain as tm_chain
 from lod.chains import mode as tm
 from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES
@@ -321,9 +325,7 @@ class AutoSelector:
         opts, a = [], 0
         best = None
         tri = self.candidates[0]
-        order = [tri] + [c for c in self.candidates[1:] if not self._has_lb(c)] + \
-            [c for c in self.candidates[1:] if self._has_lb(c)]
-        for c in order:
+        for c in self._order():
             if c is not tri and not bound > 0.0:
                 continue
             skipped = None
@@ -348,88 +350,27 @@ class AutoSelector:
     def _has_lb(c) -> bool:
         return type(c).cost_lower_bound is not ac.Candidate.cost_lower_bound
 
-    def _plans(self, frame, groups, bound, fixed=(0.0, frozenset())):
+    def _order(self) -> list:
+        """The candidates in the order :meth:`_options` asks them (their blocks' order in a group):
+        the triangles, those without a cost lower bound, then those with one."""
+        tri = self.candidates[0]
+        return [tri] + [c for c in self.candidates[1:] if not self._has_lb(c)] + \
+            [c for c in self.candidates[1:] if self._has_lb(c)]
+
+    def _plans(self, frame, groups, bound, fixed=(0.0, frozenset()), one_pass: bool = True):
         """The frame plans (module docstring, "Plans"): name -> :class:`_Plan`; ``fixed``: (seconds,
         candidate names) of the whole-group draws every plan includes (:meth:`Candidate.wholes`).
 
-        Per group, one pass over its instances (:func:`_plans_kernel`) prices every pure plan and the
-        mixed one from the candidates' blocks (:class:`_Block`: each block's cheapest admissible option
-        per instance, computed once); the mixed plan is the argmin over the blocks in use (ties to the
-        lower column, as :func:`choose`)."""
-        c = frame.model.coefficients
+        Every pure plan and the mixed one are priced over all groups of all characters in one pass
+        (:func:`lod.auto.plans.price_plans`: the candidates' blocks, each block's cheapest admissible
+        option per instance computed once, side by side; the mixed plan is the argmin over the blocks
+        in use, ties to the lower column, as :func:`choose`). ``one_pass=False``: the per-group loop it
+        replaced (:func:`lod.auto.plans.price_plans_loop`), kept as the reference the tests compare."""
         fc = {cand.name: (cand.frame_cost(frame) if bound > 0.0 else 0.0) for cand in self.candidates[1:]}
-        names = [cand.name for cand in self.candidates]
-        # the mixed plan: per instance the cheapest option; a candidate with a per-frame cost is dropped
-        # for the frame when its instances' savings do not pay for it
-        use = set(names)
-        for cand in self.candidates[1:]:
-            if fc.get(cand.name, 0.0) <= 0.0 or cand.name in fixed[1]:  # no cost, or paid by the wholes
-                continue
-            saving = 0.0
-            for g, opts, ncols in groups:
-                mine = next((x.bmin for x in opts if x.cand is cand), None)
-                if mine is None:
-                    continue
-                rest = [x.bmin for x in opts if x.cand is not cand and x.cand.name in use]
-                other = rest[0] if len(rest) == 1 else np.min(np.stack(rest), axis=0)
-                wins = mine < other  # ties go to the lower column: only strict wins count
-                saving += float((other[wins] - mine[wins]).sum())
-            if saving <= fc[cand.name]:
-                use.discard(cand.name)
-        n_plans = len(names) + 1  # the pure plans in candidate order, then the mixed one
-        totals = np.full(n_plans, float(c["frame"]) + float(fixed[0]))
-        exact = np.ones(n_plans, bool)
-        used = [set(fixed[1]) for _ in range(n_plans)]
-        choices = [[] for _ in range(n_plans)]
-        for g, opts, ncols in groups:
-            col = {x.cand.name: j for j, x in enumerate(opts)}  # blocks in column order, triangles first
-            bmin = np.stack([x.bmin for x in opts])
-            barg = np.stack([x.barg for x in opts])
-            opt = np.stack([x.opt for x in opts])
-            sk = np.zeros(bmin.shape, np.bool_)
-            for j, x in enumerate(opts):
-                if x.skipped is not None:
-                    sk[j] = x.skipped
-            pure = np.array([col.get(n, 0) for n in names], np.int64)  # 0: the triangle chain
-            ch = np.empty((n_plans, g.k), np.int64)
-            cost = np.empty(n_plans)
-            ex = np.empty(n_plans, np.bool_)
-            opts_used = np.zeros((n_plans, ncols), np.bool_)
-            _plans_kernel(bmin, barg, opt, sk, pure, np.array([x.cand.name in use for x in opts]), ch, cost, ex,
-                          opts_used)
-            totals += cost
-            exact &= ex
-            for q in range(n_plans):
-                choices[q].append(ch[q])
-            for x in opts:  # batches: the distinct options of each block a plan draws
-                k = opts_used[:, x.a:x.a + x.m].sum(axis=1)
-                totals += c["batches"] * k
-                for q in np.flatnonzero(k).tolist():
-                    used[q].add(x.cand.name)
-        plans = {}
-        for q, name in enumerate(names + ["mixed"]):
-            plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]),
-                                bool(exact[q]))
-        # a plan whose choices equal an earlier plan's is that plan (its measurements are shared): a pure plan
-        # that draws what an earlier pure one draws (e.g. every agent in super nodes: all plans draw the same),
-        # and the mixed plan equal to a pure one
-        def same(x, y):
-            return all(np.array_equal(a_, b_) for a_, b_ in zip(x.choices, y.choices))
-
-        # roots first: a pure plan whose own candidate draws (so the far view drawn from super nodes alone is
-        # "points", not "triangles"), then candidate order
-        order = sorted(names, key=lambda n: (n not in used[names.index(n)], names.index(n)))
-        for i, name in enumerate(order + ["mixed"]):
-            this = plans[name]
-            for other in order[:i]:
-                o = plans[other]
-                if o.alias is None and same(this, o):
-                    this.exact = this.exact and o.exact
-                    if o.exact or not this.exact:
-                        this.seconds = o.seconds
-                    this.alias = other
-                    break
-        return plans
+        coef = frame.model.coefficients
+        if not one_pass:
+            return price_plans_loop(self.candidates, groups, coef, fc, fixed)
+        return price_plans(self.candidates, groups, coef, fc, fixed, order=self._order())
 
     def select(self, state, camera, size, statics=()) -> DrawList:
         """The frame's DrawList (see :meth:`lod.full.mode.NoLodSelector.select`):
@@ -535,9 +476,10 @@ class AutoSelector:
         dl.stats["triangles"] = int(sum(x.triangles for x in out))
         dl.stats["batches"] = len(out)
         dl.stats["levels"] = [int(x) for x in levels]
-        prior_pred = self.prior.predict(dl)
+        self._last_features = cost_model.features(dl)  # once: the prediction is linear in these counts
+        v = self.prior.vector
+        prior_pred = float(v[0] + v[1:] @ self._last_features)
         predicted = prior_pred * self.plan_factor(plan_name)
-        self._last_features = cost_model.features(dl)
         self._last_prior_pred = prior_pred
         self._last_plan = plan_name
         dl.stats["auto"] = {"levels": [int(x) for x in levels], "representations": per_cand, "options": tel.counts,

@@ -124,3 +124,177 @@ class _Block:
             b.opt = bmin.copy()
             b.opt[skipped] = o.cost[skipped].min(axis=1)
         return b
+
+
+# ---------------------------------------------------------------------------- pricing the frame plans
+def _use_mixed(candidates, groups, fc: dict, fixed_names) -> set:
+    """Names of the candidates the mixed plan may use: a candidate with a per-frame cost is dropped
+    when its instances' savings over the others in use do not pay for it (per-group loop: reference)."""
+    use = {cand.name for cand in candidates}
+    for cand in candidates[1:]:
+        if fc.get(cand.name, 0.0) <= 0.0 or cand.name in fixed_names:  # no cost, or paid by the wholes
+            continue
+        saving = 0.0
+        for g, opts, ncols in groups:
+            mine = next((x.bmin for x in opts if x.cand is cand), None)
+            if mine is None:
+                continue
+            rest = [x.bmin for x in opts if x.cand is not cand and x.cand.name in use]
+            other = rest[0] if len(rest) == 1 else np.min(np.stack(rest), axis=0)
+            wins = mine < other  # ties go to the lower column: only strict wins count
+            saving += float((other[wins] - mine[wins]).sum())
+        if saving <= fc[cand.name]:
+            use.discard(cand.name)
+    return use
+
+
+def _finish_plans(names, choices, totals, exact, used, fc) -> dict:
+    """name -> :class:`_Plan`, and the aliases: a plan whose choices equal an earlier plan's is that plan
+    (its measurements are shared): a pure plan that draws what an earlier pure one draws (e.g. every agent
+    in super nodes: all plans draw the same), and the mixed plan equal to a pure one."""
+    plans = {}
+    for q, name in enumerate(names + ["mixed"]):
+        plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]), bool(exact[q]))
+
+    def same(x, y):
+        return all(np.array_equal(a_, b_) for a_, b_ in zip(x.choices, y.choices))
+
+    # roots first: a pure plan whose own candidate draws (so the far view drawn from super nodes alone is
+    # "points", not "triangles"), then candidate order
+    order = sorted(names, key=lambda n: (n not in used[names.index(n)], names.index(n)))
+    for i, name in enumerate(order + ["mixed"]):
+        this = plans[name]
+        for other in order[:i]:
+            o = plans[other]
+            if o.alias is None and same(this, o):
+                this.exact = this.exact and o.exact
+                if o.exact or not this.exact:
+                    this.seconds = o.seconds
+                this.alias = other
+                break
+    return plans
+
+
+def price_plans_loop(candidates, groups, coefficients, fc: dict, fixed=(0.0, frozenset())) -> dict:
+    """Reference of :func:`price_plans`: the frame plans priced group by group (one
+    :func:`_plans_kernel` call and a Python loop over the blocks per group)."""
+    c = coefficients
+    names = [cand.name for cand in candidates]
+    use = _use_mixed(candidates, groups, fc, fixed[1])
+    n_plans = len(names) + 1  # the pure plans in candidate order, then the mixed one
+    totals = np.full(n_plans, float(c["frame"]) + float(fixed[0]))
+    exact = np.ones(n_plans, bool)
+    used = [set(fixed[1]) for _ in range(n_plans)]
+    choices = [[] for _ in range(n_plans)]
+    for g, opts, ncols in groups:
+        col = {x.cand.name: j for j, x in enumerate(opts)}  # blocks in column order, triangles first
+        bmin = np.stack([x.bmin for x in opts])
+        barg = np.stack([x.barg for x in opts])
+        opt = np.stack([x.opt for x in opts])
+        sk = np.zeros(bmin.shape, np.bool_)
+        for j, x in enumerate(opts):
+            if x.skipped is not None:
+                sk[j] = x.skipped
+        pure = np.array([col.get(n, 0) for n in names], np.int64)  # 0: the triangle chain
+        ch = np.empty((n_plans, g.k), np.int64)
+        cost = np.empty(n_plans)
+        ex = np.empty(n_plans, np.bool_)
+        opts_used = np.zeros((n_plans, ncols), np.bool_)
+        _plans_kernel(bmin, barg, opt, sk, pure, np.array([x.cand.name in use for x in opts]), ch, cost, ex,
+                      opts_used)
+        totals += cost
+        exact &= ex
+        for q in range(n_plans):
+            choices[q].append(ch[q])
+        for x in opts:  # batches: the distinct options of each block a plan draws
+            k = opts_used[:, x.a:x.a + x.m].sum(axis=1)
+            totals += c["batches"] * k
+            for q in np.flatnonzero(k).tolist():
+                used[q].add(x.cand.name)
+    return _finish_plans(names, choices, totals, exact, used, fc)
+
+
+def price_plans(candidates, groups, coefficients, fc: dict, fixed=(0.0, frozenset()), order=None) -> dict:
+    """The frame plans of :class:`lod.auto.mode.AutoSelector` (its module docstring, "Plans") priced over
+    every group of every character in one pass: the blocks of all groups are laid side by side, one row
+    per candidate (a group without a candidate's block has +inf there), and one :func:`_plans_kernel`
+    call prices every pure plan and the mixed one over all instances; the batches each plan draws are
+    counted from one matrix of the option columns used. Same plans as :func:`price_plans_loop`.
+
+    Parameters
+    ----------
+    candidates : the selector's candidates (triangles first); groups : [(group, [_Block], columns)];
+    coefficients : cost model coefficients; fc : candidate name -> per-frame cost (s); fixed : (seconds,
+    candidate names) of the whole-group draws every plan includes; order : the candidates in the
+    order their blocks appear in a group (ties between blocks go to the earlier one; default: as given)
+    """
+    c = coefficients
+    names = [cand.name for cand in candidates]
+    order = list(candidates) if order is None else list(order)
+    row = {cand.name: r for r, cand in enumerate(order)}
+    nb = len(order)
+    n_plans = len(names) + 1
+    ks = np.array([g.k for g, _, _ in groups], np.int64)
+    N = int(ks.sum())
+    ncols = np.array([n for _, _, n in groups], np.int64)
+    cbase = np.zeros(len(groups) + 1, np.int64)
+    np.cumsum(ncols, out=cbase[1:])
+    ibase = np.zeros(len(groups) + 1, np.int64)
+    np.cumsum(ks, out=ibase[1:])
+    bmin = np.full((nb, N), np.inf)
+    barg = np.zeros((nb, N), np.int64)
+    opt = np.full((nb, N), np.inf)
+    sk = np.zeros((nb, N), np.bool_)
+    col_cand = np.zeros(int(cbase[-1]), np.int64)  # the candidate row of every option column
+    # gather the blocks side by side (concatenations, no per-group pricing)
+    blocks = [(gi, x) for gi, (_, opts, _) in enumerate(groups) for x in opts]
+    brow = np.array([row[x.cand.name] for _, x in blocks], np.int64)
+    bgrp = np.array([gi for gi, _ in blocks], np.int64)
+    ba = np.array([x.a for _, x in blocks], np.int64)
+    bm = np.array([x.m for _, x in blocks], np.int64)
+    bk = ks[bgrp] if blocks else np.zeros(0, np.int64)
+    # every block's instances (global) and option columns (global), in block order
+    inst = np.repeat(ibase[bgrp] - np.concatenate([[0], np.cumsum(bk)[:-1]]), bk) + np.arange(int(bk.sum()))
+    cols = np.repeat(cbase[bgrp] + ba - np.concatenate([[0], np.cumsum(bm)[:-1]]), bm) + np.arange(int(bm.sum()))
+    r_of = np.repeat(brow, bk)
+    if blocks:
+        bmin[r_of, inst] = np.concatenate([x.bmin for _, x in blocks])
+        barg[r_of, inst] = np.concatenate([x.barg for _, x in blocks]) + np.repeat(cbase[bgrp], bk)
+        opt[r_of, inst] = np.concatenate([x.opt for _, x in blocks])
+        sk[r_of, inst] = np.concatenate([x.skipped if x.skipped is not None else np.zeros(x.bmin.shape[0], np.bool_)
+                                         for _, x in blocks])
+        col_cand[cols] = np.repeat(brow, bm)
+    use = _use_mixed_rows(candidates, row, bmin, fc, fixed[1])
+    pure = np.array([row[n] for n in names], np.int64)
+    tri = row[names[0]]
+    if tri != 0:
+        raise ValueError("price_plans: the triangle candidate's blocks must come first")
+    ch = np.empty((n_plans, N), np.int64)
+    cost = np.empty(n_plans)
+    ex = np.empty(n_plans, np.bool_)
+    opts_used = np.zeros((n_plans, int(cbase[-1])), np.bool_)
+    _plans_kernel(bmin, barg, opt, sk, pure, np.array([cand.name in use for cand in order]), ch, cost, ex, opts_used)
+    totals = float(c["frame"]) + float(fixed[0]) + cost + c["batches"] * opts_used.sum(axis=1)
+    onehot = np.zeros((int(cbase[-1]), nb), np.bool_)
+    onehot[np.arange(int(cbase[-1])), col_cand] = True
+    drawn = (opts_used.astype(np.int64) @ onehot.astype(np.int64)) > 0  # (plans, candidate rows)
+    used = [set(fixed[1]) | {order[r].name for r in np.flatnonzero(drawn[q]).tolist()} for q in range(n_plans)]
+    local = ch - np.repeat(cbase[:-1], ks)[None, :]
+    choices = [np.split(local[q], ibase[1:-1]) for q in range(n_plans)]
+    return _finish_plans(names, choices, totals, ex, used, fc)
+
+
+def _use_mixed_rows(candidates, row: dict, bmin: np.ndarray, fc: dict, fixed_names) -> set:
+    """:func:`_use_mixed` over the side-by-side blocks (rows of ``bmin``, +inf where a group has none)."""
+    use = {cand.name for cand in candidates}
+    for cand in candidates[1:]:
+        if fc.get(cand.name, 0.0) <= 0.0 or cand.name in fixed_names:
+            continue
+        mine = bmin[row[cand.name]]
+        rest = [row[n] for n in use if n != cand.name]
+        other = bmin[rest].min(axis=0)
+        wins = mine < other
+        saving = float((other[wins] - mine[wins]).sum())
+        if saving <= fc[cand.name]:
+            use.discard(cand.name)
+    return use

@@ -73,6 +73,8 @@ PARAMS: dict = {
                               doc="sample spacing as a fraction of a node's side (§3.1, 1/8-1/16)"),
     "renderer": Param("str", "compute", choices=RENDERERS,
                       doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
+    "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
+                                          "likely occluders (render.occlusion; not in Wand & Strasser)"),
 }
 
 

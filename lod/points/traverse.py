@@ -26,6 +26,11 @@ normals, ordered left, right, bottom, top, near, far as
 distance along the near plane's normal (the viewing direction). Spacings are
 scaled by the largest column norm of the model's linear part.
 
+No occlusion culling: Wand & Straßer's traversal culls by the view frustum only (the paper
+has no occlusion test at all). Hidden nodes are culled at draw time, optionally, by
+``render.occlusion`` (``[lod] occlusion``), which tests the boxes of the nodes this traversal
+selects against a depth pyramid of the frame's likely occluders.
+
 ``traverse`` runs the numba kernel; ``traverse_reference`` is the plain Python
 recursion the tests compare it with.
 """

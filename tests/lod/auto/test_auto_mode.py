@@ -690,3 +690,48 @@ def test_keyframed_auto_geomorphs_its_cluster_cuts(built):
         assert all(b.fade is None for b in dl.batches)
         st.anim_time = st.anim_time + 1 / 30
     assert morphed > 0
+
+
+def _compare_plans(monkeypatch):
+    """Make every AutoSelector price its plans both ways (one pass, and the per-group loop it replaced)
+    and assert they agree; returns the list of compared plan sets."""
+    seen = []
+    orig = am.AutoSelector._plans
+
+    def both(self, frame, groups, bound, fixed=(0.0, frozenset()), one_pass=True):
+        a = orig(self, frame, groups, bound, fixed, one_pass=True)
+        b = orig(self, frame, groups, bound, fixed, one_pass=False)
+        assert list(a) == list(b)
+        for n in a:
+            x, y = a[n], b[n]
+            assert len(x.choices) == len(y.choices) == len(groups)
+            for cx, cy in zip(x.choices, y.choices):
+                np.testing.assert_array_equal(cx, cy)
+            assert x.seconds == pytest.approx(y.seconds, rel=1e-12, abs=1e-15)
+            assert (x.exact, x.alias) == (y.exact, y.alias), n
+        seen.append((len(groups), {n: (a[n].alias or n) for n in a}))
+        return a
+
+    monkeypatch.setattr(am.AutoSelector, "_plans", both)
+    return seen
+
+
+def test_one_pass_pricing_chooses_the_plans_of_the_per_group_loop(built, monkeypatch):
+    """The plans priced over all groups at once (lod.auto.plans.price_plans) equal, choice for choice,
+    those of the per-group loop it replaced, on crowds with both clips (several groups), near and far views,
+    bounds 0-6 px, three cost models, and candidate sets with and without a cost lower bound."""
+    seen = _compare_plans(monkeypatch)
+    cl, pts = built.sel.candidates[1], built.sel.candidates[2]
+    views = [CAM, Camera.look_at((0, 40.0, 60.0), (0, 0, -60.0)), Camera.look_at((30, 1.7, -30), (-30, 1.0, -60))]
+    chosen = set()
+    for seed, n in ((3, 120), (8, 400)):
+        st = _crowd(n, seed, half_width=50.0, depth=300.0)
+        st.clip = np.random.default_rng(seed).integers(0, 2, n)
+        for model in (MODEL, FREE_PASSES, cost_model.CostModel({"splat_pixels": 0.0, "splat_area": 0.0})):
+            for cands in ([cl, pts], [pts], [NoBound(cl), pts], [cl]):
+                for poe in (0.0, 1.0, 2.0, 6.0):
+                    sel = am.AutoSelector(built.tri_reps, poe=poe, model=model, candidates=cands)
+                    for cam in views:
+                        chosen.add(sel.select(st, cam, SIZE).stats["auto"]["plan"])
+    assert len(seen) >= 2 * 3 * 4 * 4 * 3 and max(g for g, _ in seen) >= 2
+    assert {"triangles", "mixed"} <= chosen and len(chosen) >= 3, chosen
