@@ -374,10 +374,16 @@ class Engine:
         if self.renderer is None:
             from render.renderer import Renderer
 
-            self.renderer = Renderer(self.scene.render.size)
+            self.renderer = self._lit(Renderer(self.scene.render.size))
             for rep in [*self.reps, *self.statics]:
                 self.renderer.upload(rep)
         return self.renderer
+
+    def _lit(self, renderer):
+        """``renderer`` with the scene's light and shadows (``[render] light_*``, ``shadows``; render.shadows)."""
+        r = self.scene.render
+        renderer.lighting.configure(r.light, r.shadows, r.shadow_distance, r.shadow_map_size)
+        return renderer
 
     @property
     def lod_modes(self) -> tuple:
@@ -396,7 +402,7 @@ class Engine:
         from render.renderer import Renderer
 
         self.close()
-        self.renderer = Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx)
+        self.renderer = self._lit(Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx))
         for reps, _ in self._modes.values():
             for rep in reps:
                 self.renderer.upload(rep)
@@ -495,7 +501,9 @@ class Engine:
         tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
         pngs = []
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
-        with atomic_dir(out_dir) as tmp:
+        from crowd.video import VIDEO_NAME, video_writer
+
+        with atomic_dir(out_dir) as tmp, video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video) as video:
             if png_every:
                 (tmp / "frames").mkdir()
             run_start = time.perf_counter()
@@ -536,6 +544,8 @@ class Engine:
                     p = tmp / "frames" / f"frame_{f:05d}.png"
                     renderer.save_png(p)
                     pngs.append(out_dir / "frames" / p.name)
+                if video is not None:  # every frame (crowd.video); its time counts as the png stage's
+                    video.write(renderer.read_pixels())
                 t_end = time.perf_counter()
                 stages["png"] = (t_png - t_frame, t_end - t_png)  # read-back + encode; 0 on frames without one
                 counts = {"instances": dl.stats.get("instances", dl.n_instances),
@@ -549,7 +559,8 @@ class Engine:
             digest = self.world.state.digest()
             extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
                      "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
-                     "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs)}
+                     "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs),
+                     "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows}
             from render.context import gl_info
 
             summary = tel.write(tmp, sc.name, extra, machine_info(gl_info(renderer.ctx)))

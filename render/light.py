@@ -23,6 +23,9 @@ DEFAULT_DIRECTION = (0.35, 0.85, 0.4)
 DEFAULT_COLOR = (1.0, 1.0, 1.0)
 #: default ambient factor
 DEFAULT_AMBIENT = 0.3
+#: accepted values of ``[render] shadows`` (drawn by render.shadows) and the default
+SHADOW_MODES = ("blob", "map", "none")
+DEFAULT_SHADOWS = "blob"
 #: a direction shorter than this is refused (no usable normalisation)
 MIN_LENGTH = 1e-6
 #: largest light colour component / ambient accepted

@@ -584,9 +584,10 @@ class Renderer:
                     self.fbo.use()
             offsets = np.cumsum([0] + [b.n_instances * INSTANCE_BYTES for b in batches]).tolist()
             self.lighting.shadow_pass(batches, plugin, drawlist, palette, offsets)  # [render] shadows = "map"
-            self.lighting.decals(batches, plugin, drawlist, view_proj)  # blob shadows (after the ground)
-            for i, b in enumerate(batches):
-                self._draw_batch(b, palette.get(i), offsets[i], view_proj, used)
+            ground, rest = self.lighting.ground_first(batches)  # terrain / ground, blob shadows (None), the rest
+            for i in [*ground, None, *rest]:
+                self.lighting.decals(batches, plugin, drawlist, view_proj) if i is None else \
+                    self._draw_batch(batches[i], palette.get(i), offsets[i], view_proj, used)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time

@@ -34,12 +34,8 @@ import math
 import moderngl
 import numpy as np
 
-from render.light import Light, apply_light
+from render.light import DEFAULT_SHADOWS, SHADOW_MODES, Light, apply_light  # noqa: F401  (re-exported)
 
-#: accepted values of ``[render] shadows``
-SHADOW_MODES = ("blob", "map", "none")
-#: default shadow mode
-DEFAULT_SHADOWS = "blob"
 #: default side of the shadow map, texels
 DEFAULT_MAP_SIZE = 2048
 #: default distance from the camera within which agents cast into the shadow map, metres
@@ -330,6 +326,13 @@ class Lighting:
         self._map.use(SHADOW_UNIT)
 
     # ------------------------------------------------------------------ blobs
+    @staticmethod
+    def ground_first(batches) -> tuple:
+        """(indices of the terrain / ground batches (:data:`RECEIVE_ONLY`), indices of the others): the renderer
+        draws the first, then the blobs, then the others."""
+        ground = [i for i, b in enumerate(batches) if b.rep.startswith(RECEIVE_ONLY)]
+        return ground, [i for i, b in enumerate(batches) if not b.rep.startswith(RECEIVE_ONLY)]
+
     def decals(self, batches, plugin: dict, drawlist, view_proj) -> None:
         """Draw the blob shadows of this frame (see the module docstring): every agent in mode "blob", the
         agents drawn by plug-in drawers (points, clusters) in mode "map", none in mode "none"."""
