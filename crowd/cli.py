@@ -100,7 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("scenes", nargs="+", metavar="SCENE", help="scene files (.toml)")
     rp.add_argument("--sweep", action="append", default=[], metavar="KEY=V1,V2,...",
                     help="sweep a setting: lod.mode, lod.poe, lod.splat_size, any lod.<key>, render.size "
-                    "(alias resolution, values WxH); repeat for a cartesian product")
+                    "(alias resolution, values WxH), render.shadows (none,blob,map), render.shadow_map_size, "
+                    "render.shadow_distance; repeat for a cartesian product")
     rp.add_argument("--frames", type=_positive_int, help="frames per run (overrides each scene's `frames`)")
     rp.add_argument("--size", type=_size, help="image size WxH (overrides [render] size)")
     rp.add_argument("--out", metavar="DIR", default="out/report", help="report directory (replaced atomically; "

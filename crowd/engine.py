@@ -203,6 +203,7 @@ class Engine:
         self.scene = scene
         self.quiet = quiet
         self.renderer = None
+        self.video_options: dict = {}  # crowd.video.VideoWriter keywords of run videos (crowd report: small clips)
         self.plan = plan(scene, quiet=quiet)
         self.world = self._build_world()
         self.camera_path = self._build_camera()
@@ -503,7 +504,8 @@ class Engine:
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
         from crowd.video import VIDEO_NAME, video_writer
 
-        with atomic_dir(out_dir) as tmp, video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video) as video:
+        with atomic_dir(out_dir) as tmp, video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video,
+                                                                   **self.video_options) as video:
             if png_every:
                 (tmp / "frames").mkdir()
             run_start = time.perf_counter()

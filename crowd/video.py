@@ -22,6 +22,8 @@ VIDEO_NAME = "video.mp4"
 #: x264 constant rate factor (0 = lossless .. 51; 12 keeps a frame within ~35 dB PSNR of its PNG, yuv420p chroma being the rest) and preset of run videos
 CRF = 12
 PRESET = "veryfast"
+#: the clips ``crowd report`` embeds per setting: small and short (x264 options of :class:`VideoWriter`)
+REPORT_CLIP = {"max_width": 480, "crf": 28, "max_frames": 150}
 #: ffmpeg's accepted frame-rate range
 FPS_RANGE = (1.0, 240.0)
 
@@ -65,9 +67,11 @@ class VideoWriter:
     fps : frames per second (clamped to :data:`FPS_RANGE`)
     crf, preset : x264 quality and speed
     max_width : scale the picture down to at most this width (even height kept; None: full size)
+    max_frames : keep only the first frames (later :meth:`write` calls are ignored; None: all)
     """
 
-    def __init__(self, path, size, fps: float, crf: int = CRF, preset: str = PRESET, max_width: int | None = None):
+    def __init__(self, path, size, fps: float, crf: int = CRF, preset: str = PRESET, max_width: int | None = None,
+                 max_frames: int | None = None):
         import imageio_ffmpeg
 
         ffmpeg_exe()
@@ -79,6 +83,7 @@ class VideoWriter:
         if max_width and self.size[0] > max_width:
             params += ["-vf", f"scale={int(max_width) // 2 * 2}:-2"]
         self.frames = 0
+        self.max_frames = max_frames
         self._gen = imageio_ffmpeg.write_frames(str(self.tmp), even_size(self.size), fps=fps, codec="libx264",
                                                 pix_fmt_in="rgb24", pix_fmt_out="yuv420p", quality=None,
                                                 macro_block_size=1, ffmpeg_log_level="error",
@@ -87,6 +92,8 @@ class VideoWriter:
 
     def write(self, pixels: np.ndarray) -> None:
         """Append one frame, (h, w, 3) uint8 top row first, of this writer's size."""
+        if self.max_frames is not None and self.frames >= self.max_frames:
+            return
         px = np.asarray(pixels)
         if px.dtype != np.uint8 or px.shape != (self.size[1], self.size[0], 3):
             raise ValueError(f"video {self.path}: expected ({self.size[1]}, {self.size[0]}, 3) uint8 pixels, "

@@ -45,9 +45,10 @@ SHADOW_UNIT = 7
 #: opacity of a blob shadow at its centre, and the fraction of its radius where it starts to fade
 BLOB_OPACITY = 0.55
 BLOB_INNER = 0.25
-#: blob radius = this x (x extent + z extent) of the representation's rest pose (0.3: a T-posed humanoid of
-#: arm span 1.8 m and depth 0.3 m gets 0.63 m)
-BLOB_RADIUS_FACTOR = 0.3
+#: blob radius = this x (x extent + z extent) of the representation's rest pose, clamped to BLOB_HEIGHT_RANGE x its
+#: height (a humanoid 1.8 m tall, 0.55 m wide and 0.3 m deep gets 0.42 m; T-posed, 1.8 m wide, 0.54 m)
+BLOB_RADIUS_FACTOR = 0.5
+BLOB_HEIGHT_RANGE = (0.2, 0.3)
 #: metres a blob lies above the agent's floor point
 BLOB_LIFT = 0.01
 #: polygon offset (factor, units) of the blobs (towards the camera) and of the shadow-map casters (away)
@@ -76,6 +77,9 @@ def footprint(rep) -> tuple | None:
             lo, hi = p.min(axis=0), p.max(axis=0)
             c = np.array([(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2])
             blob = BLOB_RADIUS_FACTOR * float((hi[0] - lo[0]) + (hi[2] - lo[2]))
+            height = float(hi[1] - lo[1])
+            if height > 1e-6:
+                blob = min(max(blob, BLOB_HEIGHT_RANGE[0] * height), BLOB_HEIGHT_RANGE[1] * height)
             reach = float(np.sqrt(((p - c) ** 2).sum(axis=1)).max())
             return float(c[0]), float(c[1]), float(c[2]), max(blob, 1e-3), max(reach, 1e-3)
     return None
