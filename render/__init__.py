@@ -6,6 +6,8 @@ Modules in data-flow order (representations and DrawList in, pixels and timings 
 - ``render.shaders``: GLSL sources under ``render/shaders/`` by name.
 - ``render.renderer``: uploads representations, draws a DrawList's triangle batches (GPU skinning, the
   full-detail and chain levels of ``lod.full`` and ``lod.chains``), hands the other kinds to their drawers.
+- ``render.light``: the scene's directional light (``u_light_dir``, ``u_light_color``, ``u_ambient``).
+- ``render.shadows``: ``Renderer.lighting``: the light's uniforms, blob-shadow decals and the shadow map.
 - ``render.targets``: the morph-target tables (glTF §3.7.2.2) the ``MORPH_TARGETS`` variants of the skinned
   shaders blend before skinning (``lod.full.targets``); not the geomorphs below.
 - ``render.morph``: the geomorph tables the morph shaders follow (``lod.chains``, ``lod.clusters``).
