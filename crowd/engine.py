@@ -546,7 +546,7 @@ class Engine:
                     p = tmp / "frames" / f"frame_{f:05d}.png"
                     renderer.save_png(p)
                     pngs.append(out_dir / "frames" / p.name)
-                if video is not None:  # every frame (crowd.video); its time counts as the png stage's
+                if video is not None and video.accepting:  # every frame (crowd.video), timed as the png stage
                     video.write(renderer.read_pixels())
                 t_end = time.perf_counter()
                 stages["png"] = (t_png - t_frame, t_end - t_png)  # read-back + encode; 0 on frames without one

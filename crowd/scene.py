@@ -82,7 +82,8 @@ LIGHT_SCHEMA = {
     "light_dir": Param("vec3", list(_light.DEFAULT_DIRECTION), doc="direction towards the light, non-zero"),
     "light_color": Param("vec3", list(_light.DEFAULT_COLOR), doc="linear RGB of the direct light"),
     "ambient": Param("float", _light.DEFAULT_AMBIENT, min=0.0, max=_light.MAX_INTENSITY, doc="ambient factor"),
-    "shadows": Param("str", _light.DEFAULT_SHADOWS, choices=_light.SHADOW_MODES, doc="blob decals, shadow map or none"),
+    "shadows": Param("str", _light.DEFAULT_SHADOWS, choices=_light.SHADOW_MODES,
+                     doc="blob decals, shadow map or none"),
     "shadow_distance": Param("float", 60.0, min=0.1, doc="metres from the camera within which agents cast (map)"),
     "shadow_map_size": Param("int", 2048, min=16, max=8192, doc="side of the shadow map, texels"),
 }

@@ -19,11 +19,12 @@ import numpy as np
 
 #: file name of a run's video, beside ``frames/``
 VIDEO_NAME = "video.mp4"
-#: x264 constant rate factor (0 = lossless .. 51; 12 keeps a frame within ~35 dB PSNR of its PNG, yuv420p chroma being the rest) and preset of run videos
+#: x264 constant rate factor (0 = lossless .. 51; 12 keeps a frame within ~35 dB PSNR of its PNG, yuv420p chroma
+#: being the rest) and preset of run videos
 CRF = 12
 PRESET = "veryfast"
 #: the clips ``crowd report`` embeds per setting: small and short (x264 options of :class:`VideoWriter`)
-REPORT_CLIP = {"max_width": 480, "crf": 28, "max_frames": 150}
+REPORT_CLIP = {"max_width": 480, "crf": 28, "max_frames": 150, "threads": 1}
 #: ffmpeg's accepted frame-rate range
 FPS_RANGE = (1.0, 240.0)
 
@@ -68,10 +69,11 @@ class VideoWriter:
     crf, preset : x264 quality and speed
     max_width : scale the picture down to at most this width (even height kept; None: full size)
     max_frames : keep only the first frames (later :meth:`write` calls are ignored; None: all)
+    threads : encoder threads (None: ffmpeg's choice; 1 keeps a timed run's other core free)
     """
 
     def __init__(self, path, size, fps: float, crf: int = CRF, preset: str = PRESET, max_width: int | None = None,
-                 max_frames: int | None = None):
+                 max_frames: int | None = None, threads: int | None = None):
         import imageio_ffmpeg
 
         ffmpeg_exe()
@@ -80,6 +82,8 @@ class VideoWriter:
         self.tmp = self.path.with_name(f".{self.path.stem}.tmp-{os.getpid()}{self.path.suffix or '.mp4'}")
         fps = min(FPS_RANGE[1], max(FPS_RANGE[0], float(fps)))
         params = ["-crf", str(int(crf)), "-preset", preset, "-movflags", "+faststart"]
+        if threads:
+            params += ["-threads", str(int(threads))]
         if max_width and self.size[0] > max_width:
             params += ["-vf", f"scale={int(max_width) // 2 * 2}:-2"]
         self.frames = 0
@@ -89,6 +93,11 @@ class VideoWriter:
                                                 macro_block_size=1, ffmpeg_log_level="error",
                                                 output_params=params)
         self._gen.send(None)  # starts ffmpeg
+
+    @property
+    def accepting(self) -> bool:
+        """False once ``max_frames`` frames were written (the caller may skip reading the next ones back)."""
+        return self._gen is not None and (self.max_frames is None or self.frames < self.max_frames)
 
     def write(self, pixels: np.ndarray) -> None:
         """Append one frame, (h, w, 3) uint8 top row first, of this writer's size."""

@@ -60,22 +60,25 @@ def make_light(direction=DEFAULT_DIRECTION, color=DEFAULT_COLOR, ambient=DEFAULT
     Raises
     ------
     LightError
-        with ``key`` (``light_dir``, ``light_color``, ``ambient``) and ``message``: the key (``light_dir``, ``light_color``, ``ambient``) and one sentence on
-        what is wrong and what is accepted (a zero or non-finite direction, a negative or non-finite colour...).
+        with ``key`` (``light_dir``, ``light_color``, ``ambient``) and ``message``, one sentence on what is wrong
+        and what is accepted (a zero or non-finite direction, a negative or non-finite colour...).
     """
     d = _vec3("light_dir", direction)
     n = math.sqrt(sum(x * x for x in d))
     if not n > MIN_LENGTH:
-        raise LightError("light_dir", f"expected a non-zero direction [x, y, z] towards the light, got {list(direction)!r}")
+        raise LightError("light_dir", f"expected a non-zero direction [x, y, z] towards the light, "
+                         f"got {list(direction)!r}")
     c = _vec3("light_color", color)
     if not all(0.0 <= x <= MAX_INTENSITY for x in c):
-        raise LightError("light_color", f"expected three numbers in [0, {MAX_INTENSITY:g}] (linear RGB), got {list(color)!r}")
+        raise LightError("light_color", f"expected three numbers in [0, {MAX_INTENSITY:g}] (linear RGB), "
+                         f"got {list(color)!r}")
     try:
         a = float(ambient)
     except (TypeError, ValueError):
         a = float("nan")
     if isinstance(ambient, bool) or not 0.0 <= a <= MAX_INTENSITY:
-        raise LightError("ambient", f"expected a number in [0, {MAX_INTENSITY:g}], got {ambient!r}")
+        raise LightError("ambient", f"expected a number in [0, {MAX_INTENSITY:g}], "
+                         f"got {ambient!r}")
     return Light(direction=tuple(x / n for x in d), color=c, ambient=a)
 
 
