@@ -202,7 +202,8 @@ class Renderer:
         self.max_triangles_in_flight = MAX_TRIANGLES_IN_FLIGHT
         #: instanced submissions of the last ``draw`` (> batches when draws were split)
         self.last_submissions = 0
-        self.lighting = Lighting(self)  # the light, blob shadows and the shadow map (render.shadows)
+        # the light, the shadow map and the blob shadows, drawn among the plug-in drawers (render.shadows)
+        self.lighting = self._drawers["shadows"] = Lighting(self)
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -543,6 +544,7 @@ class Renderer:
             if b.rep in self._plugin_reps:
                 plugin.setdefault(self._plugin_reps[b.rep], []).append(b)
         batches = [b for b in batches if b.rep not in self._plugin_reps]
+        plugin["shadows"] = []  # the blob shadows (Lighting.draw: after the ground, before clusters and points)
         for b in batches:
             if b.rep not in self._reps:
                 raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
@@ -584,10 +586,8 @@ class Renderer:
                     self.fbo.use()
             offsets = np.cumsum([0] + [b.n_instances * INSTANCE_BYTES for b in batches]).tolist()
             self.lighting.shadow_pass(batches, plugin, drawlist, palette, offsets)  # [render] shadows = "map"
-            ground, rest = self.lighting.ground_first(batches)  # terrain / ground, blob shadows (None), the rest
-            for i in [*ground, None, *rest]:
-                self.lighting.decals(batches, plugin, drawlist, view_proj) if i is None else \
-                    self._draw_batch(batches[i], palette.get(i), offsets[i], view_proj, used)
+            for i, b in enumerate(batches):
+                self._draw_batch(b, palette.get(i), offsets[i], view_proj, used)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time
@@ -678,7 +678,6 @@ class Renderer:
         if self._released:
             return
         self._released = True
-        self.lighting.release()
         for d in reversed(list(self._drawers.values())):
             d.release()
         self._drawers.clear()

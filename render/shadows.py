@@ -14,16 +14,19 @@
   does not make the edges crawl). Casters are the built-in triangle batches in their chosen representation:
   full detail (mode none), triangle chain levels (mode triangles, geomorphs included), keyframed and static
   representations (props); each is drawn with the very program of the camera pass (``Renderer._draw_batch``)
-  and slope-scaled polygon offset. The terrain and a ground (``static:terrain``, ``static:ground``) only
-  receive. Point and cluster representations do not cast into the map: their agents get blob shadows instead.
+  and slope-scaled polygon offset; a plug-in drawer with a ``cast_shadows(batches, drawlist, light_vp)`` method
+  (props) draws its own depth. The terrain and a ground (``static:terrain``, ``static:ground``) only receive.
+  Point and cluster representations do not cast into the map: their agents get blob shadows instead.
   Receivers sample it with 3x3 PCF on a depth-comparing sampler (Reeves, Salesin & Cook 1987), with a normal
   offset and a constant bias against acne.
-- ``decals``: blob shadows, a soft dark disc under each agent (mode "blob", and in mode "map" for the agents drawn
+- ``draw``: blob shadows, a soft dark disc under each agent (mode "blob", and in mode "map" for the agents drawn
   as points or clusters). One instanced draw of a quad per agent lying at its floor point (the representation's
   lowest vertex under the centre of its footprint, through the instance matrix), radius from the footprint of the
   representation's rest pose times the instance scale; alpha-blended, depth-tested without depth writes, lifted by
   :data:`BLOB_LIFT` metres and pulled forward by polygon offset (no z-fighting with the ground). The renderer
-  calls it after the ground and before the characters.
+  runs it as a plug-in drawer ordered after its own batches (characters, terrain) and the world's ground, before
+  the cluster and point drawers: a decal on whatever is already in the depth buffer at the agent's feet, hidden
+  where a character stands in front of it.
 
 Everything handed to the GPU is checked finite; a frame without casters draws no map (everything lit).
 """
@@ -59,6 +62,8 @@ MAP_DEPTH_BIAS = 0.0015
 MAP_NORMAL_OFFSET_TEXELS = 1.5
 #: representation-key prefixes that receive but never cast into the shadow map
 RECEIVE_ONLY = ("static:terrain", "static:ground")
+#: plug-in representation kinds that do not cast into the shadow map: their agents get blobs in mode "map"
+NO_CASTERS = ("points", "clusters")
 
 
 def footprint(rep) -> tuple | None:
@@ -165,6 +170,9 @@ class Lighting:
     Attributes set by :meth:`configure`: ``light`` (:class:`render.light.Light`), ``mode`` (one of
     :data:`SHADOW_MODES`), ``distance`` (metres), ``map_size`` (texels).
     """
+
+    #: draw position among the renderer's plug-in drawers (see :meth:`draw`)
+    order = -5
 
     def __init__(self, renderer):
         self.r = renderer
@@ -289,16 +297,17 @@ class Lighting:
         r = self.r
         casters = [i for i, b in enumerate(batches)
                    if not b.rep.startswith(RECEIVE_ONLY) and b.rep in self.footprints]
+        # plug-in drawers that can draw their batches' depth (e.g. props): ``cast_shadows(batches, drawlist, vp)``
+        others = {k: [b for b in bs if not b.rep.startswith(RECEIVE_ONLY) and b.rep in self.footprints]
+                  for k, bs in plugin.items() if hasattr(r._drawers.get(k), "cast_shadows")}
         centres, radii = [], []
-        for i in casters:
-            b = batches[i]
+        for b in [batches[i] for i in casters] + [b for bs in others.values() for b in bs]:
             d = np.asarray(b.instance_data, np.float64).reshape(-1, 16)
             m = d[:, :12].reshape(-1, 3, 4)
             fp = self.footprints[b.rep]
-            c = m[:, :, :3] @ np.array(fp[:3]) + m[:, :, 3]
-            centres.append(c)
+            centres.append(m[:, :, :3] @ np.array(fp[:3]) + m[:, :, 3])
             radii.append(fp[4] * np.linalg.norm(m[:, :, :3], axis=1).max(axis=1))
-        if not casters:
+        if not centres:
             return
         c, rad = np.concatenate(centres), np.concatenate(radii)
         near = np.linalg.norm(c, axis=1) - rad <= self.distance  # camera-relative: the camera is at 0
@@ -318,33 +327,37 @@ class Lighting:
             used: set = set()
             for i in casters:
                 r._draw_batch(batches[i], palette.get(i), offsets[i], vp, used)
+            for k, bs in others.items():
+                if bs:
+                    fbo.use()
+                    r._drawers[k].cast_shadows(bs, drawlist, vp)
         finally:
             self._casting = False
             ctx.polygon_offset = (0.0, 0.0)
             r.fbo.use()
             ctx.viewport = (0, 0) + tuple(r.size)
-        self.last_counts["casters"] = int(sum(batches[i].n_instances for i in casters))
+        self.last_counts["casters"] = int(sum(batches[i].n_instances for i in casters)
+                                          + sum(b.n_instances for bs in others.values() for b in bs))
         side = 2.0 / float(np.linalg.norm(vp[0, :3]))  # metres across the map
         self._params = (1.0 / self.map_size, MAP_DEPTH_BIAS, MAP_NORMAL_OFFSET_TEXELS * side / self.map_size)
         self._light_vp = vp
         self._map.use(SHADOW_UNIT)
 
     # ------------------------------------------------------------------ blobs
-    @staticmethod
-    def ground_first(batches) -> tuple:
-        """(indices of the terrain / ground batches (:data:`RECEIVE_ONLY`), indices of the others): the renderer
-        draws the first, then the blobs, then the others."""
-        ground = [i for i, b in enumerate(batches) if b.rep.startswith(RECEIVE_ONLY)]
-        return ground, [i for i, b in enumerate(batches) if not b.rep.startswith(RECEIVE_ONLY)]
+    def draw(self, _batches, drawlist, view_proj) -> None:
+        """Draw the blob shadows of this frame (see the module docstring): every agent of ``drawlist`` in mode
+        "blob", the agents drawn as points or clusters in mode "map", none in mode "none".
 
-    def decals(self, batches, plugin: dict, drawlist, view_proj) -> None:
-        """Draw the blob shadows of this frame (see the module docstring): every agent in mode "blob", the
-        agents drawn by plug-in drawers (points, clusters) in mode "map", none in mode "none"."""
+        The renderer calls this as a plug-in drawer of :attr:`order` -5: after its own triangle batches (the
+        characters in modes none and triangles, the terrain) and the world's ground (``order`` -10), before the
+        cluster (0) and point (10) drawers, so the blobs are depth-tested against the characters already drawn
+        and the later ones cover them."""
         self.last_counts["blobs"] = 0
         if self.mode == "none":
             return
-        src = [b for bs in plugin.values() for b in bs] if self.mode == "map" else \
-            [*batches, *(b for bs in plugin.values() for b in bs)]
+        src = drawlist.batches
+        if self.mode == "map":
+            src = [b for b in src if self.r._plugin_reps.get(b.rep) in NO_CASTERS]
         blobs = blob_instances(src, self.footprints)
         n = blobs.shape[0]
         if n == 0:
