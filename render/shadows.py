@@ -14,9 +14,11 @@
   does not make the edges crawl). Casters are the built-in triangle batches in their chosen representation:
   full detail (mode none), triangle chain levels (mode triangles, geomorphs included), keyframed and static
   representations (props); each is drawn with the very program of the camera pass (``Renderer._draw_batch``)
-  and slope-scaled polygon offset; a plug-in drawer with a ``cast_shadows(batches, drawlist, light_vp)`` method
-  (props) draws its own depth. The terrain and a ground (``static:terrain``, ``static:ground``) only receive.
-  Point and cluster representations do not cast into the map: their agents get blob shadows instead.
+  and slope-scaled polygon offset; cluster cuts (mode clusters) cast through the cluster drawer pointed at the map
+  (the renderer's skinning palette is rebuilt after it); a plug-in drawer with a
+  ``cast_shadows(batches, drawlist, light_vp)`` method (props) draws its own depth. The terrain and a ground
+  (``static:terrain``, ``static:ground``) only receive. Point representations, and cluster cuts with occlusion
+  culling on (its queries cannot run inside the frame's), do not cast: their agents get blob shadows instead.
   Receivers sample it with 3x3 PCF on a depth-comparing sampler (Reeves, Salesin & Cook 1987), with a normal
   offset and a constant bias against acne.
 - ``draw``: blob shadows, a soft dark disc under each agent (mode "blob", and in mode "map" for the agents drawn
@@ -62,8 +64,6 @@ MAP_DEPTH_BIAS = 0.0015
 MAP_NORMAL_OFFSET_TEXELS = 1.5
 #: representation-key prefixes that receive but never cast into the shadow map
 RECEIVE_ONLY = ("static:terrain", "static:ground")
-#: plug-in representation kinds that do not cast into the shadow map: their agents get blobs in mode "map"
-NO_CASTERS = ("points", "clusters")
 
 
 def footprint(rep) -> tuple | None:
@@ -189,6 +189,7 @@ class Lighting:
         self._blob = None  # (program, vertex array, instance buffer, capacity)
         self._light_vp = None  # this frame's fitted matrix (None: nothing in the map)
         self._casting = False
+        self._blob_kinds: set = set()  # plug-in kinds whose agents get blobs in mode "map" (_plugin_casters)
         self._params = (0.0, 0.0, 0.0)
         #: counts of the last frame: blobs drawn, casters (instances) in the map
         self.last_counts = {"blobs": 0, "casters": 0}
@@ -297,9 +298,7 @@ class Lighting:
         r = self.r
         casters = [i for i, b in enumerate(batches)
                    if not b.rep.startswith(RECEIVE_ONLY) and b.rep in self.footprints]
-        # plug-in drawers that can draw their batches' depth (e.g. props): ``cast_shadows(batches, drawlist, vp)``
-        others = {k: [b for b in bs if not b.rep.startswith(RECEIVE_ONLY) and b.rep in self.footprints]
-                  for k, bs in plugin.items() if hasattr(r._drawers.get(k), "cast_shadows")}
+        others = self._plugin_casters(plugin)
         centres, radii = [], []
         for b in [batches[i] for i in casters] + [b for bs in others.values() for b in bs]:
             d = np.asarray(b.instance_data, np.float64).reshape(-1, 16)
@@ -328,9 +327,21 @@ class Lighting:
             for i in casters:
                 r._draw_batch(batches[i], palette.get(i), offsets[i], vp, used)
             for k, bs in others.items():
-                if bs:
+                d = r._drawers[k]
+                if not bs:
+                    continue
+                if hasattr(d, "cast_shadows"):
                     fbo.use()
-                    r._drawers[k].cast_shadows(bs, drawlist, vp)
+                    d.cast_shadows(bs, drawlist, vp)
+                    continue
+                saved, r.fbo = r.fbo, fbo  # the cluster drawer draws into the renderer's framebuffer: the map's now
+                try:
+                    d.draw(bs, drawlist, vp)
+                finally:
+                    r.fbo = saved
+                if palette:  # it rebuilt the shared skinning palette for its instances: again for the renderer's
+                    r._build_palette([(r._reps[batches[i].rep], r._instances, offsets[i], batches[i].n_instances)
+                                      for i in sorted(palette)])
         finally:
             self._casting = False
             ctx.polygon_offset = (0.0, 0.0)
@@ -342,6 +353,20 @@ class Lighting:
         self._params = (1.0 / self.map_size, MAP_DEPTH_BIAS, MAP_NORMAL_OFFSET_TEXELS * side / self.map_size)
         self._light_vp = vp
         self._map.use(SHADOW_UNIT)
+
+    def _plugin_casters(self, plugin: dict) -> dict:
+        """kind -> batches of the plug-in drawers that cast into the map: a drawer with ``cast_shadows(batches,
+        drawlist, light_vp)`` (e.g. props), and the cluster drawer unless it runs occlusion queries (GL allows one
+        samples query at a time, and the frame's is open). Also remembers which kinds get blobs instead."""
+        out = {}
+        for k, bs in plugin.items():
+            d = self.r._drawers.get(k)
+            if d is None or d is self:
+                continue
+            if hasattr(d, "cast_shadows") or (k == "clusters" and not getattr(d, "uses_queries", False)):
+                out[k] = [b for b in bs if not b.rep.startswith(RECEIVE_ONLY) and b.rep in self.footprints]
+        self._blob_kinds = {k for k in plugin if k not in out}
+        return out
 
     # ------------------------------------------------------------------ blobs
     def draw(self, _batches, drawlist, view_proj) -> None:
@@ -356,8 +381,8 @@ class Lighting:
         if self.mode == "none":
             return
         src = drawlist.batches
-        if self.mode == "map":
-            src = [b for b in src if self.r._plugin_reps.get(b.rep) in NO_CASTERS]
+        if self.mode == "map":  # the agents of drawers that did not cast (points; clusters with occlusion culling)
+            src = [b for b in src if self.r._plugin_reps.get(b.rep) in self._blob_kinds]
         blobs = blob_instances(src, self.footprints)
         n = blobs.shape[0]
         if n == 0:

@@ -1,5 +1,5 @@
-"""Scene keys of the light and shadows, and characters casting into the shadow map in a run (modes none and
-triangles chains; points and clusters fall back to blobs)."""
+"""Scene keys of the light and shadows, and characters casting into the shadow map in a run (modes none, triangles
+chains and clusters; points fall back to blobs)."""
 import numpy as np
 import pytest
 from crowd_testutil import run_cli, tiny_scene
@@ -64,7 +64,7 @@ def _at(img, cam: Camera, pts) -> np.ndarray:
     return np.array([img[int(v), int(u)] for u, v in uv])
 
 
-@pytest.mark.parametrize("mode", ["none", "triangles"])
+@pytest.mark.parametrize("mode", ["none", "triangles", "clusters"])
 def test_characters_cast_into_the_shadow_map(write_scene, mode):
     """Light 45 degrees from the zenith towards +x: each agent's shadow lies on the ground 0.3 .. 1.2 m towards
     -x of its feet (the torso's shadow) and darkens it against shadows = none; the ground 0.7 m towards +x (between
