@@ -170,6 +170,8 @@ def test_fit_light_matrix_holds_the_spheres_and_refuses_nothing_finite():
                 p = ci + s * ri * R[axis]
                 q = P @ np.append(p, 1.0)
                 assert (np.abs(q[:3]) <= 1.0 + 1e-9).all()
+    coincident = fit_light_matrix((0.0, 1.0, 0.0), np.ones((5, 3)), np.zeros(5), 1024)  # degenerate: still finite
+    assert coincident is not None and np.isfinite(coincident).all()
     assert fit_light_matrix(L, np.zeros((0, 3)), np.zeros(0), 1024) is None
     assert fit_light_matrix(L, [[np.nan, 0, 0]], [1.0], 1024) is None
 
