@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import os
 import platform
 import statistics
 import sys
@@ -147,8 +148,9 @@ def main(argv=None) -> int:
                 f"Machine: {platform.processor() or platform.machine()}, {gl.get('GL_RENDERER', gl)}; "
                 f"command: `{cmd.strip()}`; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.", "",
                 "Frame time = select + upload + draw + finish of the same simulated frame and camera for each case "
-                "(one process, cases in a seeded random order per frame). Other jobs shared the 2 cores during the "
-                "run, so single medians move by 10-30 %; the paired ratio is the steadier figure.", ""]
+                "(one process, cases in a seeded random order per frame). Load average at the end of the run: "
+                f"{os.getloadavg()[0]:.1f} (other jobs on the same cores move single medians; the paired ratio "
+                "is the steadier figure).", ""]
         write_atomic(args.md, "\n".join(head + lines) + "\n")
     return 0
 
