@@ -82,3 +82,41 @@ def test_characters_cast_into_the_shadow_map(write_scene, mode):
 def test_point_representations_fall_back_to_blobs_in_map_mode(write_scene):
     _, _, _, counts = _frame(write_scene, "points", "map", "c.toml")
     assert counts == {"blobs": 4, "casters": 0}
+
+
+def test_map_mode_with_mixed_triangle_and_cluster_batches_keeps_every_silhouette(write_scene):
+    """One frame drawn with full-detail batches (agents 2, 3) and cluster cuts (all agents): casting the cluster cuts
+    rebuilds the shared skinning palette, so the renderer's own batches must get theirs back. The shadow map may
+    only darken: the silhouettes (pixels that differ from the background) are those of shadows = none, and no pixel
+    is brighter."""
+    text = tiny_scene(replace={"frames = 3": "frames = 1", 'mode = "none"': 'mode = "clusters"',
+                               "size = [64, 48]": "size = [192, 144]",
+                               "png_every = 1": 'png_every = 1\nlight_dir = [1.0, 1.0, 0.0]'})
+    scene = load_scene(write_scene(text, "m.toml"))
+    with Engine(scene, quiet=True) as e:
+        r = e._open_renderer()
+        e.set_lod_mode("none")  # uploads the full-detail reps too
+        e.step()
+        cam = e.camera_at(e.world.time)
+        size = scene.render.size
+        full = e._modes["none"][1].select(e.world.state, cam, size)
+        cut = e._modes["clusters"][1].select(e.world.state, cam, size)
+        keep = []
+        for b in full.batches:
+            m = np.isin(b.instance_ids, [2, 3])  # not the first: their palette rows differ from the cuts'
+            if m.any():
+                b.instance_ids, b.instance_data = b.instance_ids[m], b.instance_data[m]
+                keep.append(b)
+        assert keep and cut.batches
+        cut.batches = keep + list(cut.batches)
+        images = {}
+        for mode in ("none", "map"):
+            r.lighting.configure(mode=mode)
+            r.draw(cut, scene.render.background)
+            images[mode] = r.read_pixels().astype(np.int16)
+        assert r.lighting.last_counts["casters"] == 6
+    bg = np.round(np.asarray(scene.render.background) * 255).astype(np.int16)
+    fg = {m: np.abs(img - bg).max(axis=-1) > 2 for m, img in images.items()}
+    # (without the palette rebuild agents 2 and 3 take agents 0 and 1's poses: ~5 % of the silhouette pixels move)
+    assert fg["none"].sum() > 500 and (fg["none"] != fg["map"]).sum() <= 0.01 * fg["none"].sum()
+    assert (images["map"] - images["none"]).max() <= 3
