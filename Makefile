@@ -1,5 +1,5 @@
 # Crowd sandbox: set-up, demo, tests, benchmarks.
-#   make demo    set up, then render scenes/quickstart.toml headless into out/quickstart/
+#   make demo    set up, then render scenes/quickstart.toml headless into out/quickstart/ (frames + video.mp4)
 #   make test    set up (and xvfb, chromium for the window and browser tests), then run the test suite
 #                (fails when no test is collected)
 #   make bench   set up, then run the benchmark scenes (short default runs)
@@ -65,8 +65,8 @@ apt-packages:
 	fi
 
 demo: setup
-	$(VPY) -m crowd run scenes/quickstart.toml --out out/quickstart
-	@echo "frames, frames.csv, summary.json and trace.json are in out/quickstart/"
+	$(VPY) -m crowd run scenes/quickstart.toml --out out/quickstart --video
+	@echo "frames, video.mp4, frames.csv, summary.json and trace.json are in out/quickstart/"
 
 # pytest exit code 5 (no tests collected) is a failure here.
 test: setup

@@ -6,7 +6,8 @@ The only package that imports sim, lod and render; nothing imports it. Modules i
 - ``crowd.scene``: scene files loaded and validated in full; ``crowd.characters``: the characters they name.
 - ``crowd.memory``: the memory estimate and guard.
 - ``crowd.engine``: builds the world, the LOD mode and the renderer, runs the frame loop.
-- ``crowd.telemetry``, ``crowd.output``: per-frame timings and counts, written atomically.
+- ``crowd.telemetry``, ``crowd.output``: per-frame timings and counts, written atomically; ``crowd.video``: the
+  run as an H.264 MP4 (imageio-ffmpeg).
 - ``crowd.fly``: the interactive fly-through; ``crowd.inspect``: a character's cluster hierarchy (pyvista).
 - ``crowd.build``: LOD hierarchies built ahead of time on dask; ``crowd.calibrate``: the cost model's machine
   coefficients.

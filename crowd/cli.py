@@ -1,6 +1,6 @@
 """The ``crowd`` command line.
 
-    crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--quiet]
+    crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--video] [--quiet]
     crowd validate SCENE
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
@@ -78,6 +78,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", metavar="DIR", help="output directory (overrides [output] dir); replaced atomically")
     r.add_argument("--png-every", type=_nonneg_int, metavar="K",
                    help="write every K-th frame as PNG, 0 = none (overrides [render] png_every)")
+    r.add_argument("--video", action="store_true", default=None,
+                   help="also write every frame as video.mp4 (H.264, yuv420p; odd sizes padded by one pixel)")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bars or summary")
 
     v = sub.add_parser("validate", help="check a scene file in full and print a short summary")
@@ -98,7 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("scenes", nargs="+", metavar="SCENE", help="scene files (.toml)")
     rp.add_argument("--sweep", action="append", default=[], metavar="KEY=V1,V2,...",
                     help="sweep a setting: lod.mode, lod.poe, lod.splat_size, any lod.<key>, render.size "
-                    "(alias resolution, values WxH); repeat for a cartesian product")
+                    "(alias resolution, values WxH), render.shadows (none,blob,map), render.shadow_map_size, "
+                    "render.shadow_distance; repeat for a cartesian product")
     rp.add_argument("--frames", type=_positive_int, help="frames per run (overrides each scene's `frames`)")
     rp.add_argument("--size", type=_size, help="image size WxH (overrides [render] size)")
     rp.add_argument("--out", metavar="DIR", default="out/report", help="report directory (replaced atomically; "
@@ -232,8 +235,12 @@ def cmd_run(args) -> int:
     from crowd.scene import load_scene
 
     scene = load_scene(args.scene).with_overrides(frames=args.frames, size=args.size, out=args.out,
-                                                  png_every=args.png_every)
+                                                  png_every=args.png_every, video=args.video)
     check_output_dir(scene.output_dir)  # before the (possibly long) build
+    if scene.video:
+        from crowd.video import ffmpeg_exe
+
+        ffmpeg_exe()  # a missing encoder is a one-line error before the build
     with Engine(scene, quiet=args.quiet) as engine:
         result = engine.run()
     if not args.quiet:

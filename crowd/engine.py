@@ -206,6 +206,7 @@ class Engine:
         self.scene = scene
         self.quiet = quiet
         self.renderer = None
+        self.video_options: dict = {}  # crowd.video.VideoWriter keywords of run videos (crowd report: small clips)
         self.plan = plan(scene, quiet=quiet)
         self.world = self._build_world()
         self.camera_path = self._build_camera()
@@ -381,11 +382,17 @@ class Engine:
         if self.renderer is None:
             from render.renderer import Renderer
 
-            self.renderer = Renderer(self.scene.render.size)
+            self.renderer = self._lit(Renderer(self.scene.render.size))
             self.renderer.tint_table = self.tint_table
             for rep in [*self.reps, *self.statics, *self.scenery.reps]:
                 self.renderer.upload(rep)
         return self.renderer
+
+    def _lit(self, renderer):
+        """``renderer`` with the scene's light and shadows (``[render] light_*``, ``shadows``; render.shadows)."""
+        r = self.scene.render
+        renderer.lighting.configure(r.light, r.shadows, r.shadow_distance, r.shadow_map_size)
+        return renderer
 
     @property
     def lod_modes(self) -> tuple:
@@ -404,7 +411,7 @@ class Engine:
         from render.renderer import Renderer
 
         self.close()
-        self.renderer = Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx)
+        self.renderer = self._lit(Renderer(tuple(size) if size is not None else self.scene.render.size, ctx=ctx))
         self.renderer.tint_table = self.tint_table
         for reps, _ in self._modes.values():
             for rep in reps:
@@ -532,7 +539,10 @@ class Engine:
         tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
         pngs = []
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
-        with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj:
+        from crowd.video import VIDEO_NAME, video_writer
+
+        with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj, \
+                video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video, **self.video_options) as video:
             if png_every:
                 (tmp / "frames").mkdir()
             run_start = time.perf_counter()
@@ -576,6 +586,8 @@ class Engine:
                     pngs.append(out_dir / "frames" / p.name)
                 if traj is not None:  # streamed: one frame in memory (crowd.trajectories)
                     traj.write(f, self.world.state.position)
+                if video is not None and video.accepting:  # every frame (crowd.video), timed as the png stage
+                    video.write(renderer.read_pixels())
                 t_end = time.perf_counter()
                 # output writes: PNG read-back + encode (0 on frames without one), trajectory lines
                 stages["png"] = (t_png - t_frame, t_end - t_png)
@@ -591,7 +603,8 @@ class Engine:
             extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
                      "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
                      "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs),
-                     "trajectories": traj.path.name if traj is not None else None}
+                     "trajectories": traj.path.name if traj is not None else None,
+                     "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows}
             from render.context import gl_info
 
             summary = tel.write(tmp, sc.name, extra, machine_info(gl_info(renderer.ctx)))

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import render.light as _light
 from crowd.errors import SceneError
 from lod.modes import mode_names as _mode_names
 from lod.modes import mode_params as _mode_params
@@ -92,18 +93,29 @@ CAMERA_KEY_SCHEMA = {
 DEFAULT_CAMERA_POSITION = (0.0, 5.0, 20.0)
 DEFAULT_CAMERA_TARGET = (0.0, 1.0, 0.0)
 
+LIGHT_SCHEMA = {
+    "light_dir": Param("vec3", list(_light.DEFAULT_DIRECTION), doc="direction towards the light, non-zero"),
+    "light_color": Param("vec3", list(_light.DEFAULT_COLOR), doc="linear RGB of the direct light"),
+    "ambient": Param("float", _light.DEFAULT_AMBIENT, min=0.0, max=_light.MAX_INTENSITY, doc="ambient factor"),
+    "shadows": Param("str", _light.DEFAULT_SHADOWS, choices=_light.SHADOW_MODES,
+                     doc="blob decals, shadow map or none"),
+    "shadow_distance": Param("float", 60.0, min=0.1, doc="metres from the camera within which agents cast (map)"),
+    "shadow_map_size": Param("int", 2048, min=16, max=8192, doc="side of the shadow map, texels"),
+}
 RENDER_SCHEMA = {
     "size": Param("list", [1280, 720], doc="[width, height] pixels, each 16 ..= 8192"),
     "background": Param("vec3", [0.1, 0.1, 0.12], doc="linear RGB in [0, 1]"),
     "png_every": Param("int", 0, min=0, doc="write every k-th frame as PNG; 0 = none"),
     "ground": Param("bool", True, doc="draw the ground plane and its grid (not with [terrain]: it is the ground)"),
+    **LIGHT_SCHEMA,  # the directional light and the shadows (render.light, render.shadows)
 }
 SIZE_RANGE = (16, 8192)
 
 LOD_SCHEMA = {"mode": Param("str", "none", choices=LOD_MODES)}
 OUTPUT_SCHEMA = {"dir": Param("str", None, doc="relative to the working directory; default out/<name>"),
                  "trajectories": Param("bool", False, doc="write trajectories.txt (PedPy's text format; "
-                                       "crowd.trajectories) with the run's outputs")}
+                                       "crowd.trajectories) with the run's outputs"),
+                 "video": Param("bool", False, doc="write the run as video.mp4 (H.264, every frame)")}
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -204,6 +216,10 @@ class RenderSpec:
     background: tuple
     png_every: int
     ground: bool = True
+    light: object = _light.Light()  # render.light.Light
+    shadows: str = _light.DEFAULT_SHADOWS
+    shadow_distance: float = 60.0
+    shadow_map_size: int = 2048
 
 
 @dataclass(frozen=True)
@@ -235,13 +251,14 @@ class Scene:
     props: tuple = ()  # PropSpec of every [[props]] table
     trajectories: bool = False  # [output] trajectories: write trajectories.txt (crowd.trajectories)
     measurements: tuple = ()  # crowd.measurement.MeasurementSpec of the [[measurement]] tables
+    video: bool = False  # [output] video: write video.mp4 (crowd.video)
 
     @property
     def effect_names(self) -> list:
         return [e.name for e in self.effects]
 
     def with_overrides(self, frames: int | None = None, size: tuple | None = None, out: str | Path | None = None,
-                       png_every: int | None = None) -> "Scene":
+                       png_every: int | None = None, video: bool | None = None) -> "Scene":
         """A copy with command-line overrides applied (values already validated by the caller)."""
         s = self
         if frames is not None:
@@ -253,6 +270,8 @@ class Scene:
                 png_every=int(png_every) if png_every is not None else r.png_every))
         if out is not None:
             s = dataclasses.replace(s, output_dir=Path(out).absolute())
+        if video is not None:
+            s = dataclasses.replace(s, video=bool(video))
         return s
 
 
@@ -366,7 +385,7 @@ class _Parser:
                      lod_params=tuple((k, v) for k, v in lod.items() if k != "mode"),
                      terrain_lod=tuple(getattr(self, "_terrain_lod", {}).items()) if terrain is not None else (),
                      lod_common=tuple(lod_common.items()), props=tuple(props), trajectories=out["trajectories"],
-                     measurements=measurements)
+                     measurements=measurements, video=out["video"])
 
     # -- [[characters]] ------------------------------------------------------------------------------------------------
     def array_of_tables(self, key: str, required: bool) -> list:
@@ -656,7 +675,13 @@ class _Parser:
         bg = r["background"]
         if not all(0.0 <= x <= 1.0 for x in bg):
             self.fail("render.background", f"expected three numbers in [0, 1], got {raw['background']!r}")
-        return RenderSpec(size=size, background=tuple(bg), png_every=r["png_every"], ground=r["ground"])
+        try:
+            light = _light.make_light(r["light_dir"], r["light_color"], r["ambient"])
+        except _light.LightError as e:
+            self.fail(f"render.{e.key}", e.message)
+        return RenderSpec(size=size, background=tuple(bg), png_every=r["png_every"], ground=r["ground"], light=light,
+                          shadows=r["shadows"], shadow_distance=r["shadow_distance"],
+                          shadow_map_size=r["shadow_map_size"])
 
 
 def parse_size(value: Any) -> tuple | None:

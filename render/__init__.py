@@ -9,6 +9,8 @@ Modules in data-flow order (representations and DrawList in, pixels and timings 
 - ``render.tint``: per-instance colour words (an agent's colour variation, the debug colour of its batch) that
   every draw path applies through ``shaders/tint.glsl``, so LOD modes agree on colours.
 - ``render.capture``: transform-feedback capture of a representation's skinned vertices (tests).
+- ``render.light``: the scene's directional light (``u_light_dir``, ``u_light_color``, ``u_ambient``).
+- ``render.shadows``: ``Renderer.lighting``: the light's uniforms, blob-shadow decals and the shadow map.
 - ``render.targets``: the morph-target tables (glTF §3.7.2.2) the ``MORPH_TARGETS`` variants of the skinned
   shaders blend before skinning (``lod.full.targets``); not the geomorphs below.
 - ``render.morph``: the geomorph tables the morph shaders follow (``lod.chains``, ``lod.clusters``).

@@ -411,15 +411,9 @@ class Drawer:
 
     # ------------------------------------------------------------------ drawing
     def _uniforms(self, prog, view_proj, **vals):
-        from render.renderer import AMBIENT, SUN_DIRECTION
-
         if "u_view_proj" in prog:
             prog["u_view_proj"].write(np.ascontiguousarray(view_proj.T, np.float32).tobytes())
-        if "u_sun" in prog:
-            s = np.asarray(SUN_DIRECTION, np.float64)
-            prog["u_sun"].value = tuple((s / np.linalg.norm(s)).tolist())
-        if "u_ambient" in prog:
-            prog["u_ambient"].value = AMBIENT
+        self.r.lighting.apply(prog)  # the scene's light (render.light; point splats receive no shadow map)
         if "u_fade" in prog:
             prog["u_fade"].value = (0.0, 0.0)
         for k, v in vals.items():

@@ -64,6 +64,7 @@ from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.shaders import program_sources
+from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
@@ -72,10 +73,6 @@ from render.tint import TintStream, batch_words
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
 #: initial capacity of the per-frame instance buffer (instances)
 INITIAL_INSTANCES = 1024
-#: direction towards the sun (world), normalised at use
-SUN_DIRECTION = (0.35, 0.85, 0.4)
-#: ambient light factor
-AMBIENT = 0.3
 #: texels per row of the per-frame skinning palette (a multiple of 3, so the
 #: three rows of one matrix never straddle two texture rows)
 PALETTE_WIDTH = 4095
@@ -216,6 +213,8 @@ class Renderer:
         self.max_triangles_in_flight = MAX_TRIANGLES_IN_FLIGHT
         #: instanced submissions of the last ``draw`` (> batches when draws were split)
         self.last_submissions = 0
+        # the light, the shadow map and the blob shadows, drawn among the plug-in drawers (render.shadows)
+        self.lighting = self._drawers["shadows"] = Lighting(self)
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -313,6 +312,7 @@ class Renderer:
         if rep.key in self._reps:
             self._release_rep(self._reps.pop(rep.key))
         kind = rep.kind
+        self.lighting.note_rep(rep)  # footprint of its blob shadow
         if kind in PLUGIN_KINDS:
             self.drawer(kind).upload(rep)
             self._plugin_reps[rep.key] = kind
@@ -490,17 +490,51 @@ class Renderer:
 
     def _set_uniforms(self, prog, view_proj: np.ndarray) -> None:
         prog["u_view_proj"].write(np.ascontiguousarray(view_proj.T, np.float32).tobytes())
-        if "u_sun" in prog:
-            s = np.asarray(SUN_DIRECTION, np.float64)
-            prog["u_sun"].value = tuple((s / np.linalg.norm(s)).tolist())
-        if "u_ambient" in prog:
-            prog["u_ambient"].value = AMBIENT
+        self.lighting.apply(prog)  # light and shadow-map uniforms (render.shadows)
         if "u_joints" in prog:
             prog["u_joints"].value = 0
         if "u_palette" in prog:
             prog["u_palette"].value = 1
         if "u_fade" in prog:
             prog["u_fade"].value = (0.0, 0.0)
+
+    def _draw_batch(self, b, palette_base, offset: int, view_proj, used: set) -> None:
+        """Draw built-in batch ``b`` (instance data at byte ``offset``) with ``view_proj``; programs not in
+        ``used`` get their uniforms first. The camera pass and the shadow-map pass (render.shadows) share it."""
+        g = self._reps[b.rep]
+        if g.n_indices == 0:
+            return
+        morph = getattr(b, "morph", None) if g.kind == "skinned" else None
+        vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
+        prog = vao.program
+        if id(prog) not in used:
+            self._set_uniforms(prog, view_proj)
+            used.add(id(prog))
+        if morph is not None:  # a geomorphed chain level (lod.chains.mode TriangleDrawBatch.morph)
+            level, weight = int(morph[0]), float(morph[1])
+            prog["u_morph_level"].value = level
+            prog["u_morph_weight"].value = min(1.0, max(0.0, weight)) if weight == weight else 0.0
+        if g.joints is not None:
+            g.joints.use(0)
+        use_targets(prog, g.targets)  # no-op without morph targets
+        if palette_base is not None:
+            prog["u_palette_base"].value = palette_base
+            prog["u_palette_stride"].value = 3 * g.n_joints
+        if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
+            prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
+        self._bind_instances(vao, locs, self._instances, offset)
+        k = b.n_instances
+        if g.kind == "keyframed":
+            self._render_instanced(g, prog, palette_base, offset, int(g.seg_count[b.part]),
+                                   int(g.seg_first[b.part]), k)
+        elif getattr(b, "index_range", None) is not None:  # one level of a LOD chain
+            first, count = (int(v) for v in b.index_range)
+            if not (0 <= first and 0 <= count and first + count <= g.n_indices):
+                raise ValueError(f"DrawBatch {b.rep!r}: index_range {b.index_range} outside the "
+                                 f"{g.n_indices} indices of the representation")
+            self._render_instanced(g, prog, palette_base, offset, count, first, k, vao, locs)
+        else:
+            self._render_instanced(g, prog, palette_base, offset, g.default_count, 0, k, vao, locs)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
@@ -519,6 +553,7 @@ class Renderer:
             if b.rep in self._plugin_reps:
                 plugin.setdefault(self._plugin_reps[b.rep], []).append(b)
         batches = [b for b in batches if b.rep not in self._plugin_reps]
+        plugin["shadows"] = []  # the blob shadows (Lighting.draw: after the ground, before clusters and points)
         for b in batches:
             if b.rep not in self._reps:
                 raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
@@ -545,7 +580,6 @@ class Renderer:
         bg = tuple(float(c) for c in background)[:3]
         self.fbo.clear(*bg, 1.0, depth=1.0)
         used = set()
-        offset = 0
         self.last_submissions = 0
         with self._q_samples, self._q_time:
             palette = {}
@@ -560,43 +594,10 @@ class Renderer:
                 if items:
                     palette = dict(zip(offs, self._build_palette(items)))
                     self.fbo.use()
+            offsets = np.cumsum([0] + [b.n_instances * INSTANCE_BYTES for b in batches]).tolist()
+            self.lighting.shadow_pass(batches, plugin, drawlist, palette, offsets)  # [render] shadows = "map"
             for i, b in enumerate(batches):
-                g = self._reps[b.rep]
-                if g.n_indices == 0:
-                    offset += b.n_instances * INSTANCE_BYTES
-                    continue
-                morph = getattr(b, "morph", None) if g.kind == "skinned" else None
-                vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
-                prog = vao.program
-                if id(prog) not in used:
-                    self._set_uniforms(prog, view_proj)
-                    used.add(id(prog))
-                if morph is not None:  # a geomorphed chain level (lod.chains.mode TriangleDrawBatch.morph)
-                    level, weight = int(morph[0]), float(morph[1])
-                    prog["u_morph_level"].value = level
-                    prog["u_morph_weight"].value = min(1.0, max(0.0, weight)) if weight == weight else 0.0
-                if g.joints is not None:
-                    g.joints.use(0)
-                use_targets(prog, g.targets)  # no-op without morph targets
-                if i in palette:
-                    prog["u_palette_base"].value = palette[i]
-                    prog["u_palette_stride"].value = 3 * g.n_joints
-                if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
-                    prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
-                self._bind_instances(vao, locs, self._instances, offset)
-                k = b.n_instances
-                if g.kind == "keyframed":
-                    self._render_instanced(g, prog, palette.get(i), offset, int(g.seg_count[b.part]),
-                                           int(g.seg_first[b.part]), k)
-                elif getattr(b, "index_range", None) is not None:  # one level of a LOD chain
-                    first, count = (int(v) for v in b.index_range)
-                    if not (0 <= first and 0 <= count and first + count <= g.n_indices):
-                        raise ValueError(f"DrawBatch {b.rep!r}: index_range {b.index_range} outside the "
-                                         f"{g.n_indices} indices of the representation")
-                    self._render_instanced(g, prog, palette.get(i), offset, count, first, k, vao, locs)
-                else:
-                    self._render_instanced(g, prog, palette.get(i), offset, g.default_count, 0, k, vao, locs)
-                offset += k * INSTANCE_BYTES
+                self._draw_batch(b, palette.get(i), offsets[i], view_proj, used)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time

@@ -98,6 +98,12 @@ def render_html(data: dict) -> str:
             from crowd.report.pedestrian import html_section
 
             out.append(html_section(sc))
+        clips = [s for s in sc["settings"] if s.get("clip")]
+        if clips:  # a short clip per setting (crowd.video.REPORT_CLIP), beside its sample frames
+            out.append("<h3>Clips</h3><table class='samples'><tr><th>setting</th><th>clip</th></tr>")
+            out.extend(f"<tr><td>{e(s['label'])}</td><td><video src='{e(s['clip'])}' controls muted loop "
+                       f"preload='metadata' width='480'></video></td></tr>" for s in clips)
+            out.append("</table>")
         out.append("<h3>Sample frames</h3><table class='samples'><tr><th>setting</th><th>frame</th><th>frame</th>"
                    "<th>NoLOD reference</th><th>error map</th><th>PSNR / SSIM / FLIP</th></tr>")
         for s in sc["settings"]:

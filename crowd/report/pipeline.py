@@ -148,7 +148,9 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
         for si, ((_, settings), k) in enumerate(zip(all_settings, ks)):
             for st in settings:
                 for i in range(repeat):  # the first run writes the sampled frames; repeats are timing only
-                    jobs.append((st.scene, k if i == 0 else 0, i == 0, sleep))
+                    # the first run also records the setting's clip (crowd.video; its time is not frame time)
+                    jobs.append((st.scene.with_overrides(video=True) if i == 0 else st.scene, k if i == 0 else 0,
+                                 i == 0, sleep))
                     where.append((si, st, i))
         bar.set_postfix_str(f"timed runs on {pool.description}")
 
@@ -272,7 +274,11 @@ def _setting_entry(run: RunData, tmp: Path) -> dict:
     s, st = run.summary, run.setting
     stages = s["stages"]
     ft = stats(frame_seconds(run.columns))
-    return {"label": st.label, "slug": st.slug, "values": st.values, "lod_mode": st.scene.lod_mode,
+    clip = None
+    if (run.out_dir / "video.mp4").is_file():  # the setting's short clip (crowd.video.REPORT_CLIP)
+        clip = f"samples/{run.out_dir.parent.name}_{st.slug}.mp4"
+        shutil.copyfile(run.out_dir / "video.mp4", tmp / clip)
+    return {"clip": clip, "label": st.label, "slug": st.slug, "values": st.values, "lod_mode": st.scene.lod_mode,
             "host": run.host,
             "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
             "run_dir": str(run.out_dir.relative_to(tmp)),

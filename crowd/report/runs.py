@@ -124,6 +124,10 @@ def _run(scene, out_dir: Path, png_every: int, pairs: bool = False, sleep: float
 
     sleep = test_sleep_seconds() if sleep is None else float(sleep)
     with Engine(scene, quiet=True) as engine:
+        if scene.video:  # the clip the page embeds (crowd.video.REPORT_CLIP)
+            from crowd.video import REPORT_CLIP
+
+            engine.video_options = dict(REPORT_CLIP)
         if sleep > 0:
             engine.selector = _SleepySelector(engine.selector, sleep)
         every = png_every

@@ -16,6 +16,8 @@ from crowd.errors import CrowdError, SceneError
 
 #: swept keys besides ``lod.<key>`` (any key of an LOD mode's PARAMS, and ``lod.mode``)
 SIZE_KEYS = ("render.size", "resolution")
+#: swept ``[render]`` keys of the light and shadows (render.shadows: what each shadow setting costs)
+RENDER_KEYS = ("render.shadows", "render.shadow_map_size", "render.shadow_distance")
 
 
 class SweepError(CrowdError):
@@ -59,7 +61,7 @@ def parse_sweep(text: str) -> tuple:
     from crowd.scene import parse_size
 
     lod_keys = _all_lod_keys()
-    accepted = ", ".join([f"lod.{k}" for k in lod_keys] + list(SIZE_KEYS))
+    accepted = ", ".join([f"lod.{k}" for k in lod_keys] + list(SIZE_KEYS) + list(RENDER_KEYS))
     key, sep, rest = text.partition("=")
     key = key.strip()
     if not sep or not key or not rest.strip():
@@ -78,7 +80,7 @@ def parse_sweep(text: str) -> tuple:
                                  f"{SIZE_RANGE[0]} ..= {SIZE_RANGE[1]} (e.g. 640x360)")
             values.append(list(s))
         return "render.size", values
-    if not key.startswith("lod.") or key[4:] not in lod_keys:
+    if key not in RENDER_KEYS and (not key.startswith("lod.") or key[4:] not in lod_keys):
         raise SweepError(f"--sweep: unknown key {key!r}; accepted: {accepted}")
     values = []
     for v in raw:
@@ -164,8 +166,8 @@ def expand_settings(scene_path, sweeps: list, size: tuple | None = None, frames:
         for k, v in zip(keys, combo):
             if k == "lod.mode":
                 continue
-            if k == "render.size":
-                doc.setdefault("render", {})["size"] = v
+            if k == "render.size" or k in RENDER_KEYS:
+                doc.setdefault("render", {})[k.split(".", 1)[1]] = v
             elif k[4:] in accepted:
                 lod[k[4:]] = v
             else:

@@ -23,8 +23,7 @@ layout(std430, binding = 12) readonly buffer Tints { uvec2 tints[]; };
 #include "tint.glsl"
 
 uniform uint u_njobs;
-uniform vec3 u_sun;
-uniform float u_ambient;
+#include "light.glsl"
 
 // the job holding work item g (largest j with jobs[j].w <= g)
 uint find_job(uint g) {
@@ -73,10 +72,5 @@ void sample_at(Sample s, float u, out vec3 pos, out vec3 nrm, out vec4 col) {
 }
 
 vec3 shade(vec3 world, vec3 normal, vec3 base) {
-    float ln = dot(normal, normal);
-    vec3 n = ln > 1e-20 ? normal * inversesqrt(ln) : vec3(0.0, 1.0, 0.0);
-    float lv = dot(world, world);
-    vec3 head = lv > 1e-20 ? -world * inversesqrt(lv) : vec3(0.0, 0.0, 1.0);
-    float diffuse = 0.55 * abs(dot(n, u_sun)) + 0.35 * abs(dot(n, head));
-    return base * (u_ambient + diffuse);
+    return light_shade(world, normal, base, 1.0);  // point splats receive no shadow map (blobs instead)
 }
