@@ -46,6 +46,7 @@ from lod.drawlist import DrawList
 from lod.full.mode import NoLodSelector
 from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points import config as C
+from lod.points.coarse import add_coarse, coarse_arrays
 from lod.points.octree import PointHierarchy
 from lod.points.poses import clip_poses
 from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
@@ -71,6 +72,9 @@ PARAMS: dict = {
                        doc="stratification time intervals per keyframe pair (§3.4.2)"),
     "spacing_fraction": Param("float", C.POINTS_SPACING_FRACTION, min=1.0 / 64.0, max=1.0,
                               doc="sample spacing as a fraction of a node's side (§3.1, 1/8-1/16)"),
+    "coarse": Param("bool", True, doc="representations coarser than a hierarchy's root: the smallest "
+                                      "farthest-point prefix of the root's points whose spacing projects within "
+                                      "the splat size, down to one splat per agent (lod.points.coarse)"),
     "renderer": Param("str", "compute", choices=RENDERERS,
                       doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
 }
@@ -174,6 +178,9 @@ def build_points_rep(character, name: str, params: dict, cache: HierarchyCache |
     if progress is not None:
         segs = progress(segs, f"point hierarchies {name}")
     built = {s: cache.get_or_build(segment_arrays(kf, s), bp) for s in segs}
+    if bool(p.get("coarse", True)):
+        for h in built.values():  # prefixes coarser than the root (lod.points.coarse); in memory, the cache as built
+            add_coarse(h)
     hs = [built[s] if s in built else triangle_hierarchy(*segment_arrays(kf, s)[:3]) for s in range(kf.n_parts)]
     return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]), poses=poses)
 
@@ -306,8 +313,8 @@ def memory_estimate(characters, params: dict) -> int:
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
 def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                               tri_count, bounds, data, planes, vscale, splat, pjobs, tjobs, psum,
-                               tsum):  # pragma: no cover
+                               tri_count, bounds, coarse_count, coarse_spacing, data, planes, vscale, splat, pjobs,
+                               tjobs, psum, tsum):  # pragma: no cover
     k = data.shape[0]
     N = child_start.shape[0]
     out_p = np.empty((N, 2), np.int64)
@@ -335,8 +342,8 @@ def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, po
         while j < intervals - 1 and bounds[j + 1] <= u:
             j += 1
         np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                                   tri_start, tri_count, u, j, planes, model, scale, vscale, splat,
-                                   out_p, out_pn, out_t, out_tn)
+                                   tri_start, tri_count, coarse_count, coarse_spacing, u, j, planes, model, scale,
+                                   vscale, splat, out_p, out_pn, out_t, out_tn)
         if npj + np_ > pjobs.shape[0] or ntj + nt > tjobs.shape[0]:
             return -1 - r, npj, ntj
         sp = 0
@@ -364,7 +371,7 @@ def _harrays(h: PointHierarchy) -> tuple:
         arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
                np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
                np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
-               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64))
+               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64), *coarse_arrays(h))
         h._traverse_arrays = arr
     return arr
 
