@@ -60,6 +60,11 @@ MARGIN = 2
 #: measured 1.2x faster than 1 on the grid's draw (20.0 vs 25.9 ms at 640x480,
 #: 42.5 vs 49.7 ms at 1280x720) and no slower on long jobs
 SPLAT_JOBS_PER_GROUP = 16
+#: jobs of at most this many points are splatted one job per thread (``THREAD_PER_JOB`` in
+#: points_splat.glsl) instead of one job per work group: a far crowd drawn coarser than its roots
+#: (lod/points/coarse.py) has a million jobs of one or two points, where a work group per job
+#: leaves 7 of its 8 threads idle; the image is the same (the passes' atomics are order-free)
+SHORT_JOB_POINTS = 4
 #: side (anchor slots) of the tiles the depth pass marks: the resolve draws only
 #: the blocks of pixels whose footprints reach a marked tile and the next clear
 #: resets only marked tiles; a far view fills few of them (the 400-instance splat
@@ -615,15 +620,24 @@ class Drawer:
         ctx.memory_barrier()
         common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
                   f"TILE {TILE}")
+        # per fade: the short jobs (one per thread) and the others (one per work group), each in a buffer of its own
+        tables = []
+        for fade, jobs, _ in groups:
+            short = jobs[:, 1] <= SHORT_JOB_POINTS
+            for kind, sel in (("short", short), ("long", ~short)):
+                if sel.any():
+                    t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
+                    tables.append((fade, kind, t, self._buffer(f"point_jobs_{kind}_{len(tables)}", t)))
         for defines in ((), ("COLOR_PASS",)):
-            cs = self._compute("points_splat", defines + common)
-            self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
-            for fade, jobs, total in groups:
-                self._buffer("point_jobs", jobs).bind_to_storage_buffer(2)
+            for fade, kind, jobs, buf in tables:
+                thread = kind == "short"
+                cs = self._compute("points_splat", defines + common + (("THREAD_PER_JOB",) if thread else ()))
+                self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
+                buf.bind_to_storage_buffer(2)
                 if "u_fade" in cs:
                     cs["u_fade"].value = fade
                 cs["u_njobs"].value = int(jobs.shape[0])
-                self._dispatch(cs, int(jobs.shape[0]), SPLAT_JOBS_PER_GROUP)
+                self._dispatch(cs, int(jobs.shape[0]), SPLAT_JOBS_PER_GROUP * (SPLAT_GROUP if thread else 1))
                 ctx.memory_barrier()
         # 3. resolve: the pixels the filled anchor tiles reach (the next frame's clear resets
         # only those tiles)
