@@ -91,7 +91,7 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
     fwd = planes[4, :3]
     j = interval_of(u, h.intervals, getattr(h, "interval_bounds", None))
     box = h.box_at(float(u))
-    cc, cs = coarse_arrays(h)
+    coarse_n, coarse_s = coarse_arrays(h)
     pr, pn, tr, tn = [], [], [], []
 
     def visit(i):
@@ -111,7 +111,8 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
             if h.point_count[i, j] > 0:
                 cnt = int(h.point_count[i, j])
                 if i == 0:  # coarser than the root: the smallest prefix within the splat (lod.points.coarse)
-                    fit = [int(m) for m, s in zip(cc[j], cs[j]) if s * scale / dmin * viewport_scale <= splat_size]
+                    fit = [int(m) for m, s in zip(coarse_n[j], coarse_s[j])
+                           if s * scale / dmin * viewport_scale <= splat_size]
                     cnt = min([cnt] + fit[:1])
                 pr.append((h.point_start[i, j], cnt))
                 pn.append(i)
@@ -128,9 +129,11 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
 @njit(cache=True)
 def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
                      tri_start, tri_count, coarse_count, coarse_spacing, u, j, planes, model, scale,
-                     viewport_scale, splat, out_p, out_pn, out_t, out_tn):  # pragma: no cover - compiled
+                     viewport_scale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo,
+                     hi):  # pragma: no cover - compiled
+    # stack (N + 8,) int64, cs (8, 3), lo (3,), hi (3,) float64: scratch of the caller (no allocation per
+    # call: the instance kernels call this once per instance, a million times a frame)
     N = child_start.shape[0]
-    stack = np.empty(N + 8, np.int64)
     sp = 0
     np_ = 0
     nt = 0
@@ -139,9 +142,6 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
     stack[sp] = 0
     sp += 1
     w = 1.0 - u
-    cs = np.empty((8, 3))
-    lo = np.empty(3)
-    hi = np.empty(3)
     while sp > 0:
         sp -= 1
         i = stack[sp]
@@ -244,7 +244,8 @@ def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, mode
                                h.spacing, h.point_start, h.point_count, h.tri_start, h.tri_count,
                                *coarse_arrays(h), u,
                                interval_of(u, h.intervals, getattr(h, "interval_bounds", None)), planes, model, scale, float(viewport_scale),
-                               float(splat_size), out_p, out_pn, out_t, out_tn)
+                               float(splat_size), out_p, out_pn, out_t, out_tn, np.empty(N + 8, np.int64),
+                               np.empty((8, 3)), np.empty(3), np.empty(3))
     return TraversalResult(out_p[:np_].copy(), out_pn[:np_].copy(), out_t[:nt].copy(), out_tn[:nt].copy())
 
 
