@@ -419,7 +419,10 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     count); with ``totals`` also points (k,) int64 and triangles (k,) int64
     per instance (the sums of its jobs' counts).
     """
-    data = np.ascontiguousarray(data, np.float64).reshape(-1, 16)
+    data = np.asarray(data)
+    # float32 instance data is read as it is (the kernel widens each value to float64 as a copy would)
+    data = np.ascontiguousarray(data, data.dtype if data.dtype in (np.float32, np.float64) else np.float64)
+    data = data.reshape(-1, 16)
     planes = np.ascontiguousarray(planes, np.float64)
     k = data.shape[0]
     # job capacity per instance: what this hierarchy needed before (a retry doubles it)
