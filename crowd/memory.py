@@ -56,8 +56,9 @@ GPU_INSTANCE_BYTES = 64 * 2
 VERTEX_BYTES = 12 + 12 + 16 + 8 + 16
 #: bytes per triangle (3 uint32 indices)
 TRIANGLE_BYTES = 12
-#: skinning palette cap (texels), as render.renderer.PALETTE_MAX_TEXELS
-PALETTE_MAX_TEXELS = 1 << 25
+#: skinning palette cap (texels): the palette is built and drawn in chunks of at most this many texels,
+#: as render.palette.PALETTE_CHUNK_TEXELS (so its memory does not grow with the crowd)
+PALETTE_MAX_TEXELS = 1 << 22
 #: a glTF file's bytes are multiplied by this to estimate the loaded character
 #: (float64 working copies while importing)
 GLTF_EXPANSION = 4
@@ -217,7 +218,7 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
         cpu += c
         gpu += g
     parts["characters"] = cpu
-    # palette: 3 texels x 16 B per joint per visible skinned instance, buffer + texture, capped
+    # palette: 3 texels x 16 B per joint per visible skinned instance, buffer + texture, one chunk at most
     max_joints = max(joints, default=0)
     palette = 2 * 16 * min(PALETTE_MAX_TEXELS, n * 3 * max_joints)
     w, h = scene.render.size

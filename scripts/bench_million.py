@@ -1,0 +1,162 @@
+"""Benchmark: a million independently moving agents (issue 21, ``scenes/million.toml``).
+
+Runs the scene end to end (``crowd.engine.Engine``, as ``crowd run`` does) once per LOD
+mode, each in a subprocess of its own (so its peak memory is its own), and prints per mode:
+
+- scene load: seconds from the scene file to the first frame (characters, agents, LOD
+  representations, renderer), with the LOD cache warm (a first run builds it: the
+  ``cold`` column of the first mode, when ``--cold`` gives a fresh cache folder);
+- per-stage medians per frame from the telemetry (``frames.csv``: simulate, select,
+  upload, draw, finish, total) over the frames after ``--warmup``; frames per second
+  from the median total;
+- points per agent drawn, triangles, instances;
+- memory: the peak resident size of the process (``ru_maxrss``) and the memory guard's
+  estimate (``crowd.memory.estimate_scene``);
+- the load average before and after, and the busiest other processes at the start
+  (the machine is shared: the figures are only comparable within one run).
+
+Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points auto]
+      [--frames 10] [--warmup 2] [--md scripts/bench_million.md]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+STAGES = ("simulate", "select", "upload", "draw", "finish", "total")
+
+
+def _fail(msg: str) -> None:
+    print(f"bench_million.py: {msg}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
+    """One mode in this process: load, run, read the telemetry back."""
+    import csv
+
+    from crowd.engine import Engine
+    from crowd.memory import estimate_scene
+    from crowd.scene import load_scene
+
+    scene = load_scene(scene_path)
+    params = dict(scene.lod_params) if scene.lod_mode == mode else {}
+    scene = replace(scene, lod_mode=mode, lod_params=tuple(params.items()))
+    est = estimate_scene(scene)
+    t0 = time.perf_counter()
+    with Engine(scene, quiet=True) as eng:
+        eng._open_renderer()
+        load = time.perf_counter() - t0
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "run"
+            eng.run(frames=warmup + frames, out_dir=out)
+            with open(out / "frames.csv") as f:
+                rows = list(csv.DictReader(f))
+    rows = rows[warmup:]
+    med = {s: statistics.median(float(r[s]) for r in rows) for s in STAGES}
+    agents = int(scene_agents(scene))
+    pts = statistics.median(float(r["points"]) for r in rows)
+    return {"mode": mode, "load_s": load, "frames": len(rows), "median_s": med,
+            "points": pts, "points_per_agent": pts / max(1, agents),
+            "triangles": statistics.median(float(r["triangles"]) for r in rows),
+            "instances": statistics.median(float(r["instances"]) for r in rows), "agents": agents,
+            "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "estimate": est.total}
+
+
+def scene_agents(scene) -> int:
+    from crowd.memory import placement_agents
+
+    return sum(placement_agents(p.kind, p.params) for p in scene.placements)
+
+
+def busiest(n: int = 6) -> list[str]:
+    """The n processes using the most CPU (``ps``), as "command (cpu %)"."""
+    try:
+        out = subprocess.run(["ps", "-eo", "pcpu,comm", "--sort=-pcpu", "--no-headers"], capture_output=True,
+                             text=True, timeout=10).stdout.splitlines()
+    except (OSError, subprocess.SubprocessError):
+        return []
+    return [f"{c.split(None, 1)[1]} ({c.split(None, 1)[0]} %)" for c in out[:n] if len(c.split(None, 1)) == 2]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scene", default=str(ROOT / "scenes" / "million.toml"))
+    ap.add_argument("--modes", nargs="+", default=["points", "auto"])
+    ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--warmup", type=int, default=2)
+    ap.add_argument("--md", default=str(ROOT / "scripts" / "bench_million.md"))
+    ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mode, print JSON
+    a = ap.parse_args(argv)
+    if a.frames < 1 or a.warmup < 0:
+        _fail(f"--frames: expected >= 1 and --warmup >= 0, got {a.frames} and {a.warmup}")
+    if not Path(a.scene).is_file():
+        _fail(f"--scene: {a.scene}: no such file")
+    from lod.modes import MODES
+
+    bad = [m for m in a.modes if m not in MODES]
+    if bad:
+        _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}")
+    if a.one:
+        print(json.dumps(run_one(a.scene, a.one, a.frames, a.warmup)))
+        return 0
+    load0, others = os.getloadavg(), busiest()
+    results = []
+    for m in a.modes:
+        cmd = [sys.executable, __file__, "--scene", a.scene, "--frames", str(a.frames), "--warmup", str(a.warmup),
+               "--one", m]
+        p = subprocess.run(cmd, capture_output=True, text=True, env=os.environ | {"PYTHONPATH": str(ROOT)})
+        if p.returncode:
+            _fail(f"mode {m}: the run failed: {p.stderr.strip().splitlines()[-1] if p.stderr.strip() else p.returncode}")
+        results.append(json.loads(p.stdout.strip().splitlines()[-1]))
+    load1 = os.getloadavg()
+    lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | points/agent | triangles | "
+             "peak RSS GB | guard estimate GB |",
+             "| --- | ---: | " + " | ".join("---:" for _ in STAGES) + " | ---: | ---: | ---: | ---: | ---: |"]
+    for r in results:
+        med = r["median_s"]
+        lines.append(f"| {r['mode']} | {r['load_s']:.1f} | " + " | ".join(f"{1e3 * med[s]:.0f}" for s in STAGES)
+                     + f" | {1.0 / med['total']:.2f} | {r['points_per_agent']:.2f} | {r['triangles']:,.0f} | "
+                     f"{r['peak_rss'] / 1e9:.2f} | {r['estimate'] / 1e9:.2f} |")
+    head = (f"Scene {Path(a.scene).name}: {results[0]['agents']:,} agents; medians of {a.frames} frames after "
+            f"{a.warmup} warm-up frames; load average {load0[0]:.1f} before, {load1[0]:.1f} after.")
+    print(head)
+    print("\n".join(lines))
+    import platform
+
+    from render.context import create_context, gl_info
+
+    ctx = create_context()
+    gl = gl_info(ctx).get("GL_RENDERER", "")
+    ctx.release()
+    md = ["# A million moving agents (`scripts/bench_million.py`)", "",
+          f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, Python "
+          f"{platform.python_version()}, {gl}.", "",
+          f"Command: `{' '.join(['.venv/bin/python', 'scripts/bench_million.py'] + (argv or sys.argv[1:]))}`", "",
+          head, "", *lines, "",
+          "Busiest processes at the start (the machine is shared): " + ", ".join(others) + ".", "",
+          "Stages are the engine's telemetry (`frames.csv`) per frame: simulate (boids + animation), select (LOD "
+          "selection: culling, packing, traversal, auto's pricing), upload + draw + finish (the renderer). "
+          "`load s` is the time from the scene file to the first frame with the LOD cache warm. "
+          "Peak RSS is the benchmark process's own (one process per mode)."]
+    from lod.atomic_io import atomic_open
+
+    with atomic_open(a.md, "w") as f:
+        f.write("\n".join(md) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
