@@ -45,6 +45,7 @@ import moderngl
 import numpy as np
 
 from lod.drawlist import fade_uniform
+from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
 
 #: threads per work group of the splat passes (they stride over each job's points); 8 is
@@ -81,6 +82,8 @@ FULL_RESOLVE_SHARE = 0.6
 FULL_CLEAR_SHARE = 0.5
 #: work-group size of the clear pass (must match points_clear.glsl)
 CLEAR_GROUP = 256
+#: instance rows of a storage-buffer window are a multiple of this (16 x 64 B = 1 KB offsets)
+WINDOW_ROWS = 16
 #: largest work-group count per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS_X = 65535
 #: bytes per sample (point or vertex): uvec4 geo, uvec4 attr (points_common.glsl)
@@ -297,58 +300,6 @@ def expand_jobs(jobs: np.ndarray) -> np.ndarray:
     return out
 
 
-def resolve_rects(flags: np.ndarray, size, tile: int, margin: int, splat: int) -> np.ndarray:
-    """(R, 4) int64 pixel rectangles (x0, y0, x1, y1), half-open, that hold
-    every pixel a filled anchor can cover.
-
-    flags : (ty, tx) bool, the anchor-slot tiles the depth pass filled (slot
-        (sx, sy) = pixel anchor + margin, tile (sy // tile, sx // tile))
-    size : (width, height) pixels; splat : footprint side s (1..3 <= margin + 1)
-
-    Pixel p reads the slots p + margin - d for 0 <= d < s, so a block of
-    tile x tile pixels is needed when a flagged tile meets its slot range; the
-    blocks of a row are merged into runs (few, wide rectangles).
-    """
-    w, h = int(size[0]), int(size[1])
-    f = np.asarray(flags, bool)
-    ty, tx = f.shape
-    s = int(splat)
-    # summed-area table of the flags: any flag in a tile range in O(1)
-    sat = np.zeros((ty + 1, tx + 1), np.int64)
-    sat[1:, 1:] = f.astype(np.int64).cumsum(0).cumsum(1)
-
-    def ranges(n_px, n_tiles):
-        p0 = np.arange(0, n_px, tile)
-        p1 = np.minimum(p0 + tile, n_px)
-        lo = np.clip((p0 + margin - s + 1) // tile, 0, n_tiles - 1)
-        hi = np.clip((p1 - 1 + margin) // tile, 0, n_tiles - 1)
-        return p0, p1, lo, hi + 1
-
-    x0, x1, lx, hx = ranges(w, tx)
-    y0, y1, ly, hy = ranges(h, ty)
-    cnt = sat[np.ix_(hy, hx)] - sat[np.ix_(ly, hx)] - sat[np.ix_(hy, lx)] + sat[np.ix_(ly, lx)]
-    need = cnt > 0  # (pixel tile rows, pixel tile columns)
-    pad = np.zeros((need.shape[0], need.shape[1] + 2), np.int8)
-    pad[:, 1:-1] = need
-    d = np.diff(pad, axis=1)
-    rows, starts = np.nonzero(d == 1)
-    _, ends = np.nonzero(d == -1)  # same row order: each run's start then end
-    if not rows.shape[0]:
-        return np.zeros((0, 4), np.int64)
-    return np.stack([x0[starts], y0[rows], x1[ends - 1], y1[rows]], axis=1).astype(np.int64)
-
-
-def rect_vertices(rects: np.ndarray, size) -> np.ndarray:
-    """(6 R, 2) float32 NDC corners of two triangles per pixel rectangle."""
-    r = np.asarray(rects, np.float64).reshape(-1, 4)
-    w, h = float(size[0]), float(size[1])
-    xa, ya, xb, yb = (2.0 * r[:, 0] / w - 1.0, 2.0 * r[:, 1] / h - 1.0, 2.0 * r[:, 2] / w - 1.0,
-                      2.0 * r[:, 3] / h - 1.0)
-    v = np.stack([np.stack([xa, ya], 1), np.stack([xb, ya], 1), np.stack([xa, yb], 1),
-                  np.stack([xb, yb], 1), np.stack([xa, yb], 1), np.stack([xb, ya], 1)], axis=1)
-    return v.reshape(-1, 2).astype(np.float32)
-
-
 class _GpuPoints:
     def __init__(self, key, objects, box, verts, corners, pbase, tbase, splat, path):
         self.key = key
@@ -380,6 +331,8 @@ class Drawer:
             raise RuntimeError(f"[lod] mode 'points' needs OpenGL 4.3 (compute shaders and storage buffers); this "
                                f"context offers {self.ctx.version_code // 100}.{self.ctx.version_code % 100 // 10}")
         self.path = None
+        #: bytes one storage-buffer binding may address (None: the context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE)
+        self.ssbo_limit = None
         self._reps: dict[str, _GpuPoints] = {}
         self._objects: list = []
         self._bufs: dict = {}
@@ -554,7 +507,15 @@ class Drawer:
         inst = np.concatenate([fold_box(b.instance_data, *self._reps[b.rep].box) for b in batches])
         if not np.isfinite(inst).all():
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
-        self._buffer("instances", inst).bind_to_storage_buffer(1)
+        inst_buf = self._buffer("instances", inst)
+        row_bytes = inst.shape[1] * inst.itemsize
+        limit = self.ssbo_limit or int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27))
+        # instance rows one storage binding can hold (render/points_frame.py), a multiple of WINDOW_ROWS so
+        # every window's offset meets GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT (<= 256 bytes in practice)
+        window = max(WINDOW_ROWS, limit // row_bytes // WINDOW_ROWS * WINDOW_ROWS)
+
+        def bind_rows(first):
+            inst_buf.bind_to_storage_buffer(1, offset=first * row_bytes, size=min(window, rows - first) * row_bytes)
         w, h = self.r.size
         vp = np.asarray(view_proj, np.float64)
         # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.temporal.selection) draw together
@@ -571,15 +532,23 @@ class Drawer:
             if "u_fade" in tprog:
                 tprog["u_fade"].value = fade
             total = int(jobs[-1, 1]) + int(jobs[-1, 3])
-            # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
-            # vertex shared by several triangles is transformed once
-            items, index = indexed_triangle_jobs(jobs, g.tri_corners, g.tri_ranges)
-            self._buffer("tri_items", items).bind_to_storage_buffer(7)
-            g.verts.bind_to_storage_buffer(5)
-            ibo = self._buffer("tri_index", index)
-            vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
-                                                                                index_element_size=4))
-            vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
+            pieces = instance_windows(jobs, rows, window, max(1, limit // 16))
+            while pieces:
+                first, piece = pieces.pop(0)
+                # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
+                # vertex shared by several triangles is transformed once
+                items, index = indexed_triangle_jobs(piece, g.tri_corners, g.tri_ranges)
+                if items.nbytes > limit and piece.shape[0] > 1:  # halve until it binds
+                    half = piece.shape[0] // 2
+                    pieces[:0] = [(first, piece[:half]), (first, piece[half:])]
+                    continue
+                bind_rows(first)
+                self._buffer("tri_items", items).bind_to_storage_buffer(7)
+                g.verts.bind_to_storage_buffer(5)
+                ibo = self._buffer("tri_index", index)
+                vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
+                                                                                    index_element_size=4))
+                vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += total
         # 2. points: one job table per fade over every rep (their samples share one buffer)
         groups = []
@@ -600,7 +569,8 @@ class Drawer:
         splat = int(drawlist.options.get("splat_size", first.splat))
         self.last_counts["points"] = sum(t for _, _, t in groups)
         self._points.bind_to_storage_buffer(0)
-        if path == "gl_points":
+        if path == "gl_points":  # the reference path: one binding (not windowed)
+            bind_rows(0)
             prog = self._program("points_gl")
             self._uniforms(prog, vp)
             ctx.enable(ctx.PROGRAM_POINT_SIZE)
@@ -625,11 +595,12 @@ class Drawer:
         for fade, jobs, _ in groups:
             short = jobs[:, 1] <= SHORT_JOB_POINTS
             for kind, sel in (("short", short), ("long", ~short)):
-                if sel.any():
-                    t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
-                    tables.append((fade, kind, t, self._buffer(f"point_jobs_{kind}_{len(tables)}", t)))
+                t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
+                for first, piece in (instance_windows(t, rows, window, limit // 16) if sel.any() else []):
+                    tables.append((fade, kind, first, piece, self._buffer(f"point_jobs_{len(tables)}", piece)))
         for defines in ((), ("COLOR_PASS",)):
-            for fade, kind, jobs, buf in tables:
+            for fade, kind, first, jobs, buf in tables:
+                bind_rows(first)
                 thread = kind == "short"
                 cs = self._compute("points_splat", defines + common + (("THREAD_PER_JOB",) if thread else ()))
                 self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)

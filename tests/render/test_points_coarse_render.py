@@ -94,3 +94,47 @@ def test_short_jobs_one_per_thread_splat_the_same_image(far, monkeypatch, short)
     ref = _draw(far.gl, reps, dl)
     monkeypatch.setattr(rp, "SHORT_JOB_POINTS", short)  # none short, then all short
     np.testing.assert_array_equal(_draw(far.gl, reps, dl), ref)
+
+
+def test_a_frame_in_storage_buffer_windows_draws_the_same_pixels(far):
+    """A tiny injected storage-buffer limit (16 instances, 64 jobs a binding) cuts the instances,
+    point jobs and triangle items into windows (render/points_frame.py): the same image."""
+    reps, sel = far.reps[True]
+    st = far.st
+    near = CrowdState.empty(st.n + 3)
+    for name in ("position", "heading", "anim_time", "scale"):
+        getattr(near, name)[:st.n] = getattr(st, name)
+    near.position[st.n:] = [[0.3, 0.0, -3.0], [2.0, 0.0, -12.0], [-4.0, 0.0, -30.0]]  # triangles up close
+    near.scale[st.n:] = 1.0
+    dl = sel.select(near, far.cam, SIZE)
+    assert sum(b.tri_jobs.shape[0] for b in dl.batches if hasattr(b, "tri_jobs")) > 0
+    r = Renderer(SIZE, ctx=far.gl)
+    try:
+        for rep in reps:
+            r.upload(rep)
+        r.draw(dl, background=BG)
+        ref = r.read_pixels()
+        r.drawer("points").ssbo_limit = 16 * 64
+        r.draw(dl, background=BG)
+        img = r.read_pixels()
+    finally:
+        r.release()
+    assert _mask(ref).sum() > 1000
+    np.testing.assert_array_equal(img, ref)
+
+
+def test_instance_windows_rebase_and_bound_every_piece():
+    from render.points_frame import instance_windows
+
+    rng = np.random.default_rng(0)
+    jobs = np.c_[rng.integers(0, 100, 50), rng.integers(1, 5, 50), np.sort(rng.integers(0, 40, 50)),
+                 np.zeros(50, np.int64)]
+    assert instance_windows(jobs, 40, 40, 50)[0][1] is jobs  # fits: the table itself
+    pieces = instance_windows(jobs, 40, 8, 3)
+    back = []
+    for first, p in pieces:
+        assert first % 8 == 0 and p.shape[0] <= 3 and (0 <= p[:, 2]).all() and (p[:, 2] < 8).all()
+        q = p.copy()
+        q[:, 2] += first
+        back.append(q)
+    assert np.array_equal(np.concatenate(back), jobs)  # every job once, in order (rows sorted here)
