@@ -42,3 +42,25 @@ def test_parallel_instance_batches_equal_the_serial_ones(monkeypatch, cull):
         assert a.dtype == b.dtype and np.array_equal(a, b)
     ref = pack.instance_batches_numpy(*args)
     assert np.array_equal(ref[0], par[0]) and np.array_equal(ref[2], par[2])
+
+
+def test_parallel_locate_equals_the_serial_one(monkeypatch):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "fixtures"))
+    from tiny_characters import tiny_keyframed
+
+    from lod.full import reps as full_reps
+
+    krep = full_reps.build_rep(tiny_keyframed())
+    t = np.random.default_rng(2).uniform(-10, 40, 5001)
+    t[3], t[4] = np.nan, np.inf
+    monkeypatch.setattr(full_reps, "LOCATE_PARALLEL_MIN", 10 ** 9)
+    serial = krep.locate(0, t)
+    monkeypatch.setattr(full_reps, "LOCATE_PARALLEL_MIN", 1)
+    par = krep.locate(0, t)
+    for a, b in zip(serial, par):
+        assert np.array_equal(a, b)
+    for a, b in zip(par, krep.locate_numpy(0, t)):
+        assert np.array_equal(a, b) or np.allclose(a, b, rtol=0, atol=1e-12)
