@@ -500,7 +500,8 @@ class Renderer:
             pieces: dict = {}
             chunks: list = []
             if self.skinning == "palette":
-                sk = [i for i, b in enumerate(batches) if self._reps[b.rep].kind == "skinned" and self._reps[b.rep].n_indices]
+                sk = [i for i, b in enumerate(batches)
+                      if self._reps[b.rep].kind == "skinned" and self._reps[b.rep].n_indices]
                 chunks = self._palette_chunks([(self._reps[batches[i].rep], self._instances, int(starts[i]),
                                                 batches[i].n_instances) for i in sk]) if sk else []
                 for c, ch in enumerate(chunks):

@@ -119,7 +119,8 @@ def main(argv=None) -> int:
                "--one", m]
         p = subprocess.run(cmd, capture_output=True, text=True, env=os.environ | {"PYTHONPATH": str(ROOT)})
         if p.returncode:
-            _fail(f"mode {m}: the run failed: {p.stderr.strip().splitlines()[-1] if p.stderr.strip() else p.returncode}")
+            last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit code {p.returncode}"
+            _fail(f"mode {m}: the run failed: {last}")
         results.append(json.loads(p.stdout.strip().splitlines()[-1]))
     load1 = os.getloadavg()
     lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | points/agent | triangles | "

@@ -238,10 +238,11 @@ def instance_batches(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skin
     vis = np.empty(n, np.bool_)
     cs = np.empty((n, 2), np.float64)
     par = n >= PACK_PARALLEL_MIN and numba.get_num_threads() > 1
-    (_instance_pass_parallel if par else _instance_pass)(np.ascontiguousarray(pos, np.float64), np.ascontiguousarray(origin, np.float64), heading,
-                   np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(gid, np.int64),
-                   np.ascontiguousarray(t, np.float64), anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
-                   g_last, np.ascontiguousarray(planes, np.float64), bool(cull), vis, cs)
+    first_pass = _instance_pass_parallel if par else _instance_pass
+    first_pass(np.ascontiguousarray(pos, np.float64), np.ascontiguousarray(origin, np.float64), heading,
+               np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(gid, np.int64),
+               np.ascontiguousarray(t, np.float64), anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
+               g_last, np.ascontiguousarray(planes, np.float64), bool(cull), vis, cs)
     counts = np.bincount(gid[vis], minlength=G).astype(np.int64)
     starts = np.zeros(G, np.int64)
     np.cumsum(counts[:-1], out=starts[1:])
