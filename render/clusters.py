@@ -14,7 +14,8 @@ GPU resources per character (:class:`lod.clusters.mode.ClustersRep`):
 
 Per frame, the instances of one character (all its clips) are grouped by
 identical cut and sorted so that every group is a contiguous instance range;
-the skinning palette is built once for all of them (the renderer's pre-pass);
+the skinning palette is built for all of them (the renderer's pre-pass, in
+chunks that fit the palette texture: ``render/palette.py``);
 then ONE ``glMultiDrawElementsIndirect`` (moderngl ``render_indirect``) per
 character draws every group instanced. Two command layouts
 (``Drawer.strategy``):

@@ -9,7 +9,9 @@ Draw paths (one program each, shaders in ``render/shaders/``):
   (``palette.vert``, one point per matrix row and instance) blends every drawn
   instance's matrices between the two baked frames around its fractional
   frame coordinate and the result is copied (GPU-side) into a palette
-  texture; the vertex shader then reads 3 texels per influence. The "direct"
+  texture (``render/palette.py``; a frame whose palette would not fit the
+  texture is drawn in chunks, each pre-pass followed by its draws); the
+  vertex shader then reads 3 texels per influence. The "direct"
   path (``skinned_direct.vert``) blends both frames per vertex (6 texels per
   influence); it is kept for comparison and as a fallback. Blending matrices
   is exact for LBS (see ``lod.full.reps.SkinnedRep``).
