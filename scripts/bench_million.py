@@ -1,7 +1,9 @@
 """Benchmark: a million independently moving agents (issue 21, ``scenes/million.toml``).
 
 Runs the scene end to end (``crowd.engine.Engine``, as ``crowd run`` does) once per LOD
-mode, each in a subprocess of its own (so its peak memory is its own), and prints per mode:
+mode, each in a subprocess of its own (so its peak memory is its own); ``points-root`` is mode
+points with ``coarse = false`` (every far agent drawn from its whole hierarchy root, as before
+``lod/points/coarse.py``). Prints per mode:
 
 - scene load: seconds from the scene file to the first frame (characters, agents, LOD
   representations, renderer), with the LOD cache warm (a first run builds it: the
@@ -15,7 +17,7 @@ mode, each in a subprocess of its own (so its peak memory is its own), and print
 - the load average before and after, and the busiest other processes at the start
   (the machine is shared: the figures are only comparable within one run).
 
-Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points auto]
+Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points-root points auto]
       [--frames 10] [--warmup 2] [--md scripts/bench_million.md]
 """
 from __future__ import annotations
@@ -52,8 +54,11 @@ def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
     from crowd.scene import load_scene
 
     scene = load_scene(scene_path)
-    params = dict(scene.lod_params) if scene.lod_mode == mode else {}
-    scene = replace(scene, lod_mode=mode, lod_params=tuple(params.items()))
+    base = mode.removesuffix("-root")
+    params = dict(scene.lod_params) if scene.lod_mode == base else {}
+    if mode.endswith("-root"):  # points drawn from whole roots at least (no coarser prefixes): the before
+        params["coarse"] = False
+    scene = replace(scene, lod_mode=base, lod_params=tuple(params.items()))
     est = estimate_scene(scene)
     t0 = time.perf_counter()
     with Engine(scene, quiet=True) as eng:
@@ -94,7 +99,7 @@ def busiest(n: int = 6) -> list[str]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scene", default=str(ROOT / "scenes" / "million.toml"))
-    ap.add_argument("--modes", nargs="+", default=["points", "auto"])
+    ap.add_argument("--modes", nargs="+", default=["points-root", "points", "auto"])
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--md", default=str(ROOT / "scripts" / "bench_million.md"))
@@ -106,9 +111,9 @@ def main(argv=None) -> int:
         _fail(f"--scene: {a.scene}: no such file")
     from lod.modes import MODES
 
-    bad = [m for m in a.modes if m not in MODES]
+    bad = [m for m in a.modes if m not in MODES and m != "points-root"]
     if bad:
-        _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}")
+        _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}, points-root")
     if a.one:
         print(json.dumps(run_one(a.scene, a.one, a.frames, a.warmup)))
         return 0
