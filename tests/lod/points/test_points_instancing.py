@@ -42,7 +42,10 @@ def built(tmp_path_factory):
     """A 2 x 2 grid of 5 x 5 blocks of walkers (depth 2) in mode "points"."""
     h = Hierarchy(parse_levels(LEVELS), character=0, clip=0, period=1.2, origin=(3.0, 0.0, -2.0), yaw=0.3)
     cache = pm_rep.HierarchyCache(tmp_path_factory.mktemp("cache"))
-    reps, sel = pm.build([walker_character()], ["w"], [30], {"splat_size": 2}, progress=False, cache=cache,
+    # coarse prefixes off: the super-hierarchies (§3.6) are compared with flat instances drawn from whole
+    # roots (the flat instances' coarse prefixes, lod/points/coarse.py, draw about as few points as a node)
+    reps, sel = pm.build([walker_character()], ["w"], [30], {"splat_size": 2, "coarse": False}, progress=False,
+                         cache=cache,
                          instancing=Instancing([(0, h)]))
     return h, reps, sel, cache
 
