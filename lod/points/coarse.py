@@ -149,8 +149,9 @@ def add_coarse(h) -> None:
         s, n = int(h.point_start[0, j]), int(h.point_count[0, j])
         order, radius = farthest_order(h.pos0[s:s + n], h.pos1[s:s + n])
         for name in _POINT_ARRAYS:
-            a = getattr(h, name)
-            a[s:s + n] = a[s:s + n][order]
+            a = getattr(h, name, None)
+            if a is not None and a.shape[0] == h.pos0.shape[0]:  # (a super-hierarchy keeps no tri / bary)
+                a[s:s + n] = a[s:s + n][order]
         c, sp = prefix_table(radius, r)
         cnt[j, :] = c[-1]
         spc[j, :] = sp[-1]

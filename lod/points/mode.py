@@ -240,6 +240,9 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
                                      spacing_fraction=float(p["spacing_fraction"]),
                                      cache=cache, splat_size=int(p["splat_size"]), renderer=str(p["renderer"]))
                 memo[key] = sup
+                if bool(p.get("coarse", True)):  # a far tree node coarser than its root too (lod.points.coarse)
+                    for sh in sup.rep.hierarchies:
+                        add_coarse(sh)
             supers.append(sup)
             if d < h.depth:  # (a root of a few coincident sources has spacing 0: keep the finer stop then)
                 r_stop = max(sup.r_root, r_stop) * float(np.abs(h.levels[d].scale).max())
