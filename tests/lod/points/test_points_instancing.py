@@ -176,7 +176,7 @@ def test_build_makes_one_super_rep_per_depth_and_hits_the_cache(built, tmp_path)
             assert np.isfinite(hh.pos0).all() and np.isfinite(hh.col1).all() and hh.tri_order.size == 0
         assert s.rep.segment_triangles(0).shape == (0, 3)
     c2 = pm_rep.HierarchyCache(cache.folder)
-    reps2, _ = pm.build([walker_character()], ["w"], [30], {"splat_size": 2}, progress=False, cache=c2,
+    reps2, _ = pm.build([walker_character()], ["w"], [30], {"splat_size": 2, "coarse": False}, progress=False, cache=c2,
                         instancing=Instancing([(0, h)]))
     assert c2.misses == 0 and c2.hits >= 3 + 2
     np.testing.assert_array_equal(reps2[1].hierarchies[1].pos1, reps[1].hierarchies[1].pos1)
