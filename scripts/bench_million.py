@@ -80,6 +80,61 @@ def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
             "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "estimate": est.total}
 
 
+def kernels(n: int = 1_000_000, repeats: int = 3) -> list:
+    """Serial against parallel for the per-agent kernels this scene runs, on ``n`` agents of the
+    scene's density and a far view: (name, serial median s, parallel median s)."""
+    import numba
+    import numpy as np
+
+    from lod.full import pack
+    from lod.full.reps import build_keyframed_rep
+    from lod.points import coarse
+    from lod.points import mode as pm
+    from lod.points.octree import build_hierarchy
+    from lod.view import Camera
+    from sim.procedural import humanoid
+
+    def med(fn):
+        fn()  # compile / warm
+        ts = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            fn()
+            ts.append(time.perf_counter() - t)
+        return statistics.median(ts)
+
+    rng = np.random.default_rng(0)
+    out = []
+    kf = build_keyframed_rep(pm.keyframed_character(humanoid(5000, 21), 3), key="w")
+    h = build_hierarchy(*pm.segment_arrays(kf, 0), seed=0, progress=False)
+    coarse.add_coarse(h)
+    data = np.zeros((n, 16), np.float32)
+    yaw = rng.uniform(-3, 3, n)
+    data[:, 0], data[:, 2], data[:, 5], data[:, 8], data[:, 10] = np.cos(yaw), np.sin(yaw), 1, -np.sin(yaw), np.cos(yaw)
+    data[:, 3], data[:, 7], data[:, 11] = rng.uniform(-1000, 1000, n), -1000.0, -rng.uniform(1200, 3200, n)
+    data[:, 12] = rng.uniform(0, 1, n)
+    cam = Camera.look_at((0.0, 0.0, 0.0), (0.0, -1000.0, -2200.0), fov_y=50.0, near=1.0, far=1e4)
+    planes = cam.frustum_planes(16 / 9)
+    vs = 720 / (2 * np.tan(np.radians(25.0)))
+    times = []
+    for lim in (10 ** 12, pm.TRAVERSE_PARALLEL_MIN):
+        pm.TRAVERSE_PARALLEL_MIN = lim
+        times.append(med(lambda: pm.traverse_instances(h, data, planes, vs, 2.0)))
+    out.append(("points traversal (lod/points/mode.py)", *times))
+    pos = np.c_[rng.uniform(-1000, 1000, n), np.zeros(n), rng.uniform(-1000, 1000, n)]
+    G = 15
+    args = (pos, np.array([0.0, 1000.0, 2200.0]), rng.uniform(-3, 3, n), np.ones(n), rng.integers(0, G, n),
+            rng.uniform(0, 2, n), rng.uniform(0, 1, n), np.c_[np.zeros((G, 3)), np.ones(G)], np.zeros(G, bool),
+            np.zeros(G), np.full(G, 30.0), np.ones(G), np.ones(G, bool), np.full(G, 30.0), planes, True)
+    times = []
+    for lim in (10 ** 12, pack.PACK_PARALLEL_MIN):
+        pack.PACK_PARALLEL_MIN = lim
+        times.append(med(lambda: pack.instance_batches(*args)))
+    out.append(("instance packing (lod/full/pack.py)", *times))
+    out.append(("numba threads", numba.get_num_threads(), numba.get_num_threads()))
+    return out
+
+
 def scene_agents(scene) -> int:
     from crowd.memory import placement_agents
 
@@ -104,6 +159,7 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--md", default=str(ROOT / "scripts" / "bench_million.md"))
     ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mode, print JSON
+    ap.add_argument("--no-kernels", action="store_true", help="skip the serial/parallel kernel comparison")
     a = ap.parse_args(argv)
     if a.frames < 1 or a.warmup < 0:
         _fail(f"--frames: expected >= 1 and --warmup >= 0, got {a.frames} and {a.warmup}")
@@ -127,6 +183,7 @@ def main(argv=None) -> int:
             last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit code {p.returncode}"
             _fail(f"mode {m}: the run failed: {last}")
         results.append(json.loads(p.stdout.strip().splitlines()[-1]))
+    kern = [] if a.no_kernels else kernels()
     load1 = os.getloadavg()
     lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | points/agent | triangles | "
              "peak RSS GB | guard estimate GB |",
@@ -138,8 +195,17 @@ def main(argv=None) -> int:
                      f"{r['peak_rss'] / 1e9:.2f} | {r['estimate'] / 1e9:.2f} |")
     head = (f"Scene {Path(a.scene).name}: {results[0]['agents']:,} agents; medians of {a.frames} frames after "
             f"{a.warmup} warm-up frames; load average {load0[0]:.1f} before, {load1[0]:.1f} after.")
+    klines = ["| kernel (1,000,000 agents, far view) | serial ms | parallel ms | serial / parallel |",
+              "| --- | ---: | ---: | ---: |"]
+    for name, s, p in kern:
+        if name == "numba threads":
+            klines.append(f"| numba threads | {s} | {p} | |")
+        else:
+            klines.append(f"| {name} | {1e3 * s:.0f} | {1e3 * p:.0f} | {s / p:.2f} |")
     print(head)
     print("\n".join(lines))
+    if kern:
+        print("\n".join(klines))
     import platform
 
     from render.context import create_context, gl_info
@@ -151,7 +217,7 @@ def main(argv=None) -> int:
           f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, Python "
           f"{platform.python_version()}, {gl}.", "",
           f"Command: `{' '.join(['.venv/bin/python', 'scripts/bench_million.py'] + (argv or sys.argv[1:]))}`", "",
-          head, "", *lines, "",
+          head, "", *lines, "", *((klines + [""]) if kern else []),
           "Busiest processes at the start (the machine is shared): " + ", ".join(others) + ".", "",
           "Stages are the engine's telemetry (`frames.csv`) per frame: simulate (boids + animation), select (LOD "
           "selection: culling, packing, traversal, auto's pricing), upload + draw + finish (the renderer). "
