@@ -37,10 +37,9 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 DEFAULT_LOD = ("points:keyframes=3", "points:intervals=1", "auto:keyframes=3", "auto:adapt=false")
-
-
 #: scenes digested only when --scenes names them (scripts/bench_million.py measures the million agents)
 NAMED_ONLY = ("million",)
+
 
 def _value(text: str):
     try:
