@@ -12,7 +12,6 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit
 
-from lod.drawlist import INSTANCE_FLOATS
 
 #: float of the instance data holding the instance's palette slot (i_anim.y)
 PALETTE_SLOT_FLOAT = 13

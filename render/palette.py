@@ -25,7 +25,6 @@ injected limit draws the same pixels as one unchunked palette).
 from __future__ import annotations
 
 import moderngl
-import numpy as np
 
 #: texels per row of the per-frame skinning palette (a multiple of 3, so the
 #: three rows of one matrix never straddle two texture rows)
