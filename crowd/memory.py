@@ -49,6 +49,10 @@ SIM_SCRATCH_PER_AGENT = 3 * STATE_BYTES_PER_AGENT
 #: one frame's selection per agent: instance data 64 B + id 4 B, and the
 #: selector's float64/int64 scratch (group id, time, anim, visibility, order)
 SELECT_BYTES_PER_AGENT = 64 + 4 + 6 * 8
+#: mode auto prices every candidate per agent on top (copies of the instance data, per-candidate cost and
+#: error columns, plans): measured on scenes/million.toml, peak 1.36 GB against 1.00 GB in mode points for a
+#: million agents (scripts/bench_million.md), about 360 B per agent
+AUTO_SELECT_BYTES_PER_AGENT = 400
 #: GPU instance data per agent (16 float32), times 2 for capacity doubling
 GPU_INSTANCE_BYTES = 64 * 2
 #: bytes per vertex of a skinned representation on the CPU and again on the GPU:
@@ -205,7 +209,8 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     n = sum(placement_agents(p.kind, p.params) for p in scene.placements)
     parts = {"runtime": RUNTIME_BYTES,
              "state": n * (STATE_BYTES_PER_AGENT + SIM_SCRATCH_PER_AGENT),
-             "selection": n * SELECT_BYTES_PER_AGENT}
+             "selection": n * (SELECT_BYTES_PER_AGENT + (AUTO_SELECT_BYTES_PER_AGENT if scene.lod_mode == "auto"
+                                                         else 0))}
     cpu = gpu = 0
     joints = []
     for i, spec in enumerate(scene.characters):
