@@ -49,6 +49,10 @@ SIM_SCRATCH_PER_AGENT = 3 * STATE_BYTES_PER_AGENT
 #: one frame's selection per agent: instance data 64 B + id 4 B, and the
 #: selector's float64/int64 scratch (group id, time, anim, visibility, order)
 SELECT_BYTES_PER_AGENT = 64 + 4 + 6 * 8
+#: mode auto prices every candidate per agent on top (copies of the instance data, per-candidate cost and
+#: error columns, plans): measured on scenes/million.toml, peak 1.36 GB against 1.00 GB in mode points for a
+#: million agents (scripts/bench_million.md), about 360 B per agent
+AUTO_SELECT_BYTES_PER_AGENT = 400
 #: GPU instance data per agent (16 float32), times 2 for capacity doubling
 GPU_INSTANCE_BYTES = 64 * 2
 #: bytes per vertex of a skinned representation on the CPU and again on the GPU:
@@ -56,8 +60,9 @@ GPU_INSTANCE_BYTES = 64 * 2
 VERTEX_BYTES = 12 + 12 + 16 + 8 + 16
 #: bytes per triangle (3 uint32 indices)
 TRIANGLE_BYTES = 12
-#: skinning palette cap (texels), as render.renderer.PALETTE_MAX_TEXELS
-PALETTE_MAX_TEXELS = 1 << 25
+#: skinning palette cap (texels): the palette is built and drawn in chunks of at most this many texels,
+#: as render.palette.PALETTE_CHUNK_TEXELS (so its memory does not grow with the crowd)
+PALETTE_MAX_TEXELS = 1 << 22
 #: a glTF file's bytes are multiplied by this to estimate the loaded character
 #: (float64 working copies while importing)
 GLTF_EXPANSION = 4
@@ -204,7 +209,8 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     n = sum(placement_agents(p.kind, p.params) for p in scene.placements)
     parts = {"runtime": RUNTIME_BYTES,
              "state": n * (STATE_BYTES_PER_AGENT + SIM_SCRATCH_PER_AGENT),
-             "selection": n * SELECT_BYTES_PER_AGENT}
+             "selection": n * (SELECT_BYTES_PER_AGENT + (AUTO_SELECT_BYTES_PER_AGENT if scene.lod_mode == "auto"
+                                                         else 0))}
     cpu = gpu = 0
     joints = []
     for i, spec in enumerate(scene.characters):
@@ -217,7 +223,7 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
         cpu += c
         gpu += g
     parts["characters"] = cpu
-    # palette: 3 texels x 16 B per joint per visible skinned instance, buffer + texture, capped
+    # palette: 3 texels x 16 B per joint per visible skinned instance, buffer + texture, one chunk at most
     max_joints = max(joints, default=0)
     palette = 2 * 16 * min(PALETTE_MAX_TEXELS, n * 3 * max_joints)
     w, h = scene.render.size

@@ -14,7 +14,8 @@ GPU resources per character (:class:`lod.clusters.mode.ClustersRep`):
 
 Per frame, the instances of one character (all its clips) are grouped by
 identical cut and sorted so that every group is a contiguous instance range;
-the skinning palette is built once for all of them (the renderer's pre-pass);
+the skinning palette is built for all of them (the renderer's pre-pass, in
+chunks that fit the palette texture: ``render/palette.py``);
 then ONE ``glMultiDrawElementsIndirect`` (moderngl ``render_indirect``) per
 character draws every group instanced. Two command layouts
 (``Drawer.strategy``):
@@ -41,10 +42,23 @@ from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
 
 import numpy as np
-from numba import njit
 
 from lod.clusters.morph import collapse_table
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
+from render.cluster_cuts import (  # noqa: F401 (re-exported: the drawer's CPU side)
+    PALETTE_SLOT_FLOAT,
+    _cut_arrays,
+    _gather_kernel,
+    _range_kernel,
+    _slice_item,
+    _sub_csr,
+    gather,
+    gather_numpy,
+    group_cuts,
+    range_commands,
+    range_commands_numpy,
+    split_morph_rows,
+)
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.tint import TintStream, instance_words
 
@@ -52,8 +66,6 @@ from render.tint import TintStream, instance_words
 COMMAND_BYTES = 20
 #: command layouts (module docstring)
 STRATEGIES = ("indices", "ranges")
-#: float of the instance data holding the instance's palette slot (i_anim.y)
-PALETTE_SLOT_FLOAT = 13
 #: floats of a geomorphed row's instance data: height of the ancestor its vertices blend towards (i_anim.z,
 #: negative = none) and the blend weight (i_anim.w); ``shaders/clusters_morph.vert``
 MORPH_HEIGHT_FLOAT = 14
@@ -63,176 +75,6 @@ MORPH_WEIGHT_FLOAT = 15
 OCCLUSION_NEAR_MARGIN = 2.0
 #: occlusion culling: instances drawn untested when the visible set is rebuilt (at least)
 OCCLUSION_FIRST_CHUNK = 16
-
-
-# ---------------------------------------------------------------------------- CPU side (numpy + numba)
-def group_cuts(offsets: np.ndarray, clusters: np.ndarray):
-    """Group instances by identical cut.
-
-    Parameters
-    ----------
-    offsets : (k+1,) int64 CSR offsets; clusters : (offsets[-1],) int32
-
-    Returns
-    -------
-    order : (k,) int64 instance order with each group contiguous (groups in
-        order of first appearance, instances in original order within a group)
-    counts : (G,) int64 instances per group
-    first : (G,) int64 an instance (original index) of each group
-    """
-    k = int(offsets.shape[0]) - 1
-    ids: dict = {}
-    gid = np.empty(k, np.int64)
-    raw = np.ascontiguousarray(clusters, np.int32)
-    for i in range(k):
-        gid[i] = ids.setdefault(raw[offsets[i]:offsets[i + 1]].tobytes(), len(ids))
-    order = np.argsort(gid, kind="stable")
-    counts = np.bincount(gid, minlength=len(ids)).astype(np.int64)
-    first = np.full(len(ids), -1, np.int64)
-    first[gid[::-1]] = np.arange(k - 1, -1, -1)
-    return order, counts, first
-
-
-def gather_numpy(flat_indices, tri_start, cut_offsets, cut_clusters):
-    """Reference of :func:`gather`: the concatenated triangles of each cut.
-
-    Parameters
-    ----------
-    flat_indices : (3M,) uint16/uint32 hierarchy indices, flattened
-    tri_start : (N+1,) int64
-    cut_offsets : (G+1,) int64; cut_clusters : int32 (CSR cuts)
-
-    Returns
-    -------
-    out : (3 * triangles,) uint32; first : (G+1,) int64 first index element of each cut
-    """
-    parts, first = [], [0]
-    for g in range(cut_offsets.shape[0] - 1):
-        n = 0
-        for c in cut_clusters[cut_offsets[g]:cut_offsets[g + 1]]:
-            a, b = 3 * int(tri_start[c]), 3 * int(tri_start[c + 1])
-            parts.append(np.asarray(flat_indices[a:b], np.uint32))
-            n += b - a
-        first.append(first[-1] + n)
-    out = np.concatenate(parts) if parts else np.zeros(0, np.uint32)
-    return out, np.asarray(first, np.int64)
-
-
-@njit(cache=True)
-def _gather_kernel(flat, tri_start, co, cc, first, out):  # pragma: no cover - compiled
-    for g in range(co.shape[0] - 1):
-        o = first[g]
-        for j in range(co[g], co[g + 1]):
-            c = cc[j]
-            for e in range(3 * tri_start[c], 3 * tri_start[c + 1]):
-                out[o] = flat[e]
-                o += 1
-
-
-def gather(flat_indices, tri_start, cut_offsets, cut_clusters):
-    """The concatenated triangles of each cut (numba; see :func:`gather_numpy`)."""
-    tc = 3 * np.diff(tri_start)
-    per = tc[cut_clusters] if cut_clusters.size else np.zeros(0, np.int64)
-    cs = np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
-    first = cs[cut_offsets]
-    out = np.empty(int(first[-1]) if first.size else 0, np.uint32)
-    if out.size:
-        _gather_kernel(flat_indices, np.asarray(tri_start, np.int64), np.asarray(cut_offsets, np.int64),
-                       np.asarray(cut_clusters, np.int32), first, out)
-    return out, first
-
-
-def range_commands_numpy(tri_start, cut_offsets, cut_clusters, counts, base):
-    """Reference of :func:`range_commands`: (C, 5) uint32 indirect commands, one
-    per run of consecutive clusters (adjacent in the hierarchy's index buffer)
-    of each cut; cut g is drawn ``counts[g]`` times from instance ``base[g]``."""
-    rows = []
-    for g in range(cut_offsets.shape[0] - 1):
-        cl = cut_clusters[cut_offsets[g]:cut_offsets[g + 1]]
-        j = 0
-        while j < cl.shape[0]:
-            a = int(tri_start[cl[j]])
-            b = int(tri_start[cl[j] + 1])
-            while j + 1 < cl.shape[0] and int(tri_start[cl[j + 1]]) == b:
-                j += 1
-                b = int(tri_start[cl[j] + 1])
-            if b > a:
-                rows.append((3 * (b - a), int(counts[g]), 3 * a, 0, int(base[g])))
-            j += 1
-    return np.asarray(rows, np.uint32).reshape(-1, 5)
-
-
-@njit(cache=True)
-def _range_kernel(tri_start, co, cc, counts, base, out):  # pragma: no cover - compiled
-    n = 0
-    for g in range(co.shape[0] - 1):
-        j = co[g]
-        while j < co[g + 1]:
-            a = tri_start[cc[j]]
-            b = tri_start[cc[j] + 1]
-            while j + 1 < co[g + 1] and tri_start[cc[j + 1]] == b:
-                j += 1
-                b = tri_start[cc[j] + 1]
-            if b > a:
-                out[n, 0] = 3 * (b - a)
-                out[n, 1] = counts[g]
-                out[n, 2] = 3 * a
-                out[n, 3] = 0
-                out[n, 4] = base[g]
-                n += 1
-            j += 1
-    return n
-
-
-def range_commands(tri_start, cut_offsets, cut_clusters, counts, base):
-    """(C, 5) uint32 indirect commands per run of consecutive clusters (numba)."""
-    out = np.empty((max(int(cut_clusters.shape[0]), 1), 5), np.uint32)
-    n = _range_kernel(np.asarray(tri_start, np.int64), np.asarray(cut_offsets, np.int64),
-                      np.asarray(cut_clusters, np.int32), np.asarray(counts, np.int64),
-                      np.asarray(base, np.int64), out)
-    return out[:n].copy()
-
-
-def split_morph_rows(offsets, clusters, heights, weights):
-    """Split the rows of a geomorphed CSR cut by (morph height, weight) of their entries.
-
-    Parameters
-    ----------
-    offsets : (k+1,) int64; clusters : (E,) int32 the union cuts (``lod.clusters.morph.morph_union``)
-    heights : (E,) int32 morph height per entry (< 0: unmoved); weights : (E,) float32 blend weights
-
-    Returns
-    -------
-    offsets : (m+1,) int64; clusters : (E,) int32 the entries regrouped, one row per distinct
-        (instance, height, weight) in instance order
-    rows : (m,) int64 the instance each new row belongs to
-    heights, weights : (m,) float32 the row's morph height and weight (as the instance data stores them)
-    """
-    offsets = np.asarray(offsets, np.int64)
-    clusters = np.asarray(clusters, np.int32)
-    h = np.asarray(heights, np.int64)
-    w = np.asarray(weights, np.float32)
-    if not (h.shape == w.shape == clusters.shape):
-        raise ValueError(f"geomorphed cut: {clusters.shape[0]} clusters, {h.shape[0]} heights, {w.shape[0]} weights")
-    w = np.where(h < 0, np.float32(0.0), np.nan_to_num(w, nan=0.0, posinf=1.0, neginf=0.0)).astype(np.float32)
-    inst = np.repeat(np.arange(offsets.shape[0] - 1), np.diff(offsets))
-    order = np.lexsort((w, h, inst))
-    inst, h, w, c = inst[order], h[order], w[order], clusters[order]
-    new = np.ones(inst.shape[0], bool)
-    new[1:] = (inst[1:] != inst[:-1]) | (h[1:] != h[:-1]) | (w[1:] != w[:-1])
-    starts = np.flatnonzero(new)
-    out_off = np.append(starts, inst.shape[0]).astype(np.int64)
-    return out_off, c, inst[starts].astype(np.int64), h[starts].astype(np.float32), w[starts]
-
-
-def _cut_arrays(b, n_leaves: int):
-    """(offsets, clusters) of a batch: its cut, or every leaf (full detail) for a plain DrawBatch."""
-    off = getattr(b, "offsets", None)
-    if off is not None and off.shape[0] == b.n_instances + 1:
-        return np.asarray(off, np.int64), np.asarray(b.clusters, np.int32)
-    k = b.n_instances
-    return (np.arange(k + 1, dtype=np.int64) * n_leaves,
-            np.tile(np.arange(n_leaves, dtype=np.int32), k))
 
 
 # ---------------------------------------------------------------------------- GPU side
@@ -550,24 +392,36 @@ class Drawer:
         self.last_stats = stats
         if not items:
             return
-        # the skinning palette of every instance, once (the renderer's pre-pass over a buffer of its own)
+        # the skinning palette of every instance (the renderer's pre-pass over a buffer of its own), in chunks
+        # that fit the palette (render.palette.plan_chunks); one chunk is the whole frame unless it is huge
         all_data = np.concatenate([it.data for it in items])
         pal = self._grow("_pal", all_data.nbytes, "clusters.palette_instances")
         pal.orphan(self._pal_cap)
         pal.write(all_data)
         offs = np.concatenate([[0], np.cumsum([it.k for it in items])[:-1]])
-        pbases = r._build_palette([(it.st.skin, pal, int(o) * INSTANCE_FLOATS * 4, it.k)
-                                   for it, o in zip(items, offs)])
-        r.fbo.use()
+        chunks = r._palette_chunks([(it.st.skin, pal, int(o) * INSTANCE_FLOATS * 4, it.k)
+                                    for it, o in zip(items, offs)])
         for name in {it.program for it in items}:
             r._set_uniforms(r.program(name), view_proj)
         P = np.asarray(drawlist.proj, np.float64)
         if P[2, 2] != 1.0 and np.isfinite(P[2, 3] / (P[2, 2] - 1.0)):
             self._near = abs(float(P[2, 3] / (P[2, 2] - 1.0)))
-        if any(it.st.occlusion for it in items):
-            self._draw_occlusion(items, pbases, view_proj, stats)
-        else:
-            self._submit(items, [np.arange(it.k) for it in items], pbases, stats)
+        occlusion = any(it.st.occlusion for it in items)
+        prev, merged = self._pvs, {}
+        for ch in chunks:
+            sub = items if len(chunks) == 1 else [_slice_item(items[d], f, n) for _, _, _, n, d, f in ch]
+            pbases = r._build_palette([p[:4] for p in ch])
+            r.fbo.use()
+            if occlusion:
+                self._pvs = prev  # every chunk reads the previous frame's visible set
+                self._draw_occlusion(sub, pbases, view_proj, stats)
+                for k, v in self._pvs.items():
+                    merged[k] = np.union1d(merged[k], v) if k in merged else v
+            else:
+                self._submit(sub, [np.arange(it.k) for it in sub], pbases, stats)
+        if occlusion:
+            self._pvs = merged
+        stats["palette_chunks"] = len(chunks)
         self.frame += 1
 
     # ------------------------------------------------------------------ occlusion culling (§5.2)
@@ -680,19 +534,6 @@ class Drawer:
         for it, d in zip(items, drawn):
             pvs.setdefault(it.key, []).append(it.ids[d])
         self._pvs = {k: np.unique(np.concatenate(v)) for k, v in pvs.items()}
-
-
-def _sub_csr(offsets: np.ndarray, clusters: np.ndarray, sub: np.ndarray):
-    """CSR (offsets, clusters) of the rows ``sub`` (int array) of a CSR array."""
-    sub = np.asarray(sub, np.int64)
-    lens = offsets[sub + 1] - offsets[sub]
-    out_off = np.zeros(sub.shape[0] + 1, np.int64)
-    np.cumsum(lens, out=out_off[1:])
-    total = int(out_off[-1])
-    if total == 0:
-        return out_off, np.zeros(0, np.int32)
-    idx = np.repeat(offsets[sub] - out_off[:-1], lens) + np.arange(total)
-    return out_off, clusters[idx]
 
 
 #: 12 triangles of a box whose corner c has coordinates ((c >> 0) & 1, (c >> 1) & 1, (c >> 2) & 1)

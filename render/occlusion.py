@@ -467,3 +467,46 @@ def batch_bounds(h, jobs, data, which: str, view_proj, size, pad: float) -> tupl
                          np.ascontiguousarray(view_proj, np.float64), float(w), float(hh), float(pad), rect, zmin)
     r, z = _clamp_rects(rect, zmin, w, hh)
     return r, z, nodes
+
+
+def split_first(reps: dict, pvs: np.ndarray, by_fade: dict, tris: list, groups: list, vp, size,
+                splat: int) -> tuple:
+    """Screen bounds of every job of the point drawer's frame (``render.points``: ``reps`` its GPU reps,
+    the job tables ``tris`` and ``groups``; each job's node box at its instance's u) and the nearest share
+    drawn before the occlusion test, with the jobs visible last frame (``pvs``).
+
+    Returns (tri_first, pt_first: a bool mask per table, tri_bounds, pt_bounds:
+    a (rect, zmin) pair per table)."""
+    pad = float(splat) + 1.0  # the splat footprint (and a pixel of rounding) around the box
+
+    rep_no = {k: i for i, k in enumerate(reps)}
+
+    def bounds(bs, key, which):  # (rect, zmin, key of the job: rep number mixed into job_key)
+        rs, zs, ks = [], [], []
+        for b in bs:  # the order of job_table: batches of rep ``key`` in order, jobs with a count
+            if b.rep != key:
+                continue
+            j = np.asarray(getattr(b, which), np.int64).reshape(-1, 3)
+            j = j[j[:, 2] > 0]
+            if not j.shape[0]:
+                continue
+            r_, z_, nodes = batch_bounds(reps[key].hier[b.part], j, b.instance_data, which, vp, size, pad)
+            rs.append(r_)
+            zs.append(z_)
+            ks.append(job_key(0, np.asarray(b.instance_ids, np.int64).reshape(-1)[j[:, 0]], nodes))
+        if not rs:
+            return np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64)
+        return np.concatenate(rs), np.concatenate(zs), np.concatenate(ks) ^ np.int64(rep_no[key] << 56)
+
+    tb = [bounds(by_fade[f], k, "tri_jobs") for f, k, _, _ in tris]
+    pb = []
+    for fade, _ in groups:
+        parts = [bounds(by_fade[fade], k, "point_jobs") for k in reps]
+        pb.append(tuple(np.concatenate([p[i] for p in parts]) for i in range(3)))
+    z = np.concatenate([b[1] for b in tb + pb])
+    work = np.concatenate([TRIANGLE_WEIGHT * t[3][:, 1].astype(np.float64) for t in tris]
+                          + [j[:, 1].astype(np.float64) for _, j in groups])
+    first = first_share(z, work) | np.isin(np.concatenate([b[2] for b in tb + pb]), pvs)
+    cuts = np.cumsum([b[1].shape[0] for b in tb + pb])[:-1]
+    masks = np.split(first, cuts)
+    return masks[:len(tb)], masks[len(tb):], tb, pb

@@ -46,10 +46,10 @@ import numpy as np
 
 from lod.drawlist import fade_uniform
 from render import occlusion as occ
-from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs,  # noqa: F401 (re-exported)
-                                 rect_vertices, resolve_rects)
+from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
+from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
-from render.tint import batch_words
+from render.tint import TINT_BYTES, batch_words
 
 #: threads per work group of the splat passes (they stride over each job's points); 8 is
 #: llvmpipe's SIMD width and measured 2x faster than 64 there (mean job: 160
@@ -64,6 +64,11 @@ MARGIN = 2
 #: measured 1.2x faster than 1 on the grid's draw (20.0 vs 25.9 ms at 640x480,
 #: 42.5 vs 49.7 ms at 1280x720) and no slower on long jobs
 SPLAT_JOBS_PER_GROUP = 16
+#: jobs of at most this many points are splatted one job per thread (``THREAD_PER_JOB`` in
+#: points_splat.glsl) instead of one job per work group: a far crowd drawn coarser than its roots
+#: (lod/points/coarse.py) has a million jobs of one or two points, where a work group per job
+#: leaves 7 of its 8 threads idle; the image is the same (the passes' atomics are order-free)
+SHORT_JOB_POINTS = 4
 #: side (anchor slots) of the tiles the depth pass marks: the resolve draws only
 #: the blocks of pixels whose footprints reach a marked tile and the next clear
 #: resets only marked tiles; a far view fills few of them (the 400-instance splat
@@ -80,6 +85,9 @@ FULL_RESOLVE_SHARE = 0.6
 FULL_CLEAR_SHARE = 0.5
 #: work-group size of the clear pass (must match points_clear.glsl)
 CLEAR_GROUP = 256
+#: instance rows of a storage-buffer window are a multiple of this (32 x 64 B instance rows, 32 x 8 B colour
+#: words: offsets on 256-byte boundaries)
+WINDOW_ROWS = 32
 #: largest work-group count per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS_X = 65535
 #: bytes per sample (point or vertex): uvec4 geo, uvec4 attr (points_common.glsl)
@@ -270,6 +278,8 @@ class Drawer:
             raise RuntimeError(f"[lod] mode 'points' needs OpenGL 4.3 (compute shaders and storage buffers); this "
                                f"context offers {self.ctx.version_code // 100}.{self.ctx.version_code % 100 // 10}")
         self.path = None
+        #: bytes one storage-buffer binding may address (None: the context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE)
+        self.ssbo_limit = None
         self._reps: dict[str, _GpuPoints] = {}
         self._objects: list = []
         self._bufs: dict = {}
@@ -441,9 +451,21 @@ class Drawer:
         inst = np.concatenate([fold_box(b.instance_data, *self._reps[b.rep].box) for b in batches])
         if not np.isfinite(inst).all():
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
-        self._buffer("instances", inst).bind_to_storage_buffer(1)
+        inst_buf = self._buffer("instances", inst)
         # colour words per instance row (variation, debug colour: render/tint.py, shaders/tint.glsl)
-        self._buffer("tints", batch_words(batches, self.r.tint_table)).bind_to_storage_buffer(12)
+        tint_buf = self._buffer("tints", batch_words(batches, self.r.tint_table))
+        row_bytes = inst.shape[1] * inst.itemsize
+        limit = self.ssbo_limit or int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27))
+        # instance rows one storage binding can hold (render/points_frame.py), a multiple of WINDOW_ROWS so
+        # every window's offset meets GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT (<= 256 bytes in practice)
+        window = max(WINDOW_ROWS, limit // row_bytes // WINDOW_ROWS * WINDOW_ROWS)
+
+        def bind_rows(first):  # instance rows first .. first + window - 1 (and their colour words)
+            n = min(window, rows - first)
+            inst_buf.bind_to_storage_buffer(1, offset=first * row_bytes, size=n * row_bytes)
+            tint_buf.bind_to_storage_buffer(12, offset=first * TINT_BYTES, size=n * TINT_BYTES)
+
+        self._win = (bind_rows, rows, window, limit)
         w, h = self.r.size
         vp = np.asarray(view_proj, np.float64)
         # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.temporal.selection) draw together
@@ -480,7 +502,8 @@ class Drawer:
         if not groups:
             return
         self._points.bind_to_storage_buffer(0)
-        if path == "gl_points":
+        if path == "gl_points":  # the reference path: one binding (not windowed)
+            bind_rows(0)
             self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in groups)
             prog = self._program("points_gl")
             self._uniforms(prog, vp)
@@ -570,15 +593,24 @@ class Drawer:
                 continue
             if "u_fade" in tprog:
                 tprog["u_fade"].value = fade
-            # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
-            # vertex shared by several triangles is transformed once
-            items, index = indexed_triangle_jobs(jobs, g.tri_corners, g.tri_ranges)
-            self._buffer("tri_items", items).bind_to_storage_buffer(7)
-            g.verts.bind_to_storage_buffer(5)
-            ibo = self._buffer("tri_index", index)
-            vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
-                                                                                index_element_size=4))
-            vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
+            bind_rows, rows, window, limit = self._win
+            pieces = instance_windows(jobs, rows, window, max(1, limit // 16))
+            while pieces:
+                first, piece = pieces.pop(0)
+                # indexed: one (vertex, instance) item per vertex a job's triangles use, so a
+                # vertex shared by several triangles is transformed once
+                items, index = indexed_triangle_jobs(piece, g.tri_corners, g.tri_ranges)
+                if items.nbytes > limit and piece.shape[0] > 1:  # halve until it binds
+                    half = piece.shape[0] // 2
+                    pieces[:0] = [(first, piece[:half]), (first, piece[half:])]
+                    continue
+                bind_rows(first)
+                self._buffer("tri_items", items).bind_to_storage_buffer(7)
+                g.verts.bind_to_storage_buffer(5)
+                ibo = self._buffer("tri_index", index)
+                vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
+                                                                                    index_element_size=4))
+                vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += int(jobs[-1, 1]) + int(jobs[-1, 3])
 
     def _splat(self, groups, vp, splat: int, color: bool) -> None:
@@ -587,59 +619,31 @@ class Drawer:
         w, h = self.r.size
         common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
                   f"TILE {TILE}")
-        cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common)
-        self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
+        bind_rows, rows, window, limit = self._win
+        # per fade: the short jobs (one per thread) and the others (one per work group), in windows that bind
         for fade, jobs in groups:
             if not jobs.shape[0]:
                 continue
-            self._buffer("point_jobs", jobs).bind_to_storage_buffer(2)
-            if "u_fade" in cs:
-                cs["u_fade"].value = fade
-            cs["u_njobs"].value = int(jobs.shape[0])
-            self._dispatch(cs, int(jobs.shape[0]), SPLAT_JOBS_PER_GROUP)
-            self.ctx.memory_barrier()
+            short = jobs[:, 1] <= SHORT_JOB_POINTS
+            for thread, sel in ((True, short), (False, ~short)):
+                if not sel.any():
+                    continue
+                t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
+                cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common
+                                   + (("THREAD_PER_JOB",) if thread else ()))
+                self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
+                if "u_fade" in cs:
+                    cs["u_fade"].value = fade
+                for first, piece in instance_windows(t, rows, window, limit // 16):
+                    bind_rows(first)
+                    self._buffer("point_jobs", piece).bind_to_storage_buffer(2)
+                    cs["u_njobs"].value = int(piece.shape[0])
+                    self._dispatch(cs, int(piece.shape[0]), SPLAT_JOBS_PER_GROUP * (SPLAT_GROUP if thread else 1))
+                    self.ctx.memory_barrier()
 
     def _occlusion_split(self, by_fade, tris, groups, vp, splat: int) -> tuple:
-        """Screen bounds of every job (its node's box at its instance's u) and the
-        nearest share drawn before the occlusion test (render.occlusion).
-
-        Returns (tri_first, pt_first: a bool mask per table, tri_bounds, pt_bounds:
-        a (rect, zmin) pair per table)."""
-        size = self.r.size
-        pad = float(splat) + 1.0  # the splat footprint (and a pixel of rounding) around the box
-
-        rep_no = {k: i for i, k in enumerate(self._reps)}
-
-        def bounds(bs, key, which):  # (rect, zmin, key of the job: rep number mixed into occ.job_key)
-            rs, zs, ks = [], [], []
-            for b in bs:  # the order of job_table: batches of rep ``key`` in order, jobs with a count
-                if b.rep != key:
-                    continue
-                j = np.asarray(getattr(b, which), np.int64).reshape(-1, 3)
-                j = j[j[:, 2] > 0]
-                if not j.shape[0]:
-                    continue
-                r_, z_, nodes = occ.batch_bounds(self._reps[key].hier[b.part], j, b.instance_data, which, vp, size,
-                                                 pad)
-                rs.append(r_)
-                zs.append(z_)
-                ks.append(occ.job_key(0, np.asarray(b.instance_ids, np.int64).reshape(-1)[j[:, 0]], nodes))
-            if not rs:
-                return np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64)
-            return np.concatenate(rs), np.concatenate(zs), np.concatenate(ks) ^ np.int64(rep_no[key] << 56)
-
-        tb = [bounds(by_fade[f], k, "tri_jobs") for f, k, _, _ in tris]
-        pb = []
-        for fade, _ in groups:
-            parts = [bounds(by_fade[fade], k, "point_jobs") for k in self._reps]
-            pb.append(tuple(np.concatenate([p[i] for p in parts]) for i in range(3)))
-        z = np.concatenate([b[1] for b in tb + pb])
-        work = np.concatenate([occ.TRIANGLE_WEIGHT * t[3][:, 1].astype(np.float64) for t in tris]
-                              + [j[:, 1].astype(np.float64) for _, j in groups])
-        first = occ.first_share(z, work) | np.isin(np.concatenate([b[2] for b in tb + pb]), self._pvs)
-        cuts = np.cumsum([b[1].shape[0] for b in tb + pb])[:-1]
-        masks = np.split(first, cuts)
-        return masks[:len(tb)], masks[len(tb):], tb, pb
+        """render.occlusion.split_first over this frame's job tables (the nearest share drawn first)."""
+        return occ.split_first(self._reps, self._pvs, by_fade, tris, groups, vp, self.r.size, splat)
 
     def _clear(self) -> None:
         """Reset the anchor slots (and tile flags) the last frame filled: all

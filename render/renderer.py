@@ -9,7 +9,9 @@ Draw paths (one program each, shaders in ``render/shaders/``):
   (``palette.vert``, one point per matrix row and instance) blends every drawn
   instance's matrices between the two baked frames around its fractional
   frame coordinate and the result is copied (GPU-side) into a palette
-  texture; the vertex shader then reads 3 texels per influence. The "direct"
+  texture (``render/palette.py``; a frame whose palette would not fit the
+  texture is drawn in chunks, each pre-pass followed by its draws); the
+  vertex shader then reads 3 texels per influence. The "direct"
   path (``skinned_direct.vert``) blends both frames per vertex (6 texels per
   influence); it is kept for comparison and as a fallback. Blending matrices
   is exact for LBS (see ``lod.full.reps.SkinnedRep``).
@@ -63,6 +65,8 @@ import numpy as np
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
+from render.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
+                            plan_chunks)
 from render.shaders import program_sources
 from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
@@ -73,12 +77,6 @@ from render.tint import TintStream, batch_words
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
 #: initial capacity of the per-frame instance buffer (instances)
 INITIAL_INSTANCES = 1024
-#: texels per row of the per-frame skinning palette (a multiple of 3, so the
-#: three rows of one matrix never straddle two texture rows)
-PALETTE_WIDTH = 4095
-#: most palette texels per frame: the shader locates an instance's block with a
-#: float division corrected by one row, exact up to 2**25
-PALETTE_MAX_TEXELS = 1 << 25
 #: skinning paths: "palette" (per-frame pre-pass, default) or "direct"
 SKINNING_MODES = ("palette", "direct")
 #: environment variable that turns on debug checks (finite instance data)
@@ -200,10 +198,7 @@ class Renderer:
         #: (n agents,) uint32 variation words (render.tint.variation_table) or None; the app sets it
         self.tint_table = None
         self._tint = self._track(TintStream(ctx), "crowd.instance_tints")
-        self.palette_width = PALETTE_WIDTH
-        self._palette_buf = None
-        self._palette_tex = None
-        self._palette_rows = 0
+        self._palette = Palette(ctx, self._track, self._objects.remove)  # render/palette.py
         # separate queries, nested: a combined samples+time query reads a
         # constant ~20 ns on llvmpipe (see gpu_seconds)
         self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
@@ -250,61 +245,28 @@ class Renderer:
             self._programs[key] = self._track(prog, label)
         return self._programs[key]
 
-    def _ensure_palette(self, rows: int) -> None:
-        """Palette buffer and texture large enough for ``rows`` texel rows."""
-        if rows <= self._palette_rows:
-            return
-        if self.palette_width % 3 or not 3 <= self.palette_width <= int(self.ctx.info["GL_MAX_TEXTURE_SIZE"]):
-            raise ValueError(f"Renderer.palette_width: expected a multiple of 3 within the GL texture limit, "
-                             f"got {self.palette_width}")
-        cap = max(1, self._palette_rows)
-        while cap < rows:
-            cap *= 2
-        limit = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        if rows > limit:
-            raise ValueError(f"Renderer: the skinning palette needs {rows} texture rows, above the GL limit {limit}; "
-                             "draw fewer skinned instances per frame or use Renderer(skinning='direct')")
-        cap = min(cap, limit)
-        for o in (self._palette_tex, self._palette_buf):
-            if o is not None:
-                o.release()
-                self._objects.remove(o)
-        width = self.palette_width
-        self._palette_buf = self._track(self.ctx.buffer(reserve=cap * width * 16, dynamic=True),
-                                        "render.palette_buffer")
-        self._palette_tex = self._track(self.ctx.texture((width, cap), 4, dtype="f4"), "render.palette")
-        self._palette_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self._palette_rows = cap
+    # the skinning palette lives in render/palette.py; these forward to it
+    palette_width = property(lambda self: self._palette.width, lambda self, v: setattr(self._palette, "width", v),
+                             doc="texels per palette row (a multiple of 3)")
+    palette_chunk_texels = property(lambda self: self._palette.max_texels,
+                                    lambda self, v: setattr(self._palette, "max_texels", int(v)),
+                                    doc="most palette texels per chunk (render.palette)")
+    _palette_tex = property(lambda self: self._palette.texture)
 
     def _build_palette(self, items) -> list:
-        """Run the palette pre-pass for skinned draws.
+        """Palette pre-pass of one chunk (``render.palette.Palette.build``): items are
+        (_GpuRep, instance buffer, byte offset of the first instance, count); returns
+        each item's first palette texel, the texture bound to unit 1."""
+        return self._palette.build(self.program("palette", ("v_row",)), items, INSTANCE_BYTES)
 
-        items : list of (_GpuRep, instance buffer, byte offset of the batch's
-            first instance, instance count). Returns each item's first palette
-            texel; leaves the palette texture bound to texture unit 1.
-        """
-        total = sum(k * 3 * g.n_joints for g, _, _, k in items)
-        if total > PALETTE_MAX_TEXELS:
-            raise ValueError(f"Renderer: {total} skinning-palette texels this frame exceed {PALETTE_MAX_TEXELS} "
-                             "(instances x 3 x joints); draw fewer skinned instances or use skinning='direct'")
-        if self._palette_tex is not None and self._palette_tex.width != self.palette_width:
-            self._palette_rows = 0  # width changed: rebuild
-        rows = max(1, -(-total // self.palette_width))
-        self._ensure_palette(rows)
-        prog = self.program("palette", ("v_row",))
-        prog["u_joints"].value = 0
-        loc = prog["i_anim"].location
-        bases, base = [], 0
-        for g, buf, offset, k in items:
-            g.joints.use(0)
-            g.palette_vao.bind(loc, "f", buf, "4f", offset=offset + 48, stride=INSTANCE_BYTES, divisor=1)
-            g.palette_vao.transform(self._palette_buf, self.ctx.POINTS, vertices=3 * g.n_joints, instances=k,
-                                    buffer_offset=base * 16)
-            bases.append(base)
-            base += k * 3 * g.n_joints
-        self._palette_tex.write(self._palette_buf, viewport=(0, 0, self._palette_tex.width, rows))
-        self._palette_tex.use(1)
-        return bases
+    def _palette_chunks(self, items) -> list:
+        """``items`` as :meth:`_build_palette` takes them, cut into chunks that fit
+        (:func:`render.palette.plan_chunks`): a list of item lists, offsets moved to
+        each piece's first instance; each piece also names its item and first instance."""
+        plan = plan_chunks([k for _, _, _, k in items], [3 * g.n_joints for g, _, _, _ in items],
+                           self._palette.chunk_texels)
+        return [[(items[d][0], items[d][1], items[d][2] + f * INSTANCE_BYTES, n, d, f) for d, f, n in ch]
+                for ch in plan]
 
     def upload(self, rep) -> None:
         """Create the GPU resources of a representation (``lod.full.mode`` rep);
@@ -498,9 +460,11 @@ class Renderer:
         if "u_fade" in prog:
             prog["u_fade"].value = (0.0, 0.0)
 
-    def _draw_batch(self, b, palette_base, offset: int, view_proj, used: set) -> None:
-        """Draw built-in batch ``b`` (instance data at byte ``offset``) with ``view_proj``; programs not in
-        ``used`` get their uniforms first. The camera pass and the shadow-map pass (render.shadows) share it."""
+    def _draw_batch(self, b, offset: int, view_proj, used: set, pieces=None, cursor=None) -> None:
+        """Draw built-in batch ``b`` (instance data from byte ``offset``) with ``view_proj``; programs not in
+        ``used`` get their uniforms first. ``pieces``: (first instance, count, palette chunk, item) in draw order
+        (palette skinning: ``cursor``, a render.palette.PaletteCursor, builds each chunk's palette when its first
+        piece comes); default all instances, no palette. The camera pass and the shadow-map pass share it."""
         g = self._reps[b.rep]
         if g.n_indices == 0:
             return
@@ -514,27 +478,28 @@ class Renderer:
             level, weight = int(morph[0]), float(morph[1])
             prog["u_morph_level"].value = level
             prog["u_morph_weight"].value = min(1.0, max(0.0, weight)) if weight == weight else 0.0
-        if g.joints is not None:
-            g.joints.use(0)
         use_targets(prog, g.targets)  # no-op without morph targets
-        if palette_base is not None:
-            prog["u_palette_base"].value = palette_base
-            prog["u_palette_stride"].value = 3 * g.n_joints
         if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
             prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
-        self._bind_instances(vao, locs, self._instances, offset)
-        k = b.n_instances
         if g.kind == "keyframed":
-            self._render_instanced(g, prog, palette_base, offset, int(g.seg_count[b.part]),
-                                   int(g.seg_first[b.part]), k)
+            first, count = int(g.seg_first[b.part]), int(g.seg_count[b.part])
         elif getattr(b, "index_range", None) is not None:  # one level of a LOD chain
             first, count = (int(v) for v in b.index_range)
             if not (0 <= first and 0 <= count and first + count <= g.n_indices):
                 raise ValueError(f"DrawBatch {b.rep!r}: index_range {b.index_range} outside the "
                                  f"{g.n_indices} indices of the representation")
-            self._render_instanced(g, prog, palette_base, offset, count, first, k, vao, locs)
         else:
-            self._render_instanced(g, prog, palette_base, offset, g.default_count, 0, k, vao, locs)
+            first, count = 0, g.default_count
+        for f, k, c, j in pieces or [(0, b.n_instances, -1, 0)]:
+            pb = cursor.base(c, j) if cursor is not None and c >= 0 else None
+            if pb is not None:
+                prog["u_palette_base"].value = pb
+                prog["u_palette_stride"].value = 3 * g.n_joints
+            if g.joints is not None:
+                g.joints.use(0)
+            off = offset + f * INSTANCE_BYTES
+            self._bind_instances(vao, locs, self._instances, off)
+            self._render_instanced(g, prog, pb, off, count, first, k, vao, locs)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
@@ -581,23 +546,26 @@ class Renderer:
         self.fbo.clear(*bg, 1.0, depth=1.0)
         used = set()
         self.last_submissions = 0
+        self._palette.passes = 0
         with self._q_samples, self._q_time:
-            palette = {}
+            starts = np.concatenate([[0], np.cumsum([b.n_instances for b in batches], dtype=np.int64)]) * INSTANCE_BYTES
+            # palette skinning: the skinned batches' instances cut into chunks whose palette fits (render.palette);
+            # each batch is drawn as its pieces (first instance, count, chunk, item of the chunk) in draw order
+            pieces: dict = {}
+            chunks: list = []
             if self.skinning == "palette":
-                items, offs, off = [], [], 0
-                for i, b in enumerate(batches):
-                    g = self._reps[b.rep]
-                    if g.kind == "skinned":
-                        items.append((g, self._instances, off, b.n_instances))
-                        offs.append(i)
-                    off += b.n_instances * INSTANCE_BYTES
-                if items:
-                    palette = dict(zip(offs, self._build_palette(items)))
-                    self.fbo.use()
-            offsets = np.cumsum([0] + [b.n_instances * INSTANCE_BYTES for b in batches]).tolist()
-            self.lighting.shadow_pass(batches, plugin, drawlist, palette, offsets)  # [render] shadows = "map"
+                sk = [i for i, b in enumerate(batches)
+                      if self._reps[b.rep].kind == "skinned" and self._reps[b.rep].n_indices]
+                chunks = self._palette_chunks([(self._reps[batches[i].rep], self._instances, int(starts[i]),
+                                                batches[i].n_instances) for i in sk]) if sk else []
+                for c, ch in enumerate(chunks):
+                    for j, piece in enumerate(ch):
+                        pieces.setdefault(sk[piece[4]], []).append((piece[5], piece[3], c, j))
+            cursor = PaletteCursor(self._build_palette, chunks, self.ctx)
+            offsets = starts.tolist()
+            self.lighting.shadow_pass(batches, plugin, drawlist, pieces, cursor, offsets)  # [render] shadows = "map"
             for i, b in enumerate(batches):
-                self._draw_batch(b, palette.get(i), offsets[i], view_proj, used)
+                self._draw_batch(b, offsets[i], view_proj, used, pieces.get(i), cursor)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time

@@ -285,11 +285,12 @@ class Lighting:
                 prog["u_shadow_params"].value = self._params
 
     # ------------------------------------------------------------------ shadow map
-    def shadow_pass(self, batches, plugin: dict, drawlist, palette: dict, offsets: list) -> None:
+    def shadow_pass(self, batches, plugin: dict, drawlist, pieces: dict, cursor, offsets: list) -> None:
         """Render this frame's shadow map (mode "map"; see the module docstring); else nothing.
 
         batches : the renderer's built-in batches of the frame (instance data already uploaded at ``offsets``)
-        palette : batch index -> first palette texel (skinned batches, palette skinning)
+        pieces, cursor : batch index -> its pieces in palette chunks, and the render.palette.PaletteCursor that
+            builds them (palette skinning; ``Renderer._draw_batch``)
         """
         self._light_vp = None
         self.last_counts["casters"] = 0
@@ -325,7 +326,7 @@ class Lighting:
         try:
             used: set = set()
             for i in casters:
-                r._draw_batch(batches[i], palette.get(i), offsets[i], vp, used)
+                r._draw_batch(batches[i], offsets[i], vp, used, pieces.get(i), cursor)
             for k, bs in others.items():
                 d = r._drawers[k]
                 if not bs:
@@ -339,9 +340,7 @@ class Lighting:
                     d.draw(bs, drawlist, vp)
                 finally:
                     r.fbo = saved
-                if palette:  # it rebuilt the shared skinning palette for its instances: again for the renderer's
-                    r._build_palette([(r._reps[batches[i].rep], r._instances, offsets[i], batches[i].n_instances)
-                                      for i in sorted(palette)])
+                cursor.invalidate()  # it rebuilt the shared skinning palette for its instances
         finally:
             self._casting = False
             ctx.polygon_offset = (0.0, 0.0)

@@ -552,7 +552,21 @@ class _ClipTable:
         Only agents playing the walk or run clip switch; agents whose character or
         clip index is outside the table, or whose clip has no ground speed, keep
         their clip and rate. Without the animation effect, the time advances here
-        (wrapped modulo the clip duration)."""
+        (wrapped modulo the clip duration). Numba kernel (:func:`_clip_kernel`, one
+        parallel loop over agents); :meth:`update_numpy` is its reference."""
+        if st.n == 0 or not (self.any_speed or (self.walk >= 0).any()):
+            return
+        clip = st.clip
+        if clip.dtype != np.int64 and not (clip.dtype.kind == "i" and clip.flags.c_contiguous):
+            clip = clip.astype(np.int64)
+        _clip_kernel(np.ascontiguousarray(st.character), clip, st.velocity, st.anim_time, st.anim_rate,
+                     self.speed, self.duration, self.walk, self.run, self.run_speed, self.hyst, float(dt),
+                     bool(advance_time))
+        if clip is not st.clip:
+            st.clip[:] = clip
+
+    def update_numpy(self, st, dt: float, advance_time: bool) -> None:
+        """Vectorised numpy reference of :meth:`update` (same results)."""
         if st.n == 0 or not (self.any_speed or (self.walk >= 0).any()):
             return
         nc, mc = self.speed.shape
@@ -584,6 +598,44 @@ class _ClipTable:
         if advance_time and has.any():
             d = self.duration[ch, cl]
             st.anim_time[:] = np.where(has, np.mod(st.anim_time + rate * dt, d), st.anim_time)
+
+
+@njit(cache=True, parallel=True)
+def _clip_kernel(character, clip, velocity, anim_time, anim_rate, speed, duration, walk, run, run_speed, hyst, dt,
+                 advance):  # pragma: no cover - compiled
+    """:meth:`_ClipTable.update` per agent (each writes only its own clip, time and rate)."""
+    nc, mc = speed.shape
+    for i in prange(character.shape[0]):
+        ch = np.int64(character[i])
+        ok = 0 <= ch < nc
+        if not ok:
+            ch = 0
+        sp = np.hypot(velocity[i, 0], velocity[i, 2])
+        w, r = walk[ch], run[ch]
+        cur = np.int64(clip[i])
+        if ok and w >= 0 and r >= 0:
+            new = -1
+            if cur == w and sp > run_speed:
+                new = r
+            elif cur == r and sp < run_speed - hyst:
+                new = w
+            if new >= 0:
+                d0 = duration[ch, cur]
+                d1 = duration[ch, new]
+                anim_time[i] = np.mod(anim_time[i], d0) / d0 * d1
+                clip[i] = new
+        cl = np.int64(clip[i])
+        if not (ok and 0 <= cl < mc):
+            ok = False
+            cl = 0
+        cs = speed[ch, cl] if ok else 0.0
+        if cs > 0:
+            rate = sp / cs
+            anim_rate[i] = np.float32(rate)
+            if advance:
+                anim_time[i] = np.mod(anim_time[i] + rate * dt, duration[ch, cl])
+        else:
+            anim_rate[i] = anim_rate[i]
 
 
 def _clips_of(ch) -> dict:

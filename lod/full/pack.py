@@ -6,11 +6,20 @@ into one instanced batch per (representation, part) — two numba passes
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from lod.cull import cull_spheres_numpy
 from lod.drawlist import INSTANCE_FLOATS
+
+
+#: instances from which :func:`instance_batches` runs its passes in parallel (below, serial: llvmpipe's
+#: render threads share the cores and a parallel region costs a thread wake-up; measured slower at 100 K
+#: on the loaded 2-core machine, see instance_batches); a million agents pay it back
+PACK_PARALLEL_MIN = 250_000
+#: chunks of agents per numba thread in the parallel counting sort
+PACK_CHUNKS_PER_THREAD = 4
 
 
 # ---------------------------------------------------------------------------- selection
@@ -69,47 +78,85 @@ def instance_batches_numpy(pos, origin, heading, scale, gid, t, anim, g_sphere, 
     return order.astype(np.int32), data, counts
 
 
+@njit(cache=True, inline="always")
+def _instance_one(i, pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
+                  g_last, planes, cull, vis, cs):  # pragma: no cover - compiled
+    g = gid[i]
+    h = heading[i]
+    if not np.isfinite(h):
+        h = 0.0
+        heading[i] = 0.0
+    if g_skinned[g]:
+        ti = t[i]
+        if not np.isfinite(ti):
+            ti = 0.0
+        d = g_dur[g]
+        if d > 0.0:
+            if g_loop[g]:
+                tl = ti - np.floor(ti / d) * d
+            else:
+                tl = min(max(ti, 0.0), d)
+        else:
+            tl = 0.0
+        f = g_off[g] + tl * g_fps[g]
+        anim[i] = min(max(f, g_off[g]), g_last[g])
+    ok = True
+    c = np.cos(h)
+    s = np.sin(h)
+    cs[i, 0] = c
+    cs[i, 1] = s
+    if cull:
+        sc = scale[i]
+        sx, sy, sz, sr = g_sphere[g, 0], g_sphere[g, 1], g_sphere[g, 2], g_sphere[g, 3]
+        cx = pos[i, 0] - origin[0] + (c * sx + s * sz) * sc
+        cy = pos[i, 1] - origin[1] + sy * sc
+        cz = pos[i, 2] - origin[2] + (-s * sx + c * sz) * sc
+        r = sr * abs(sc)
+        for k in range(planes.shape[0]):
+            if planes[k, 0] * cx + planes[k, 1] * cy + planes[k, 2] * cz + planes[k, 3] < -r:
+                ok = False
+                break
+    vis[i] = ok
+
+
 @njit(cache=True)
 def _instance_pass(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
                    g_last, planes, cull, vis, cs):  # pragma: no cover - compiled
-    n = pos.shape[0]
-    for i in range(n):
-        g = gid[i]
-        h = heading[i]
-        if not np.isfinite(h):
-            h = 0.0
-            heading[i] = 0.0
-        if g_skinned[g]:
-            ti = t[i]
-            if not np.isfinite(ti):
-                ti = 0.0
-            d = g_dur[g]
-            if d > 0.0:
-                if g_loop[g]:
-                    tl = ti - np.floor(ti / d) * d
-                else:
-                    tl = min(max(ti, 0.0), d)
-            else:
-                tl = 0.0
-            f = g_off[g] + tl * g_fps[g]
-            anim[i] = min(max(f, g_off[g]), g_last[g])
-        ok = True
-        c = np.cos(h)
-        s = np.sin(h)
-        cs[i, 0] = c
-        cs[i, 1] = s
-        if cull:
-            sc = scale[i]
-            sx, sy, sz, sr = g_sphere[g, 0], g_sphere[g, 1], g_sphere[g, 2], g_sphere[g, 3]
-            cx = pos[i, 0] - origin[0] + (c * sx + s * sz) * sc
-            cy = pos[i, 1] - origin[1] + sy * sc
-            cz = pos[i, 2] - origin[2] + (-s * sx + c * sz) * sc
-            r = sr * abs(sc)
-            for k in range(planes.shape[0]):
-                if planes[k, 0] * cx + planes[k, 1] * cy + planes[k, 2] * cz + planes[k, 3] < -r:
-                    ok = False
-                    break
-        vis[i] = ok
+    for i in range(pos.shape[0]):
+        _instance_one(i, pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
+                      g_last, planes, cull, vis, cs)
+
+
+@njit(cache=True, parallel=True)
+def _instance_pass_parallel(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur,
+                            g_loop, g_last, planes, cull, vis, cs):  # pragma: no cover - compiled
+    for i in prange(pos.shape[0]):  # every instance writes only its own rows
+        _instance_one(i, pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
+                      g_last, planes, cull, vis, cs)
+
+
+@njit(cache=True, inline="always")
+def _write_row(k, i, pos, origin, cs, scale, anim, ids, data):  # pragma: no cover - compiled
+    ids[k] = i
+    sc = scale[i]
+    c = cs[i, 0] * sc
+    s = cs[i, 1] * sc
+    data[k, 0] = c
+    data[k, 1] = 0.0
+    data[k, 2] = s
+    data[k, 3] = pos[i, 0] - origin[0]
+    data[k, 4] = 0.0
+    data[k, 5] = sc
+    data[k, 6] = 0.0
+    data[k, 7] = pos[i, 1] - origin[1]
+    data[k, 8] = -s
+    data[k, 9] = 0.0
+    data[k, 10] = c
+    data[k, 11] = pos[i, 2] - origin[2]
+    data[k, 12] = anim[i]
+    data[k, 13] = 0.0
+    data[k, 14] = 0.0
+    data[k, 15] = 0.0
 
 
 @njit(cache=True)
@@ -121,35 +168,45 @@ def _scatter(pos, origin, cs, scale, gid, anim, vis, starts, ids, data):  # prag
         g = gid[i]
         k = cursor[g]
         cursor[g] += 1
-        ids[k] = i
-        sc = scale[i]
-        c = cs[i, 0] * sc
-        s = cs[i, 1] * sc
-        data[k, 0] = c
-        data[k, 1] = 0.0
-        data[k, 2] = s
-        data[k, 3] = pos[i, 0] - origin[0]
-        data[k, 4] = 0.0
-        data[k, 5] = sc
-        data[k, 6] = 0.0
-        data[k, 7] = pos[i, 1] - origin[1]
-        data[k, 8] = -s
-        data[k, 9] = 0.0
-        data[k, 10] = c
-        data[k, 11] = pos[i, 2] - origin[2]
-        data[k, 12] = anim[i]
-        data[k, 13] = 0.0
-        data[k, 14] = 0.0
-        data[k, 15] = 0.0
+        _write_row(k, i, pos, origin, cs, scale, anim, ids, data)
+
+
+@njit(cache=True, parallel=True)
+def _chunk_counts(gid, vis, first, G):  # pragma: no cover - compiled
+    """(C, G) visible instances of each group in each chunk of agents."""
+    C = first.shape[0] - 1
+    out = np.zeros((C, G), np.int64)
+    for c in prange(C):
+        for i in range(first[c], first[c + 1]):
+            if vis[i]:
+                out[c, gid[i]] += 1
+    return out
+
+
+@njit(cache=True, parallel=True)
+def _scatter_parallel(pos, origin, cs, scale, gid, anim, vis, first, cstarts, ids, data):  # pragma: no cover
+    """The counting sort of :func:`_scatter` by chunks of agents in parallel: chunk c writes group g
+    from ``cstarts[c, g]`` (the group's start plus the earlier chunks' counts), so every row lands
+    where the serial pass puts it."""
+    for c in prange(first.shape[0] - 1):
+        cursor = cstarts[c].copy()
+        for i in range(first[c], first[c + 1]):
+            if not vis[i]:
+                continue
+            g = gid[i]
+            k = cursor[g]
+            cursor[g] += 1
+            _write_row(k, i, pos, origin, cs, scale, anim, ids, data)
 
 
 def instance_batches(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
                      g_last, planes, cull):
     """Cull instances and pack their instance data grouped by draw group.
 
-    Two serial numba passes (serial on purpose: llvmpipe's render threads
+    Two numba passes, serial below :data:`PACK_PARALLEL_MIN` instances (llvmpipe's render threads
     share the same cores, and a ``parallel=True`` first pass measured slower
-    on the loaded 2-core machine, 32 ms against 6-12 ms for 100K instances):
+    on the loaded 2-core machine, 32 ms against 6-12 ms for 100K instances), in parallel above
+    (the counting sort by chunks of agents, each from its exclusive prefix: the same rows):
     the first computes skinned frame coordinates (clip offset + wrapped time * fps, in float64) and tests
     each instance's whole-animation bounding sphere (rotated by the heading,
     scaled) against the frustum; after a per-group count, the second (serial)
@@ -180,17 +237,25 @@ def instance_batches(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skin
     anim = np.array(anim, np.float64)
     vis = np.empty(n, np.bool_)
     cs = np.empty((n, 2), np.float64)
-    _instance_pass(np.ascontiguousarray(pos, np.float64), np.ascontiguousarray(origin, np.float64), heading,
-                   np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(gid, np.int64),
-                   np.ascontiguousarray(t, np.float64), anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
-                   g_last, np.ascontiguousarray(planes, np.float64), bool(cull), vis, cs)
+    par = n >= PACK_PARALLEL_MIN and numba.get_num_threads() > 1
+    first_pass = _instance_pass_parallel if par else _instance_pass
+    first_pass(np.ascontiguousarray(pos, np.float64), np.ascontiguousarray(origin, np.float64), heading,
+               np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(gid, np.int64),
+               np.ascontiguousarray(t, np.float64), anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
+               g_last, np.ascontiguousarray(planes, np.float64), bool(cull), vis, cs)
     counts = np.bincount(gid[vis], minlength=G).astype(np.int64)
     starts = np.zeros(G, np.int64)
     np.cumsum(counts[:-1], out=starts[1:])
     k = int(counts.sum())
     ids = np.empty(k, np.int32)
     data = np.empty((k, INSTANCE_FLOATS), np.float32)
-    _scatter(np.ascontiguousarray(pos, np.float64), np.ascontiguousarray(origin, np.float64), cs,
-             np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(gid, np.int64), anim, vis, starts, ids,
-             data)
+    args = (np.ascontiguousarray(pos, np.float64), np.ascontiguousarray(origin, np.float64), cs,
+            np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(gid, np.int64), anim, vis)
+    if par:
+        first = np.linspace(0, n, numba.get_num_threads() * PACK_CHUNKS_PER_THREAD + 1).astype(np.int64)
+        cc = _chunk_counts(args[4], vis, first, G)
+        cstarts = starts[None, :] + np.cumsum(cc, axis=0) - cc  # exclusive prefix over the chunks
+        _scatter_parallel(*args, first, np.ascontiguousarray(cstarts), ids, data)
+    else:
+        _scatter(*args, starts, ids, data)
     return ids, data, counts

@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from lod.full.bounds import _skin_all_frames_sphere, _sphere_of_points, frame_aabbs
 from lod.full.targets import TargetTable, build_target_table, clip_offsets, morph_frame_aabbs
@@ -36,6 +36,8 @@ SAMPLING_PAD_FACTOR = 2.0
 #: (``render/renderer.py``); GL 4.5's smallest allowed GL_MAX_TEXTURE_SIZE. Longer animations are baked at a
 #: lower rate (:func:`bake_intervals`).
 BAKE_MAX_FRAMES = 16384
+#: instances from which KeyframedRep.locate runs its kernel in parallel (below: serial, no thread wake-up)
+LOCATE_PARALLEL_MIN = 100_000
 
 # ---------------------------------------------------------------------------- reps
 @dataclass
@@ -232,7 +234,8 @@ class KeyframedRep:
         t = np.ascontiguousarray(t, np.float64)
         seg = np.empty(t.shape[0], np.int64)
         u = np.empty(t.shape[0], np.float64)
-        _locate_kernel(t, np.ascontiguousarray(self.seg_start[a0:a0 + ns], np.float64),
+        kernel = _locate_kernel_parallel if t.shape[0] >= LOCATE_PARALLEL_MIN else _locate_kernel
+        kernel(t, np.ascontiguousarray(self.seg_start[a0:a0 + ns], np.float64),
                        np.ascontiguousarray(self.seg_end[a0:a0 + ns], np.float64), float(self.anim_t0[anim]),
                        float(self.anim_duration[anim]), bool(self.anim_loop[anim]), a0, seg, u)
         return seg, u
@@ -256,28 +259,39 @@ class KeyframedRep:
         return s + a0, u
 
 
+@njit(cache=True, inline="always")
+def _locate_one(i, t, starts, ends, t0, dur, loop, a0, seg, u):  # pragma: no cover - compiled
+    ns = starts.shape[0]
+    x = t[i]
+    if not np.isfinite(x):
+        x = t0
+    if loop and dur > 0.0:
+        x = t0 + (x - t0) % dur  # Python's float modulo: the sign of dur, as np.mod
+    x = min(max(x, starts[0]), ends[ns - 1])
+    lo, hi = 0, ns  # searchsorted(starts, x, side="right") - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if starts[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    s = min(max(lo - 1, 0), ns - 1)
+    span = ends[s] - starts[s]
+    v = (x - starts[s]) / (span if span > 0.0 else 1.0)
+    seg[i] = s + a0
+    u[i] = min(max(v, 0.0), 1.0)
+
+
 @njit(cache=True)
 def _locate_kernel(t, starts, ends, t0, dur, loop, a0, seg, u):  # pragma: no cover - compiled
-    ns = starts.shape[0]
     for i in range(t.shape[0]):
-        x = t[i]
-        if not np.isfinite(x):
-            x = t0
-        if loop and dur > 0.0:
-            x = t0 + (x - t0) % dur  # Python's float modulo: the sign of dur, as np.mod
-        x = min(max(x, starts[0]), ends[ns - 1])
-        lo, hi = 0, ns  # searchsorted(starts, x, side="right") - 1
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if starts[mid] <= x:
-                lo = mid + 1
-            else:
-                hi = mid
-        s = min(max(lo - 1, 0), ns - 1)
-        span = ends[s] - starts[s]
-        v = (x - starts[s]) / (span if span > 0.0 else 1.0)
-        seg[i] = s + a0
-        u[i] = min(max(v, 0.0), 1.0)
+        _locate_one(i, t, starts, ends, t0, dur, loop, a0, seg, u)
+
+
+@njit(cache=True, parallel=True)
+def _locate_kernel_parallel(t, starts, ends, t0, dur, loop, a0, seg, u):  # pragma: no cover - compiled
+    for i in prange(t.shape[0]):  # each instance writes only its own seg and u
+        _locate_one(i, t, starts, ends, t0, dur, loop, a0, seg, u)
 
 
 @dataclass

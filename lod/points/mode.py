@@ -39,19 +39,26 @@ between (as every other vertex motion of §3).
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from lod.drawlist import DrawList
 from lod.full.mode import NoLodSelector
 from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points import config as C
+from lod.points.coarse import add_coarse, coarse_arrays
 from lod.points.octree import PointHierarchy
 from lod.points.poses import clip_poses
 from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
 from lod.points.traverse import _traverse_kernel, traverse, viewport_scale
 from sim.params import Param
 
+#: instances per call below which :func:`traverse_instances` runs serially (a parallel region costs a
+#: thread wake-up, milliseconds on a loaded machine)
+TRAVERSE_PARALLEL_MIN = 20_000
+#: chunks per numba thread of the parallel traversal
+TRAVERSE_CHUNKS_PER_THREAD = 4
 #: renderer paths of the point splats
 RENDERERS = ("compute", "gl_points")
 
@@ -71,6 +78,9 @@ PARAMS: dict = {
                        doc="stratification time intervals per keyframe pair (§3.4.2)"),
     "spacing_fraction": Param("float", C.POINTS_SPACING_FRACTION, min=1.0 / 64.0, max=1.0,
                               doc="sample spacing as a fraction of a node's side (§3.1, 1/8-1/16)"),
+    "coarse": Param("bool", True, doc="representations coarser than a hierarchy's root: the smallest "
+                                      "farthest-point prefix of the root's points whose spacing projects within "
+                                      "the splat size, down to one splat per agent (lod.points.coarse)"),
     "renderer": Param("str", "compute", choices=RENDERERS,
                       doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
     "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
@@ -176,6 +186,9 @@ def build_points_rep(character, name: str, params: dict, cache: HierarchyCache |
     if progress is not None:
         segs = progress(segs, f"point hierarchies {name}")
     built = {s: cache.get_or_build(segment_arrays(kf, s), bp) for s in segs}
+    if bool(p.get("coarse", True)):
+        for h in built.values():  # prefixes coarser than the root (lod.points.coarse); in memory, the cache as built
+            add_coarse(h)
     hs = [built[s] if s in built else triangle_hierarchy(*segment_arrays(kf, s)[:3]) for s in range(kf.n_parts)]
     return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]), poses=poses)
 
@@ -229,6 +242,9 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
                                      spacing_fraction=float(p["spacing_fraction"]),
                                      cache=cache, splat_size=int(p["splat_size"]), renderer=str(p["renderer"]))
                 memo[key] = sup
+                if bool(p.get("coarse", True)):  # a far tree node coarser than its root too (lod.points.coarse)
+                    for sh in sup.rep.hierarchies:
+                        add_coarse(sh)
             supers.append(sup)
             if d < h.depth:  # (a root of a few coincident sources has spacing 0: keep the finer stop then)
                 r_stop = max(sup.r_root, r_stop) * float(np.abs(h.levels[d].scale).max())
@@ -307,19 +323,26 @@ def memory_estimate(characters, params: dict) -> int:
 
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
-def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                               tri_count, bounds, data, planes, vscale, splat, pjobs, tjobs, psum,
-                               tsum):  # pragma: no cover
-    k = data.shape[0]
+def _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start, tri_count,
+                   bounds, coarse_count, coarse_spacing, data, planes, vscale, splat, r0, r1, base, cap, pjobs,
+                   tjobs, psum, tsum):  # pragma: no cover
+    """Traverse instances ``r0 .. r1 - 1`` into ``pjobs`` / ``tjobs`` rows ``base ..
+    base + cap - 1``; returns (point jobs, triangle jobs) written, or (-1, -1) when
+    they do not fit."""
     N = child_start.shape[0]
     out_p = np.empty((N, 2), np.int64)
     out_pn = np.empty(N, np.int32)
     out_t = np.empty((N, 2), np.int64)
     out_tn = np.empty(N, np.int32)
+    stack = np.empty(N + 8, np.int64)
+    cs = np.empty((8, 3))
+    lo = np.empty(3)
+    hi = np.empty(3)
     model = np.empty((3, 4))
     npj = 0
     ntj = 0
-    for r in range(k):
+    intervals = bounds.shape[0] - 1
+    for r in range(r0, r1):
         for a in range(3):
             for b in range(4):
                 model[a, b] = data[r, 4 * a + b]
@@ -332,32 +355,44 @@ def _traverse_instances_kernel(child_start, child_count, box0, box1, spacing, po
         if not np.isfinite(u):
             u = 0.0
         u = min(max(u, 0.0), 1.0)
-        intervals = bounds.shape[0] - 1
         j = 0  # the interval holding u (lod.points.stratify.interval_of)
         while j < intervals - 1 and bounds[j + 1] <= u:
             j += 1
         np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                                   tri_start, tri_count, u, j, planes, model, scale, vscale, splat,
-                                   out_p, out_pn, out_t, out_tn)
-        if npj + np_ > pjobs.shape[0] or ntj + nt > tjobs.shape[0]:
-            return -1 - r, npj, ntj
+                                   tri_start, tri_count, coarse_count, coarse_spacing, u, j, planes, model, scale,
+                                   vscale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
+        if npj + np_ > cap or ntj + nt > cap:
+            return -1, -1
         sp = 0
         for q in range(np_):
-            pjobs[npj, 0] = r
-            pjobs[npj, 1] = out_p[q, 0]
-            pjobs[npj, 2] = out_p[q, 1]
+            pjobs[base + npj, 0] = r
+            pjobs[base + npj, 1] = out_p[q, 0]
+            pjobs[base + npj, 2] = out_p[q, 1]
             sp += out_p[q, 1]
             npj += 1
         st = 0
         for q in range(nt):
-            tjobs[ntj, 0] = r
-            tjobs[ntj, 1] = out_t[q, 0]
-            tjobs[ntj, 2] = out_t[q, 1]
+            tjobs[base + ntj, 0] = r
+            tjobs[base + ntj, 1] = out_t[q, 0]
+            tjobs[base + ntj, 2] = out_t[q, 1]
             st += out_t[q, 1]
             ntj += 1
         psum[r] = sp
         tsum[r] = st
-    return k, npj, ntj
+    return npj, ntj
+
+
+@njit(cache=True, parallel=True)
+def _traverse_chunks_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
+                            tri_count, bounds, coarse_count, coarse_spacing, data, planes, vscale, splat, first, cap,
+                            pjobs, tjobs, npc, ntc, psum, tsum):  # pragma: no cover
+    """Chunk c (rows ``first[c] .. first[c + 1] - 1``) into job rows ``c * cap ..``,
+    the chunks in parallel (each writes only its own rows and instances)."""
+    for c in prange(first.shape[0] - 1):
+        npc[c], ntc[c] = _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count,
+                                        tri_start, tri_count, bounds, coarse_count, coarse_spacing, data, planes,
+                                        vscale, splat, first[c], first[c + 1], c * cap, cap, pjobs, tjobs, psum,
+                                        tsum)
 
 
 def _harrays(h: PointHierarchy) -> tuple:
@@ -366,7 +401,7 @@ def _harrays(h: PointHierarchy) -> tuple:
         arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
                np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
                np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
-               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64))
+               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64), *coarse_arrays(h))
         h._traverse_arrays = arr
     return arr
 
@@ -389,27 +424,55 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     count); with ``totals`` also points (k,) int64 and triangles (k,) int64
     per instance (the sums of its jobs' counts).
     """
-    data = np.ascontiguousarray(data, np.float64).reshape(-1, 16)
+    data = np.asarray(data)
+    # float32 instance data is read as it is (the kernel widens each value to float64 as a copy would)
+    data = np.ascontiguousarray(data, data.dtype if data.dtype in (np.float32, np.float64) else np.float64)
+    data = data.reshape(-1, 16)
     planes = np.ascontiguousarray(planes, np.float64)
     k = data.shape[0]
     # job capacity per instance: what this hierarchy needed before (a retry doubles it)
     per = int(getattr(h, "_jobs_per_instance", 4))
-    cap = max(16, per * k)
     arr = _harrays(h)
     psum = np.empty(k, np.int64)
     tsum = np.empty(k, np.int64)
+    chunks = traverse_chunks(k)
+    first = np.linspace(0, k, chunks + 1).astype(np.int64)
+    rows = int(np.diff(first).max()) if k else 0
+    cap = max(16, per * rows)
     while True:
-        pj = np.empty((cap, 3), np.int64)
-        tj = np.empty((cap, 3), np.int64)
-        done, npj, ntj = _traverse_instances_kernel(*arr, data, planes, float(vscale),
-                                                    float(splat), pj, tj, psum, tsum)
-        if done == k:
-            h._jobs_per_instance = max(per, -(-max(npj, ntj) // max(k, 1)))
-            # a view while the buffer is at most twice what was used (no copy), else a compact copy
-            pj = pj[:npj] if 2 * npj >= cap else pj[:npj].copy()
-            tj = tj[:ntj] if 2 * ntj >= cap else tj[:ntj].copy()
-            return (pj, tj, psum, tsum) if totals else (pj, tj)
+        pj = np.empty((cap * chunks, 3), np.int64)
+        tj = np.empty((cap * chunks, 3), np.int64)
+        if chunks == 1:
+            npj, ntj = _traverse_rows(*arr, data, planes, float(vscale), float(splat), 0, k, 0, cap, pj, tj, psum,
+                                      tsum)
+            npc, ntc = np.array([npj]), np.array([ntj])
+        else:
+            npc, ntc = np.empty(chunks, np.int64), np.empty(chunks, np.int64)
+            _traverse_chunks_kernel(*arr, data, planes, float(vscale), float(splat), first, cap, pj, tj, npc, ntc,
+                                    psum, tsum)
+        if (npc >= 0).all():
+            break
         cap *= 2
+    h._jobs_per_instance = max(per, -(-int(max(npc.max(), ntc.max())) // max(rows, 1)))
+    if chunks == 1:
+        npj, ntj = int(npc[0]), int(ntc[0])
+        # a view while the buffer is at most twice what was used (no copy), else a compact copy
+        pj = pj[:npj] if 2 * npj >= cap else pj[:npj].copy()
+        tj = tj[:ntj] if 2 * ntj >= cap else tj[:ntj].copy()
+    else:  # the chunks' jobs in row order: the serial kernel's tables exactly
+        pj = np.concatenate([pj[c * cap:c * cap + npc[c]] for c in range(chunks)])
+        tj = np.concatenate([tj[c * cap:c * cap + ntc[c]] for c in range(chunks)])
+    return (pj, tj, psum, tsum) if totals else (pj, tj)
+
+
+def traverse_chunks(k: int) -> int:
+    """Chunks of :func:`traverse_instances` for ``k`` instances: 1 (the serial kernel) below
+    :data:`TRAVERSE_PARALLEL_MIN`, else ``TRAVERSE_CHUNKS_PER_THREAD`` per numba thread (uneven
+    instance costs balance), at most one per ``TRAVERSE_PARALLEL_MIN // 4`` instances."""
+    threads = numba.get_num_threads()
+    if k < TRAVERSE_PARALLEL_MIN or threads < 2:
+        return 1
+    return int(max(2, min(threads * TRAVERSE_CHUNKS_PER_THREAD, k // max(1, TRAVERSE_PARALLEL_MIN // 4))))
 
 
 def traverse_instances_reference(h: PointHierarchy, data, planes, vscale: float, splat: float):

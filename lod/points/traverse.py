@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from lod.points.coarse import coarse_arrays
 from lod.points.stratify import interval_of
 
 
@@ -95,6 +96,7 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
     fwd = planes[4, :3]
     j = interval_of(u, h.intervals, getattr(h, "interval_bounds", None))
     box = h.box_at(float(u))
+    coarse_n, coarse_s = coarse_arrays(h)
     pr, pn, tr, tn = [], [], [], []
 
     def visit(i):
@@ -112,7 +114,12 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
         dmin = float((cs @ fwd).min())
         if dmin > 0.0 and h.spacing[i] * scale / dmin * viewport_scale <= splat_size:
             if h.point_count[i, j] > 0:
-                pr.append((h.point_start[i, j], h.point_count[i, j]))
+                cnt = int(h.point_count[i, j])
+                if i == 0:  # coarser than the root: the smallest prefix within the splat (lod.points.coarse)
+                    fit = [int(m) for m, s in zip(coarse_n[j], coarse_s[j])
+                           if s * scale / dmin * viewport_scale <= splat_size]
+                    cnt = min([cnt] + fit[:1])
+                pr.append((h.point_start[i, j], cnt))
                 pn.append(i)
             return
         for c in range(h.child_start[i], h.child_start[i] + h.child_count[i]):
@@ -126,10 +133,12 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
 
 @njit(cache=True)
 def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                     tri_start, tri_count, u, j, planes, model, scale, viewport_scale, splat,
-                     out_p, out_pn, out_t, out_tn):  # pragma: no cover - compiled
+                     tri_start, tri_count, coarse_count, coarse_spacing, u, j, planes, model, scale,
+                     viewport_scale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo,
+                     hi):  # pragma: no cover - compiled
+    # stack (N + 8,) int64, cs (8, 3), lo (3,), hi (3,) float64: scratch of the caller (no allocation per
+    # call: the instance kernels call this once per instance, a million times a frame)
     N = child_start.shape[0]
-    stack = np.empty(N + 8, np.int64)
     sp = 0
     np_ = 0
     nt = 0
@@ -138,9 +147,6 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
     stack[sp] = 0
     sp += 1
     w = 1.0 - u
-    cs = np.empty((8, 3))
-    lo = np.empty(3)
-    hi = np.empty(3)
     while sp > 0:
         sp -= 1
         i = stack[sp]
@@ -184,8 +190,15 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
                 dmin = d
         if dmin > 0.0 and spacing[i] * scale / dmin * viewport_scale <= splat:
             if point_count[i, j] > 0:
+                cnt = point_count[i, j]
+                if i == 0:  # the root: its smallest prefix within the splat (lod.points.coarse)
+                    f = scale / dmin * viewport_scale
+                    for q in range(coarse_count.shape[1]):
+                        if coarse_spacing[j, q] * f <= splat:
+                            cnt = min(cnt, coarse_count[j, q])
+                            break
                 out_p[np_, 0] = point_start[i, j]
-                out_p[np_, 1] = point_count[i, j]
+                out_p[np_, 1] = cnt
                 out_pn[np_] = i
                 np_ += 1
             continue
@@ -233,9 +246,11 @@ def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, mode
     out_t = np.empty((N, 2), np.int64)
     out_tn = np.empty(N, np.int32)
     np_, nt = _traverse_kernel(h.child_start.astype(np.int64), h.child_count.astype(np.int64), h.box0, h.box1,
-                               h.spacing, h.point_start, h.point_count, h.tri_start, h.tri_count, u,
+                               h.spacing, h.point_start, h.point_count, h.tri_start, h.tri_count,
+                               *coarse_arrays(h), u,
                                interval_of(u, h.intervals, getattr(h, "interval_bounds", None)), planes, model, scale, float(viewport_scale),
-                               float(splat_size), out_p, out_pn, out_t, out_tn)
+                               float(splat_size), out_p, out_pn, out_t, out_tn, np.empty(N + 8, np.int64),
+                               np.empty((8, 3)), np.empty(3), np.empty(3))
     return TraversalResult(out_p[:np_].copy(), out_pn[:np_].copy(), out_t[:nt].copy(), out_tn[:nt].copy())
 
 

@@ -47,20 +47,28 @@ uniform int u_tiles_x;  // slot tiles per row: ceil((width + MARGIN) / TILE)
 #define JOBS_PER_GROUP 1
 #endif
 
-void splat_job(uint j);
+void splat_job(uint j, uint k0, uint stride);
 
 void main() {
     uint g = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
     // JOBS_PER_GROUP consecutive jobs per work group: far views have many
     // short jobs, and each work group has a fixed cost on llvmpipe
     for (uint q = 0u; q < uint(JOBS_PER_GROUP); ++q) {
+#ifdef THREAD_PER_JOB
+        // short jobs (a few points: far agents drawn coarser than their root, lod/points/coarse.py):
+        // one job per thread, JOBS_PER_GROUP x LOCAL_SIZE consecutive jobs per work group
+        uint j = (g * uint(JOBS_PER_GROUP) + q) * uint(LOCAL_SIZE) + gl_LocalInvocationID.x;
+        if (j >= u_njobs) return;
+        splat_job(j, 0u, 1u);
+#else
         uint j = g * uint(JOBS_PER_GROUP) + q;
         if (j >= u_njobs) return;
-        splat_job(j);
+        splat_job(j, gl_LocalInvocationID.x, uint(LOCAL_SIZE));
+#endif
     }
 }
 
-void splat_job(uint j) {
+void splat_job(uint j, uint k0, uint stride) {
     uvec4 job = jobs[j];
     uint i = job.z;
     float u = inst_u(i);
@@ -71,7 +79,7 @@ void splat_job(uint j) {
     mat4 model = transpose(mat4(m0, m1, m2, vec4(0.0, 0.0, 0.0, 1.0)));
     mat4 mvp = u_view_proj * model;
     float half_s = 0.5 * float(u_splat);
-    for (uint k = gl_LocalInvocationID.x; k < job.y; k += uint(LOCAL_SIZE)) {
+    for (uint k = k0; k < job.y; k += stride) {
         // positions only: the colour pass loads a point's normal and colour
         // once it has won its anchor (most points of a far view lose)
         vec3 p = sample_pos(pts[job.x + k].geo, u);

@@ -42,7 +42,10 @@ def built(tmp_path_factory):
     """A 2 x 2 grid of 5 x 5 blocks of walkers (depth 2) in mode "points"."""
     h = Hierarchy(parse_levels(LEVELS), character=0, clip=0, period=1.2, origin=(3.0, 0.0, -2.0), yaw=0.3)
     cache = pm_rep.HierarchyCache(tmp_path_factory.mktemp("cache"))
-    reps, sel = pm.build([walker_character()], ["w"], [30], {"splat_size": 2}, progress=False, cache=cache,
+    # coarse prefixes off: the super-hierarchies (§3.6) are compared with flat instances drawn from whole
+    # roots (the flat instances' coarse prefixes, lod/points/coarse.py, draw about as few points as a node)
+    reps, sel = pm.build([walker_character()], ["w"], [30], {"splat_size": 2, "coarse": False}, progress=False,
+                         cache=cache,
                          instancing=Instancing([(0, h)]))
     return h, reps, sel, cache
 
@@ -173,7 +176,7 @@ def test_build_makes_one_super_rep_per_depth_and_hits_the_cache(built, tmp_path)
             assert np.isfinite(hh.pos0).all() and np.isfinite(hh.col1).all() and hh.tri_order.size == 0
         assert s.rep.segment_triangles(0).shape == (0, 3)
     c2 = pm_rep.HierarchyCache(cache.folder)
-    reps2, _ = pm.build([walker_character()], ["w"], [30], {"splat_size": 2}, progress=False, cache=c2,
+    reps2, _ = pm.build([walker_character()], ["w"], [30], {"splat_size": 2, "coarse": False}, progress=False, cache=c2,
                         instancing=Instancing([(0, h)]))
     assert c2.misses == 0 and c2.hits >= 3 + 2
     np.testing.assert_array_equal(reps2[1].hierarchies[1].pos1, reps[1].hierarchies[1].pos1)

@@ -1,0 +1,234 @@
+"""Benchmark: a million independently moving agents (issue 21, ``scenes/million.toml``).
+
+Runs the scene end to end (``crowd.engine.Engine``, as ``crowd run`` does) once per LOD
+mode, each in a subprocess of its own (so its peak memory is its own); ``points-root`` is mode
+points with ``coarse = false`` (every far agent drawn from its whole hierarchy root, as before
+``lod/points/coarse.py``). Prints per mode:
+
+- scene load: seconds from the scene file to the first frame (characters, agents, LOD
+  representations, renderer), with the LOD cache warm (a first run builds it: the
+  ``cold`` column of the first mode, when ``--cold`` gives a fresh cache folder);
+- per-stage medians per frame from the telemetry (``frames.csv``: simulate, select,
+  upload, draw, finish, total) over the frames after ``--warmup``; frames per second
+  from the median total;
+- points per agent drawn, triangles, instances;
+- memory: the peak resident size of the process (``ru_maxrss``) and the memory guard's
+  estimate (``crowd.memory.estimate_scene``);
+- the load average before and after, and the busiest other processes at the start
+  (the machine is shared: the figures are only comparable within one run).
+
+Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points-root points auto]
+      [--frames 10] [--warmup 2] [--md scripts/bench_million.md]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+STAGES = ("simulate", "select", "upload", "draw", "finish", "total")
+
+
+def _fail(msg: str) -> None:
+    print(f"bench_million.py: {msg}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
+    """One mode in this process: load, run, read the telemetry back."""
+    import csv
+
+    from crowd.engine import Engine
+    from crowd.memory import estimate_scene
+    from crowd.scene import load_scene
+
+    scene = load_scene(scene_path)
+    base = mode.removesuffix("-root")
+    params = dict(scene.lod_params) if scene.lod_mode == base else {}
+    if mode.endswith("-root"):  # points drawn from whole roots at least (no coarser prefixes): the before
+        params["coarse"] = False
+    scene = replace(scene, lod_mode=base, lod_params=tuple(params.items()))
+    est = estimate_scene(scene)
+    t0 = time.perf_counter()
+    with Engine(scene, quiet=True) as eng:
+        eng._open_renderer()
+        load = time.perf_counter() - t0
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "run"
+            eng.run(frames=warmup + frames, out_dir=out)
+            with open(out / "frames.csv") as f:
+                rows = list(csv.DictReader(f))
+    rows = rows[warmup:]
+    med = {s: statistics.median(float(r[s]) for r in rows) for s in STAGES}
+    agents = int(scene_agents(scene))
+    pts = statistics.median(float(r["points"]) for r in rows)
+    return {"mode": mode, "load_s": load, "frames": len(rows), "median_s": med,
+            "points": pts, "points_per_agent": pts / max(1, agents),
+            "triangles": statistics.median(float(r["triangles"]) for r in rows),
+            "instances": statistics.median(float(r["instances"]) for r in rows), "agents": agents,
+            "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "estimate": est.total}
+
+
+def kernels(n: int = 1_000_000, repeats: int = 3) -> list:
+    """Serial against parallel for the per-agent kernels this scene runs, on ``n`` agents of the
+    scene's density and a far view: (name, serial median s, parallel median s)."""
+    import numba
+    import numpy as np
+
+    from lod.full import pack
+    from lod.full.reps import build_keyframed_rep
+    from lod.points import coarse
+    from lod.points import mode as pm
+    from lod.points.octree import build_hierarchy
+    from lod.view import Camera
+    from sim.procedural import humanoid
+
+    def med(fn):
+        fn()  # compile / warm
+        ts = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            fn()
+            ts.append(time.perf_counter() - t)
+        return statistics.median(ts)
+
+    rng = np.random.default_rng(0)
+    out = []
+    kf = build_keyframed_rep(pm.keyframed_character(humanoid(5000, 21), 3), key="w")
+    h = build_hierarchy(*pm.segment_arrays(kf, 0), seed=0, progress=False)
+    coarse.add_coarse(h)
+    data = np.zeros((n, 16), np.float32)
+    yaw = rng.uniform(-3, 3, n)
+    data[:, 0], data[:, 2], data[:, 5], data[:, 8], data[:, 10] = np.cos(yaw), np.sin(yaw), 1, -np.sin(yaw), np.cos(yaw)
+    data[:, 3], data[:, 7], data[:, 11] = rng.uniform(-1000, 1000, n), -1000.0, -rng.uniform(1200, 3200, n)
+    data[:, 12] = rng.uniform(0, 1, n)
+    cam = Camera.look_at((0.0, 0.0, 0.0), (0.0, -1000.0, -2200.0), fov_y=50.0, near=1.0, far=1e4)
+    planes = cam.frustum_planes(16 / 9)
+    vs = 720 / (2 * np.tan(np.radians(25.0)))
+    times = []
+    for lim in (10 ** 12, pm.TRAVERSE_PARALLEL_MIN):
+        pm.TRAVERSE_PARALLEL_MIN = lim
+        times.append(med(lambda: pm.traverse_instances(h, data, planes, vs, 2.0)))
+    out.append(("points traversal (lod/points/mode.py)", *times))
+    pos = np.c_[rng.uniform(-1000, 1000, n), np.zeros(n), rng.uniform(-1000, 1000, n)]
+    G = 15
+    args = (pos, np.array([0.0, 1000.0, 2200.0]), rng.uniform(-3, 3, n), np.ones(n), rng.integers(0, G, n),
+            rng.uniform(0, 2, n), rng.uniform(0, 1, n), np.c_[np.zeros((G, 3)), np.ones(G)], np.zeros(G, bool),
+            np.zeros(G), np.full(G, 30.0), np.ones(G), np.ones(G, bool), np.full(G, 30.0), planes, True)
+    times = []
+    for lim in (10 ** 12, pack.PACK_PARALLEL_MIN):
+        pack.PACK_PARALLEL_MIN = lim
+        times.append(med(lambda: pack.instance_batches(*args)))
+    out.append(("instance packing (lod/full/pack.py)", *times))
+    out.append(("numba threads", numba.get_num_threads(), numba.get_num_threads()))
+    return out
+
+
+def scene_agents(scene) -> int:
+    from crowd.memory import placement_agents
+
+    return sum(placement_agents(p.kind, p.params) for p in scene.placements)
+
+
+def busiest(n: int = 6) -> list[str]:
+    """The n processes using the most CPU (``ps``), as "command (cpu %)"."""
+    try:
+        out = subprocess.run(["ps", "-eo", "pcpu,comm", "--sort=-pcpu", "--no-headers"], capture_output=True,
+                             text=True, timeout=10).stdout.splitlines()
+    except (OSError, subprocess.SubprocessError):
+        return []
+    return [f"{c.split(None, 1)[1]} ({c.split(None, 1)[0]} %)" for c in out[:n] if len(c.split(None, 1)) == 2]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scene", default=str(ROOT / "scenes" / "million.toml"))
+    ap.add_argument("--modes", nargs="+", default=["points-root", "points", "auto"])
+    ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--warmup", type=int, default=2)
+    ap.add_argument("--md", default=str(ROOT / "scripts" / "bench_million.md"))
+    ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mode, print JSON
+    ap.add_argument("--no-kernels", action="store_true", help="skip the serial/parallel kernel comparison")
+    a = ap.parse_args(argv)
+    if a.frames < 1 or a.warmup < 0:
+        _fail(f"--frames: expected >= 1 and --warmup >= 0, got {a.frames} and {a.warmup}")
+    if not Path(a.scene).is_file():
+        _fail(f"--scene: {a.scene}: no such file")
+    from lod.modes import MODES
+
+    bad = [m for m in a.modes if m not in MODES and m != "points-root"]
+    if bad:
+        _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}, points-root")
+    if a.one:
+        print(json.dumps(run_one(a.scene, a.one, a.frames, a.warmup)))
+        return 0
+    load0, others = os.getloadavg(), busiest()
+    results = []
+    for m in a.modes:
+        cmd = [sys.executable, __file__, "--scene", a.scene, "--frames", str(a.frames), "--warmup", str(a.warmup),
+               "--one", m]
+        p = subprocess.run(cmd, capture_output=True, text=True, env=os.environ | {"PYTHONPATH": str(ROOT)})
+        if p.returncode:
+            last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit code {p.returncode}"
+            _fail(f"mode {m}: the run failed: {last}")
+        results.append(json.loads(p.stdout.strip().splitlines()[-1]))
+    kern = [] if a.no_kernels else kernels()
+    load1 = os.getloadavg()
+    lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | points/agent | triangles | "
+             "peak RSS GB | guard estimate GB |",
+             "| --- | ---: | " + " | ".join("---:" for _ in STAGES) + " | ---: | ---: | ---: | ---: | ---: |"]
+    for r in results:
+        med = r["median_s"]
+        lines.append(f"| {r['mode']} | {r['load_s']:.1f} | " + " | ".join(f"{1e3 * med[s]:.0f}" for s in STAGES)
+                     + f" | {1.0 / med['total']:.2f} | {r['points_per_agent']:.2f} | {r['triangles']:,.0f} | "
+                     f"{r['peak_rss'] / 1e9:.2f} | {r['estimate'] / 1e9:.2f} |")
+    head = (f"Scene {Path(a.scene).name}: {results[0]['agents']:,} agents; medians of {a.frames} frames after "
+            f"{a.warmup} warm-up frames; load average {load0[0]:.1f} before, {load1[0]:.1f} after.")
+    klines = ["| kernel (1,000,000 agents, far view) | serial ms | parallel ms | serial / parallel |",
+              "| --- | ---: | ---: | ---: |"]
+    for name, s, p in kern:
+        if name == "numba threads":
+            klines.append(f"| numba threads | {s} | {p} | |")
+        else:
+            klines.append(f"| {name} | {1e3 * s:.0f} | {1e3 * p:.0f} | {s / p:.2f} |")
+    print(head)
+    print("\n".join(lines))
+    if kern:
+        print("\n".join(klines))
+    import platform
+
+    from render.context import create_context, gl_info
+
+    ctx = create_context()
+    gl = gl_info(ctx).get("GL_RENDERER", "")
+    ctx.release()
+    md = ["# A million moving agents (`scripts/bench_million.py`)", "",
+          f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, Python "
+          f"{platform.python_version()}, {gl}.", "",
+          f"Command: `{' '.join(['.venv/bin/python', 'scripts/bench_million.py'] + (argv or sys.argv[1:]))}`", "",
+          head, "", *lines, "", *((klines + [""]) if kern else []),
+          "Busiest processes at the start (the machine is shared): " + ", ".join(others) + ".", "",
+          "Stages are the engine's telemetry (`frames.csv`) per frame: simulate (boids + animation), select (LOD "
+          "selection: culling, packing, traversal, auto's pricing), upload + draw + finish (the renderer). "
+          "`load s` is the time from the scene file to the first frame with the LOD cache warm. "
+          "Peak RSS is the benchmark process's own (one process per mode)."]
+    from lod.atomic_io import atomic_open
+
+    with atomic_open(a.md, "w") as f:
+        f.write("\n".join(md) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
