@@ -194,8 +194,9 @@ def _slice_item(it, first: int, n: int):
     offsets, clusters = _sub_csr(it.offsets, it.clusters, rows)
     data = it.data[first:first + n].copy()
     data[:, PALETTE_SLOT_FLOAT] = np.arange(n, dtype=np.float32)
-    return SimpleNamespace(st=it.st, key=it.key, tint=it.tint, fade=it.fade, k=n, data=data, offsets=offsets,
-                           clusters=clusters, ids=it.ids[first:first + n], part=it.part[first:first + n],
+    return SimpleNamespace(st=it.st, key=it.key, tint=it.tint, fade=it.fade, k=n, data=data,
+                           words=it.words[first:first + n], offsets=offsets, clusters=clusters,
+                           ids=it.ids[first:first + n], part=it.part[first:first + n],
                            first_row=it.first_row[first:first + n], program=it.program)
 
 
