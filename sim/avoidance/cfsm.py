@@ -142,8 +142,10 @@ def _wall_term(px, pz, ri, b, Dw, reach, circles, verts, pstart, pbound):
 
 @njit(cache=True, parallel=True)
 def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, circles, verts, pstart, pbound,
-                 P, out):
-    """out[i] = new velocity (vx, vz) of every agent (module docstring)."""
+                 P, near_d, out, near):
+    """out[i] = new velocity (vx, vz) of every agent (module docstring); near[i] = 1 when a neighbour is
+    closer than r_i + r_j + near_d at the start (only such pairs can overlap after the step: the
+    no-overlap pass checks only them)."""
     n = S.shape[0]
     a, D, b, Dw, T, cut, v0p, side = P[_A], P[_D], P[_B], P[_DW], P[_T], P[_CUT], P[_V0], P[_SIDE]
     cut2 = cut * cut
@@ -153,15 +155,17 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
         px, pz, ri = S[k, 0], S[k, 1], S[k, 2]
         wx, wz = vpref[i, 0], vpref[i, 1]
         sp = math.sqrt(wx * wx + wz * wz)
+        ix, iz = np.int64(cx[i]), np.int64(cz[i])
         if not sp > CFSM_SPEED_EPS:
             out[i, 0] = 0.0
             out[i, 1] = 0.0
+            near[i] = _near_scan(S, k, px, pz, ri, ix, iz, start, gx, gz, dense, mask, near_d)
             continue
         ex, ez = wx / sp, wz / sp
         v0 = v0p if v0p > 0.0 else sp
         los = has_obs and obstacles_near(px, pz, cut, circles, pbound)
         rx, rz = 0.0, 0.0
-        ix, iz = np.int64(cx[i]), np.int64(cz[i])
+        nr = 0
         for o in range(9):
             key = bucket(o, ix, iz, gx, gz, dense, mask)
             if key < 0:
@@ -173,6 +177,9 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
                 d2 = dx * dx + dz * dz
                 if d2 >= cut2:
                     continue
+                ln = ri + S[m, 2] + near_d
+                if d2 < ln * ln:
+                    nr = 1
                 if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound):
                     continue
                 d = math.sqrt(d2)
@@ -222,6 +229,24 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
         v = min(max(s / T, 0.0), v0)
         out[i, 0] = ux * v
         out[i, 1] = uz * v
+        near[i] = nr
+
+
+@njit(cache=True)
+def _near_scan(S, k, px, pz, ri, ix, iz, start, gx, gz, dense, mask, near_d):
+    """1 when an agent of the 3 x 3 cells is closer than r_i + r_j + near_d."""
+    for o in range(9):
+        key = bucket(o, ix, iz, gx, gz, dense, mask)
+        if key < 0:
+            continue
+        for m in range(start[key], start[key + 1]):
+            if m == k:
+                continue
+            dx, dz = S[m, 0] - px, S[m, 1] - pz
+            ln = ri + S[m, 2] + near_d
+            if dx * dx + dz * dz < ln * ln:
+                return 1
+    return 0
 
 
 _EMPTY3 = np.zeros((0, 3))
@@ -237,7 +262,7 @@ def obstacle_arrays(obs):
 
 
 def cfsm_velocities(position, radius, vpref, heading, a=8.0, D=0.1, b=5.0, Dw=0.02, T=1.0, cutoff=0.0, v0=0.0,
-                    side=0.0, obstacles=None, grid: Grid | None = None, scratch=None):
+                    side=0.0, obstacles=None, grid: Grid | None = None, scratch=None, near=None, near_d=0.0):
     """New velocities of every agent by the collision-free speed model.
 
     Parameters
@@ -252,6 +277,8 @@ def cfsm_velocities(position, radius, vpref, heading, a=8.0, D=0.1, b=5.0, Dw=0.
     side : side bias (counter-flow neighbours ahead also push to the right; 0 = JuPedSim)
     obstacles : sim.obstacles.ObstacleSet or None
     grid, scratch : buffers of a previous call (reused when sizes match)
+    near : (n,) uint8 output or None: 1 for agents with a neighbour closer than r_i + r_j + near_d
+        (``near_d`` metres, at most cutoff - 2 r_max to be complete)
 
     Returns
     -------
@@ -270,6 +297,7 @@ def cfsm_velocities(position, radius, vpref, heading, a=8.0, D=0.1, b=5.0, Dw=0.
     gather_dir(position, radius, vpref, grid.order, scratch)
     circles, verts, pstart, pbound = obstacle_arrays(obstacles)
     P = param_vector(a, D, b, Dw, T, cut, v0, side)
+    nr = near if near is not None and near.shape == (n,) else np.empty(n, np.uint8)
     _cfsm_kernel(scratch, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense,
-                 grid.mask, vpref, heading, circles, verts, pstart, pbound, P, out)
+                 grid.mask, vpref, heading, circles, verts, pstart, pbound, P, float(near_d), out, nr)
     return out, grid, scratch

@@ -186,7 +186,7 @@ def _agent_line(L, m, px, pz, vx, vz, l, inv_tau, inv_dt, share, i, j):
 
 @njit(cache=True, parallel=True)
 def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, circles, verts, pstart, pbound,
-                 tau, tau_o, nd, max_nb, vmax_param, dt, max_lines, out):
+                 tau, tau_o, nd, max_nb, vmax_param, dt, max_lines, near_d, out, near):
     n = S.shape[0]
     nblocks = (n + ORCA_BLOCK - 1) // ORCA_BLOCK
     inv_tau, inv_tau_o, inv_dt = 1.0 / tau, 1.0 / tau_o, 1.0 / dt
@@ -243,6 +243,7 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
             n_obst = m
             # the max_nb nearest neighbours within nd, by insertion (ties: visiting order)
             cnt = 0
+            nr = 0
             ix, iz = np.int64(cx[i]), np.int64(cz[i])
             for o in range(9):
                 key = bucket(o, ix, iz, gx, gz, dense, mask)
@@ -253,6 +254,9 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
                         continue
                     dx, dz = S[mm, 0] - px, S[mm, 1] - pz
                     d2 = dx * dx + dz * dz
+                    ln = ri + S[mm, 2] + near_d
+                    if d2 < ln * ln:
+                        nr = 1
                     if d2 >= nd2:
                         continue
                     if cnt == max_nb and d2 >= nb_d[cnt - 1]:
@@ -284,11 +288,12 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
             f = vmax / s2 if s2 > vmax else 1.0  # rounding of line intersections on the speed circle
             out[i, 0] = res[0] * f
             out[i, 1] = res[1] * f
+            near[i] = nr
 
 
 def orca_velocities(position, radius, vstart, vpref, time_horizon=2.0, time_horizon_obstacles=1.0,
                     neighbor_distance=5.0, max_neighbors=10, max_speed=0.0, dt=0.05, obstacles=None,
-                    grid: Grid | None = None, scratch=None):
+                    grid: Grid | None = None, scratch=None, near=None, near_d=0.0):
     """New velocities of every agent by ORCA.
 
     Parameters
@@ -298,6 +303,7 @@ def orca_velocities(position, radius, vstart, vpref, time_horizon=2.0, time_hori
     time_horizon, time_horizon_obstacles : seconds; neighbor_distance : metres; max_neighbors : int
     max_speed : m/s, 0 = |vpref| per agent; dt : the step, seconds
     obstacles : sim.obstacles.ObstacleSet or None; grid, scratch : reused buffers
+    near : (n,) uint8 output or None, as :func:`sim.avoidance.cfsm.cfsm_velocities` (``near_d`` metres)
 
     Returns
     -------
@@ -318,5 +324,6 @@ def orca_velocities(position, radius, vstart, vpref, time_horizon=2.0, time_hori
     _orca_kernel(scratch, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense,
                  grid.mask, vstart, vpref, circles, verts, pstart, pbound, float(time_horizon),
                  float(time_horizon_obstacles), float(neighbor_distance), int(max_neighbors), float(max_speed),
-                 float(dt), max_lines, out)
+                 float(dt), max_lines, float(near_d), out,
+                 near if near is not None and near.shape == (n,) else np.empty(n, np.uint8))
     return out, grid, scratch

@@ -136,3 +136,28 @@ def test_resolve_separates_coincident_agents():
     d = np.hypot(*(pos[:, None, [0, 2]] - pos[None, :, [0, 2]]).transpose(2, 0, 1))
     d[np.eye(12, dtype=bool)] = np.inf
     assert worst == 0.0 and passes < 200 and d.min() >= 0.5 * (1 - 1e-9)
+
+
+@pytest.mark.parametrize("model", ["cfsm", "orca"])
+def test_resolve_with_the_models_near_flags_equals_the_full_pass(model):
+    """The first pass may skip agents without a neighbour within r_i + r_j + 2 vmax dt at the start:
+    the result is the same as checking everyone."""
+    pos, radius, vpref, vstart, heading = crowd(400, 4, extent=20.0)
+    vpref *= 0.5
+    pos[:5, [0, 2]] = pos[5, [0, 2]] + np.arange(5)[:, None] * 0.05  # a few overlapping starts
+    dt, vmax = 0.05, float(np.hypot(vpref[:, 0], vpref[:, 1]).max())
+    near = np.empty(400, np.uint8)
+    near_d = 2.0 * vmax * dt * (1 + 1e-9) + 1e-12
+    if model == "cfsm":
+        v, grid, _ = cfsm_velocities(pos, radius, vpref, heading, near=near, near_d=near_d)
+    else:
+        v, grid, _ = orca_velocities(pos, radius, vstart, vpref, dt=dt, near=near, near_d=near_d)
+    assert 0 < near.sum() < 400
+    moved = pos.copy()
+    moved[:, 0] += v[:, 0] * dt
+    moved[:, 2] += v[:, 1] * dt
+    a, b = moved.copy(), moved.copy()
+    ra = resolve(a, radius, iterations=20, grid=grid, prev=pos, near=near, near_d=near_d)
+    rb = resolve(b, radius, iterations=20, grid=grid, prev=pos)  # same grid, every agent visited
+    assert ra == rb
+    assert (a == b).all()
