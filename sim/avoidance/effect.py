@@ -181,7 +181,7 @@ class Avoidance:
         v, self.grid, self.scratch = orca_velocities(
             self.prev, self.radius, self.vstart, vpref, c["time_horizon"], c["time_horizon_obstacles"],
             c["neighbor_distance"], c["max_neighbors"], c["max_speed"], self._dt, obs, self.grid, self.scratch,
-            self.near, self.near_d)
+            self.near, self.near_d, salt=world.frame)
         return v
 
     def step(self, world, dt) -> None:
