@@ -114,7 +114,8 @@ def test_orca_head_on_pair_sidesteps_and_respects_speed_limit():
     out, _, _ = orca_velocities(pos, radius, v, v, time_horizon=2.0, dt=0.05)
     assert np.hypot(out[:, 0], out[:, 1]).max() <= 1.0 + 1e-12
     # reciprocal: opposite sidesteps, and the relative velocity leaves the velocity obstacle
-    assert out[0, 1] == pytest.approx(-out[1, 1], abs=1e-12) and abs(out[0, 1]) > 0.05
+    # (to the 1e-3 m/s symmetry-breaking perturbation of the preferred velocities)
+    assert out[0, 1] == pytest.approx(-out[1, 1], abs=1e-2) and abs(out[0, 1]) > 0.05
 
 
 @pytest.mark.parametrize("with_obstacles", [False, True])
