@@ -38,6 +38,11 @@ deadlock of the pure model (both agents stop nose to nose) resolves by both
 stepping right; it never acts in unidirectional flow, so corridor and
 bottleneck runs are JuPedSim's model exactly.
 
+Checked against JuPedSim 1.4.2 (tests/sim/avoidance/data/jupedsim_cfsm_open.npz): 150 agents in open
+space, its defaults, ``cutoff = 3``, ``side_bias = 0``: the same positions to 1.3e-14 m after 100 steps
+(1.5e-5 m with the auto cutoff). scenes/bottleneck.toml (80 agents, 1 m door) in both: evacuation 68.4 s
+here, 70.5 s in JuPedSim; flow 1.235 and 1.220 persons/s.
+
 Implementation: one grid (:mod:`sim.grid`, cell = cutoff) on the start
 positions, a serial gather of (x, z, r) in grid order, one parallel pass over
 agents that scans the 3 x 3 cells twice (repulsion, then spacing along the
