@@ -4,7 +4,9 @@ Scenario (as the issue's JuPedSim figure): agents of radius 0.2 m on a jittered 
 ``--density`` per m^2 (default 1), all walking towards a point far beyond the square's north edge
 (``goals``, 1.34 m/s), no obstacles, dt 0.05 s. After ``--warmup`` steps, ``--steps`` steps are timed; the
 figure is the median over steps of the wall time of the avoidance steps (``avoidance.record`` +
-``avoidance`` + ``avoidance.resolve``) and of the whole step (with ``goals``). Bytes per agent: the
+``avoidance`` + ``avoidance.resolve``) and of the whole step (with ``goals``), and the CPU time of the
+whole step summed over threads (on a machine shared with other jobs the wall time includes waiting for
+a core; CPU time / threads is then the better estimate of the wall time on a quiet machine). Bytes per agent: the
 CrowdState plus every array the effect keeps (snapshot, grid, buffers) divided by the agent count.
 
 Usage::
@@ -47,7 +49,7 @@ def world(n: int, density: float, model: str):
 
 def effect_bytes(w) -> int:
     eff = w.resources["avoidance"]
-    arrays = [eff.prev, eff.radius, eff.base_rate, eff.scratch]
+    arrays = [eff.prev, eff.radius, eff.base_rate, eff.scratch, eff.near]
     if eff.model == "orca":
         arrays.append(eff.vstart)
     total = sum(a.nbytes for a in arrays if a is not None)
@@ -63,14 +65,17 @@ def measure(n, density, model, warmup, steps):
     w = world(n, density, model)
     for _ in range(warmup):
         w.step(0.05)
-    avoid, total = [], []
+    avoid, total, cpu = [], [], []
     for _ in range(steps):
         tim = {}
+        c0 = time.process_time()
         t0 = time.perf_counter()
         w.step(0.05, timings=tim)
         total.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
         avoid.append(sum(v for k, v in tim.items() if k.startswith("avoidance")))
     return {"n": n, "avoid_ms": 1e3 * float(np.median(avoid)), "step_ms": 1e3 * float(np.median(total)),
+            "cpu_ms": 1e3 * float(np.median(cpu)),
             "state_b": w.state.nbytes() / n, "effect_b": effect_bytes(w) / n,
             "speed": float(np.hypot(w.state.velocity[:, 0], w.state.velocity[:, 2]).mean())}
 
@@ -90,10 +95,10 @@ def main(argv=None) -> int:
     load = os.getloadavg()[0]
     lines = [f"model {a.model}, density {a.density:g}/m^2, radius 0.2 m, dt 0.05 s, numba threads "
              f"{numba.get_num_threads()}, load average {load:.1f} at the end",
-             "| agents | avoidance ms/step (median) | whole step ms (with goals) | mean speed m/s | "
-             "state B/agent | avoidance B/agent |", "|---|---|---|---|---|---|"]
-    lines += [f"| {r['n']:,} | {r['avoid_ms']:.1f} | {r['step_ms']:.1f} | {r['speed']:.2f} | {r['state_b']:.0f} | "
-              f"{r['effect_b']:.0f} |" for r in rows]
+             "| agents | avoidance ms/step (median) | whole step ms (with goals) | whole step CPU ms (all threads) "
+             "| mean speed m/s | state B/agent | avoidance B/agent |", "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['n']:,} | {r['avoid_ms']:.1f} | {r['step_ms']:.1f} | {r['cpu_ms']:.1f} | {r['speed']:.2f} | "
+              f"{r['state_b']:.0f} | {r['effect_b']:.0f} |" for r in rows]
     text = "\n".join(lines)
     print(text)
     if a.md:

@@ -23,7 +23,8 @@ obstacles' projection. The schedule of one step (``sim.systems``):
    rate scaled by the speed ratio);
 4. ``obstacles.project``: obstacles stay hard (swept, then projected out);
 5. ``avoidance.resolve``: no two bodies overlap (position projection,
-   alternating with the obstacles' projection);
+   alternating with the obstacles' projection; as a last resort agents still
+   overlapping return to their start-of-step position: a velocity clamp);
 6. ``terrain_follow``, ``animation``.
 
 :mod:`sim.avoidance.effect` holds the effect (``PARAMS``, ``install``),

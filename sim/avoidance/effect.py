@@ -130,7 +130,8 @@ class Avoidance:
         self.table = character_radii(world)
         self.n = -1
         self.prev = self.vstart = self.radius = self.base_rate = None
-        self.grid = self.scratch = None
+        self.grid = self.scratch = self.near = None
+        self.near_d = 0.0
         self.last = {"resolve_passes": 0, "resolve_overlap": 0.0, "frozen": 0}
 
     def sync(self, world) -> None:
@@ -158,19 +159,29 @@ class Avoidance:
         c = self.cfg
         st = world.state
         obs = world.resources.get("obstacles")
+        from sim.avoidance.cfsm import max_speed
+
+        # the fastest any agent may move in this step: pairs farther apart than r_i + r_j + 2 vmax dt
+        # at the start cannot overlap after it (the resolve then checks only flagged agents)
+        vmax = max(float(max_speed(vpref)), c["v0"] if self.model == "cfsm" else c["max_speed"])
+        self.near_d = 2.0 * vmax * self._dt * (1.0 + 1e-9) + 1e-12
+        if self.near is None or self.near.shape != (st.n,):
+            self.near = np.empty(st.n, np.uint8)
         if self.model == "cfsm":
             from sim.avoidance.cfsm import cfsm_velocities
 
             v, self.grid, self.scratch = cfsm_velocities(
                 self.prev, self.radius, vpref, st.heading, c["strength_neighbor_repulsion"],
                 c["range_neighbor_repulsion"], c["strength_geometry_repulsion"], c["range_geometry_repulsion"],
-                c["time_gap"], c["cutoff"], c["v0"], c["side_bias"], obs, self.grid, self.scratch)
+                c["time_gap"], c["cutoff"], c["v0"], c["side_bias"], obs, self.grid, self.scratch, self.near,
+                self.near_d)
             return v
         from sim.avoidance.orca import orca_velocities
 
         v, self.grid, self.scratch = orca_velocities(
             self.prev, self.radius, self.vstart, vpref, c["time_horizon"], c["time_horizon_obstacles"],
-            c["neighbor_distance"], c["max_neighbors"], c["max_speed"], self._dt, obs, self.grid, self.scratch)
+            c["neighbor_distance"], c["max_neighbors"], c["max_speed"], self._dt, obs, self.grid, self.scratch,
+            self.near, self.near_d, salt=world.frame)
         return v
 
     def step(self, world, dt) -> None:
@@ -199,7 +210,7 @@ class Avoidance:
         clearance = np.maximum(self.radius, float(world.resources.get("obstacles.agent_radius", 0.0)))
         frozen = np.zeros(st.n, bool)
         passes, worst = resolve(st.position, self.radius, clearance, obs, it, grid=self.grid, prev=self.prev,
-                                frozen=frozen)
+                                frozen=frozen, near=self.near, near_d=self.near_d)
         if frozen.any():
             st.velocity[frozen, 0] = 0.0
             st.velocity[frozen, 2] = 0.0

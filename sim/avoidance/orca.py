@@ -30,7 +30,9 @@ Per agent ``i`` with start-of-step velocity ``v_i``, preferred velocity
   order obstacles first, then neighbours by distance - RVO2 does not shuffle
   either, so the randomised LP's expected bound is traded for determinism);
   if infeasible, the 3-D LP of §5.3 minimises the largest violation of the
-  agent half-planes while keeping the obstacle ones.
+  agent half-planes while keeping the obstacle ones. As in the RVO2 examples,
+  the preferred velocity is perturbed by ``ORCA_PERTURB`` (hashed direction,
+  deterministic) so perfectly symmetric scenes (the crossing) do not deadlock.
 
 One parallel pass over agents (blocks of agents share a scratch buffer, so no
 allocation per agent), each agent writing only its own velocity:
@@ -50,6 +52,9 @@ from sim.grid import Grid, build_grid
 ORCA_EPS = 1e-9
 #: agents per block of the parallel loop (one scratch buffer per block)
 ORCA_BLOCK = 256
+#: the preferred velocity is perturbed by this much (m/s), in a direction hashed from the agent and the step,
+#: as the RVO2 examples do "to avoid deadlocks due to perfect symmetry" (e.g. the crossing scene)
+ORCA_PERTURB = 1e-3
 #: static obstacles farther than this many seconds of travel at the speed limit (plus the radius) are skipped
 ORCA_OBSTACLE_REACH = 1.0
 
@@ -186,7 +191,7 @@ def _agent_line(L, m, px, pz, vx, vz, l, inv_tau, inv_dt, share, i, j):
 
 @njit(cache=True, parallel=True)
 def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, circles, verts, pstart, pbound,
-                 tau, tau_o, nd, max_nb, vmax_param, dt, max_lines, out):
+                 tau, tau_o, nd, max_nb, vmax_param, dt, max_lines, near_d, salt, out, near):
     n = S.shape[0]
     nblocks = (n + ORCA_BLOCK - 1) // ORCA_BLOCK
     inv_tau, inv_tau_o, inv_dt = 1.0 / tau, 1.0 / tau_o, 1.0 / dt
@@ -203,6 +208,10 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
             vix, viz = vstart[i, 0], vstart[i, 1]
             ox, oz = vpref[i, 0], vpref[i, 1]
             vmax = vmax_param if vmax_param > 0.0 else math.sqrt(ox * ox + oz * oz)
+            if ox * ox + oz * oz > 0.0:
+                hx, hz = coincident_dir(i, i + 1 + salt)
+                ox += ORCA_PERTURB * hx
+                oz += ORCA_PERTURB * hz
             m = 0
             # static obstacles first (they stay hard in the 3-D fallback)
             reach = ri + ORCA_OBSTACLE_REACH * vmax * tau_o + 1e-9
@@ -243,6 +252,7 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
             n_obst = m
             # the max_nb nearest neighbours within nd, by insertion (ties: visiting order)
             cnt = 0
+            nr = 0
             ix, iz = np.int64(cx[i]), np.int64(cz[i])
             for o in range(9):
                 key = bucket(o, ix, iz, gx, gz, dense, mask)
@@ -253,6 +263,9 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
                         continue
                     dx, dz = S[mm, 0] - px, S[mm, 1] - pz
                     d2 = dx * dx + dz * dz
+                    ln = ri + S[mm, 2] + near_d
+                    if d2 < ln * ln:
+                        nr = 1
                     if d2 >= nd2:
                         continue
                     if cnt == max_nb and d2 >= nb_d[cnt - 1]:
@@ -284,11 +297,12 @@ def _orca_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vstart, vpref, ci
             f = vmax / s2 if s2 > vmax else 1.0  # rounding of line intersections on the speed circle
             out[i, 0] = res[0] * f
             out[i, 1] = res[1] * f
+            near[i] = nr
 
 
 def orca_velocities(position, radius, vstart, vpref, time_horizon=2.0, time_horizon_obstacles=1.0,
                     neighbor_distance=5.0, max_neighbors=10, max_speed=0.0, dt=0.05, obstacles=None,
-                    grid: Grid | None = None, scratch=None):
+                    grid: Grid | None = None, scratch=None, near=None, near_d=0.0, salt=0):
     """New velocities of every agent by ORCA.
 
     Parameters
@@ -298,6 +312,8 @@ def orca_velocities(position, radius, vstart, vpref, time_horizon=2.0, time_hori
     time_horizon, time_horizon_obstacles : seconds; neighbor_distance : metres; max_neighbors : int
     max_speed : m/s, 0 = |vpref| per agent; dt : the step, seconds
     obstacles : sim.obstacles.ObstacleSet or None; grid, scratch : reused buffers
+    near : (n,) uint8 output or None, as :func:`sim.avoidance.cfsm.cfsm_velocities` (``near_d`` metres)
+    salt : int, the step number (varies the symmetry-breaking perturbation, ORCA_PERTURB)
 
     Returns
     -------
@@ -318,5 +334,6 @@ def orca_velocities(position, radius, vstart, vpref, time_horizon=2.0, time_hori
     _orca_kernel(scratch, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense,
                  grid.mask, vstart, vpref, circles, verts, pstart, pbound, float(time_horizon),
                  float(time_horizon_obstacles), float(neighbor_distance), int(max_neighbors), float(max_speed),
-                 float(dt), max_lines, out)
+                 float(dt), max_lines, float(near_d), int(salt), out,
+                 near if near is not None and near.shape == (n,) else np.empty(n, np.uint8))
     return out, grid, scratch

@@ -272,9 +272,9 @@ def _line(p, v, l, inv_tau, inv_dt, share, i, j):
 
 
 def orca_numpy(position, radius, vstart, vpref, time_horizon=2.0, time_horizon_obstacles=1.0,
-               neighbor_distance=5.0, max_neighbors=10, max_speed=0.0, dt=0.05, obstacles=None):
+               neighbor_distance=5.0, max_neighbors=10, max_speed=0.0, dt=0.05, obstacles=None, salt=0):
     """Reference of :func:`sim.avoidance.orca.orca_velocities` (one agent at a time, plain Python)."""
-    from sim.avoidance.orca import ORCA_OBSTACLE_REACH
+    from sim.avoidance.orca import ORCA_OBSTACLE_REACH, ORCA_PERTURB
 
     n = position.shape[0]
     xz = position[:, [0, 2]]
@@ -284,6 +284,9 @@ def orca_numpy(position, radius, vstart, vpref, time_horizon=2.0, time_horizon_o
         p, v, w = xz[i], vstart[i], vpref[i]
         ri = radius[i]
         vmax = max_speed if max_speed > 0 else math.hypot(*w)
+        if w[0] ** 2 + w[1] ** 2 > 0:
+            hx, hz = _coincident(np.array(i), np.array(i + 1 + salt))
+            w = (w[0] + ORCA_PERTURB * float(hx), w[1] + ORCA_PERTURB * float(hz))
         lines = []
         reach = ri + ORCA_OBSTACLE_REACH * vmax * time_horizon_obstacles + 1e-9
         for cx, cz, r in circles:

@@ -53,11 +53,17 @@ RESOLVE_FREEZE_ROUNDS = 16
 
 
 @njit(cache=True, parallel=True)
-def _push_kernel(S, order, cx, cz, start, gx, gz, dense, mask, target, disp, worst):
-    """disp[i] = Jacobi push of agent i; worst[i] = largest overlap 1 - d/l of i."""
+def _push_kernel(S, order, cx, cz, start, gx, gz, dense, mask, target, disp, worst, only, use_only):
+    """disp[i] = Jacobi push of agent i; worst[i] = largest overlap 1 - d/l of i. With ``use_only``,
+    agents with only[i] == 0 are skipped (they have no neighbour within reach: zero push)."""
     n = S.shape[0]
     for k in prange(n):
         i = order[k]
+        if use_only and only[i] == 0:
+            disp[i, 0] = 0.0
+            disp[i, 1] = 0.0
+            worst[i] = 0.0
+            continue
         px, pz, ri = S[k, 0], S[k, 1], S[k, 2]
         mx, mz, w = 0.0, 0.0, 0.0
         ix, iz = np.int64(cx[i]), np.int64(cz[i])
@@ -124,7 +130,7 @@ def max_move(position, prev):
 
 
 def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 16, grid=None, prev=None,
-            frozen=None):
+            frozen=None, near=None, near_d=0.0):
     """Push overlapping agents apart in place (module docstring).
 
     Parameters
@@ -140,6 +146,9 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
         spares a grid build in the usual step without overlaps; ``prev`` is also where agents still
         overlapping after the passes return to (the velocity clamp)
     frozen : (n,) bool output or None: set True for agents returned to ``prev``
+    near, near_d : the model's flags (agents with a neighbour closer than r_i + r_j + near_d at ``prev``):
+        when every agent moved at most near_d / 2 since ``prev``, only flagged agents can overlap, and the
+        first pass visits only them
 
     Returns
     -------
@@ -161,15 +170,19 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
     worst = np.empty(n, np.float64)
     w = 0.0
     cell = 2.0 * rmax * RESOLVE_TARGET
-    reuse = (grid is not None and prev is not None and prev.shape == position.shape and grid.order.shape[0] == n
-             and grid.cell >= cell + 2.0 * float(max_move(position, prev)))
+    moved = float(max_move(position, prev)) if prev is not None and prev.shape == position.shape else np.inf
+    reuse = grid is not None and grid.order.shape[0] == n and grid.cell >= cell + 2.0 * moved
+    flags = (reuse and near is not None and near.shape == (n,) and grid.cell >= 2.0 * rmax + near_d
+             and 2.0 * moved <= near_d)
+    dummy = np.zeros(1, np.uint8)
     own = None  # resolve's own grid (the caller's is only read)
     for it in range(iterations):
         if not (it == 0 and reuse):
             grid = own = build_grid(position, cell, out=own)
         gather(position, radius, grid.order, S)
+        first = it == 0 and flags
         _push_kernel(S, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense, grid.mask,
-                     RESOLVE_TARGET, disp, worst)
+                     RESOLVE_TARGET, disp, worst, near if first else dummy, first)
         w = float(worst.max())
         if w <= 0.0:
             return it, 0.0
@@ -180,7 +193,7 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
         grid = own = build_grid(position, cell, out=own)
         gather(position, radius, grid.order, S)
         _push_kernel(S, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense, grid.mask,
-                     RESOLVE_TARGET, disp, worst)
+                     RESOLVE_TARGET, disp, worst, dummy, False)
         bad = worst > RESOLVE_FREEZE
         w = float(worst.max())
         if not bad.any():

@@ -114,7 +114,8 @@ def test_orca_head_on_pair_sidesteps_and_respects_speed_limit():
     out, _, _ = orca_velocities(pos, radius, v, v, time_horizon=2.0, dt=0.05)
     assert np.hypot(out[:, 0], out[:, 1]).max() <= 1.0 + 1e-12
     # reciprocal: opposite sidesteps, and the relative velocity leaves the velocity obstacle
-    assert out[0, 1] == pytest.approx(-out[1, 1], abs=1e-12) and abs(out[0, 1]) > 0.05
+    # (to the 1e-3 m/s symmetry-breaking perturbation of the preferred velocities)
+    assert out[0, 1] == pytest.approx(-out[1, 1], abs=1e-2) and abs(out[0, 1]) > 0.05
 
 
 @pytest.mark.parametrize("with_obstacles", [False, True])
@@ -136,3 +137,47 @@ def test_resolve_separates_coincident_agents():
     d = np.hypot(*(pos[:, None, [0, 2]] - pos[None, :, [0, 2]]).transpose(2, 0, 1))
     d[np.eye(12, dtype=bool)] = np.inf
     assert worst == 0.0 and passes < 200 and d.min() >= 0.5 * (1 - 1e-9)
+
+
+@pytest.mark.parametrize("model", ["cfsm", "orca"])
+def test_resolve_with_the_models_near_flags_equals_the_full_pass(model):
+    """The first pass may skip agents without a neighbour within r_i + r_j + 2 vmax dt at the start:
+    the result is the same as checking everyone."""
+    pos, radius, vpref, vstart, heading = crowd(400, 4, extent=20.0)
+    vpref *= 0.5
+    pos[:5, [0, 2]] = pos[5, [0, 2]] + np.arange(5)[:, None] * 0.05  # a few overlapping starts
+    dt, vmax = 0.05, float(np.hypot(vpref[:, 0], vpref[:, 1]).max())
+    near = np.empty(400, np.uint8)
+    near_d = 2.0 * vmax * dt * (1 + 1e-9) + 1e-12
+    if model == "cfsm":
+        v, grid, _ = cfsm_velocities(pos, radius, vpref, heading, near=near, near_d=near_d)
+    else:
+        v, grid, _ = orca_velocities(pos, radius, vstart, vpref, dt=dt, near=near, near_d=near_d)
+    assert 0 < near.sum() < 400
+    moved = pos.copy()
+    moved[:, 0] += v[:, 0] * dt
+    moved[:, 2] += v[:, 1] * dt
+    a, b = moved.copy(), moved.copy()
+    ra = resolve(a, radius, iterations=20, grid=grid, prev=pos, near=near, near_d=near_d)
+    rb = resolve(b, radius, iterations=20, grid=grid, prev=pos)  # same grid, every agent visited
+    assert ra == rb
+    assert (a == b).all()
+
+
+def test_cfsm_reproduces_jupedsim_trajectories():
+    """data/jupedsim_cfsm_open.npz: 150 agents (radius 0.2) in an open 80 m square walking to an exit
+    centred at (35.5, 0), JuPedSim 1.4.2 CollisionFreeSpeedModel with its defaults (desired speed 1.34,
+    time gap 1, dt 0.05): positions after 1, 10 and 100 steps. Ours with JuPedSim's 3 m cutoff and no
+    side bias gives the same trajectories to rounding."""
+    from avoid_testutil import world_from_arrays
+    from pathlib import Path
+
+    data = np.load(Path(__file__).parent / "data" / "jupedsim_cfsm_open.npz")
+    w = world_from_arrays(data["start"], [
+        ("goals", {"paths": [[[35.5, 0.0]]], "loop": False, "speed": 1.34, "arrive_radius": 0.1}),
+        ("avoidance", {"radius": 0.2, "v0": 1.34, "side_bias": 0.0, "cutoff": 3.0})])
+    for k in range(1, 101):
+        w.step(0.05)
+        if k in (1, 10, 100):
+            err = np.abs(w.state.position[:, [0, 2]] - data[f"step{k}"]).max()
+            assert err < 1e-9, f"step {k}: {err:.3g} m from JuPedSim"
