@@ -19,15 +19,13 @@ Draw paths (one program each, shaders in ``render/shaders/``):
 - morph targets (``SkinnedRep.targets``): the skinned programs compiled with ``MORPH_TARGETS``
   morph every vertex before skinning (``render/targets.py``); reps without them use the plain ones.
 
-Instance data: every frame, the instance data of all batches are written into
-one per-frame buffer (orphaned first, so a draw still reading last frame's
-data never stalls the write); each batch then re-binds the four instanced
-attributes (divisor 1) of its representation's VAO at the batch's byte offset
-and issues one instanced draw (moderngl exposes no base-instance draw; an
-offset re-bind is four cheap GL calls). Measured on llvmpipe with 64 batches
-of 500 one-triangle instances, a frame took 14 ms this way against 19.5 ms
-when orphaning and writing the buffer once per batch, so the per-frame buffer
-with offsets is the path kept (it is also the layout a real GPU prefers).
+Instance data: every frame, the instance data of all batches are written into one per-frame buffer (orphaned
+first, so a draw still reading last frame's data never stalls the write); each batch then re-binds the four
+instanced attributes (divisor 1) of its representation's VAO at the batch's byte offset and issues one
+instanced draw (moderngl exposes no base-instance draw; an offset re-bind is four cheap GL calls). Measured on
+llvmpipe with 64 batches of 500 one-triangle instances, a frame took 14 ms this way against 19.5 ms when
+orphaning and writing the buffer once per batch, so the per-frame buffer with offsets is the path kept (it is
+also the layout a real GPU prefers).
 
 Bounded driver memory: Mesa llvmpipe (22.3, ``lp_setup.c``) bins triangles
 into "scenes" of at most 36 MB that its rasterizer threads consume; when the
@@ -42,9 +40,8 @@ triangles (whole instances; default :data:`MAX_TRIANGLES_IN_FLIGHT`) with a
 ``ctx.finish`` between them, which keeps the driver at a few scenes; the wait
 costs no measurable time on llvmpipe (scripts/soak.md).
 
-Back faces are not culled: imported meshes (glTF) can have inconsistent
-winding, and on llvmpipe the cost is in vertex processing and triangle setup,
-which culling would not save; the fragment shader lights both sides.
+Back faces are culled for single-sided reps (``double_sided`` False: glTF's default, the procedural
+characters; 1.6-2x on heavy characters, scripts/bench_full_detail.md), else both sides are lit.
 """
 from __future__ import annotations
 
@@ -140,6 +137,7 @@ class _GpuRep:
     morph: tuple | None = None
     targets: tuple | None = None  # morph-target textures (render.targets), None for a rep without targets
     defines: tuple = ()  # preprocessor names of the rep's programs ((TARGETS_DEFINE,) with targets)
+    cull: bool = False  # back faces culled (a single-sided skinned or static rep)
 
 
 class Renderer:
@@ -377,6 +375,7 @@ class Renderer:
         g = _GpuRep(rep.key, kind, vao, locs, int(np.asarray(rep.indices).size), objs, tex, cvao,
                     n_vertices=int(n_vertices))
         g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
+        g.cull = kind in ("skinned", "static") and getattr(rep, "double_sided", True) is False
         g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
         # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
@@ -574,6 +573,7 @@ class Renderer:
                 if "u_fade" in prog:  # screen-door transition of a keyframed selection (lod.drawlist.fade_uniform)
                     prog["u_fade"].value = fade_uniform(getattr(b, "fade", None))
                 self._bind_instances(vao, locs, self._instances, offset)
+                (ctx.enable if g.cull else ctx.disable)(ctx.CULL_FACE)
                 k = b.n_instances
                 if g.kind == "keyframed":
                     self._render_instanced(g, prog, palette.get(i), offset, int(g.seg_count[b.part]),
@@ -587,6 +587,7 @@ class Renderer:
                 else:
                     self._render_instanced(g, prog, palette.get(i), offset, g.default_count, 0, k, vao, locs)
                 offset += k * INSTANCE_BYTES
+            ctx.disable(ctx.CULL_FACE)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time
