@@ -57,7 +57,9 @@ from render.context import create_context
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.shaders import program_sources
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
+from render.pixel_ray import write_pixel_ray
 from render.timing import gpu_seconds
+from render.vertex_format import PACKED_VERTICES, skin_attributes, surface_attributes
 
 #: bytes per instance in the instance buffer
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
@@ -84,15 +86,6 @@ DEBUG_ENV = "CROWD_GL_DEBUG"
 MAX_TRIANGLES_IN_FLIGHT = 100_000
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
-
-
-def joint_attribute(joints: np.ndarray, make_buffer) -> tuple:
-    """(buffer, format, name) of the joint-index attribute in the narrowest
-    unsigned type that holds every index (uint8 for up to 256 joints)."""
-    j = np.asarray(joints)
-    top = int(j.max()) if j.size else 0
-    dtype, fmt = (np.uint8, "4u1") if top < 256 else (np.uint16, "4u2")
-    return make_buffer(j.astype(dtype), "joints"), fmt, "in_joints"
 
 
 def prog_name(kind: str, skinning: str = "palette") -> str:
@@ -203,6 +196,10 @@ class Renderer:
         self.max_triangles_in_flight = MAX_TRIANGLES_IN_FLIGHT
         #: instanced submissions of the last ``draw`` (> batches when draws were split)
         self.last_submissions = 0
+        #: pack vertex attributes of reps uploaded from now on (render/vertex_format.py)
+        self.packed_vertices = PACKED_VERTICES
+        #: light the headlight by the pixel's camera ray, not a position varying (programs compiled from now on)
+        self.pixel_ray = True
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -230,6 +227,7 @@ class Renderer:
         """Compiled program ``name`` (cached). With ``varyings`` it is the
         vertex-only transform-feedback variant recording those outputs; with
         ``defines`` the variant compiled with those preprocessor names."""
+        defines = tuple(defines) + (("PIXEL_RAY",) if self.pixel_ray and not varyings else ())  # render/pixel_ray.py
         key = (name, tuple(varyings), tuple(defines))
         if key not in self._programs:
             src = program_sources(name, fragment=not varyings, defines=tuple(defines))
@@ -329,13 +327,7 @@ class Renderer:
             tex.repeat_x = tex.repeat_y = False
             tex.label = f"{rep.key}.joints"
             objs.append(tex)
-            content = [
-                (buf(rep.positions, "positions"), "3f", "in_position"),
-                (buf(rep.normals, "normals"), "3f", "in_normal"),
-                (buf(rep.colors, "colors"), "4f", "in_color"),
-                joint_attribute(rep.joints, buf),
-                (buf(rep.weights, "weights"), "4f", "in_weights"),
-            ]
+            content = surface_attributes(rep, buf, self.packed_vertices) + skin_attributes(rep, buf, self.packed_vertices)
             n_vertices = rep.positions.shape[0]
         elif kind == "keyframed":
             prog = self.program("keyframed")
@@ -352,11 +344,7 @@ class Renderer:
         elif kind == "static":
             prog = self.program("static")
             tex = None
-            content = [
-                (buf(rep.positions, "positions"), "3f", "in_position"),
-                (buf(rep.normals, "normals"), "3f", "in_normal"),
-                (buf(rep.colors, "colors"), "4f", "in_color"),
-            ]
+            content = surface_attributes(rep, buf, self.packed_vertices)  # render/vertex_format.py
             n_vertices = rep.positions.shape[0]
         else:
             raise TypeError(f"Renderer.upload: representation {rep.key!r} has unknown kind {kind!r}; "
@@ -409,7 +397,7 @@ class Renderer:
             vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
                                         index_element_size=4)
             vao.label = f"{g.key}.morph_vao"
-            tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key)
+            tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key, self.packed_vertices)
             g.objects.extend([vao, *tex])
             self._objects.extend([vao, *tex])
             g.morph = (vao, {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}, tex)
@@ -488,6 +476,7 @@ class Renderer:
             prog["u_palette"].value = 1
         if "u_fade" in prog:
             prog["u_fade"].value = (0.0, 0.0)
+        write_pixel_ray(prog, view_proj, self.size)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.

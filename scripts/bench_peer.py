@@ -131,23 +131,25 @@ def run_peer(python: str, model: Path, clip: str, sc: dict, size, frames, warmup
     return json.loads(lines[-1])
 
 
-def time_ours(eng, mode: str, frames: int, warmup: int, png=None) -> list:
+def time_ours(eng, mode: str, frames: int, warmup: int, png=None) -> tuple:
+    """(wall seconds, CPU seconds) of each timed frame of ``mode``."""
     eng.set_lod_mode(mode)
     r = eng.renderer
     size = eng.scene.render.size
-    out = []
+    wall, cpu = [], []
     for k in range(warmup + frames):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         eng.step()
         cam = eng.camera_at(eng.world.time)
         dl = eng.select(cam, size)
         r.draw(dl, eng.scene.render.background)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         if k >= warmup:
-            out.append(t1 - t0)
+            wall.append(t1 - t0)
+            cpu.append(c1 - c0)
     if png:
         r.save_png(png)
-    return out
+    return wall, cpu
 
 
 def machine_note() -> str:
@@ -227,6 +229,7 @@ def main(argv=None) -> int:
                     info = gl_info(eng.renderer.ctx)
                     gl_line = f"{info['GL_RENDERER']} ({info['GL_VERSION']})"
                     peer_t, ours_t, paired = [], {m: [] for m in args.modes}, {m: [] for m in args.modes}
+                    peer_c, ours_c = [], {m: [] for m in args.modes}
                     for rd in range(args.rounds):
                         last = rd == args.rounds - 1
                         png = (args.png / f"{mk}_{n}_panda3d.png") if (args.png and last) else None
@@ -236,23 +239,28 @@ def main(argv=None) -> int:
                                       args.hardware_skinning, png)
                         peer_line = f"Panda3D {pr['panda3d']} on {pr['renderer']}"
                         peer_t += pr["frames_s"]
+                        peer_c += pr["cpu_s"]
                         pm = statistics.median(pr["frames_s"])
                         order = args.modes[rd % len(args.modes):] + args.modes[:rd % len(args.modes)]
                         for m in order:
-                            t = time_ours(eng, m, args.frames, args.warmup,
-                                          (args.png / f"{mk}_{n}_{m}.png") if (args.png and last) else None)
+                            t, c = time_ours(eng, m, args.frames, args.warmup,
+                                             (args.png / f"{mk}_{n}_{m}.png") if (args.png and last) else None)
                             ours_t[m] += t
+                            ours_c[m] += c
                             paired[m].append(pm / statistics.median(t))
                 finally:
                     eng.close()
             peer_med = statistics.median(peer_t)
             row = {"model": mk, "desc": desc, "triangles": tris, "n": n, "peer": peer_med,
                    "ours": {m: statistics.median(v) for m, v in ours_t.items()},
-                   "paired": {m: statistics.median(v) for m, v in paired.items()}}
+                   "paired": {m: statistics.median(v) for m, v in paired.items()},
+                   "peer_cpu": statistics.median(peer_c), "ours_cpu": {m: statistics.median(v) for m, v in ours_c.items()}}
             rows.append(row)
             line = "  ".join(f"{m} {row['ours'][m] * 1e3:.1f} ms ({peer_med / row['ours'][m]:.2f}x, paired "
-                             f"{row['paired'][m]:.2f}x)" for m in args.modes)
-            print(f"{mk} x{n} ({tris} tri): Panda3D {peer_med * 1e3:.1f} ms | ours {line}", flush=True)
+                             f"{row['paired'][m]:.2f}x; CPU {row['ours_cpu'][m] * 1e3:.1f} ms, "
+                             f"{row['peer_cpu'] / row['ours_cpu'][m]:.2f}x)" for m in args.modes)
+            print(f"{mk} x{n} ({tris} tri): Panda3D {peer_med * 1e3:.1f} ms (CPU {row['peer_cpu'] * 1e3:.1f} ms) | "
+                  f"ours {line}", flush=True)
     end_note = machine_note()
     print(f"# end: {end_note}")
     write_md(args, rows, notes, gl_line, peer_line, start_note, end_note)
@@ -267,10 +275,13 @@ def write_md(args, rows, notes, gl_line, peer_line, start_note, end_note) -> Non
     head = "| model | triangles | copies | Panda3D ms | " + " | ".join(f"ours {m} ms (x)" for m in modes) + " |"
     sep = "| --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in modes) + " |"
     lines = [head, sep]
+    cpu_lines = [head.replace(" ms", " CPU ms"), sep]
     for r in rows:
         cells = " | ".join(f"{r['ours'][m] * 1e3:.1f} ({r['peer'] / r['ours'][m]:.2f}x; {r['paired'][m]:.2f}x)"
                            for m in modes)
         lines.append(f"| {r['desc']} | {r['triangles']:,} | {r['n']:,} | {r['peer'] * 1e3:.1f} | {cells} |")
+        cells = " | ".join(f"{r['ours_cpu'][m] * 1e3:.1f} ({r['peer_cpu'] / r['ours_cpu'][m]:.2f}x)" for m in modes)
+        cpu_lines.append(f"| {r['desc']} | {r['triangles']:,} | {r['n']:,} | {r['peer_cpu'] * 1e3:.1f} | {cells} |")
     text = f"""# Peer benchmark: ours in every LOD mode against Panda3D (issue 21)
 
 Command: `{cmd}` ({args.rounds} round(s) x {args.frames} timed frames after {args.warmup} warm-up frames per side,
@@ -283,7 +294,14 @@ extent, camera above the middle of the near edge at half the grid's width up and
 the grid's centre, vertical fov 50 degrees. Each cell: our median frame (ms) and (Panda3D median / ours; the
 median over rounds of the same ratio within a round). Above 1x we are faster.
 
+Wall time (median frame):
+
 {chr(10).join(lines)}
+
+CPU time (median frame; every thread of each process, the driver's rasterizer threads included: the work each
+engine does, which other jobs on the shared machine inflate far less than the wall time; Panda3D / ours):
+
+{chr(10).join(cpu_lines)}
 
 {chr(10).join('- ' + n for n in notes)}
 
