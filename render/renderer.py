@@ -59,7 +59,7 @@ from render.shaders import program_sources
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.pixel_ray import write_pixel_ray
 from render.timing import gpu_seconds
-from render.vertex_format import PACKED_VERTICES, skin_attributes, surface_attributes
+from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
 
 #: bytes per instance in the instance buffer
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
@@ -200,6 +200,8 @@ class Renderer:
         self.packed_vertices = PACKED_VERTICES
         #: light the headlight by the pixel's camera ray, not a position varying (programs compiled from now on)
         self.pixel_ray = True
+        #: skinned programs read only as many influences as the rep's vertices use (reps uploaded from now on)
+        self.specialize_influences = True
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -315,6 +317,9 @@ class Renderer:
 
         defines = (TARGETS_DEFINE,) if kind == "skinned" and getattr(rep, "targets", None) is not None else ()
         if kind == "skinned":
+            jn, wt, n_inf = compact_influences(rep.joints, rep.weights)
+            if n_inf < 4 and self.specialize_influences and getattr(rep, "collapse_next", None) is None:
+                defines += (f"SKIN_INFLUENCES_{n_inf}",)  # shaders/skinning.glsl (geomorph tables are not compacted)
             prog = self.program(prog_name(kind, self.skinning), defines=defines)
             joints = np.ascontiguousarray(rep.joint_table, np.float32)
             F, J = joints.shape[0], joints.shape[1]
@@ -327,7 +332,8 @@ class Renderer:
             tex.repeat_x = tex.repeat_y = False
             tex.label = f"{rep.key}.joints"
             objs.append(tex)
-            content = surface_attributes(rep, buf, self.packed_vertices) + skin_attributes(rep, buf, self.packed_vertices)
+            content = surface_attributes(rep, buf, self.packed_vertices) + \
+                skin_attributes(rep, buf, self.packed_vertices, jn, wt)
             n_vertices = rep.positions.shape[0]
         elif kind == "keyframed":
             prog = self.program("keyframed")
@@ -367,8 +373,9 @@ class Renderer:
         g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
         # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
-        if defines:  # morph targets (render.targets); g.objects is objs
-            g.targets, g.defines = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key), defines
+        g.defines = defines
+        if TARGETS_DEFINE in defines:  # morph targets (render.targets); g.objects is objs
+            g.targets = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key)
             objs.extend(g.targets)
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])

@@ -57,11 +57,31 @@ def surface_attributes(rep, make_buffer, packed: bool = PACKED_VERTICES) -> list
             (make_buffer(_half(rep.colors, 4), "colors"), "4f2", "in_color")]
 
 
-def skin_attributes(rep, make_buffer, packed: bool = PACKED_VERTICES) -> list:
-    """[(buffer, format, attribute name)] of joints and weights of a skinned rep."""
-    w = (make_buffer(_half(rep.weights, 4), "weights"), "4f2", "in_weights") if packed else \
-        (make_buffer(rep.weights, "weights"), "4f", "in_weights")
-    return [joint_attribute(rep.joints, make_buffer), w]
+def compact_influences(joints, weights) -> tuple:
+    """(joints (V, 4), weights (V, 4) float32, n): every vertex's non-zero weights moved to the front in their
+    order (zeros after them), and n = the most non-zero weights of any vertex (1 ..= 4).
+
+    The skinning loop (``shaders/skinning.glsl``) skips zero weights, so a program compiled to read only the
+    first n influences (``SKIN_INFLUENCES_n``) adds the very same terms in the very same order (the shader
+    compiler may contract them into fused multiply-adds differently: tests/render/test_skin_influences.py
+    bounds the image difference).
+    """
+    j = np.asarray(joints).reshape(-1, 4)
+    w = np.asarray(weights, np.float32).reshape(-1, 4)
+    order = np.argsort(w == 0.0, axis=1, kind="stable")
+    rows = np.arange(w.shape[0])[:, None]
+    n = int(np.count_nonzero(w != 0.0, axis=1).max()) if w.shape[0] else 1
+    return j[rows, order], w[rows, order], max(1, n)
+
+
+def skin_attributes(rep, make_buffer, packed: bool = PACKED_VERTICES, joints=None, weights=None) -> list:
+    """[(buffer, format, attribute name)] of joints and weights of a skinned rep (or of ``joints`` and
+    ``weights`` given in their place, e.g. by :func:`compact_influences`)."""
+    joints = rep.joints if joints is None else joints
+    weights = rep.weights if weights is None else weights
+    w = (make_buffer(_half(weights, 4), "weights"), "4f2", "in_weights") if packed else \
+        (make_buffer(np.asarray(weights, np.float32), "weights"), "4f", "in_weights")
+    return [joint_attribute(joints, make_buffer), w]
 
 
 def vertex_bytes(content) -> int:

@@ -79,6 +79,7 @@ def make_variant(name, ctx, rep, static_rep, size):
         patch = None
 
         def program(self, pname, varyings=(), defines=()):
+            defines = tuple(defines) + (("PIXEL_RAY",) if self.pixel_ray and not varyings else ())
             key = (pname, tuple(varyings), tuple(defines))
             if key not in self._programs and not varyings and (self.fragment or self.patch):
                 src = shaders.program_sources(pname, fragment=True, defines=tuple(defines))
@@ -87,7 +88,8 @@ def make_variant(name, ctx, rep, static_rep, size):
                 if self.patch:
                     src["vertex_shader"] = self.patch(src["vertex_shader"])
                 self._programs[key] = self._track(self.ctx.program(**src), f"variant.{pname}")
-            return super().program(pname, varyings, defines)
+                return self._programs[key]
+            return super().program(pname, varyings, tuple(d for d in defines if d != "PIXEL_RAY"))
 
     r = Variant(size, ctx=ctx)
     r.packed_vertices = name == "packed"
