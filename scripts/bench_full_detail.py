@@ -63,7 +63,7 @@ void main() { f_color = vec4(v_color.rgb, 1.0); }
 
 
 def _one_influence(src: str) -> str:
-    return src.replace("for (int k = 0; k < 4; ++k) {", "for (int k = 0; k < 1; ++k) {")
+    return src.replace("for (int k = 0; k < SKIN_INFLUENCES; ++k) {", "for (int k = 0; k < 1; ++k) {")
 
 
 def _no_fetch(src: str) -> str:
