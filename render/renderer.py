@@ -41,7 +41,7 @@ triangles (whole instances; default :data:`MAX_TRIANGLES_IN_FLIGHT`) with a
 costs no measurable time on llvmpipe (scripts/soak.md).
 
 Back faces are culled for single-sided reps (``double_sided`` False: glTF's default, the procedural
-characters; 1.6-2x on heavy characters, scripts/bench_full_detail.md), else both sides are lit.
+characters; 1.36-1.52x less CPU on heavy characters, scripts/bench_full_detail.md), else both sides are lit.
 """
 from __future__ import annotations
 
