@@ -83,11 +83,3 @@ def skin_attributes(rep, make_buffer, packed: bool = PACKED_VERTICES, joints=Non
         (make_buffer(np.asarray(weights, np.float32), "weights"), "4f", "in_weights")
     return [joint_attribute(joints, make_buffer), w]
 
-
-def vertex_bytes(content) -> int:
-    """Bytes per vertex of a content list (formats like ``3f``, ``3f2``, ``4f1``, ``4u1``)."""
-    total = 0
-    for _, fmt, _ in content:
-        n, _, size = fmt.partition("f") if "f" in fmt else fmt.partition("u")
-        total += int(n) * int(size or 4)
-    return total
