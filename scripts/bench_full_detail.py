@@ -5,16 +5,14 @@ by renderer variants on one GL context, round-robin with the order rotated every
 shared; every variant sees the same load). Each variant changes one thing against the shipped renderer:
 
 shipped changes (their image is checked against "before", PSNR in the table)
-  before          back faces drawn, headlight from a position varying, 4 influences read per vertex,
-                  triangles in the mesh's order (the renderer before issue 21)
+  before          back faces drawn, headlight from a position varying, 4 influences read per vertex
+                  (the renderer before issue 21)
   shipped         back faces of single-sided reps culled, headlight from the pixel's camera ray
                   (render/pixel_ray.py: one vertex output fewer), only the influences the mesh uses
-                  (SKIN_INFLUENCES_n), triangles in llvmpipe's vertex-cache order (render/index_order.py),
-                  60-byte vertices
+                  (SKIN_INFLUENCES_n), 60-byte vertices
   no cull         shipped, but the rep drawn double-sided
   world varying   shipped, but the headlight from the interpolated camera-relative position (v_world)
   4 influences    shipped, but every vertex reads 4 influences
-  mesh order      shipped, but the triangles in the mesh's own order
   packed          shipped, but half-float normals, colours and weights (38-byte vertices; not shipped:
                   render/vertex_format.py PACKED_VERTICES)
   no split        shipped, no ``ctx.finish`` between submissions (``max_triangles_in_flight`` None)
@@ -51,7 +49,7 @@ for p in (ROOT, ROOT / "scripts"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-SHIPPED = ("before", "shipped", "no cull", "world varying", "4 influences", "mesh order", "packed", "no split")
+SHIPPED = ("before", "shipped", "no cull", "world varying", "4 influences", "packed", "no split")
 DIAGNOSTIC = ("flat fragment", "1 influence", "no fetch", "static", "discard")
 GL_RASTERIZER_DISCARD = 0x8C89
 
@@ -105,8 +103,6 @@ def make_variant(name, ctx, rep, static_rep, size):
         r.pixel_ray = False
     if name in ("before", "4 influences"):
         r.specialize_influences = False
-    if name in ("before", "mesh order"):
-        r.reorder_triangles = False
     if name == "no split":
         r.max_triangles_in_flight = None
     if name == "flat fragment":
