@@ -59,7 +59,6 @@ from render.shaders import program_sources
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.pixel_ray import write_pixel_ray
 from render.timing import gpu_seconds
-from render.index_order import vertex_cache_order
 from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
 
 #: bytes per instance in the instance buffer
@@ -203,8 +202,6 @@ class Renderer:
         self.pixel_ray = True
         #: skinned programs read only as many influences as the rep's vertices use (reps uploaded from now on)
         self.specialize_influences = True
-        #: full-detail triangles in llvmpipe's vertex-cache order (render/index_order.py; reps uploaded from now on)
-        self.reorder_triangles = True
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -359,9 +356,7 @@ class Renderer:
             raise TypeError(f"Renderer.upload: representation {rep.key!r} has unknown kind {kind!r}; "
                             "expected 'skinned', 'keyframed' or 'static'")
         content = [c for c in content if c[2] in prog]
-        order = self.reorder_triangles and kind in ("skinned", "static") and not hasattr(rep, "level_count")
-        idx = vertex_cache_order(rep.positions, rep.indices) if order else rep.indices  # render/index_order.py
-        ibo = buf(np.asarray(idx, np.uint32), "indices")
+        ibo = buf(np.asarray(rep.indices, np.uint32), "indices")
         vao = ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4)
         vao.label = f"{rep.key}.vao"
         objs.append(vao)
@@ -527,7 +522,8 @@ class Renderer:
         view_proj = np.asarray(drawlist.proj, np.float64) @ np.asarray(drawlist.view, np.float64)
         self.fbo.use()
         ctx.viewport = (0, 0) + self.size
-        ctx.enable(ctx.DEPTH_TEST)  # back-face culling is set per batch (single-sided reps)
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
         bg = tuple(float(c) for c in background)[:3]
         self.fbo.clear(*bg, 1.0, depth=1.0)
         used = set()
