@@ -8,6 +8,9 @@
 #                info, build and a frame in every LOD mode (scripts/corpus.py; the table goes to docs/corpus.md)
 #   make report  set up, then the frame-time and accuracy report of the seven benchmark scenes
 #                (scripts/report_seeds.sh: out/report_seeds/<scene>/index.html and table.md)
+#   make bench-peers  .venv-peers: the benchmark-only peer engines (panda3d, panda3d-gltf, jupedsim, pedpy) in
+#                their own environment, never runtime dependencies; then scripts/bench_peer.py (Panda3D) runs
+#                with --peers-python .venv-peers/bin/python (its default)
 
 PYTHON   ?= python3
 VENV     ?= .venv
@@ -24,9 +27,13 @@ BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.t
 BENCH_FRAMES ?= 3
 BENCH_SIZE   ?= 1280x720
 PYTEST_ARGS  ?=
+# benchmark-only peers (make bench-peers): their own virtual environment and packages
+PEERS_VENV     ?= .venv-peers
+PEERS_PACKAGES ?= panda3d panda3d-gltf jupedsim pedpy
+PEERS_SENTINEL := $(PEERS_VENV)/.crowd-peers-done
 CORPUS_DIRS  ?= ../shared/assets
 
-.PHONY: setup system-packages test-packages apt-packages demo test bench corpus report clean
+.PHONY: setup system-packages test-packages apt-packages demo test bench bench-peers corpus report clean
 
 setup: $(SENTINEL)
 
@@ -82,6 +89,15 @@ bench: setup
 	  $(VPY) -m crowd run $$s --frames $(BENCH_FRAMES) --size $(BENCH_SIZE) --png-every 0 --out out/bench/$$n --quiet || exit $$?; \
 	  $(VPY) -c "import json,sys; s=json.load(open(sys.argv[1])); st=s['stages']; print('  %d frames, mean frame %.1f ms (simulate %.1f, select %.1f, draw %.1f), %d triangles/frame' % (s['frames'], 1e3*st['total']['mean'], 1e3*st['simulate']['mean'], 1e3*st['select']['mean'], 1e3*st['draw']['mean'], s['counts']['triangles']['mean']))" out/bench/$$n/summary.json; \
 	done
+
+bench-peers: $(PEERS_SENTINEL)
+
+# Re-runs only when the package list (this Makefile) changes.
+$(PEERS_SENTINEL): Makefile
+	@test -x $(PEERS_VENV)/bin/python || $(PYTHON) -m venv $(PEERS_VENV)
+	$(PEERS_VENV)/bin/python -m pip install --quiet $(PEERS_PACKAGES)
+	@$(PEERS_VENV)/bin/python -c "import panda3d.core, gltf, jupedsim, pedpy; print('peers:', panda3d.core.PandaSystem.getVersionString())"
+	@touch $(PEERS_SENTINEL)
 
 corpus: setup
 	$(VPY) scripts/corpus.py $(CORPUS_DIRS) --with-generated --md docs/corpus.md

@@ -215,7 +215,8 @@ class Drawer:
         """(integer, float) textures of the geomorph chains (``shaders/clusters_morph.vert``):
         per vertex (next vertex, removed-at height), joints / position, normal, colour, weights."""
         if st.morph_tex is None:
-            st.morph_tex = morph_textures(self.ctx, *collapse_table(st.hierarchy), st.skinned, st.key)
+            st.morph_tex = morph_textures(self.ctx, *collapse_table(st.hierarchy), st.skinned, st.key,
+                                          self.renderer.packed_vertices)
             st.objects.extend(st.morph_tex)
         return st.morph_tex
 
@@ -375,8 +376,10 @@ class Drawer:
             if "u_fade" in prog:
                 prog["u_fade"].value = getattr(it, "fade", (0.0, 0.0))
             r._bind_instances(vao, locs, inst, off * INSTANCE_FLOATS * 4, self._tints)
+            (ctx.enable if st.skin.cull else ctx.disable)(ctx.CULL_FACE)  # single-sided as the full mesh
             vao.render_indirect(ind, mode=ctx.TRIANGLES, count=nc, first=c0)
             stats["draws"] += 1
+        ctx.disable(ctx.CULL_FACE)
 
     def draw(self, batches, drawlist, view_proj) -> None:
         """Draw the cuts of ``batches`` (``lod.clusters.mode.ClusterDrawBatch``; a

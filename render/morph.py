@@ -16,6 +16,8 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from render.vertex_format import PACKED_VERTICES, drawn
+
 #: texture units of the geomorph tables (0 and 1 hold the joint table and the skinning palette)
 MORPH_INT_UNIT = 2
 MORPH_FLOAT_UNIT = 3
@@ -23,7 +25,8 @@ MORPH_FLOAT_UNIT = 3
 MORPH_TEXTURE_WIDTH = 4096
 
 
-def morph_textures(ctx, nxt: np.ndarray, removed_at: np.ndarray, skinned, label: str) -> tuple:
+def morph_textures(ctx, nxt: np.ndarray, removed_at: np.ndarray, skinned, label: str,
+                   packed: bool = PACKED_VERTICES) -> tuple:
     """The two textures ``shaders/morph.glsl`` reads, width :data:`MORPH_TEXTURE_WIDTH`.
 
     Parameters
@@ -33,6 +36,8 @@ def morph_textures(ctx, nxt: np.ndarray, removed_at: np.ndarray, skinned, label:
         ``TrianglesRep.collapse_next`` / ``collapse_level``)
     skinned : the character's ``lod.full.reps.SkinnedRep`` (positions, normals, colours, joints, weights)
     label : prefix of the textures' GL labels
+    packed : the vertex attributes are packed (render/vertex_format.py): the targets' normals, colours
+        and weights then hold the very values the vertex shader reads for a vertex
 
     Returns
     -------
@@ -49,9 +54,9 @@ def morph_textures(ctx, nxt: np.ndarray, removed_at: np.ndarray, skinned, label:
     tf = np.zeros((V, 4, 4), np.float32)
     tf[:, 0, :3] = np.asarray(skinned.positions)[:V]
     tf[:, 0, 3] = 1.0
-    tf[:, 1, :3] = np.asarray(skinned.normals)[:V]
-    tf[:, 2, :] = np.asarray(skinned.colors)[:V]
-    tf[:, 3, :] = np.asarray(skinned.weights)[:V]
+    tf[:, 1, :3] = drawn(np.asarray(skinned.normals)[:V], 3, packed)
+    tf[:, 2, :] = drawn(np.asarray(skinned.colors)[:V], 4, packed)
+    tf[:, 3, :] = drawn(np.asarray(skinned.weights)[:V], 4, packed)
     out = []
     for arr, dtype in ((ti.reshape(-1, 4), "i4"), (tf.reshape(-1, 4), "f4")):
         rows = max(1, -(-arr.shape[0] // W))

@@ -21,15 +21,13 @@ Draw paths (one program each, shaders in ``render/shaders/``):
 - morph targets (``SkinnedRep.targets``): the skinned programs compiled with ``MORPH_TARGETS``
   morph every vertex before skinning (``render/targets.py``); reps without them use the plain ones.
 
-Instance data: every frame, the instance data of all batches are written into
-one per-frame buffer (orphaned first, so a draw still reading last frame's
-data never stalls the write); each batch then re-binds the four instanced
-attributes (divisor 1) of its representation's VAO at the batch's byte offset
-and issues one instanced draw (moderngl exposes no base-instance draw; an
-offset re-bind is four cheap GL calls). Measured on llvmpipe with 64 batches
-of 500 one-triangle instances, a frame took 14 ms this way against 19.5 ms
-when orphaning and writing the buffer once per batch, so the per-frame buffer
-with offsets is the path kept (it is also the layout a real GPU prefers).
+Instance data: every frame, the instance data of all batches are written into one per-frame buffer (orphaned
+first, so a draw still reading last frame's data never stalls the write); each batch then re-binds the four
+instanced attributes (divisor 1) of its representation's VAO at the batch's byte offset and issues one
+instanced draw (moderngl exposes no base-instance draw; an offset re-bind is four cheap GL calls). Measured on
+llvmpipe with 64 batches of 500 one-triangle instances, a frame took 14 ms this way against 19.5 ms when
+orphaning and writing the buffer once per batch, so the per-frame buffer with offsets is the path kept (it is
+also the layout a real GPU prefers).
 
 Colour words: beside the instance data, a per-frame stream of two uint32 per
 instance (the agent's colour variation, the batch's debug colour;
@@ -49,9 +47,8 @@ triangles (whole instances; default :data:`MAX_TRIANGLES_IN_FLIGHT`) with a
 ``ctx.finish`` between them, which keeps the driver at a few scenes; the wait
 costs no measurable time on llvmpipe (scripts/soak.md).
 
-Back faces are not culled: imported meshes (glTF) can have inconsistent
-winding, and on llvmpipe the cost is in vertex processing and triangle setup,
-which culling would not save; the fragment shader lights both sides.
+Back faces are culled for single-sided reps (``double_sided`` False: glTF's default, the procedural
+characters; 1.36-1.52x less CPU on heavy characters, scripts/bench_full_detail.md), else both sides are lit.
 """
 from __future__ import annotations
 
@@ -70,8 +67,10 @@ from render.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteC
 from render.shaders import program_sources
 from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
+from render.pixel_ray import write_pixel_ray
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
+from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
 
 #: bytes per instance in the instance buffer
 INSTANCE_BYTES = INSTANCE_FLOATS * 4
@@ -89,15 +88,6 @@ MAX_TRIANGLES_IN_FLIGHT = 100_000
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
 _DRAW_ATTRS = (*_INSTANCE_ATTRS, "i_tint")  # + the colour words (render/tint.py)
-
-
-def joint_attribute(joints: np.ndarray, make_buffer) -> tuple:
-    """(buffer, format, name) of the joint-index attribute in the narrowest
-    unsigned type that holds every index (uint8 for up to 256 joints)."""
-    j = np.asarray(joints)
-    top = int(j.max()) if j.size else 0
-    dtype, fmt = (np.uint8, "4u1") if top < 256 else (np.uint16, "4u2")
-    return make_buffer(j.astype(dtype), "joints"), fmt, "in_joints"
 
 
 def prog_name(kind: str, skinning: str = "palette") -> str:
@@ -143,6 +133,7 @@ class _GpuRep:
     morph: tuple | None = None
     targets: tuple | None = None  # morph-target textures (render.targets), None for a rep without targets
     defines: tuple = ()  # preprocessor names of the rep's programs ((TARGETS_DEFINE,) with targets)
+    cull: bool = False  # back faces culled (a single-sided skinned or static rep)
 
 
 class Renderer:
@@ -210,6 +201,12 @@ class Renderer:
         self.last_submissions = 0
         # the light, the shadow map and the blob shadows, drawn among the plug-in drawers (render.shadows)
         self.lighting = self._drawers["shadows"] = Lighting(self)
+        #: pack vertex attributes of reps uploaded from now on (render/vertex_format.py)
+        self.packed_vertices = PACKED_VERTICES
+        #: light the headlight by the pixel's camera ray, not a position varying (programs compiled from now on)
+        self.pixel_ray = True
+        #: skinned programs read only as many influences as the rep's vertices use (reps uploaded from now on)
+        self.specialize_influences = True
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -237,6 +234,7 @@ class Renderer:
         """Compiled program ``name`` (cached). With ``varyings`` it is the
         vertex-only transform-feedback variant recording those outputs; with
         ``defines`` the variant compiled with those preprocessor names."""
+        defines = tuple(defines) + (("PIXEL_RAY",) if self.pixel_ray and not varyings else ())  # render/pixel_ray.py
         key = (name, tuple(varyings), tuple(defines))
         if key not in self._programs:
             src = program_sources(name, fragment=not varyings, defines=tuple(defines))
@@ -292,6 +290,9 @@ class Renderer:
 
         defines = (TARGETS_DEFINE,) if kind == "skinned" and getattr(rep, "targets", None) is not None else ()
         if kind == "skinned":
+            jn, wt, n_inf = compact_influences(rep.joints, rep.weights)
+            if n_inf < 4 and self.specialize_influences and getattr(rep, "collapse_next", None) is None:
+                defines += (f"SKIN_INFLUENCES_{n_inf}",)  # shaders/skinning.glsl (geomorph tables are not compacted)
             prog = self.program(prog_name(kind, self.skinning), defines=defines)
             joints = np.ascontiguousarray(rep.joint_table, np.float32)
             F, J = joints.shape[0], joints.shape[1]
@@ -304,13 +305,8 @@ class Renderer:
             tex.repeat_x = tex.repeat_y = False
             tex.label = f"{rep.key}.joints"
             objs.append(tex)
-            content = [
-                (buf(rep.positions, "positions"), "3f", "in_position"),
-                (buf(rep.normals, "normals"), "3f", "in_normal"),
-                (buf(rep.colors, "colors"), "4f", "in_color"),
-                joint_attribute(rep.joints, buf),
-                (buf(rep.weights, "weights"), "4f", "in_weights"),
-            ]
+            content = surface_attributes(rep, buf, self.packed_vertices) + \
+                skin_attributes(rep, buf, self.packed_vertices, jn, wt)
             n_vertices = rep.positions.shape[0]
         elif kind == "keyframed":
             prog = self.program("keyframed")
@@ -327,11 +323,7 @@ class Renderer:
         elif kind == "static":
             prog = self.program("static")
             tex = None
-            content = [
-                (buf(rep.positions, "positions"), "3f", "in_position"),
-                (buf(rep.normals, "normals"), "3f", "in_normal"),
-                (buf(rep.colors, "colors"), "4f", "in_color"),
-            ]
+            content = surface_attributes(rep, buf, self.packed_vertices)  # render/vertex_format.py
             n_vertices = rep.positions.shape[0]
         else:
             raise TypeError(f"Renderer.upload: representation {rep.key!r} has unknown kind {kind!r}; "
@@ -350,11 +342,13 @@ class Renderer:
         g = _GpuRep(rep.key, kind, vao, locs, int(np.asarray(rep.indices).size), objs, tex, cvao,
                     n_vertices=int(n_vertices))
         g.capture_locs = {a: cprog[a].location for a in _INSTANCE_ATTRS if a in cprog}
+        g.cull = kind in ("skinned", "static") and getattr(rep, "double_sided", True) is False
         g.content = content  # vertex buffers (buffer, format, attribute), reused by plug-in drawers
         # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
-        if defines:  # morph targets (render.targets); g.objects is objs
-            g.targets, g.defines = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key), defines
+        g.defines = defines
+        if TARGETS_DEFINE in defines:  # morph targets (render.targets); g.objects is objs
+            g.targets = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key)
             objs.extend(g.targets)
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])
@@ -383,7 +377,7 @@ class Renderer:
             vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
                                         index_element_size=4)
             vao.label = f"{g.key}.morph_vao"
-            tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key)
+            tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key, self.packed_vertices)
             g.objects.extend([vao, *tex])
             self._objects.extend([vao, *tex])
             g.morph = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog}, tex)
@@ -459,6 +453,7 @@ class Renderer:
             prog["u_palette"].value = 1
         if "u_fade" in prog:
             prog["u_fade"].value = (0.0, 0.0)
+        write_pixel_ray(prog, view_proj, self.size)
 
     def _draw_batch(self, b, offset: int, view_proj, used: set, pieces=None, cursor=None) -> None:
         """Draw built-in batch ``b`` (instance data from byte ``offset``) with ``view_proj``; programs not in
@@ -499,6 +494,7 @@ class Renderer:
                 g.joints.use(0)
             off = offset + f * INSTANCE_BYTES
             self._bind_instances(vao, locs, self._instances, off)
+            (self.ctx.enable if g.cull else self.ctx.disable)(self.ctx.CULL_FACE)  # single-sided reps
             self._render_instanced(g, prog, pb, off, count, first, k, vao, locs)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
@@ -566,6 +562,7 @@ class Renderer:
             self.lighting.shadow_pass(batches, plugin, drawlist, pieces, cursor, offsets)  # [render] shadows = "map"
             for i, b in enumerate(batches):
                 self._draw_batch(b, offsets[i], view_proj, used, pieces.get(i), cursor)
+            ctx.disable(ctx.CULL_FACE)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time

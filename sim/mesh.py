@@ -36,6 +36,11 @@ class Mesh:
     morph : MorphTargets or None
         Morph targets (skinned meshes of glTF files); ``positions`` and
         ``normals`` are the mesh at ``morph.default_weights``.
+    double_sided : bool
+        True (default): both faces of every triangle are seen, so a renderer
+        must not cull back faces. False: a closed or one-sided surface wound
+        counter-clockwise seen from the front (glTF ``material.doubleSided``
+        false, §3.9.5; the procedural characters), whose back faces may be culled.
     """
 
     positions: np.ndarray
@@ -46,6 +51,7 @@ class Mesh:
     weights: np.ndarray | None = None
     base_color: np.ndarray = field(default_factory=lambda: np.array([0.8, 0.8, 0.8, 1.0], np.float32))
     morph: MorphTargets | None = None
+    double_sided: bool = True
 
     @property
     def n_vertices(self) -> int:

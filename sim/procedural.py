@@ -235,6 +235,7 @@ def _build_mesh(parts: list, triangles: int, skeleton: Skeleton, rng, jitter: fl
         colors=colors.astype(np.float32),
         joints=np.concatenate(JN).astype(np.uint16),
         weights=np.concatenate(W).astype(np.float32),
+        double_sided=False,  # closed tubes wound counter-clockwise seen from outside (tests/sim/test_procedural.py)
     )
 
 

@@ -112,6 +112,7 @@ class SkinnedRep:
     clip_sphere: np.ndarray
     frame_aabb: np.ndarray
     targets: TargetTable | None = None
+    double_sided: bool = True  # sim.mesh.Mesh.double_sided: False lets the renderer cull back faces
 
     kind = "skinned"
 
@@ -310,6 +311,7 @@ class StaticRep:
     indices: np.ndarray
     aabb: np.ndarray
     sphere: np.ndarray
+    double_sided: bool = True  # sim.mesh.Mesh.double_sided
 
     kind = "static"
 
@@ -467,6 +469,7 @@ def build_skinned_rep(character, fps: float = BAKE_FPS, key: str | None = None,
         clip_sphere=np.asarray(csph, np.float64),
         frame_aabb=np.concatenate(faabb).astype(np.float32),
         targets=targets,
+        double_sided=bool(getattr(mesh, "double_sided", True)),
     )
 
 
@@ -559,7 +562,8 @@ def build_static_rep(mesh, key: str = "static") -> StaticRep:
         box = np.stack([pos.min(0), pos.max(0)])
     else:
         box = np.zeros((2, 3), np.float32)
-    return StaticRep(key, pos, nrm, col, idx, box.astype(np.float32), _sphere_of_points(pos))
+    return StaticRep(key, pos, nrm, col, idx, box.astype(np.float32), _sphere_of_points(pos),
+                     double_sided=bool(getattr(mesh, "double_sided", True)))
 
 
 def build_rep(character, fps: float = BAKE_FPS, key: str | None = None) -> Rep:

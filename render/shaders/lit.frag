@@ -1,7 +1,14 @@
 #version 330 core
 // Vertex colour lit by the scene's light (light.glsl: directional light with
-// its shadow-map visibility, headlight, ambient).
+// its shadow-map visibility, headlight, ambient). With PIXEL_RAY the headlight
+// direction comes from the pixel's camera ray (render/pixel_ray.py) instead of
+// the interpolated camera-relative position v_world, which the draw programs
+// then do not output (one vertex output and 3 interpolants fewer).
+#ifdef PIXEL_RAY
+uniform mat3 u_pixel_ray;  // camera ray through window position (x, y): u_pixel_ray * (x, y, 1)
+#else
 in vec3 v_world;
+#endif
 in vec3 v_normal;
 in vec4 v_color;
 
@@ -12,5 +19,13 @@ out vec4 f_color;
 
 void main() {
     if (fade_discards(ivec2(gl_FragCoord.xy))) discard;
-    f_color = vec4(light_shade(v_world, v_normal, v_color.rgb, shadow_visibility(v_world, v_normal)), 1.0);  // v_color: tinted (tint.glsl)
+#ifdef PIXEL_RAY
+    // the headlight needs only the direction; no shadow map here (Lighting compiles without PIXEL_RAY for "map")
+    vec3 world = u_pixel_ray * vec3(gl_FragCoord.xy, 1.0);
+    float visibility = 1.0;
+#else
+    vec3 world = v_world;
+    float visibility = shadow_visibility(v_world, v_normal);
+#endif
+    f_color = vec4(light_shade(world, v_normal, v_color.rgb, visibility), 1.0);  // v_color: tinted (tint.glsl)
 }

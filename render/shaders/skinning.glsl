@@ -8,6 +8,19 @@
 // frames contain every rendered pose.
 uniform sampler2D u_joints;
 
+// Influences read per vertex: 4, or fewer when the program is compiled for a mesh
+// whose vertices have at most 1, 2 or 3 non-zero weights, packed first
+// (render/vertex_format.py compact_influences: the same terms in the same order).
+#if defined(SKIN_INFLUENCES_1)
+const int SKIN_INFLUENCES = 1;
+#elif defined(SKIN_INFLUENCES_2)
+const int SKIN_INFLUENCES = 2;
+#elif defined(SKIN_INFLUENCES_3)
+const int SKIN_INFLUENCES = 3;
+#else
+const int SKIN_INFLUENCES = 4;
+#endif
+
 // Frame pair and blend factor of a fractional frame coordinate.
 void frame_pair(float frame, out int f0, out int f1, out float a) {
     int last = textureSize(u_joints, 0).y - 1;
@@ -35,7 +48,7 @@ void skin_rows(uvec4 joints, vec4 weights, float frame, out vec4 r0, out vec4 r1
     r0 = vec4(0.0);
     r1 = vec4(0.0);
     r2 = vec4(0.0);
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < SKIN_INFLUENCES; ++k) {
         float w = weights[k];
         if (w == 0.0) continue;
         int x = 3 * int(joints[k]);
@@ -68,7 +81,7 @@ void palette_rows(uvec4 joints, vec4 weights, int instance, out vec4 r0, out vec
     r0 = vec4(0.0);
     r1 = vec4(0.0);
     r2 = vec4(0.0);
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < SKIN_INFLUENCES; ++k) {
         float w = weights[k];
         if (w == 0.0) continue;
         ivec2 p = ivec2(x0 + 3 * int(joints[k]), y0);

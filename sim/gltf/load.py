@@ -366,6 +366,7 @@ def _load_skinned(doc, g: _Graph, mesh_nodes, skinned_nodes, prims, animated, mo
         colors=np.concatenate(C).astype(np.float32),
         joints=np.concatenate(JO).astype(np.uint16),
         weights=np.concatenate(W).astype(np.float32),
+        double_sided=any(pr.double_sided for ni in mesh_nodes for pr in prims[ni]),
     )
     if tnames:
         mesh.morph = MorphTargets(positions=np.concatenate(DP, 1).astype(np.float32),
@@ -441,6 +442,7 @@ def _load_keyframed(doc, g: _Graph, mesh_nodes, prims, morph_nodes):
             indices=np.concatenate(T).astype(np.uint32).reshape(-1, 3),
             normals=np.concatenate(N).astype(np.float32),
             colors=np.concatenate(C).astype(np.float32),
+            double_sided=any(pr.double_sided for ni in mesh_nodes for pr in prims[ni]),
         )
 
     animations = {}

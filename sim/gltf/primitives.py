@@ -144,6 +144,8 @@ class _Prim:
             self.normals = None
         # colours: COLOR_0, else material factor (x texture)
         mat = doc.item("materials", prim["material"], where) if "material" in prim else {}
+        # §3.9.5: back faces are culled unless the material is double-sided (the default material is not)
+        self.double_sided = mat.get("doubleSided", False) is True
         pbr = mat.get("pbrMetallicRoughness") or {}
         factor = pbr.get("baseColorFactor", GLTF_DEFAULT_COLOR)
         try:

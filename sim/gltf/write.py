@@ -78,7 +78,8 @@ def save_glb(character, path) -> None:
     ----------
     character : SkinnedCharacter or KeyframedCharacter
         Skinned: mesh with NORMAL, COLOR_0 (vec4 float), JOINTS_0 (ushort),
-        WEIGHTS_0 (float), a skin with inverse bind matrices, one node per
+        WEIGHTS_0 (float), a material with ``doubleSided`` true when the mesh is
+        double-sided (none otherwise: glTF's default is single-sided), a skin with inverse bind matrices, one node per
         joint with its rest TRS (plus a parent node holding
         ``root_transform`` when it is not the identity), and one animation per
         clip keeping its interpolation. Keyframed: keyframe 0 is the base
@@ -221,6 +222,9 @@ def _export_skinned(ch: SkinnedCharacter, w: _Writer) -> dict:
         "meshes": [gmesh],
         "skins": [skin],
     }
+    if getattr(m, "double_sided", True):  # glTF's default material is single-sided (§3.9.5)
+        prim["material"] = 0
+        gl["materials"] = [{"name": "double_sided", "doubleSided": True}]
     if anims:
         gl["animations"] = anims
     return gl
