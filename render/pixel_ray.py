@@ -38,3 +38,8 @@ def write_pixel_ray(prog, view_proj: np.ndarray, size) -> None:
         a = pixel_ray_matrix(view_proj, size)
         if np.all(np.isfinite(a)):
             prog["u_pixel_ray"].write(np.ascontiguousarray(a.T, np.float32).tobytes())  # GLSL: column-major
+    if "u_pixel_inv" in prog:  # the shadow map's lookup position (lit.frag with shadows on)
+        inv = np.linalg.inv(np.asarray(view_proj, np.float64))
+        if np.all(np.isfinite(inv)):
+            prog["u_pixel_inv"].write(np.ascontiguousarray(inv.T, np.float32).tobytes())
+            prog["u_pixel_size"].value = (float(size[0]), float(size[1]))

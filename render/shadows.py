@@ -203,9 +203,6 @@ class Lighting:
             if mode not in SHADOW_MODES:
                 raise ValueError(f"shadows: expected one of {SHADOW_MODES}, got {mode!r}")
             self.mode = mode
-            # the map is sampled at each fragment's position, which PIXEL_RAY programs do not interpolate
-            # (render/pixel_ray.py, lit.frag): programs compiled from now on (the engine configures first)
-            self.r.pixel_ray = mode != "map"
         if distance is not None:
             if not (math.isfinite(distance) and distance > 0):
                 raise ValueError(f"shadow_distance: expected a finite number > 0, got {distance!r}")
