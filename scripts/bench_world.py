@@ -9,7 +9,8 @@ built from the scene with ``[render]`` / ``[[props]]`` overrides:
 - ``map``:   ``shadows = "map"``, ``ground = true``, the scene's props.
 
 The simulation runs once (the ``world`` engine's, with its props as obstacles) and every case selects and draws
-that same state with its own selector (no ``observe`` feedback, so ``auto`` chooses the same representations in
+that same state with its own selector and its own world (``engine.scenery.add``: ground, obstacle solids, props,
+as ``crowd run`` adds them) (no ``observe`` feedback, so ``auto`` chooses the same representations in
 every case); the cases run in a new seeded random order each frame (a case drawn right after a heavy one runs
 slower on llvmpipe). Frame time = select + upload + draw + ``ctx.finish``, as ``crowd report`` counts it. The
 summary gives world / bare and map / bare as the ratio of the medians and, "paired", as the median over frames of
