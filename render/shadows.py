@@ -22,7 +22,8 @@
   Receivers sample it with 3x3 PCF on a depth-comparing sampler (Reeves, Salesin & Cook 1987), with a normal
   offset and a constant bias against acne.
 - ``draw``: blob shadows, a soft dark disc under each agent (mode "blob", and in mode "map" for the agents drawn
-  as points or clusters). One instanced draw of a quad per agent lying at its floor point (the representation's
+  as points or clusters; never under a plug-in drawer's statics that say ``blob_shadows = False``: the world's
+  props and obstacle solids). One instanced draw of a quad per agent lying at its floor point (the representation's
   lowest vertex under the centre of its footprint, through the instance matrix), radius from the footprint of the
   representation's rest pose times the instance scale; alpha-blended, depth-tested without depth writes, lifted by
   :data:`BLOB_LIFT` metres and pulled forward by polygon offset (no z-fighting with the ground). The renderer
@@ -379,7 +380,7 @@ class Lighting:
         self.last_counts["blobs"] = 0
         if self.mode == "none":
             return
-        src = drawlist.batches
+        src = [b for b in drawlist.batches if self._blob_kind(b.rep)]
         if self.mode == "map":  # the agents of drawers that did not cast (points; clusters with occlusion culling)
             src = [b for b in src if self.r._plugin_reps.get(b.rep) in self._blob_kinds]
         blobs = blob_instances(src, self.footprints)
@@ -405,6 +406,12 @@ class Lighting:
             fbo.depth_mask = True
             fbo.use()
         self.last_counts["blobs"] = n
+
+    def _blob_kind(self, key: str) -> bool:
+        """Whether the agents of representation ``key`` may get blobs: not those of a plug-in drawer with
+        ``blob_shadows = False`` (the world's props and obstacle solids: statics that cast into the map)."""
+        kind = self.r._plugin_reps.get(key)
+        return kind is None or getattr(self.r._drawers.get(kind), "blob_shadows", True)
 
     def _blob_objects(self, n: int):
         """(program, vertex array, instance buffer) of the blob draw, the buffer holding at least ``n`` blobs."""

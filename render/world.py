@@ -9,10 +9,20 @@ name a chain level by ``index_range``; their instance data are the
 camera-relative model rows of ``lod.drawlist``, gathered into one per-frame
 buffer and re-bound at each batch's offset (as the renderer's own batches).
 
-Shading lives in ``shaders/world_light.glsl`` (Lambert with ``u_light_dir`` and
-an ambient term), shared by ``world_mesh`` (props, solids) and ``world_ground``.
-The ground is drawn first, then the meshes, before the point and cluster
-drawers (``order``), which depth-test against them.
+Shading lives in ``shaders/world_light.glsl``, shared by ``world_mesh`` (props,
+solids) and ``world_ground``: the scene's directional light (``render.light``:
+``u_light_dir``, ``u_light_color``, ``u_ambient``), its direct term multiplied by
+the shadow map's visibility (``shaders/shadow.glsl``, ``[render] shadows = "map"``).
+Every uniform of the light and the map is set by the renderer's
+:class:`render.shadows.Lighting` (``apply``), as for the characters, so
+``[render] light_*`` shades the world and the characters alike.
+
+Shadows: the ground and the meshes receive the shadow map; the meshes cast into
+it (:meth:`Drawer.cast_shadows`, called by ``Lighting.shadow_pass`` before the
+frame is drawn); the ground only receives. The world gets no blob shadows
+(:attr:`Drawer.blob_shadows`): blobs are the agents'. The ground is drawn first,
+then the meshes, before the blob shadows (``order`` -5: decals on the ground)
+and the point and cluster drawers (``order``), which depth-test against them.
 """
 from __future__ import annotations
 
@@ -20,29 +30,22 @@ import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS
 
-#: direction towards the light (world), normalised at use; the renderer's sun by default
-LIGHT_DIR = (0.35, 0.85, 0.4)
-#: ambient share of the world's shading
-AMBIENT = 0.35
 #: bytes per instance in the world's instance buffer
 _INSTANCE_BYTES = INSTANCE_FLOATS * 4
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
 
 
 class Drawer:
-    """Draws world representations (see the module docstring).
+    """Draws world representations (see the module docstring); the light is the renderer's
+    (``renderer.lighting``)."""
 
-    light_dir : (3,) direction towards the light (world), settable
-    ambient : float in [0, 1]
-    """
-
-    order = -10  # before the point splats and clusters (they depth-test against the world)
+    order = -10  # before the blob shadows, the point splats and clusters (they depth-test against the world)
+    #: the world's statics get no blob shadow (render.shadows.Lighting.draw): they cast into the map
+    blob_shadows = False
 
     def __init__(self, renderer):
         self.r = renderer
         self.ctx = renderer.ctx
-        self.light_dir = LIGHT_DIR
-        self.ambient = AMBIENT
         self._objects: list = []
         self._reps: dict = {}  # key -> dict(vao, locs, n_indices, objects) or ("ground", rep)
         self._buf = None
@@ -103,25 +106,22 @@ class Drawer:
         self._reps[rep.key] = {"vao": vao, "locs": locs, "n_indices": int(np.asarray(rep.indices).size),
                                "objects": objs}
 
-    def _light(self, prog, view_proj):
-        prog["u_view_proj"].write(np.ascontiguousarray(view_proj.T, np.float32).tobytes())
-        d = np.asarray(self.light_dir, np.float64)
-        n = float(np.linalg.norm(d))
-        d = d / n if n > 0 and np.isfinite(n) else np.array([0.0, 1.0, 0.0])
-        if "u_light_dir" in prog:  # a variant may not use the light
-            prog["u_light_dir"].value = tuple(d.tolist())
-        if "u_ambient" in prog:
-            prog["u_ambient"].value = float(self.ambient)
+    def _uniforms(self, prog, view_proj):
+        """View-projection, and the scene's light and shadow-map uniforms (``renderer.lighting.apply``)."""
+        prog["u_view_proj"].write(np.ascontiguousarray(np.asarray(view_proj, np.float64).T, np.float32).tobytes())
+        self.r.lighting.apply(prog)
+
+    def _meshes(self, batches) -> list:
+        return [b for b in batches if b.rep in self._reps and "vao" in self._reps[b.rep]]
 
     def draw(self, batches, drawlist, view_proj) -> None:
         ctx = self.ctx
         ground = [b for b in batches if "ground" in self._reps.get(b.rep, {})]
-        meshes = [b for b in batches if b.rep in self._reps and "vao" in self._reps[b.rep]]
         for b in ground:
             rep = self._reps[b.rep]["ground"]
             d = np.asarray(b.instance_data, np.float64).reshape(-1, INSTANCE_FLOATS)[0]
             prog = self.r.program("world_ground")
-            self._light(prog, view_proj)
+            self._uniforms(prog, view_proj)
             prog["u_extent"].value = float(d[12])
             prog["u_plane_y"].value = float(d[7])
             # phase (camera xz mod 100 at selection) minus the translation a re-framed (frozen) selection
@@ -130,8 +130,18 @@ class Drawer:
                 prog["u_grid_phase"].value = (float(d[13] - d[3]), float(d[14] - d[11]))
             prog["u_ground_color"].value = tuple(float(c) for c in rep.color)
             self.ground_vao.render(ctx.TRIANGLE_STRIP, vertices=4)
+        self._draw_meshes(self._meshes(batches), view_proj, tinted=True)
+
+    def cast_shadows(self, batches, drawlist, light_vp) -> None:
+        """Draw the depth of the props and obstacle solids of ``batches`` with the light's view-projection
+        ``light_vp`` (camera-relative positions, as the camera pass) into the bound shadow-map framebuffer
+        (``render.shadows.Lighting.shadow_pass``, which sets the polygon offset). The ground never casts."""
+        self._draw_meshes(self._meshes(batches), light_vp, tinted=False)
+
+    def _draw_meshes(self, meshes, view_proj, tinted: bool) -> None:
         if not meshes:
             return
+        ctx = self.ctx
         data = np.concatenate([np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
                                for b in meshes])
         if not np.isfinite(data).all():
@@ -145,11 +155,11 @@ class Drawer:
         self._buf.orphan(self._cap)
         self._buf.write(data.tobytes())
         prog = self.r.program("world_mesh")
-        self._light(prog, view_proj)
+        self._uniforms(prog, view_proj)
         offset = 0
         for b in meshes:
             g = self._reps[b.rep]
-            tint = getattr(b, "tint", None)
+            tint = getattr(b, "tint", None) if tinted else None
             prog["u_tint"].value = tuple(float(c) for c in tint) if tint is not None else (0.0, 0.0, 0.0, 0.0)
             for i, name in enumerate(_INSTANCE_ATTRS):
                 loc = g["locs"].get(name)

@@ -9,7 +9,8 @@ built from the scene with ``[render]`` / ``[[props]]`` overrides:
 - ``map``:   ``shadows = "map"``, ``ground = true``, the scene's props.
 
 The simulation runs once (the ``world`` engine's, with its props as obstacles) and every case selects and draws
-that same state with its own selector (no ``observe`` feedback, so ``auto`` chooses the same representations in
+that same state with its own selector and its own world (``engine.scenery.add``: ground, obstacle solids, props,
+as ``crowd run`` adds them) (no ``observe`` feedback, so ``auto`` chooses the same representations in
 every case); the cases run in a new seeded random order each frame (a case drawn right after a heavy one runs
 slower on llvmpipe). Frame time = select + upload + draw + ``ctx.finish``, as ``crowd report`` counts it. The
 summary gives world / bare and map / bare as the ratio of the medians and, "paired", as the median over frames of
@@ -112,12 +113,16 @@ def main(argv=None) -> int:
             eng = engines[case]
             a = time.perf_counter()
             dl = eng.selector.select(sim.world.state, cam, size, statics=statics[case])
+            if hasattr(eng, "scenery"):  # the world: ground, obstacle solids, props (crowd.world), as a run adds it
+                eng.scenery.add(dl, cam, size, eng.settings.poe, eng.settings.lod_mode)
             s = time.perf_counter() - a
             t = eng.renderer.draw(dl, eng.scene.render.background)
             if k >= args.warmup:
                 times[case].append(s + sum(float(t.get(x) or 0.0) for x in ("upload", "draw", "finish")))
                 counts[case].append((dl.stats.get("triangles", dl.triangles), dl.stats.get("points", dl.points),
-                                     dict(eng.renderer.lighting.last_counts)))
+                                     dict(eng.renderer.lighting.last_counts), int(dl.stats.get("props", 0)),
+                                     int(dl.stats.get("props_instances", 0)),
+                                     any(b.rep == "world:ground" for b in dl.batches)))
     from render.context import gl_info
 
     gl = gl_info(sim.renderer.ctx)
@@ -127,13 +132,14 @@ def main(argv=None) -> int:
     paired = {c: statistics.median(np.asarray(times[c]) / np.asarray(times["bare"])) for c in CASES}
     lines = [f"scene {path.name}, {size[0]}x{size[1]}, lod mode {args.mode}, {args.frames} measured frames "
              f"(+{args.warmup} warm-up), every {args.stride} simulation steps",
-             "", "| case | median ms | p90 ms | ratio of medians | paired ratio (median) | triangles | points | blobs |"
-             " map casters |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+             "", "| case | median ms | p90 ms | ratio of medians | paired ratio (median) | triangles | points | ground |"
+             " props (instances) | blobs | map casters |",
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | :---: | ---: | ---: | ---: |"]
     for c in CASES:
-        tri, pts, lc = counts[c][-1]
+        tri, pts, lc, ptri, pinst, ground = counts[c][-1]
         lines.append(f"| {c} | {1e3 * med[c]:.1f} | {1e3 * float(np.percentile(times[c], 90)):.1f} | "
-                     f"{med[c] / med['bare']:.3f} | {paired[c]:.3f} | {tri:,} | {pts:,} | {lc['blobs']} | "
-                     f"{lc['casters']} |")
+                     f"{med[c] / med['bare']:.3f} | {paired[c]:.3f} | {tri:,} | {pts:,} | {'yes' if ground else 'no'} | "
+                     f"{ptri:,} ({pinst}) | {lc['blobs']} | {lc['casters']} |")
     verdict = "meets" if med["world"] / med["bare"] <= TARGET else "misses"
     lines += ["", f"world / bare = {med['world'] / med['bare']:.3f} (paired {paired['world']:.3f}): {verdict} the "
               f"target <= {TARGET:.2f}; map / bare = {med['map'] / med['bare']:.3f} (paired {paired['map']:.3f})"]

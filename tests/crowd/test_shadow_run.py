@@ -44,10 +44,11 @@ def test_light_keys_reach_the_renderer(write_scene):
     assert load_scene(write_scene(tiny_scene(), "d.toml")).render.shadows == "blob"  # the default
 
 
-def _frame(write_scene, mode: str, shadows: str, name: str) -> tuple:
+def _frame(write_scene, mode: str, shadows: str, name: str, append: str = FLAT) -> tuple:
+    """One frame seen from above; ``append`` = FLAT: on the flat terrain, "": on the world's ground plane."""
     text = tiny_scene(replace={**ABOVE, "frames = 3": "frames = 1", 'mode = "none"': f'mode = "{mode}"',
                                "png_every = 1": f'png_every = 1\nlight_dir = [1.0, 1.0, 0.0]\nshadows = "{shadows}"'},
-                      append=FLAT)
+                      append=append)
     scene = load_scene(write_scene(text, name))
     with Engine(scene, quiet=True) as e:
         r = e._open_renderer()
@@ -120,3 +121,28 @@ def test_map_mode_with_mixed_triangle_and_cluster_batches_keeps_every_silhouette
     # (without the palette rebuild agents 2 and 3 take agents 0 and 1's poses: ~5 % of the silhouette pixels move)
     assert fg["none"].sum() > 500 and (fg["none"] != fg["map"]).sum() <= 0.01 * fg["none"].sum()
     assert (images["map"] - images["none"]).max() <= 3
+
+
+def test_characters_shadows_fall_on_the_world_ground(write_scene):
+    """Without a terrain the world's ground plane (render.world) is the floor: it receives the characters' shadow
+    map (darker 0.6 .. 0.9 m towards -x of each agent, unchanged 0.7 m towards +x) and lies under their blob
+    shadows (darker around each agent's feet than the bare ground, unchanged 1 m away)."""
+    plain, cam, pos, _ = _frame(write_scene, "none", "none", "g0.toml", append="")
+    mapped, _, pos2, counts = _frame(write_scene, "none", "map", "g1.toml", append="")
+    assert np.array_equal(pos, pos2) and counts["casters"] == 4
+    behind = [p + d for p in pos for d in ([-0.6, 0.0, 0.0], [-0.9, 0.0, 0.0])]
+    front = [p + [0.7, 0.0, 0.45] for p in pos]
+    dark, before = _at(mapped, cam, behind), _at(plain, cam, behind)
+    assert (dark < 0.85 * before).all(), (dark, before)
+    assert np.abs(_at(mapped, cam, front) - _at(plain, cam, front)).max() <= 3
+    blob, _, pos3, counts = _frame(write_scene, "none", "blob", "g2.toml", append="")
+    assert np.array_equal(pos, pos3) and counts["blobs"] == 4
+    # a ring 0.25 m around each agent's feet: where the body does not stand in front of it, the blob darkens the
+    # ground (at least 8 of 24 points by more than 10 levels; no point gets brighter)
+    a = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    for p in pos:
+        ring = p + 0.25 * np.stack([np.cos(a), np.zeros_like(a), np.sin(a)], 1)
+        diff = _at(blob, cam, ring) - _at(plain, cam, ring)
+        assert (diff < -10).sum() >= 8 and diff.max() <= 1, diff
+    far = [p + [0.75, 0.0, 0.75] for p in pos[:1]] + [pos[0] + [-1.0, 0.0, -1.0]]
+    assert np.abs(_at(blob, cam, far) - _at(plain, cam, far)).max() <= 1
