@@ -53,6 +53,15 @@ def main(argv=None) -> int:
     size = parse_size(args.size)
     if size is None:
         ap.error(f"--size: expected WxH, got {args.size!r}")
+    from crowd.scene import LOD_MODES
+
+    if args.frames < 0:
+        ap.error(f"--frames: expected >= 0, got {args.frames}")
+    if args.lod not in LOD_MODES:
+        ap.error(f"--lod: expected one of {', '.join(LOD_MODES)}, got {args.lod!r}")
+    missing = [n for n in args.scenes if not (ROOT / "scenes" / f"{n}.toml").is_file()]
+    if missing:
+        ap.error(f"no scene {missing[0]!r} in {ROOT / 'scenes'}")
     for name in args.scenes:
         t = time.perf_counter()
         p = picture(name, size, max(0, args.frames), args.lod, Path(args.out))
