@@ -269,6 +269,10 @@ def _project_kernel(pos, vel, prev, has_prev, circles, verts, pstart, pbound, ra
             ux, uz = px - sx, pz - sz
             ll = math.sqrt(ux * ux + uz * uz)
             d0, n0x, n0z = _sdf_point(sx, sz, circles, verts, pstart, pbound, _FAR)
+            if d0 - ll - radius > OBSTACLES_CONTACT + OBSTACLES_CCD_EPS:
+                # clear of every obstacle along the whole move (the SDF is 1-Lipschitz): the sphere
+                # trace ends at pos, and the projection and contact tests below change nothing
+                continue
             if ll > 0.0 and d0 - radius > OBSTACLES_CCD_EPS:
                 t = 0.0
                 for it in range(OBSTACLES_CCD_ITERATIONS):

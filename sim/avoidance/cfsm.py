@@ -57,7 +57,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from sim.avoidance.neighbors import bucket, coincident_dir, obstacles_near, sight_blocked
+from sim.avoidance.neighbors import bucket, coincident_dir, sight_blocked, sight_may_block
 from sim.grid import Grid, build_grid
 
 #: speeds below this (m/s) count as "no preferred motion": the agent stands
@@ -181,7 +181,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
             ex, ez = wx / sp, wz / sp
             v0 = v0p if v0p > 0.0 else sp
             reach = v0 * T  # neighbours with d - l beyond this cannot limit the speed
-            los = has_obs and obstacles_near(px, pz, cut, circles, pbound)
+            los = has_obs and sight_may_block(px, pz, cut, circles, verts, pstart, pbound)
             rx, rz = 0.0, 0.0
             nr = 0
             nb = 0

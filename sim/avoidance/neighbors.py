@@ -117,3 +117,36 @@ def obstacles_near(px, pz, reach, circles, pbound):
         if math.sqrt(dx * dx + dz * dz) - pbound[k, 2] < reach:
             return True
     return False
+
+
+@njit(cache=True)
+def sight_may_block(px, pz, reach, circles, verts, pstart, pbound):
+    """False when no segment from p shorter than ``reach`` can be blocked
+    (:func:`sight_blocked` is then False for every neighbour within reach):
+    no circle's boundary and no polygon edge is within ``reach`` of p. Exact
+    for polygons (the distance to every edge of a polygon whose bounding
+    circle is near), unlike :func:`obstacles_near`: long walls' bounding
+    circles contain a whole room, their edges do not come near most agents.
+    A segment p-q with |q - p| < reach stays within reach of p, so it can
+    cross an edge only when that edge comes within reach."""
+    for c in range(circles.shape[0]):
+        dx, dz = px - circles[c, 0], pz - circles[c, 1]
+        if math.sqrt(dx * dx + dz * dz) - circles[c, 2] < reach:
+            return True
+    r2 = reach * reach
+    for k in range(pbound.shape[0]):
+        dx, dz = px - pbound[k, 0], pz - pbound[k, 1]
+        if math.sqrt(dx * dx + dz * dz) - pbound[k, 2] >= reach:
+            continue
+        s, e = pstart[k], pstart[k + 1]
+        for a in range(s, e):
+            b = a + 1 if a + 1 < e else s
+            ax, az = verts[a, 0], verts[a, 1]
+            ux, uz = verts[b, 0] - ax, verts[b, 1] - az
+            ll = ux * ux + uz * uz
+            t = ((px - ax) * ux + (pz - az) * uz) / ll if ll > 0.0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            ex, ez = ax + t * ux - px, az + t * uz - pz
+            if ex * ex + ez * ez <= r2:
+                return True
+    return False
