@@ -16,6 +16,7 @@ from numba import njit
 
 from sim.config import BOIDS_COINCIDENT_A, BOIDS_COINCIDENT_B
 from sim.grid import cell_key
+from sim.obstacles import box_dist2
 
 
 @njit(cache=True, inline="always")
@@ -120,13 +121,14 @@ def obstacles_near(px, pz, reach, circles, pbound):
 
 
 @njit(cache=True)
-def sight_may_block(px, pz, reach, circles, verts, pstart, pbound):
+def sight_may_block(px, pz, reach, circles, verts, pstart, pbound, pbox):
     """False when no segment from p shorter than ``reach`` can be blocked
     (:func:`sight_blocked` is then False for every neighbour within reach):
     no circle's boundary and no polygon edge is within ``reach`` of p. Exact
     for polygons (the distance to every edge of a polygon whose bounding
-    circle is near), unlike :func:`obstacles_near`: long walls' bounding
-    circles contain a whole room, their edges do not come near most agents.
+    box is near, ``pbox`` of :func:`polygon_boxes`), unlike
+    :func:`obstacles_near`: long walls' bounding circles contain a whole room,
+    their edges do not come near most agents.
     A segment p-q with |q - p| < reach stays within reach of p, so it can
     cross an edge only when that edge comes within reach."""
     for c in range(circles.shape[0]):
@@ -135,8 +137,7 @@ def sight_may_block(px, pz, reach, circles, verts, pstart, pbound):
             return True
     r2 = reach * reach
     for k in range(pbound.shape[0]):
-        dx, dz = px - pbound[k, 0], pz - pbound[k, 1]
-        if math.sqrt(dx * dx + dz * dz) - pbound[k, 2] >= reach:
+        if box_dist2(px, pz, pbox, k) > r2:
             continue
         s, e = pstart[k], pstart[k + 1]
         for a in range(s, e):

@@ -9,7 +9,7 @@ from sim.avoidance.neighbors import sight_blocked, sight_may_block
 from sim.avoidance.resolve import RESOLVE_DENSE_FACTOR, RESOLVE_TARGET
 from sim.goals import Goals, kinematic_numpy, kinematic_step
 from sim.grid import build_grid, build_grid_numpy
-from sim.obstacles import ObstacleSet, _project_kernel, project_numpy
+from sim.obstacles import ObstacleSet, _project_kernel, polygon_boxes, project_numpy
 from sim.state import CrowdState
 
 
@@ -33,8 +33,9 @@ def test_sight_pretest_is_exact(origin):
     ln = rng.uniform(0, reach * (1 - 1e-9), 3000)
     q = p + np.stack([np.cos(ang), np.sin(ang)], 1) * ln[:, None]
     free = blocked = 0
+    pbox = polygon_boxes(obs.verts, obs.pstart)
     for (px, pz), (qx, qz) in zip(p, q):
-        may = sight_may_block(px, pz, reach, obs.circles, obs.verts, obs.pstart, obs.pbound)
+        may = sight_may_block(px, pz, reach, obs.circles, obs.verts, obs.pstart, obs.pbound, pbox)
         b = sight_blocked(px, pz, qx, qz, obs.circles, obs.verts, obs.pstart, obs.pbound)
         assert may or not b
         free += not may
@@ -53,7 +54,8 @@ def test_project_clear_move_exit_matches_reference(origin):
     pos[:, 0], pos[:, 2] = prev[:, 0] + step[:, 0], prev[:, 1] + step[:, 1]
     vel = rng.normal(0, 1.0, (n, 3))
     p1, v1 = pos.copy(), vel.copy()
-    _project_kernel(p1, v1, prev, True, obs.circles, obs.verts, obs.pstart, obs.pbound, 0.3)
+    _project_kernel(p1, v1, prev, True, obs.circles, obs.verts, obs.pstart, obs.pbound, 0.3,
+                    polygon_boxes(obs.verts, obs.pstart))
     p2, v2 = pos.copy(), vel.copy()
     project_numpy(obs, p2, v2, prev, 0.3)
     np.testing.assert_allclose(p1, p2, rtol=0, atol=1e-9)
