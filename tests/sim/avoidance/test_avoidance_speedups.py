@@ -100,3 +100,34 @@ def test_goals_kernel_matches_numpy_reference(loop, origin):
         np.testing.assert_allclose(st.velocity, sa.velocity, rtol=0, atol=1e-12)
         np.testing.assert_allclose(st.heading, sa.heading, rtol=0, atol=1e-12)
     assert np.isfinite(st.position).all()
+
+
+@pytest.mark.parametrize("origin", [0.0, 1e6])
+def test_finalize_kernel_matches_numpy_reference(origin):
+    from sim.avoidance.effect import finalize_kernel, finalize_numpy
+
+    rng = np.random.default_rng(11)
+    n = 2000
+    prev = rng.uniform(-5, 5, (n, 3)) + origin
+    v = rng.normal(0, 1, (n, 2))
+    vpref = rng.normal(0, 1, (n, 2))
+    v[:50] = 0.0  # stopped
+    vpref[50:100] = 0.0  # standing
+    v[100:150] = -vpref[100:150]  # half turn
+    heading = rng.uniform(-math.pi, math.pi, n)
+    heading[:20] = math.pi
+    rate = rng.uniform(0.5, 1.5, n).astype(np.float32)
+    outs = []
+    for f in (finalize_kernel, finalize_numpy):
+        pos, vel, h, r, base = np.zeros((n, 3)), np.zeros((n, 3)), heading.copy(), rate.copy(), np.empty_like(rate)
+        f(pos, vel, h, r, base, prev, vpref, v, 0.05)
+        outs.append((pos, vel, h, r, base))
+    (p1, v1, h1, r1, b1), (p2, v2, h2, r2, b2) = outs
+    np.testing.assert_array_equal(p1, p2)
+    np.testing.assert_array_equal(v1, v2)
+    np.testing.assert_array_equal(b1, b2)
+    np.testing.assert_allclose(r1, r2, rtol=1e-6)
+    dh = np.angle(np.exp(1j * (h1 - h2)))
+    assert np.abs(dh).max() < 1e-12
+    assert np.all((h1 > -math.pi) & (h1 <= math.pi))
+    np.testing.assert_array_equal(h1[:50], heading[:50])  # stopped agents keep their heading
