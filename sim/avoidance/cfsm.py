@@ -202,7 +202,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
                     ln = l + near_d
                     if d2 < ln * ln:
                         nr = 1
-                    if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound):
+                    if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound, pbox):
                         continue
                     d = math.sqrt(d2)
                     if d - l < reach:
@@ -250,7 +250,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
                         dx, dz = S[m, 0] - px, S[m, 1] - pz
                         if dx * dx + dz * dz >= cut2:
                             continue
-                        if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound):
+                        if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound, pbox):
                             continue
                         g = _gap(S, m, px, pz, ri, ux, uz)
                         if g < s:

@@ -76,10 +76,12 @@ def segments_cross(ax, az, bx, bz, cx, cz, dx, dz):
 
 
 @njit(cache=True)
-def sight_blocked(px, pz, qx, qz, circles, verts, pstart, pbound):
+def sight_blocked(px, pz, qx, qz, circles, verts, pstart, pbound, pbox):
     """True when the segment p-q crosses an obstacle (a circle it passes
     through, or a polygon edge it crosses). As JuPedSim's CFSM, neighbours
-    behind a wall are ignored."""
+    behind a wall are ignored. Polygons whose bounding circle the segment
+    misses, or whose bounding box (``pbox``, :func:`sim.obstacles.polygon_boxes`)
+    does not overlap the segment's, are skipped (none of their edges can cross it)."""
     ux, uz = qx - px, qz - pz
     ll = ux * ux + uz * uz
     for c in range(circles.shape[0]):
@@ -96,6 +98,9 @@ def sight_blocked(px, pz, qx, qz, circles, verts, pstart, pbound):
         t = min(max(t, 0.0), 1.0)
         ex, ez = px + t * ux - cx, pz + t * uz - cz
         if ex * ex + ez * ez > r * r:
+            continue
+        if (min(px, qx) > pbox[k, 2] or max(px, qx) < pbox[k, 0] or min(pz, qz) > pbox[k, 3]
+                or max(pz, qz) < pbox[k, 1]):
             continue
         s, e = pstart[k], pstart[k + 1]
         for a in range(s, e):

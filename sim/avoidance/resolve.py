@@ -38,7 +38,7 @@ from numba import njit, prange
 
 from sim.avoidance.neighbors import bucket, coincident_dir, gather
 from sim.grid import build_grid
-from sim.obstacles import _sdf_point
+from sim.obstacles import _clear_bound, _sdf_point, polygon_boxes
 
 #: overlapping pairs are pushed to this multiple of r_i + r_j (a hair beyond contact,
 #: so that rounding and the obstacle projection do not re-create an overlap)
@@ -105,10 +105,11 @@ def _push_kernel(S, order, cx, cz, start, gx, gz, dense, mask, target, disp, wor
 
 
 @njit(cache=True, parallel=True)
-def _apply_kernel(pos, disp, clearance, circles, verts, pstart, pbound, has_obs, passes):
+def _apply_kernel(pos, disp, clearance, circles, verts, pstart, pbound, pbox, has_obs, passes):
     for i in prange(pos.shape[0]):
         px, pz = pos[i, 0] + disp[i, 0], pos[i, 2] + disp[i, 1]
-        if has_obs:
+        # (agents whose lower bound of the obstacle distance exceeds their clearance need no projection)
+        if has_obs and _clear_bound(px, pz, circles, pbox) <= clearance[i]:
             r = clearance[i]
             for it in range(passes):
                 d, nx, nz = _sdf_point(px, pz, circles, verts, pstart, pbound, r)
@@ -165,6 +166,7 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
         return 0, 0.0
     circles, verts, pstart, pbound = obstacle_arrays(obstacles)
     has_obs = circles.shape[0] + pbound.shape[0] > 0
+    pbox = polygon_boxes(verts, pstart)
     clearance = radius if clearance is None else clearance
     rmax = float(radius.max())
     if not rmax > 0:
@@ -190,7 +192,8 @@ def resolve(position, radius, clearance=None, obstacles=None, iterations: int = 
         w = float(worst.max())
         if w <= 0.0:
             return it, 0.0
-        _apply_kernel(position, disp, clearance, circles, verts, pstart, pbound, has_obs, RESOLVE_OBSTACLE_PASSES)
+        _apply_kernel(position, disp, clearance, circles, verts, pstart, pbound, pbox, has_obs,
+                      RESOLVE_OBSTACLE_PASSES)
     if prev is None or prev.shape != position.shape:
         return iterations, w
     for _ in range(RESOLVE_FREEZE_ROUNDS):

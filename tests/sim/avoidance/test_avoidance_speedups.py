@@ -36,7 +36,7 @@ def test_sight_pretest_is_exact(origin):
     pbox = polygon_boxes(obs.verts, obs.pstart)
     for (px, pz), (qx, qz) in zip(p, q):
         may = sight_may_block(px, pz, reach, obs.circles, obs.verts, obs.pstart, obs.pbound, pbox)
-        b = sight_blocked(px, pz, qx, qz, obs.circles, obs.verts, obs.pstart, obs.pbound)
+        b = sight_blocked(px, pz, qx, qz, obs.circles, obs.verts, obs.pstart, obs.pbound, pbox)
         assert may or not b
         free += not may
         blocked += b
