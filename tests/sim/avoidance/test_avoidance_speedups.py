@@ -96,8 +96,8 @@ def test_goals_kernel_matches_numpy_reference(loop, origin):
         kinematic_step(a, st, 0.1)
         kinematic_numpy(b, sa, 0.1)
         np.testing.assert_array_equal(a.target, b.target)
-        np.testing.assert_allclose(st.position, sa.position, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(st.velocity, sa.velocity, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(st.position, sa.position)  # same arithmetic: bit-identical
+        np.testing.assert_array_equal(st.velocity, sa.velocity)
         np.testing.assert_allclose(st.heading, sa.heading, rtol=0, atol=1e-12)
     assert np.isfinite(st.position).all()
 
