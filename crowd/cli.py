@@ -23,13 +23,10 @@ import sys
 
 from crowd.errors import CrowdError
 
-# numba's OpenMP worker threads spin up to 300,000 iterations between parallel regions by default (libgomp reads
-# this when it loads, at the first parallel kernel), which takes the cores other work on a shared machine needs;
-# OMP_WAIT_POLICY=PASSIVE (sleep at once) instead pays a thread wake-up per region (a step has several: about 10 %
-# of a 10,000-agent avoidance step on the 2-core VM). A short spin (10,000) keeps both small; the user's own
-# OMP_WAIT_POLICY or GOMP_SPINCOUNT wins.
-if "OMP_WAIT_POLICY" not in os.environ:
-    os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+# numba's OpenMP worker threads spin between parallel regions by default (libgomp reads this when it loads, at
+# the first parallel kernel): on a machine shared with other work the spinning takes the cores the kernels
+# need. PASSIVE (they sleep) unless the user's environment says otherwise.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 #: exit code for bad user input (also argparse's)
 EXIT_USAGE = 2

@@ -59,12 +59,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-# numba's OpenMP threads spin up to 300,000 iterations while they wait by default: on this shared 2-core machine
-# (load 10+) that made the 2-thread step 16x slower than with passive waiting (2,000 agents: 100 ms vs 6 ms); passive
-# waiting pays a wake-up per parallel region instead (~10 % of a 10 K step at load 1-2). A short spin, as the `crowd`
-# command sets it (crowd/cli.py), unless the environment chooses; set before numba loads OpenMP
-if "OMP_WAIT_POLICY" not in os.environ:
-    os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+# numba's OpenMP threads spin while they wait by default: on this shared 2-core machine (load 10+) that made the
+# 2-thread step 16x slower than with passive waiting (2,000 agents: 100 ms vs 6 ms); set before numba loads OpenMP
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from crowd.report.pedestrian import (  # noqa: E402
     WEIDMANN_GAMMA,
@@ -563,8 +560,7 @@ def _machine() -> str:
         commit = "unknown"
     return (f"commit {commit}; {cpu}, {os.cpu_count()} logical CPUs, numba {numba.__version__} with "
             f"{numba.config.NUMBA_NUM_THREADS} threads (threading layer {numba.config.THREADING_LAYER}, "
-            f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}, "
-            f"GOMP_SPINCOUNT={os.environ.get('GOMP_SPINCOUNT')}), numpy {np.__version__}, Python "
+            f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}), numpy {np.__version__}, Python "
             f"{platform.python_version()}; load average at start {os.getloadavg()[0]:.2f}")
 
 

@@ -24,10 +24,9 @@ import sys
 import time
 from pathlib import Path
 
-# numba's OpenMP threads spin only briefly between kernels (as the `crowd` command sets it, crowd/cli.py): libgomp's
-# default long spin takes the cores other jobs on a shared machine need, passive waiting pays a wake-up per kernel
-if "OMP_WAIT_POLICY" not in os.environ:
-    os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+# numba's OpenMP threads sleep between kernels (as the `crowd` command sets it): spinning threads take the cores
+# other jobs on a shared machine need, and then wait for them
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numpy as np  # noqa: E402
 
@@ -101,8 +100,7 @@ def main(argv=None) -> int:
     rows = [measure(int(c), a.density, a.model, a.warmup, a.steps) for c in a.counts.split(",")]
     load = os.getloadavg()[0]
     lines = [f"model {a.model}, density {a.density:g}/m^2, radius 0.2 m, dt 0.05 s, numba threads "
-             f"{numba.get_num_threads()} (OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}, "
-             f"GOMP_SPINCOUNT={os.environ.get('GOMP_SPINCOUNT')}), load average "
+             f"{numba.get_num_threads()} (OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}), load average "
              f"{load0:.1f} at the start, {load:.1f} at the end (`uptime`: the machine is shared)",
              "| agents | avoidance ms/step (median) | whole step ms (with goals) | whole step CPU ms (all threads) "
              "| mean speed m/s | state B/agent | avoidance B/agent |", "|---|---|---|---|---|---|---|"]
