@@ -23,6 +23,11 @@ import sys
 
 from crowd.errors import CrowdError
 
+# numba's OpenMP worker threads spin between parallel regions by default (libgomp reads this when it loads, at
+# the first parallel kernel): on a machine shared with other work the spinning takes the cores the kernels
+# need. PASSIVE (they sleep) unless the user's environment says otherwise.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 #: exit code for bad user input (also argparse's)
 EXIT_USAGE = 2
 #: exit code after an interrupt (Ctrl-C / SIGTERM), as shells report it

@@ -392,11 +392,12 @@ def why_ours(n: int, warmup: int, steps: int) -> dict:
     """Where our step's time goes (1 thread, ms): the whole step with and without the obstacles effect (open plane),
     and the overlap check of ``avoidance.resolve`` called alone on the start positions without a grid to reuse (no
     overlap: one grid build and one scan; in a step the first pass reuses the model's grid, so this is the cost of
-    every further pass when agents do overlap) with the grid layout as shipped (``sim.config.GRID_DENSE_FACTOR``)
-    and with a dense grid (factor 8: the resolve grid's 0.4 m cells are 6.25 per agent here, so the shipped factor 4
-    hashes them)."""
+    every further pass when agents do overlap) with the layout ``sim.grid`` picks by default
+    (``GRID_DENSE_FACTOR``: the resolve grid's 0.4 m cells are 6.25 per agent here, so it hashes them) and with the
+    dense layout resolve uses (``RESOLVE_DENSE_FACTOR``)."""
     import numba
 
+    import sim.avoidance.resolve as res
     import sim.grid as grid
     from sim.avoidance.resolve import resolve
 
@@ -419,9 +420,10 @@ def why_ours(n: int, warmup: int, steps: int) -> dict:
         p = np.zeros((n, 3))
         p[:, 0], p[:, 2] = pos[:, 0], pos[:, 1]
         r = np.full(n, RADIUS)
-        shipped = grid.GRID_DENSE_FACTOR
-        for label, factor in (("resolve check, shipped grid", shipped), ("resolve check, dense grid", 8)):
-            grid.GRID_DENSE_FACTOR = factor
+        shipped = res.RESOLVE_DENSE_FACTOR
+        for label, factor in (("resolve check, default grid (hashed)", grid.GRID_DENSE_FACTOR),
+                              ("resolve check, resolve's dense grid", shipped)):
+            res.RESOLVE_DENSE_FACTOR = factor
             try:
                 resolve(p, r, None, None, 16)
                 ts = []
@@ -430,7 +432,7 @@ def why_ours(n: int, warmup: int, steps: int) -> dict:
                     resolve(p, r, None, None, 16)
                     ts.append((time.perf_counter() - t) * 1e3)
             finally:
-                grid.GRID_DENSE_FACTOR = shipped
+                res.RESOLVE_DENSE_FACTOR = shipped
             out[label] = statistics.median(ts)
         return out
     finally:

@@ -20,10 +20,15 @@ import argparse
 import os
 import platform
 import subprocess
+import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# numba's OpenMP threads sleep between kernels (as the `crowd` command sets it): spinning threads take the cores
+# other jobs on a shared machine need, and then wait for them
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numpy as np  # noqa: E402
 
 
 def world(n: int, density: float, model: str):
@@ -91,10 +96,12 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     import numba
 
+    load0 = os.getloadavg()[0]
     rows = [measure(int(c), a.density, a.model, a.warmup, a.steps) for c in a.counts.split(",")]
     load = os.getloadavg()[0]
     lines = [f"model {a.model}, density {a.density:g}/m^2, radius 0.2 m, dt 0.05 s, numba threads "
-             f"{numba.get_num_threads()}, load average {load:.1f} at the end",
+             f"{numba.get_num_threads()} (OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}), load average "
+             f"{load0:.1f} at the start, {load:.1f} at the end (`uptime`: the machine is shared)",
              "| agents | avoidance ms/step (median) | whole step ms (with goals) | whole step CPU ms (all threads) "
              "| mean speed m/s | state B/agent | avoidance B/agent |", "|---|---|---|---|---|---|---|"]
     lines += [f"| {r['n']:,} | {r['avoid_ms']:.1f} | {r['step_ms']:.1f} | {r['cpu_ms']:.1f} | {r['speed']:.2f} | "
@@ -105,7 +112,7 @@ def main(argv=None) -> int:
         rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
         md = (f"# bench_avoidance_scale: last run\n\nMachine: {platform.machine()}, {os.cpu_count()} CPUs, "
               f"{platform.processor() or platform.platform()}; commit {rev}.\n"
-              f"Command: `python scripts/bench_avoidance_scale.py {' '.join(argv) if argv else ''}`\n\n"
+              f"Command: `python scripts/bench_avoidance_scale.py {' '.join(sys.argv[1:] if argv is None else argv)}`\n\n"
               + text + "\n")
         tmp = Path(a.md).with_suffix(".md.tmp")
         tmp.write_text(md)

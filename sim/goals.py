@@ -21,11 +21,17 @@ Without the boids effect, the goals step moves agents kinematically: velocity
 ``v_desired`` (attractors ignored), position += v dt, heading = direction of v.
 
 All geometry uses float64 differences (robust far from the origin); the step
-is vectorised numpy (O(n) per step, per-agent independent).
+is vectorised numpy (O(n) per step, per-agent independent), except the
+kinematic step (no boids), a numba kernel (:func:`_kinematic_kernel`) whose
+numpy reference is :meth:`Goals.desired_velocity` plus the moves in
+:func:`kinematic_numpy` (same arithmetic, per agent, in the same order).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit, prange
 
 from sim.config import GOALS_TAU
 from sim.params import Param, ParamError, validate
@@ -164,6 +170,65 @@ class Goals:
         return acc
 
 
+@njit(cache=True, parallel=True)
+def _kinematic_kernel(position, velocity, heading, path, target, pstart, waypoints, ar, speed, loop, dt):
+    """Kinematic goals step of every agent with a path: advance a reached waypoint, velocity = desired
+    velocity (:meth:`Goals.desired_velocity`), position += v dt, heading = direction of v."""
+    for i in prange(position.shape[0]):
+        k = path[i]
+        if k < 0:
+            continue
+        t = target[i]
+        first, end = pstart[k], pstart[k + 1]
+        dx = waypoints[t, 0] - position[i, 0]
+        dz = waypoints[t, 1] - position[i, 2]
+        if dx * dx + dz * dz < ar * ar:
+            t = t + 1
+            if t >= end:
+                t = first if loop else end - 1
+            target[i] = t
+            dx = waypoints[t, 0] - position[i, 0]
+            dz = waypoints[t, 1] - position[i, 2]
+        dist = math.hypot(dx, dz)
+        s = speed
+        if not loop and t == end - 1:
+            s = speed * min(1.0, dist / ar)
+        f = s / dist if dist > 1e-9 else 0.0
+        vx, vz = dx * f, dz * f
+        velocity[i, 0] = vx
+        velocity[i, 1] = 0.0
+        velocity[i, 2] = vz
+        position[i, 0] += vx * dt
+        position[i, 2] += vz * dt
+        if math.hypot(vx, vz) > 1e-9:
+            heading[i] = math.atan2(vx, vz)
+
+
+def kinematic_numpy(goals: Goals, st, dt: float) -> None:
+    """Plain numpy reference of :func:`_kinematic_kernel` (the goals step without boids)."""
+    vd = goals.desired_velocity(st)
+    has = goals.path >= 0
+    st.velocity[has, 0] = vd[has, 0]
+    st.velocity[has, 1] = 0.0
+    st.velocity[has, 2] = vd[has, 1]
+    st.position[has, 0] += vd[has, 0] * dt
+    st.position[has, 2] += vd[has, 1] * dt
+    mv = has & (np.hypot(vd[:, 0], vd[:, 1]) > 1e-9)
+    st.heading[mv] = np.arctan2(vd[mv, 0], vd[mv, 1])
+
+
+def kinematic_step(goals: Goals, st, dt: float) -> None:
+    """The goals step without boids (numba; :func:`kinematic_numpy` is its reference)."""
+    if st.n != goals.n:
+        goals._assign(st)
+    if goals.pstart.shape[0] < 2:
+        return
+    c = goals.cfg
+    _kinematic_kernel(st.position, st.velocity, st.heading, goals.path, goals.target, goals.pstart, goals.waypoints,
+                      float(c.get("arrive_radius", 2.0)), float(c.get("speed", 1.4)), bool(c.get("loop", True)),
+                      float(dt))
+
+
 def install(world, cfg: dict) -> None:
     """Effect ``goals``: ``world.resources["goals"]`` and step ``goals`` (before boids)."""
     goals = Goals(cfg, world.state)
@@ -174,8 +239,8 @@ def install(world, cfg: dict) -> None:
         st = w.state
         if st.n == 0:
             return
-        vd = goals.desired_velocity(st)
         if "boids" in w.effects:
+            vd = goals.desired_velocity(st)
             from sim.boids import external_accel
 
             acc = external_accel(w)
@@ -187,13 +252,6 @@ def install(world, cfg: dict) -> None:
                 acc[:, 0] += a[:, 0]
                 acc[:, 2] += a[:, 1]
         else:
-            has = goals.path >= 0
-            st.velocity[has, 0] = vd[has, 0]
-            st.velocity[has, 1] = 0.0
-            st.velocity[has, 2] = vd[has, 1]
-            st.position[has, 0] += vd[has, 0] * dt
-            st.position[has, 2] += vd[has, 1] * dt
-            mv = has & (np.hypot(vd[:, 0], vd[:, 1]) > 1e-9)
-            st.heading[mv] = np.arctan2(vd[mv, 0], vd[mv, 1])
+            kinematic_step(goals, st, dt)
 
     world.schedule.add_step("goals", step, before=("boids", "animation"))

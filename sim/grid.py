@@ -60,8 +60,9 @@ class Grid:
         return int(self.cx.nbytes + self.cz.nbytes + self.key.nbytes + self.start.nbytes + self.order.nbytes)
 
 
-def layout(position: np.ndarray, cell: float):
-    """Bounding box, grid dims and key mode for ``position`` (n, 3) float64.
+def layout(position: np.ndarray, cell: float, dense_factor: float = GRID_DENSE_FACTOR):
+    """Bounding box, grid dims and key mode for ``position`` (n, 3) float64; dense while the
+    bounding box has at most ``dense_factor`` cells per agent.
 
     Returns (origin (2,) float64, gx, gz, dense, mask, n_buckets).
     """
@@ -74,7 +75,7 @@ def layout(position: np.ndarray, cell: float):
     # (still correct: the distance test decides, only the cost grows)
     gx = int(min((float(x.max()) - xmin) // cell, GRID_MAX_CELLS - 1)) + 1
     gz = int(min((float(z.max()) - zmin) // cell, GRID_MAX_CELLS - 1)) + 1
-    if gx * gz <= max(GRID_DENSE_FACTOR * n, 64):
+    if gx * gz <= max(dense_factor * n, 64):
         return np.array([xmin, zmin]), gx, gz, True, 0, gx * gz
     m = 1
     while m < 2 * n:
@@ -117,15 +118,18 @@ def _build(position, inv_cell, ox, oz, gx, gz, dense, mask, n_buckets, cx, cz, k
     start[0] = 0
 
 
-def build_grid(position: np.ndarray, cell: float, out: Grid | None = None) -> Grid:
+def build_grid(position: np.ndarray, cell: float, out: Grid | None = None,
+               dense_factor: float = GRID_DENSE_FACTOR) -> Grid:
     """Build the grid of ``position`` (n, 3) float64 with cells of side ``cell`` > 0.
 
-    ``out`` (a previous Grid) lets its arrays be reused when sizes match.
+    ``out`` (a previous Grid) lets its arrays be reused when sizes match; ``dense_factor``: see
+    :func:`layout` (a caller whose cell is small against the spacing raises it: a dense grid's
+    neighbour cells are adjacent in memory, a hashed one's are not).
     """
     if not cell > 0:
         raise ValueError(f"grid cell must be > 0, got {cell!r}")
     n = position.shape[0]
-    origin, gx, gz, dense, mask, nb = layout(position, cell)
+    origin, gx, gz, dense, mask, nb = layout(position, cell, dense_factor)
     if out is not None and out.cx.shape[0] == n and out.start.shape[0] == nb + 1:
         cx, cz, key, start, order = out.cx, out.cz, out.key, out.start, out.order
     else:
@@ -135,10 +139,10 @@ def build_grid(position: np.ndarray, cell: float, out: Grid | None = None) -> Gr
     return Grid(float(cell), origin, (gx, gz), dense, mask, cx, cz, key, start, order)
 
 
-def build_grid_numpy(position: np.ndarray, cell: float) -> Grid:
+def build_grid_numpy(position: np.ndarray, cell: float, dense_factor: float = GRID_DENSE_FACTOR) -> Grid:
     """Plain numpy reference of :func:`build_grid` (same arrays)."""
     n = position.shape[0]
-    origin, gx, gz, dense, mask, nb = layout(position, cell)
+    origin, gx, gz, dense, mask, nb = layout(position, cell, dense_factor)
     cx = np.clip(np.floor((position[:, 0] - origin[0]) * (1.0 / cell)), 0, gx - 1).astype(np.int64)
     cz = np.clip(np.floor((position[:, 2] - origin[1]) * (1.0 / cell)), 0, gz - 1).astype(np.int64)
     key = keys_numpy(cx, cz, gx, dense, mask)

@@ -252,8 +252,48 @@ def _steer_kernel(pos, vel, circles, verts, pstart, pbound, radius, margin, look
                 acc[i, 2] += f * (nz + w_slide * tz)
 
 
+def polygon_boxes(verts, pstart) -> np.ndarray:
+    """(K, 4) float64 axis-aligned bounding boxes (xmin, zmin, xmax, zmax) of the polygons ``verts[pstart[k]:
+    pstart[k + 1]]`` (computed per call from the arrays as they are: callers may move obstacles in place)."""
+    k = pstart.shape[0] - 1
+    out = np.zeros((max(k, 0), 4), np.float64)
+    if k > 0 and verts.shape[0]:
+        s = pstart[:-1]
+        out[:, 0] = np.minimum.reduceat(verts[:, 0], s)
+        out[:, 1] = np.minimum.reduceat(verts[:, 1], s)
+        out[:, 2] = np.maximum.reduceat(verts[:, 0], s)
+        out[:, 3] = np.maximum.reduceat(verts[:, 1], s)
+    return out
+
+
+@njit(cache=True, inline="always")
+def box_dist2(px, pz, pbox, k):
+    """Squared distance from p to polygon k's bounding box (0 inside): a lower bound of the squared distance
+    to any of its edges."""
+    dx = max(pbox[k, 0] - px, 0.0, px - pbox[k, 2])
+    dz = max(pbox[k, 1] - pz, 0.0, pz - pbox[k, 3])
+    return dx * dx + dz * dz
+
+
+@njit(cache=True, inline="always")
+def _clear_bound(px, pz, circles, pbox):
+    """A lower bound of the distance from p to every obstacle: exact for circles, the distance to the
+    bounding box for polygons (0 inside it)."""
+    best = _FAR
+    for c in range(circles.shape[0]):
+        dx, dz = px - circles[c, 0], pz - circles[c, 1]
+        d = math.sqrt(dx * dx + dz * dz) - circles[c, 2]
+        if d < best:
+            best = d
+    for k in range(pbox.shape[0]):
+        d = math.sqrt(box_dist2(px, pz, pbox, k))
+        if d < best:
+            best = d
+    return best
+
+
 @njit(cache=True, parallel=True)
-def _project_kernel(pos, vel, prev, has_prev, circles, verts, pstart, pbound, radius):
+def _project_kernel(pos, vel, prev, has_prev, circles, verts, pstart, pbound, radius, pbox):
     """Hard constraint: continuous collision along prev -> pos, then projection.
 
     Sphere tracing along the step's segment (the SDF is an exact distance, so
@@ -268,7 +308,13 @@ def _project_kernel(pos, vel, prev, has_prev, circles, verts, pstart, pbound, ra
             sx, sz = prev[i, 0], prev[i, 1]
             ux, uz = px - sx, pz - sz
             ll = math.sqrt(ux * ux + uz * uz)
+            if _clear_bound(sx, sz, circles, pbox) - ll - radius > OBSTACLES_CONTACT + OBSTACLES_CCD_EPS:
+                # clear of every obstacle along the whole move (the SDF is 1-Lipschitz, the bound is at most
+                # the SDF): the sphere trace ends at pos, and the projection and contact tests change nothing
+                continue
             d0, n0x, n0z = _sdf_point(sx, sz, circles, verts, pstart, pbound, _FAR)
+            if d0 - ll - radius > OBSTACLES_CONTACT + OBSTACLES_CCD_EPS:  # the same with the exact distance
+                continue
             if ll > 0.0 and d0 - radius > OBSTACLES_CCD_EPS:
                 t = 0.0
                 for it in range(OBSTACLES_CCD_ITERATIONS):
@@ -440,7 +486,7 @@ def install(world, cfg: dict) -> None:
         p = prev["xz"]
         ok = p is not None and p.shape == (w.state.n, 2)
         _project_kernel(w.state.position, w.state.velocity, p if ok else np.zeros((1, 2)), ok,
-                        obs.circles, obs.verts, obs.pstart, obs.pbound, r)
+                        obs.circles, obs.verts, obs.pstart, obs.pbound, r, polygon_boxes(obs.verts, obs.pstart))
 
     world.schedule.add_step("obstacles.record", record, before=("goals", "obstacles.steer", "boids"))
     world.schedule.add_step("obstacles.steer", steer, after=("goals",), before=("boids",))

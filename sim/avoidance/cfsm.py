@@ -57,8 +57,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from sim.avoidance.neighbors import bucket, coincident_dir, obstacles_near, sight_blocked
+from sim.avoidance.neighbors import bucket, coincident_dir, sight_blocked, sight_may_block
 from sim.grid import Grid, build_grid
+from sim.obstacles import box_dist2, polygon_boxes
 
 #: speeds below this (m/s) count as "no preferred motion": the agent stands
 CFSM_SPEED_EPS = 1e-9
@@ -116,8 +117,9 @@ def max_speed(vpref):
 
 
 @njit(cache=True, inline="always")
-def _wall_term(px, pz, ri, b, Dw, reach, circles, verts, pstart, pbound):
-    """Sum of R_iw over obstacle boundary elements within ``reach``."""
+def _wall_term(px, pz, ri, b, Dw, reach, circles, verts, pstart, pbound, pbox):
+    """Sum of R_iw over obstacle boundary elements within ``reach`` (polygons whose bounding box is
+    farther are skipped: none of their edges is within reach)."""
     wx, wz = 0.0, 0.0
     for c in range(circles.shape[0]):
         dx, dz = px - circles[c, 0], pz - circles[c, 1]
@@ -130,7 +132,7 @@ def _wall_term(px, pz, ri, b, Dw, reach, circles, verts, pstart, pbound):
             wz += f * dz / rc
     for k in range(pbound.shape[0]):
         dx, dz = px - pbound[k, 0], pz - pbound[k, 1]
-        if math.sqrt(dx * dx + dz * dz) - pbound[k, 2] > reach:
+        if math.sqrt(dx * dx + dz * dz) - pbound[k, 2] > reach or box_dist2(px, pz, pbox, k) >= reach * reach:
             continue
         s, e = pstart[k], pstart[k + 1]
         for a in range(s, e):
@@ -151,7 +153,7 @@ def _wall_term(px, pz, ri, b, Dw, reach, circles, verts, pstart, pbound):
 
 @njit(cache=True, parallel=True)
 def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, circles, verts, pstart, pbound,
-                 P, near_d, out, near):
+                 pbox, P, near_d, out, near):
     """out[i] = new velocity (vx, vz) of every agent (module docstring); near[i] = 1 when a neighbour is
     closer than r_i + r_j + near_d at the start (only such pairs can overlap after the step: the
     no-overlap pass checks only them).
@@ -181,7 +183,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
             ex, ez = wx / sp, wz / sp
             v0 = v0p if v0p > 0.0 else sp
             reach = v0 * T  # neighbours with d - l beyond this cannot limit the speed
-            los = has_obs and obstacles_near(px, pz, cut, circles, pbound)
+            los = has_obs and sight_may_block(px, pz, cut, circles, verts, pstart, pbound, pbox)
             rx, rz = 0.0, 0.0
             nr = 0
             nb = 0
@@ -200,7 +202,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
                     ln = l + near_d
                     if d2 < ln * ln:
                         nr = 1
-                    if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound):
+                    if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound, pbox):
                         continue
                     d = math.sqrt(d2)
                     if d - l < reach:
@@ -221,7 +223,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
                         rz -= f * hz
             if has_obs:
                 gwx, gwz = _wall_term(px, pz, ri, b, Dw, ri + CFSM_RANGE_FACTOR * 2.0 * Dw + 1e-9,
-                                      circles, verts, pstart, pbound)
+                                      circles, verts, pstart, pbound, pbox)
                 rx += gwx
                 rz += gwz
             ux, uz = ex + rx, ez + rz
@@ -248,7 +250,7 @@ def _cfsm_kernel(S, order, cx, cz, start, gx, gz, dense, mask, vpref, heading, c
                         dx, dz = S[m, 0] - px, S[m, 1] - pz
                         if dx * dx + dz * dz >= cut2:
                             continue
-                        if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound):
+                        if los and sight_blocked(px, pz, S[m, 0], S[m, 1], circles, verts, pstart, pbound, pbox):
                             continue
                         g = _gap(S, m, px, pz, ri, ux, uz)
                         if g < s:
@@ -338,5 +340,6 @@ def cfsm_velocities(position, radius, vpref, heading, a=8.0, D=0.1, b=5.0, Dw=0.
     P = param_vector(a, D, b, Dw, T, cut, v0, side)
     nr = near if near is not None and near.shape == (n,) else np.empty(n, np.uint8)
     _cfsm_kernel(scratch, grid.order, grid.cx, grid.cz, grid.start, grid.dims[0], grid.dims[1], grid.dense,
-                 grid.mask, vpref, heading, circles, verts, pstart, pbound, P, float(near_d), out, nr)
+                 grid.mask, vpref, heading, circles, verts, pstart, pbound, polygon_boxes(verts, pstart), P,
+                 float(near_d), out, nr)
     return out, grid, scratch

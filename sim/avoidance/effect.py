@@ -89,11 +89,6 @@ def body_radii(world, cfg: dict, table: np.ndarray | None = None) -> np.ndarray:
     return base * st.scale.astype(np.float64)
 
 
-@njit(cache=True, inline="always")
-def _wrap(a):
-    return math.atan2(math.sin(a), math.cos(a))
-
-
 @njit(cache=True, parallel=True)
 def finalize_kernel(pos, vel, heading, anim_rate, base_rate, prev, vpref, v, dt):
     """position = start + v dt; velocity = v; heading turned by the angle from
@@ -111,7 +106,36 @@ def finalize_kernel(pos, vel, heading, anim_rate, base_rate, prev, vpref, v, dt)
             sv = math.sqrt(vx * vx + vz * vz)
             anim_rate[i] = np.float32(anim_rate[i] * (sv / sw))
             if sv > AVOIDANCE_SPEED_EPS:
-                heading[i] = _wrap(heading[i] + _wrap(math.atan2(vx, vz) - math.atan2(wx, wz)))
+                heading[i] = _turn(heading[i], vx, vz, wx, wz)
+
+
+@njit(cache=True, inline="always")
+def _turn(h, vx, vz, wx, wz):
+    """h turned by the angle from w to v (yaw convention atan2(x, z)), wrapped to (-pi, pi]: one atan2 of
+    the cross and dot products instead of wrap(atan2(v) - atan2(w)) (the same angle, to rounding)."""
+    a = h + math.atan2(vx * wz - vz * wx, vx * wx + vz * wz)
+    if a > math.pi:
+        a -= 2.0 * math.pi
+    elif a <= -math.pi:
+        a += 2.0 * math.pi
+    return a
+
+
+def finalize_numpy(pos, vel, heading, anim_rate, base_rate, prev, vpref, v, dt):
+    """Plain numpy reference of :func:`finalize_kernel` (the heading by the difference of the two yaws)."""
+    vx, vz, wx, wz = v[:, 0], v[:, 1], vpref[:, 0], vpref[:, 1]
+    pos[:, 0] = prev[:, 0] + vx * dt
+    pos[:, 2] = prev[:, 2] + vz * dt
+    vel[:, 0] = vx
+    vel[:, 2] = vz
+    base_rate[:] = anim_rate
+    sw, sv = np.hypot(wx, wz), np.hypot(vx, vz)
+    on = sw > AVOIDANCE_SPEED_EPS
+    anim_rate[on] = (anim_rate[on] * (sv[on] / sw[on])).astype(np.float32)
+    turn = on & (sv > AVOIDANCE_SPEED_EPS)
+    d = np.arctan2(vx[turn], vz[turn]) - np.arctan2(wx[turn], wz[turn])
+    h = heading[turn] + np.arctan2(np.sin(d), np.cos(d))
+    heading[turn] = np.arctan2(np.sin(h), np.cos(h))
 
 
 class Avoidance:

@@ -16,6 +16,7 @@ from numba import njit
 
 from sim.config import BOIDS_COINCIDENT_A, BOIDS_COINCIDENT_B
 from sim.grid import cell_key
+from sim.obstacles import box_dist2
 
 
 @njit(cache=True, inline="always")
@@ -75,10 +76,12 @@ def segments_cross(ax, az, bx, bz, cx, cz, dx, dz):
 
 
 @njit(cache=True)
-def sight_blocked(px, pz, qx, qz, circles, verts, pstart, pbound):
+def sight_blocked(px, pz, qx, qz, circles, verts, pstart, pbound, pbox):
     """True when the segment p-q crosses an obstacle (a circle it passes
     through, or a polygon edge it crosses). As JuPedSim's CFSM, neighbours
-    behind a wall are ignored."""
+    behind a wall are ignored. Polygons whose bounding circle the segment
+    misses, or whose bounding box (``pbox``, :func:`sim.obstacles.polygon_boxes`)
+    does not overlap the segment's, are skipped (none of their edges can cross it)."""
     ux, uz = qx - px, qz - pz
     ll = ux * ux + uz * uz
     for c in range(circles.shape[0]):
@@ -95,6 +98,9 @@ def sight_blocked(px, pz, qx, qz, circles, verts, pstart, pbound):
         t = min(max(t, 0.0), 1.0)
         ex, ez = px + t * ux - cx, pz + t * uz - cz
         if ex * ex + ez * ez > r * r:
+            continue
+        if (min(px, qx) > pbox[k, 2] or max(px, qx) < pbox[k, 0] or min(pz, qz) > pbox[k, 3]
+                or max(pz, qz) < pbox[k, 1]):
             continue
         s, e = pstart[k], pstart[k + 1]
         for a in range(s, e):
@@ -116,4 +122,37 @@ def obstacles_near(px, pz, reach, circles, pbound):
         dx, dz = px - pbound[k, 0], pz - pbound[k, 1]
         if math.sqrt(dx * dx + dz * dz) - pbound[k, 2] < reach:
             return True
+    return False
+
+
+@njit(cache=True)
+def sight_may_block(px, pz, reach, circles, verts, pstart, pbound, pbox):
+    """False when no segment from p shorter than ``reach`` can be blocked
+    (:func:`sight_blocked` is then False for every neighbour within reach):
+    no circle's boundary and no polygon edge is within ``reach`` of p. Exact
+    for polygons (the distance to every edge of a polygon whose bounding
+    box is near, ``pbox`` of :func:`polygon_boxes`), unlike
+    :func:`obstacles_near`: long walls' bounding circles contain a whole room,
+    their edges do not come near most agents.
+    A segment p-q with |q - p| < reach stays within reach of p, so it can
+    cross an edge only when that edge comes within reach."""
+    for c in range(circles.shape[0]):
+        dx, dz = px - circles[c, 0], pz - circles[c, 1]
+        if math.sqrt(dx * dx + dz * dz) - circles[c, 2] < reach:
+            return True
+    r2 = reach * reach
+    for k in range(pbound.shape[0]):
+        if box_dist2(px, pz, pbox, k) > r2:
+            continue
+        s, e = pstart[k], pstart[k + 1]
+        for a in range(s, e):
+            b = a + 1 if a + 1 < e else s
+            ax, az = verts[a, 0], verts[a, 1]
+            ux, uz = verts[b, 0] - ax, verts[b, 1] - az
+            ll = ux * ux + uz * uz
+            t = ((px - ax) * ux + (pz - az) * uz) / ll if ll > 0.0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            ex, ez = ax + t * ux - px, az + t * uz - pz
+            if ex * ex + ez * ez <= r2:
+                return True
     return False

@@ -424,7 +424,8 @@ def test_obstacle_kernels_match_numpy_references():
     moved[:, [0, 2]] += vel[:, [0, 2]] * 0.5  # up to several metres: crosses obstacles
     pa, va = moved.copy(), vel.copy()
     pb, vb = moved.copy(), vel.copy()
-    obstacles._project_kernel(pa, va, prev, True, obs.circles, obs.verts, obs.pstart, obs.pbound, 0.4)
+    obstacles._project_kernel(pa, va, prev, True, obs.circles, obs.verts, obs.pstart, obs.pbound, 0.4,
+                              obstacles.polygon_boxes(obs.verts, obs.pstart))
     obstacles.project_numpy(obs, pb, vb, prev, 0.4)
     np.testing.assert_allclose(pa, pb, atol=1e-9)
     np.testing.assert_allclose(va, vb, atol=1e-9)
