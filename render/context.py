@@ -16,6 +16,18 @@ class ContextError(RuntimeError):
     """No usable OpenGL context could be created."""
 
 
+def track(objects: list, obj, label: str):
+    """Give GL object ``obj`` a debug label (best effort) and keep it in ``objects``, the owner's list of what
+    it releases (objects without ``release()``, e.g. moderngl queries, are only labelled); returns ``obj``."""
+    try:
+        obj.label = label
+    except Exception:  # pragma: no cover - labels are best effort
+        pass
+    if hasattr(obj, "release"):
+        objects.append(obj)
+    return obj
+
+
 def create_context(backend: str = "egl"):
     """A standalone (headless) moderngl context.
 

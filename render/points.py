@@ -46,6 +46,7 @@ import numpy as np
 
 from lod.drawlist import fade_uniform
 from render import occlusion as occ
+from render.context import track
 from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
 from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
@@ -304,13 +305,8 @@ class Drawer:
         self._color = self._track(self.ctx.buffer(reserve=4 * self._pixels), "points.colors")
 
     # ------------------------------------------------------------------ resources
-    def _track(self, obj, label):
-        try:
-            obj.label = label
-        except Exception:  # pragma: no cover
-            pass
-        self._objects.append(obj)
-        return obj
+    def _track(self, obj, label: str):
+        return track(self._objects, obj, label)  # render.context.track
 
     def _program(self, name):
         if name not in self._progs:

@@ -60,7 +60,7 @@ import moderngl
 import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
-from render.context import create_context
+from render.context import create_context, track
 from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
                             plan_chunks)
@@ -210,13 +210,7 @@ class Renderer:
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
-        try:
-            obj.label = label
-        except Exception:  # pragma: no cover - labels are best effort
-            pass
-        if hasattr(obj, "release"):  # moderngl queries have no release()
-            self._objects.append(obj)
-        return obj
+        return track(self._objects, obj, label)  # render.context.track
 
     def _grow_instances(self, n: int) -> None:
         cap = max(INITIAL_INSTANCES, self._instance_capacity)

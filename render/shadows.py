@@ -40,6 +40,7 @@ import math
 import moderngl
 import numpy as np
 
+from render.context import track
 from render.light import DEFAULT_SHADOWS, SHADOW_MODES, Light, apply_light  # noqa: F401  (re-exported)
 
 #: default side of the shadow map, texels
@@ -217,13 +218,8 @@ class Lighting:
             self.map_size = int(map_size)
 
     # ------------------------------------------------------------------ resources
-    def _track(self, obj, label):
-        try:
-            obj.label = label
-        except Exception:  # pragma: no cover - labels are best effort
-            pass
-        self._objects.append(obj)
-        return obj
+    def _track(self, obj, label: str):
+        return track(self._objects, obj, label)  # render.context.track
 
     def _dummy_map(self):
         if self._dummy is None:

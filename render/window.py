@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.context import REQUIRED_GL, ContextError
+from render.context import REQUIRED_GL, ContextError, track
 from render.shaders import program_sources
 
 #: context versions requested, in order (major, minor), all core profile
@@ -193,13 +193,8 @@ class Hud:
         self._text_key = None
         self._released = False
 
-    def _track(self, obj, label):
-        try:
-            obj.label = label
-        except Exception:  # pragma: no cover - labels are best effort
-            pass
-        self._objects.append(obj)
-        return obj
+    def _track(self, obj, label: str):
+        return track(self._objects, obj, label)  # render.context.track
 
     def _grow(self, size) -> None:
         import moderngl

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS
+from render.context import track
 
 #: bytes per instance in the world's instance buffer
 _INSTANCE_BYTES = INSTANCE_FLOATS * 4
@@ -52,13 +53,8 @@ class Drawer:
         self._cap = 0
         self.ground_vao = None  # one quad for every ground rep (made on the first upload of one)
 
-    def _track(self, obj, label):
-        try:
-            obj.label = label
-        except Exception:  # pragma: no cover - labels are best effort
-            pass
-        self._objects.append(obj)
-        return obj
+    def _track(self, obj, label: str):
+        return track(self._objects, obj, label)  # render.context.track
 
     def _forget(self, key):
         old = self._reps.pop(key, None)

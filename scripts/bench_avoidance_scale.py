@@ -22,7 +22,6 @@ import platform
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 # numba's OpenMP threads sleep between kernels (as the `crowd` command sets it): spinning threads take the cores
 # other jobs on a shared machine need, and then wait for them
@@ -114,9 +113,9 @@ def main(argv=None) -> int:
               f"{platform.processor() or platform.platform()}; commit {rev}.\n"
               f"Command: `python scripts/bench_avoidance_scale.py {' '.join(sys.argv[1:] if argv is None else argv)}`\n\n"
               + text + "\n")
-        tmp = Path(a.md).with_suffix(".md.tmp")
-        tmp.write_text(md)
-        os.replace(tmp, a.md)
+        from lod.atomic_io import write_atomic
+
+        write_atomic(a.md, md)
     return 0
 
 

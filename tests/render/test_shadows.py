@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from image_checks import box_faces
 
 from lod.drawlist import DrawBatch, DrawList
 from lod.full.reps import StaticRep
@@ -25,21 +26,8 @@ def _rep(key, positions, normals, indices, color) -> StaticRep:
 
 def box_rep(key, lo, hi, color=(0.8, 0.2, 0.2)) -> StaticRep:
     """An axis-aligned box, 4 vertices per face (flat normals)."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    pos, nrm, idx = [], [], []
-    for axis in range(3):
-        for side in (0, 1):
-            n = np.zeros(3)
-            n[axis] = 1.0 if side else -1.0
-            u, v = [a for a in range(3) if a != axis]
-            base = len(pos)
-            for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
-                q = np.where(np.arange(3) == axis, hi if side else lo, 0.0)
-                q[u] = hi[u] if du else lo[u]
-                q[v] = hi[v] if dv else lo[v]
-                pos.append(q)
-                nrm.append(n)
-            idx += [base, base + 1, base + 2, base, base + 2, base + 3]
+    pos, nrm, tris = box_faces(lo, hi)
+    idx = [c for t in tris for c in t]
     return _rep(key, pos, nrm, idx, color)
 
 

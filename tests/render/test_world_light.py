@@ -3,6 +3,7 @@ shade the ground and the props; props cast into the shadow map and the ground an
 statics get no blob shadow."""
 import numpy as np
 import pytest
+from image_checks import box_faces
 
 from lod.drawlist import DrawList
 from lod.props.chain import PropChainRep, bounding_sphere
@@ -18,21 +19,7 @@ BG = (0.0, 0.0, 0.0)
 
 def box_prop(key="props:box", lo=(-0.5, 0.0, -0.5), hi=(0.5, 1.0, 0.5), rgb=(0.8, 0.8, 0.8)) -> PropChainRep:
     """An axis-aligned box as a one-level prop chain (flat normals, 4 vertices per face)."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    pos, nrm, idx = [], [], []
-    for axis in range(3):
-        for side in (0, 1):
-            n = np.zeros(3)
-            n[axis] = 1.0 if side else -1.0
-            u, v = [a for a in range(3) if a != axis]
-            base = len(pos)
-            for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
-                q = np.where(np.arange(3) == axis, hi if side else lo, 0.0)
-                q[u] = hi[u] if du else lo[u]
-                q[v] = hi[v] if dv else lo[v]
-                pos.append(q)
-                nrm.append(n)
-            idx += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
+    pos, nrm, idx = box_faces(lo, hi)
     pos = np.asarray(pos, np.float32)
     colors = np.ones((len(pos), 4), np.float32)
     colors[:, :3] = rgb
