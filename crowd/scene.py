@@ -25,6 +25,8 @@ from typing import Any
 
 import render.light as _light
 from crowd.errors import SceneError
+from crowd.scene_props import PropSpec, parse_props  # noqa: F401 (PropSpec re-exported)
+from crowd.scene_variation import DEFAULT_VARIATION, VARIATION_SCHEMA, parse_variation  # noqa: F401
 from lod.modes import mode_names as _mode_names
 from lod.modes import mode_params as _mode_params
 from sim.params import Param, ParamError, validate
@@ -62,17 +64,6 @@ CHARACTER_SCHEMA = {
     "radius": Param("float", None, min=0.001, max=100.0,
                     doc="body radius at scale 1, metres (effect avoidance); default: the footprint"),
 }
-#: keys of ``[[characters]] variation`` (render/tint.py): per-agent hue/saturation/value shifts, or a palette
-VARIATION_SCHEMA = {
-    "hue": Param("float", 0.0, min=0.0, max=0.5, doc="largest hue shift, turns (each agent: uniform in +-hue)"),
-    "saturation": Param("float", 0.0, min=0.0, max=0.95, doc="largest relative saturation change"),
-    "value": Param("float", 0.0, min=0.0, max=0.95, doc="largest relative value (brightness) change"),
-    "palette": Param("list", None, doc="[[r, g, b], ...] in [0, 1]: each agent takes one, instead of the shifts"),
-    "regions": Param("list", None, doc="named regions that vary (generated humanoid: skin, hair, shirt, trousers, "
-                     "shoes; glTF: material:N); default: shirt and trousers of a humanoid, the whole mesh otherwise"),
-}
-#: the variation of a generated humanoid that sets none (``variation = false`` turns it off)
-DEFAULT_VARIATION = {"hue": 0.15, "saturation": 0.3, "value": 0.25, "regions": ("shirt", "trousers")}
 #: default ``triangles`` of a generated character
 DEFAULT_TRIANGLES = 5000
 
@@ -159,21 +150,6 @@ class PlacementSpec:
     character: int
     clip: str | None
     params: dict
-    index: int = 0
-
-
-@dataclass(frozen=True)
-class PropSpec:
-    """One ``[[props]]`` table (``sim.props.PROP_PARAMS``), its file read and checked.
-
-    file : absolute Path of the mesh file; params : validated dict; triangles : int of the file
-    """
-
-    name: str
-    file: Path
-    params: dict
-    triangles: int
-    instances: int
     index: int = 0
 
 
@@ -359,7 +335,7 @@ class _Parser:
         characters = self.characters(top["seed"])
         placements = self.placements(characters)
         effects = self.effects()
-        props = self.props(effects)
+        props = parse_props(self.array_of_tables("props", False), effects, self.base, self.fail)
         terrain = self.terrain()
         self.effect_requirements(effects, placements, terrain)
         camera = self.camera()
@@ -430,46 +406,9 @@ class _Parser:
             out.append(CharacterSpec(name=c["name"], generator=c["generator"], file=file, triangles=triangles,
                                      seed=c["seed"] if c["seed"] is not None else scene_seed,
                                      scale=c["scale"], fps=c["fps"], radius=c["radius"],
-                                     variation=self.variation(t.get("variation"), f"{where}.variation",
-                                                              c["generator"])))
+                                     variation=parse_variation(t.get("variation"), f"{where}.variation",
+                                                             c["generator"], self.fail)))
         return out
-
-    def variation(self, v, where: str, generator: str | None):
-        """The validated ``variation`` of a character as ((key, value), ...), or None (none)."""
-        if v is None:
-            return tuple(DEFAULT_VARIATION.items()) if generator == "humanoid" else None
-        if v is False:
-            return None
-        if v is True:  # the default amounts, on any character
-            v = {k: x for k, x in DEFAULT_VARIATION.items() if k != "regions"}
-        if not isinstance(v, dict):
-            self.fail(where, f"expected a table {{ hue = 0.15, value = 0.25, ... }}, true or false, got {v!r}")
-        c = validate(VARIATION_SCHEMA, v, where)
-        pal = c["palette"]
-        if pal is not None:
-            def rgb(p):
-                return isinstance(p, list) and len(p) == 3 and all(
-                    isinstance(x, (int, float)) and not isinstance(x, bool) and 0.0 <= x <= 1.0 for x in p)
-
-            if not pal or not all(rgb(p) for p in pal):
-                self.fail(f"{where}.palette", f"expected a non-empty list of [r, g, b] in [0, 1], got {pal!r}")
-            c["palette"] = tuple(tuple(float(x) for x in p) for p in pal)
-        if c["regions"] is not None:
-            from sim.procedural import HUMANOID_REGIONS
-
-            if generator == "quadruped":
-                self.fail(f"{where}.regions", "a generated quadruped has no named regions; leave it out to vary "
-                          "the whole mesh")
-            if generator == "humanoid":
-                ok, accepted = (lambda r: r in HUMANOID_REGIONS), ", ".join(HUMANOID_REGIONS)
-            else:  # a glTF model: its materials (checked against the file when the character is built)
-                ok, accepted = (lambda r: isinstance(r, str) and re.fullmatch(r"material:\d+", r)), "\"material:N\""
-            if not c["regions"] or not all(isinstance(r, str) and ok(r) for r in c["regions"]):
-                self.fail(f"{where}.regions", f"expected a non-empty list of {accepted}, got {c['regions']!r}")
-            c["regions"] = tuple(c["regions"])
-        elif generator == "humanoid":
-            c["regions"] = DEFAULT_VARIATION["regions"]
-        return tuple(c.items())
 
     # -- [[placement]] -------------------------------------------------------------------------------------------------
     def placements(self, characters: list) -> list:
@@ -532,49 +471,6 @@ class _Parser:
             seen[name] = i
             params = validate(effect_module(name).PARAMS, table, where)
             out.append(EffectSpec(name=name, params=params, index=i))
-        return out
-
-    # -- [[props]] -----------------------------------------------------------------------------------------------------
-    def props(self, effects: list) -> list:
-        """Validate ``[[props]]``, read their files; the footprints of ``obstacle = true`` props are
-        added to the ``obstacles`` effect (listed for them with its defaults when the scene has none)."""
-        tables = self.array_of_tables("props", False)
-        if not tables:
-            return []
-        import sim.props as sp
-        from sim.errors import AssetError
-
-        out, extra = [], {"circles": [], "boxes": [], "polygons": []}
-        for i, t in enumerate(tables):
-            where = f"props[{i}]"
-            cfg = sp.validate_prop(t, where)
-            file = (self.base / cfg["file"]).resolve()
-            if file.suffix.lower() not in sp.PROP_SUFFIXES:
-                self.fail(f"{where}.file", f"expected a mesh file ({', '.join(sp.PROP_SUFFIXES)}), got {cfg['file']!r}")
-            try:
-                mesh = sp.load_prop_mesh(file, cfg["up"])
-            except AssetError as e:
-                self.fail(f"{where}.file", str(e))
-            pos, yaw, scale = sp.prop_instances(cfg)
-            if cfg["obstacle"]:
-                try:
-                    fp = sp.footprint(mesh, cfg["footprint"], file.name)
-                except AssetError as e:
-                    self.fail(f"{where}.footprint", str(e))
-                for k, v in sp.placed_obstacles(fp, pos, yaw, scale).items():
-                    extra[k] += v
-            out.append(PropSpec(name=cfg["name"] or f"props[{i}]", file=file, params=cfg,
-                                triangles=mesh.n_triangles, instances=len(pos), index=i))
-        if any(extra.values()):
-            from sim.obstacles import PARAMS as OBSTACLE_PARAMS
-
-            at = next((k for k, e in enumerate(effects) if e.name == "obstacles"), None)
-            if at is None:
-                effects.append(EffectSpec("obstacles", validate(OBSTACLE_PARAMS, {}, "effects"), len(effects)))
-                at = len(effects) - 1
-            e = effects[at]
-            params = {**e.params, **{k: list(e.params.get(k, [])) + v for k, v in extra.items()}}
-            effects[at] = dataclasses.replace(e, params=params)
         return out
 
     def effect_requirements(self, effects: list, placements: list, terrain) -> None:
