@@ -95,6 +95,10 @@ class DrawList:
     stats : dict of counts ("instances", "culled", "triangles", "points", ...)
     options : dict of per-frame drawing options the selector chose, read by
         the renderer's drawers (e.g. "splat_size" in pixels for point splats)
+    poses : lod.poses.PoseTable or None: the frame's distinct poses per skinned
+        character, each drawn copy's slot in its instance float 13
+        (``lod.poses.PoseSharing.assign``); None draws every copy skinned
+        on its own (the per-instance palette path)
     """
 
     origin: np.ndarray
@@ -104,6 +108,7 @@ class DrawList:
     batches: list = field(default_factory=list)
     stats: dict = field(default_factory=dict)
     options: dict = field(default_factory=dict)
+    poses: object = None
 
     @property
     def n_instances(self) -> int:

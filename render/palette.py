@@ -130,6 +130,20 @@ class Palette:
         self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.rows = cap
 
+    def upload(self, texels) -> None:
+        """Write ``texels`` ((n, 4) float32, palette blocks one after another, e.g. the pose cache's
+        palettes blended on the CPU) from texel 0; at most :data:`PALETTE_MAX_TEXELS`."""
+        import numpy as np
+
+        t = np.ascontiguousarray(texels, np.float32).reshape(-1, 4)
+        if t.shape[0] > PALETTE_MAX_TEXELS:
+            raise ValueError(f"skinning palette: {t.shape[0]} texels exceed {PALETTE_MAX_TEXELS}")
+        rows = max(1, -(-t.shape[0] // self.width))
+        self.ensure(rows)
+        full = np.zeros((rows * self.width, 4), np.float32)
+        full[:t.shape[0]] = t
+        self.texture.write(full.tobytes(), viewport=(0, 0, self.width, rows))
+
     def build(self, program, items, instance_bytes: int) -> list:
         """Run the pre-pass for ``items`` (one chunk: their texels must fit :attr:`chunk_texels`).
 

@@ -68,6 +68,7 @@ from render.shaders import program_sources
 from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.pixel_ray import write_pixel_ray
+from render.pose_cache import PoseCache
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
 from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
@@ -130,7 +131,8 @@ class _GpuRep:
     # geomorphs of a LOD chain (lod.chains.mode TriangleDrawBatch.morph): the rep with its vertex
     # collapses (kept for the tables, made on first use), then (vertex array, instance locations, tables)
     morph_source: object = None
-    morph: tuple | None = None
+    morph: dict = field(default_factory=dict)  # extra defines -> (vertex array, instance locations, tables)
+    pose_vaos: dict = field(default_factory=dict)  # pose-sharing programs (render/pose_cache.py) -> (vao, locations)
     targets: tuple | None = None  # morph-target textures (render.targets), None for a rep without targets
     defines: tuple = ()  # preprocessor names of the rep's programs ((TARGETS_DEFINE,) with targets)
     cull: bool = False  # back faces culled (a single-sided skinned or static rep)
@@ -190,6 +192,12 @@ class Renderer:
         self.tint_table = None
         self._tint = self._track(TintStream(ctx), "crowd.instance_tints")
         self._palette = Palette(ctx, self._track, self._objects.remove)  # render/palette.py
+        #: pose sharing (render/pose_cache.py): copies in one pose drawn from posed vertices skinned once
+        self.poses = PoseCache(self)
+        #: use the DrawList's pose table (``DrawList.poses``) when it has one; False draws every copy with its
+        #: own palette (the per-instance pre-pass, as before pose sharing)
+        self.pose_sharing = True
+        self._pose_plan: dict = {}
         # separate queries, nested: a combined samples+time query reads a
         # constant ~20 ns on llvmpipe (see gpu_seconds)
         self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
@@ -346,6 +354,7 @@ class Renderer:
             objs.extend(g.targets)
         if kind == "skinned":
             g.n_joints = int(rep.joint_table.shape[1])
+            self.poses.note_rep(rep, tex, g.targets)  # its mesh, posed once per distinct pose
             pvao = ctx.vertex_array(self.program("palette", ("v_row",)), [])
             pvao.label = f"{rep.key}.palette_vao"
             objs.append(pvao)
@@ -358,24 +367,27 @@ class Renderer:
         self._objects.extend(objs)
         self._reps[rep.key] = g
 
-    def _morph_of(self, g: _GpuRep) -> tuple:
-        """(vertex array, instance locations) of the geomorph program of a LOD chain rep, its
-        collapse tables bound to their texture units (made on first use)."""
-        if g.morph is None:
+    def _morph_of(self, g: _GpuRep, extra: tuple = ()) -> tuple:
+        """(vertex array, instance locations) of the geomorph program of a LOD chain rep (compiled with the
+        ``extra`` defines too), its collapse tables bound to their texture units (made on first use)."""
+        if extra not in g.morph:
             if g.morph_source is None:
                 raise ValueError(f"DrawBatch of {g.key!r} asks for a geomorph, but the representation has no "
                                  f"vertex collapses (a lod.chains.mode chain built with them)")
             r = g.morph_source
             prog = self.program("skinned_direct_morph" if self.skinning == "direct" else "skinned_morph",
-                                defines=g.defines)
+                                defines=g.defines + tuple(extra))
             vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
                                         index_element_size=4)
             vao.label = f"{g.key}.morph_vao"
-            tex = morph_textures(self.ctx, r.collapse_next, r.collapse_level, r, g.key, self.packed_vertices)
-            g.objects.extend([vao, *tex])
-            self._objects.extend([vao, *tex])
-            g.morph = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog}, tex)
-        vao, locs, (ti, tf) = g.morph
+            have = next(iter(g.morph.values()), None)
+            tex = have[2] if have is not None else morph_textures(self.ctx, r.collapse_next, r.collapse_level, r,
+                                                                  g.key, self.packed_vertices)
+            new = [vao] if have is not None else [vao, *tex]
+            g.objects.extend(new)
+            self._objects.extend(new)
+            g.morph[extra] = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog}, tex)
+        vao, locs, (ti, tf) = g.morph[extra]
         ti.use(MORPH_INT_UNIT)
         tf.use(MORPH_FLOAT_UNIT)
         vao.program["u_morph_i"].value = MORPH_INT_UNIT
@@ -458,7 +470,11 @@ class Renderer:
         if g.n_indices == 0:
             return
         morph = getattr(b, "morph", None) if g.kind == "skinned" else None
-        vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
+        shared = self._pose_plan.get(id(b))  # pose sharing: (how, posed vertices or palette, pieces)
+        if shared is not None:
+            vao, locs = self._pose_vao(g, shared[0], morph is not None)
+        else:
+            vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
         prog = vao.program
         if id(prog) not in used:
             self._set_uniforms(prog, view_proj)
@@ -479,6 +495,9 @@ class Renderer:
                                  f"{g.n_indices} indices of the representation")
         else:
             first, count = 0, g.default_count
+        if shared is not None:
+            self._draw_shared(g, prog, vao, locs, shared, offset, count, first, b.n_instances)
+            return
         for f, k, c, j in pieces or [(0, b.n_instances, -1, 0)]:
             pb = cursor.base(c, j) if cursor is not None and c >= 0 else None
             if pb is not None:
@@ -490,6 +509,40 @@ class Renderer:
             self._bind_instances(vao, locs, self._instances, off)
             (self.ctx.enable if g.cull else self.ctx.disable)(self.ctx.CULL_FACE)  # single-sided reps
             self._render_instanced(g, prog, pb, off, count, first, k, vao, locs)
+
+    def _pose_vao(self, g: _GpuRep, how: str, morph: bool) -> tuple:
+        """(vertex array, instance locations) drawing ``g`` from the pose cache: ``"posed"``, the posed
+        vertices (``shaders/posed.vert``: colours from the rep's buffer, positions and normals from the pose's
+        slot); ``"palette"``, the skinned program reading the pose palettes by slot (``POSE_SLOT``), the
+        geomorph one for a geomorphed chain level. Made on first use."""
+        if how == "palette" and morph:
+            return self._morph_of(g, ("POSE_SLOT",))
+        if how not in g.pose_vaos:
+            prog = self.program("posed") if how == "posed" else \
+                self.program(prog_name(g.kind, self.skinning), defines=g.defines + ("POSE_SLOT",))
+            vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
+                                        index_element_size=4)
+            vao.label = f"{g.key}.vao_{how}"
+            g.objects.append(vao)
+            self._objects.append(vao)
+            g.pose_vaos[how] = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog})
+        return g.pose_vaos[how]
+
+    def _draw_shared(self, g: _GpuRep, prog, vao, locs, shared, offset: int, count: int, first: int, n: int) -> None:
+        """Draw ``n`` copies of ``g`` from the pose cache (``shared``: ``("posed", PosedVertices, pieces)``, each
+        piece (first instance, count, window), or ``("palette", PosePalette, None)``)."""
+        how, src, pieces = shared
+        if how == "palette":
+            src.use(prog)
+            if g.joints is not None:
+                g.joints.use(0)  # its row count bounds the frame pairs of the morph weights (targets.glsl)
+        (self.ctx.enable if g.cull else self.ctx.disable)(self.ctx.CULL_FACE)  # single-sided reps
+        for f, k, w in pieces or [(0, n, None)]:
+            if w is not None:
+                src.bind(w, prog)
+            off = offset + f * INSTANCE_BYTES
+            self._bind_instances(vao, locs, self._instances, off)
+            self._render_instanced(g, prog, None, off, count, first, k, vao, locs)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
@@ -513,6 +566,12 @@ class Renderer:
             if b.rep not in self._reps:
                 raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
                                f"uploaded: {sorted(self._reps)}")
+        tp = time.perf_counter()
+        # pose sharing (render/pose_cache.py): palettes of the distinct poses, posed vertices, and which skinned
+        # batches draw from them (a batch whose slots span several posed windows is sorted by window)
+        self.poses.begin(getattr(drawlist, "poses", None) if self.pose_sharing and self.skinning == "palette"
+                         else None)
+        batches, self._pose_plan = self.poses.plan(batches, self._reps)
         t0 = time.perf_counter()
         total = sum(b.n_instances for b in batches)
         if batches:
@@ -544,8 +603,8 @@ class Renderer:
             pieces: dict = {}
             chunks: list = []
             if self.skinning == "palette":
-                sk = [i for i, b in enumerate(batches)
-                      if self._reps[b.rep].kind == "skinned" and self._reps[b.rep].n_indices]
+                sk = [i for i, b in enumerate(batches) if self._reps[b.rep].kind == "skinned"
+                      and self._reps[b.rep].n_indices and id(b) not in self._pose_plan]
                 chunks = self._palette_chunks([(self._reps[batches[i].rep], self._instances, int(starts[i]),
                                                 batches[i].n_instances) for i in sk]) if sk else []
                 for c, ch in enumerate(chunks):
@@ -572,9 +631,11 @@ class Renderer:
         t2 = time.perf_counter()
         ctx.finish()
         t3 = time.perf_counter()
+        self._pose_plan = {}
         timings = {
             "upload": t1 - t0,
-            "draw": t2 - t1,
+            "draw": t2 - t1 + (t0 - tp),  # the pose cache's palettes and skinning pass included
+            "poses": t0 - tp,
             "finish": t3 - t2,
             "gpu": gpu_seconds(self._q_time.elapsed, t3 - t1),
             "samples_passed": int(self._q_samples.samples),
@@ -615,6 +676,7 @@ class Renderer:
             d.release()
         self._drawers.clear()
         self._plugin_reps.clear()
+        self.poses.release()
         for o in reversed(self._objects):
             try:
                 o.release()

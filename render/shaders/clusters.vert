@@ -25,7 +25,7 @@ void main() {
     palette_rows(in_joints, in_weights, int(i_anim.y + 0.5), r0, r1, r2);
     vec4 h = vec4(in_position, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
-    vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
+    vec3 n = skin_normal(r0, r1, r2, in_normal);  // inverse transpose (skinning.glsl)
     v_world = instance_point(p);
     v_normal = instance_dir(n);
     v_color = tint_color(in_color, i_tint);

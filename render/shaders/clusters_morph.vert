@@ -28,7 +28,7 @@ void main() {
     palette_rows(in_joints, in_weights, slot, r0, r1, r2);
     vec4 h = vec4(in_position, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
-    vec3 n = vec3(dot(r0.xyz, in_normal), dot(r1.xyz, in_normal), dot(r2.xyz, in_normal));
+    vec3 n = skin_normal(r0, r1, r2, in_normal);  // inverse transpose (skinning.glsl)
     vec4 color = in_color;
     morph_blend(gl_VertexID, int(floor(i_anim.z + 0.5)), clamp(i_anim.w, 0.0, 1.0), true, slot, 0.0, p, n, color);
     v_world = instance_point(p);

@@ -17,3 +17,15 @@ vec3 instance_point(vec3 p) {
 vec3 instance_dir(vec3 d) {
     return vec3(dot(i_m0.xyz, d), dot(i_m1.xyz, d), dot(i_m2.xyz, d));
 }
+
+// The palette block of this copy (skinning.glsl palette_rows): its pose slot
+// (i_anim.y) when the pose cache blended one palette per distinct pose
+// (POSE_SLOT variants, render/pose_cache.py), else its instance (one block per
+// copy, built by the per-frame pre-pass).
+int palette_index() {
+#ifdef POSE_SLOT
+    return int(i_anim.y + 0.5);
+#else
+    return gl_InstanceID;
+#endif
+}

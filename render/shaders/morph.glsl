@@ -59,6 +59,6 @@ void morph_blend(int v, int h, float w, bool palette, int slot, float frame,
     else skin_rows(tj, tw, frame, q0, q1, q2);
     vec4 th = vec4(tp, 1.0);
     p = mix(p, vec3(dot(q0, th), dot(q1, th), dot(q2, th)), w);
-    n = mix(n, vec3(dot(q0.xyz, tn), dot(q1.xyz, tn), dot(q2.xyz, tn)), w);
+    n = mix(n, skin_normal(q0, q1, q2, tn), w);
     color = mix(color, tc, w);
 }

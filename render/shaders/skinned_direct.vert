@@ -25,7 +25,7 @@ void main() {
 #endif
     vec4 h = vec4(bp, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
-    vec3 n = vec3(dot(r0.xyz, bn), dot(r1.xyz, bn), dot(r2.xyz, bn));
+    vec3 n = skin_normal(r0, r1, r2, bn);  // inverse transpose (skinning.glsl)
     v_world = instance_point(p);
     v_normal = instance_dir(n);
     v_color = tint_color(in_color, i_tint);

@@ -30,7 +30,7 @@ void main() {
 #endif
     vec4 h = vec4(bp, 1.0);
     vec3 p = vec3(dot(r0, h), dot(r1, h), dot(r2, h));
-    vec3 n = vec3(dot(r0.xyz, bn), dot(r1.xyz, bn), dot(r2.xyz, bn));
+    vec3 n = skin_normal(r0, r1, r2, bn);  // inverse transpose (skinning.glsl)
     vec4 color = in_color;
     morph_blend(gl_VertexID, u_morph_level, clamp(u_morph_weight, 0.0, 1.0), false, 0, i_anim.x, p, n, color);
     v_world = instance_point(p);

@@ -39,6 +39,26 @@ vec4 baked_row(int j, int r, float frame) {
     return mix(texelFetch(u_joints, ivec2(x, f0), 0), texelFetch(u_joints, ivec2(x, f1), 0), a);
 }
 
+// Normal of a skinned vertex: the bind normal n through the inverse transpose
+// of the blended matrix's linear part A (rows r0..r2), computed as its cofactor
+// matrix times sign(det A) (columns: cross products of A's columns), which stays
+// finite where A is singular; unit length, the bind normal where the cofactor
+// vanishes (+Y where that does too). The CPU reference is sim/skinning.py.
+vec3 skin_normal(vec4 r0, vec4 r1, vec4 r2, vec3 n) {
+    vec3 a0 = vec3(r0.x, r1.x, r2.x);
+    vec3 a1 = vec3(r0.y, r1.y, r2.y);
+    vec3 a2 = vec3(r0.z, r1.z, r2.z);
+    vec3 c0 = cross(a1, a2);
+    vec3 c1 = cross(a2, a0);
+    vec3 c2 = cross(a0, a1);
+    float det = dot(a0, c0);
+    vec3 o = (det > 0.0 ? 1.0 : (det < 0.0 ? -1.0 : 0.0)) * (c0 * n.x + c1 * n.y + c2 * n.z);
+    float lo = dot(o, o);
+    if (lo > 1e-30) return o * inversesqrt(lo);
+    float ln = dot(n, n);
+    return ln > 1e-30 ? n * inversesqrt(ln) : vec3(0.0, 1.0, 0.0);
+}
+
 // Direct path: blend the matrices of both frames for every influence
 // (24 texel fetches for 4 influences).
 void skin_rows(uvec4 joints, vec4 weights, float frame, out vec4 r0, out vec4 r1, out vec4 r2) {

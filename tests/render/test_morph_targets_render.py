@@ -4,13 +4,10 @@
 frames of mode none and of mode triangles (level 0) pixel for pixel against the
 reference mesh drawn as a static mesh through the same renderer.
 
-Normals: the skinned shaders transform normals by the blended matrices' linear
-part, where ``sim.skinning`` uses its inverse transpose (cofactor); the two
-differ where blended joints rotate apart, for every skinned character, with or
-without morphs (up to 4/255 on these frames). The static reference therefore
-takes the CPU ``skin ∘ morph`` positions and the morphed normals
-(``sim.skinning.morph``) through the renderer's convention, so the comparison
-isolates the morph."""
+Normals: the skinned shaders and ``sim.skinning`` both take the inverse
+transpose of the blended matrix (cofactor times the sign of the determinant,
+``skinning.glsl skin_normal``; issue 29), so the static reference draws the CPU
+``skin ∘ morph`` positions and normals as they are."""
 import numpy as np
 import pytest
 
@@ -25,7 +22,7 @@ from lod.view import Camera
 from render.renderer import Renderer
 from render.targets import TARGETS_DEFINE, target_textures
 from sim.mesh import Mesh
-from sim.skinning import blend_matrices, morph, skin, skin_morph
+from sim.skinning import skin, skin_morph
 from sim.state import CrowdState
 
 SIZE = (320, 240)
@@ -51,14 +48,11 @@ def _frames(rep, c, idx):
 
 
 def _reference(ch, clip_name, t, morphed=True):
-    """CPU skin ∘ morph positions, normals in the renderer's convention (module docstring)."""
+    """CPU skin ∘ morph positions and normals (inverse transpose, module docstring)."""
     clip = ch.clips[clip_name]
     mats = clip.skinning_matrices(ch.skeleton, [t])[0]
     w = clip.morph_weights(ch.mesh.morph, [t])[0] if morphed else ch.mesh.morph.default_weights
-    p, _ = skin_morph(ch.mesh, mats, w)
-    _, n = morph(ch.mesh, w)
-    M = blend_matrices(ch.mesh, mats)
-    return p, np.einsum("vij,vj->vi", M[:, :3, :3], n)
+    return skin_morph(ch.mesh, mats, w)
 
 
 @pytest.mark.parametrize("skinning", PATHS)

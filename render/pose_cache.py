@@ -1,0 +1,439 @@
+"""Pose sharing, render side: per frame and character the joint palette of each distinct pose and, on request,
+the posed vertices of a mesh for every distinct pose (issue 29; the LOD side is ``lod/poses``).
+
+One :class:`PoseCache` per renderer (``Renderer.poses``). Each frame, :meth:`PoseCache.begin` takes the
+DrawList's :class:`lod.poses.PoseTable` and
+
+- blends the joint palette of every distinct pose of every character once (numba over the poses,
+  ``render/pose_skin.py``; at the default key rate a pose is one baked row, so its palette is a copy) and
+  uploads them into one RGBA32F texture in the layout of ``render/palette.py`` (:class:`PosePalette`: a
+  character's slot ``s`` starts at texel ``base + s * 3J``). The skinned, cluster and chain programs read it
+  with the copy's slot (``i_anim.y``, the ``POSE_SLOT`` variants of ``shaders/skinning.glsl``) instead of a
+  per-copy palette built by the transform-feedback pre-pass;
+- on request (:meth:`PoseCache.posed`: the full-detail drawer, the compute rasteriser) skins the vertices of a
+  mesh in every distinct pose once (:class:`PosedVertices`): morph targets blended first, normals through the
+  inverse transpose of the blended matrix. The skinning pass is a compute shader (``shaders/pose_skin.comp``,
+  every core on llvmpipe) or numba over both cores (:attr:`PoseCache.skinning`; the faster one is the
+  default, scripts/bench_full_detail.md). Copies then draw from the buffer with only their instance transform
+  (``shaders/posed.vert``).
+
+Posed-vertex layout (``shaders/posed.glsl``): ``[slot][vertex]``, 32 bytes per vertex ((x, y, z, 1),
+(nx, ny, nz, 0), float32, model space). A storage-buffer binding may address at most
+``GL_MAX_SHADER_STORAGE_BLOCK_SIZE`` bytes (128 MB on llvmpipe), so the slots are cut into *windows* of whole
+slots of at most :attr:`PoseCache.window_bytes`, one buffer each; a reader binds the window of the slots it
+reads and sets ``u_posed_first`` to the window's first slot (:meth:`PosedVertices.bind`). Windows are never
+silently cut short: a pose larger than a window, or posed vertices beyond :attr:`PoseCache.budget_bytes` in
+all, make :meth:`posed` return None, and the copies are skinned in the vertex stage from the pose palettes
+instead (same pixels). Palettes beyond the palette texture's limit (``render.palette.PALETTE_MAX_TEXELS``)
+turn the pose cache off for that frame (every copy through the per-copy pre-pass, exact times).
+
+Nothing non-finite is uploaded: pose frames and palettes are checked (FloatingPointError).
+"""
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from lod.poses.table import SLOT_FLOAT
+from render.palette import PALETTE_MAX_TEXELS, Palette
+from render.pose_skin import POSED_FLOATS, blend_palettes, skin_poses
+from render.shaders import load_source
+from render.targets import TARGETS_DEFINE, use_targets
+from render.vertex_format import compact_influences
+
+#: storage-buffer binding of the posed vertices (``shaders/posed.glsl`` POSED_BINDING)
+POSED_BINDING = 6
+#: bytes per posed vertex
+POSED_VERTEX_BYTES = 4 * POSED_FLOATS
+#: most bytes of one window (one storage-buffer binding); llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE
+POSED_WINDOW_BYTES = 128 * 1024 * 1024
+#: most bytes of posed vertices of one mesh in one frame (beyond: the copies skin from the palettes)
+POSED_BUDGET_BYTES = 1024 * 1024 * 1024
+#: skinning passes: "compute" (shaders/pose_skin.comp) or "numba" (render/pose_skin.py)
+SKINNING_PASSES = ("compute", "numba")
+#: default skinning pass (scripts/bench_full_detail.md "pose skinning": compute vs numba)
+SKINNING_PASS = "compute"
+#: invocations per work group of the compute skinning pass
+SKIN_LOCAL_SIZE = 64
+#: most work groups along y in one dispatch (GL's guaranteed minimum)
+MAX_GROUPS_Y = 65535
+#: texture unit of the pose palettes (skinning.glsl u_palette)
+PALETTE_UNIT = 1
+
+
+@dataclass
+class PosePalette:
+    """The palettes of one character's distinct poses this frame (a block of the pose-palette texture).
+
+    texture : RGBA32F texture, ``render.palette`` layout; base : first texel of slot 0; stride : texels per
+    pose (3 x joints); frames : (P,) frame coordinates of the poses (slot order); palettes : (P, J, 3, 4)
+    float32, the same values on the CPU
+    """
+
+    texture: object
+    base: int
+    stride: int
+    frames: np.ndarray
+    palettes: np.ndarray
+
+    @property
+    def n_poses(self) -> int:
+        return int(self.frames.shape[0])
+
+    def use(self, prog, unit: int = PALETTE_UNIT) -> None:
+        """Bind the texture to ``unit`` and point ``prog``'s palette uniforms at this character's block."""
+        self.texture.use(unit)
+        for name, value in (("u_palette", unit), ("u_palette_base", self.base), ("u_palette_stride", self.stride)):
+            if name in prog:
+                prog[name].value = value
+
+
+@dataclass
+class PosedWindow:
+    """Slots ``first .. first + count`` of a mesh's posed vertices, in ``buffer`` from byte 0."""
+
+    first: int
+    count: int
+    buffer: object
+    nbytes: int
+
+
+@dataclass
+class PosedVertices:
+    """A mesh's vertices in every distinct pose of its character this frame (``shaders/posed.glsl``).
+
+    group : character (pose group); vertices : per pose; windows : PosedWindow list, consecutive slot ranges
+    """
+
+    group: str
+    vertices: int
+    windows: list
+    poses: int
+
+    @property
+    def slots_per_window(self) -> int:
+        return int(self.windows[0].count) if self.windows else 1
+
+    def window_of(self, slots) -> np.ndarray:
+        """Window index of each slot."""
+        return np.asarray(slots, np.int64) // self.slots_per_window
+
+    def bind(self, w: int, prog=None, binding: int = POSED_BINDING) -> None:
+        """Bind window ``w`` to the storage binding and set ``prog``'s ``u_posed_vertices``/``u_posed_first``."""
+        win = self.windows[w]
+        win.buffer.bind_to_storage_buffer(binding, size=win.nbytes)
+        if prog is not None:
+            if "u_posed_vertices" in prog:
+                prog["u_posed_vertices"].value = self.vertices
+            if "u_posed_first" in prog:
+                prog["u_posed_first"].value = win.first
+
+    def read(self) -> np.ndarray:
+        """(P, V, 8) float32 of every window read back (tests, debugging)."""
+        parts = [np.frombuffer(w.buffer.read(size=w.nbytes), np.float32).reshape(w.count, self.vertices,
+                                                                                  POSED_FLOATS)
+                 for w in self.windows]
+        return np.concatenate(parts) if parts else np.zeros((0, self.vertices, POSED_FLOATS), np.float32)
+
+
+@dataclass
+class _Mesh:
+    """A mesh the pose cache can pose: CPU arrays, and its storage buffers once first posed."""
+
+    digest: str
+    positions: np.ndarray
+    normals: np.ndarray
+    joints: np.ndarray
+    weights: np.ndarray
+    n_inf: int
+    targets: object
+    joint_texture: object
+    target_textures: object
+    gpu: list = field(default_factory=list)  # bind positions, bind normals, joints, weights (storage buffers)
+    windows: list = field(default_factory=list)  # window buffers kept from frame to frame
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.positions.shape[0])
+
+
+def mesh_digest(rep) -> str:
+    """Content key of a skinned rep's posed mesh: reps with equal vertices, skin and targets share it."""
+    h = hashlib.sha1()
+    for a in (rep.positions, rep.normals, rep.joints, rep.weights):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    t = getattr(rep, "targets", None)
+    if t is not None:
+        for a in (t.first, t.count, t.column, t.dpos, t.dnrm, t.weights):
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+class PoseCache:
+    """Pose palettes and posed vertices of a renderer, frame by frame (module docstring).
+
+    Attributes
+    ----------
+    skinning : "compute" or "numba", the posed-vertex pass
+    window_bytes : most bytes per window (clamped to the context's storage-block limit)
+    budget_bytes : most posed bytes of one mesh per frame
+    last_stats : dict of the last frame: "poses", "posed_vertices", "palette_ms", "skin_ms", "windows",
+        "fallback" (meshes skinned per copy from the palettes because their poses exceed the budget)
+    """
+
+    def __init__(self, renderer):
+        self.r = renderer
+        self.ctx = renderer.ctx
+        self.skinning = SKINNING_PASS
+        self.window_bytes = POSED_WINDOW_BYTES
+        self.budget_bytes = POSED_BUDGET_BYTES
+        self.available = int(getattr(self.ctx, "version_code", 0)) >= 430  # compute shaders, storage buffers
+        self._objects: list = []
+        self._palette = Palette(self.ctx, self._track, self._untrack)
+        self._meshes: dict = {}  # digest -> _Mesh
+        self._rep_mesh: dict = {}  # rep key -> digest
+        self._programs: dict = {}
+        self._frames = None  # storage buffer of pose frames (morph targets in the compute pass)
+        self._table = None
+        self._pal: dict = {}  # group -> PosePalette
+        self._posed: dict = {}  # (group, digest) -> PosedVertices or None
+        self.last_stats: dict = {}
+
+    # ------------------------------------------------------------------ resources
+    def _track(self, obj, label: str):
+        from render.context import track
+
+        return track(self._objects, obj, label)
+
+    def _untrack(self, obj) -> None:
+        if obj in self._objects:
+            self._objects.remove(obj)
+
+    def note_rep(self, rep, joint_texture=None, target_textures=None) -> None:
+        """Remember a skinned rep's mesh (called by ``Renderer.upload``); reps with the same mesh share it."""
+        if getattr(rep, "kind", None) != "skinned" or not hasattr(rep, "joint_table"):
+            self._rep_mesh.pop(getattr(rep, "key", None), None)
+            return
+        d = mesh_digest(rep)
+        self._rep_mesh[rep.key] = d
+        if d not in self._meshes:
+            jn, wt, n_inf = compact_influences(rep.joints, rep.weights)
+            self._meshes[d] = _Mesh(d, np.ascontiguousarray(rep.positions, np.float32),
+                                    np.ascontiguousarray(rep.normals, np.float32), np.ascontiguousarray(jn),
+                                    np.ascontiguousarray(wt, np.float32), int(n_inf), getattr(rep, "targets", None),
+                                    joint_texture, target_textures)
+
+    def release(self) -> None:
+        for m in self._meshes.values():
+            for b in m.gpu + [w for w in m.windows if w is not None]:
+                b.release()
+            m.gpu, m.windows = [], []
+        for o in reversed(self._objects):
+            o.release()
+        self._objects.clear()
+        self._programs.clear()
+        self._frames = None
+
+    # ------------------------------------------------------------------ frame
+    def begin(self, table) -> None:
+        """Start a frame with ``table`` (a ``lod.poses.PoseTable``, or None: no pose sharing this frame):
+        blend and upload the palettes of every group's distinct poses."""
+        t0 = time.perf_counter()
+        self._table, self._pal, self._posed = None, {}, {}
+        self.last_stats = {"poses": 0, "posed_vertices": 0, "palette_ms": 0.0, "skin_ms": 0.0, "windows": 0,
+                           "fallback": 0}
+        if table is None or not self.available or not table.sets:
+            return
+        blocks, base = [], 0
+        for gk, ps in table.sets.items():
+            frames = np.asarray(ps.frames, np.float64)
+            if not np.isfinite(frames).all():
+                raise FloatingPointError(f"pose table of {gk!r}: a pose's frame coordinate is NaN or Inf")
+            pal = blend_palettes(ps.group.source.joint_table, frames)
+            stride = 3 * int(pal.shape[1])
+            self._pal[gk] = PosePalette(None, base, stride, frames, pal)
+            blocks.append(pal.reshape(-1, 4))
+            base += pal.shape[0] * stride
+        if base > PALETTE_MAX_TEXELS:  # beyond the palette texture: every copy through the per-copy pre-pass
+            self._pal = {}
+            self.last_stats["fallback"] = len(table.sets)
+            return
+        texels = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+        if not np.isfinite(texels).all():
+            raise FloatingPointError("pose palettes hold NaN or Inf (a joint table is not finite)")
+        self._palette.upload(texels)
+        for p in self._pal.values():
+            p.texture = self._palette.texture
+        self._table = table
+        self.last_stats["poses"] = int(sum(p.n_poses for p in self._pal.values()))
+        self.last_stats["palette_ms"] = 1e3 * (time.perf_counter() - t0)
+
+    def group_of(self, rep_key: str):
+        """The pose group (character) drawing ``rep_key`` this frame, or None."""
+        return None if self._table is None else self._table.rep_group.get(rep_key)
+
+    def palette(self, rep_key: str):
+        """The :class:`PosePalette` of the character ``rep_key`` draws, or None (no pose table this frame)."""
+        g = self.group_of(rep_key)
+        return None if g is None else self._pal.get(g)
+
+    def posed(self, rep_key: str):
+        """The :class:`PosedVertices` of skinned rep ``rep_key``'s mesh in every distinct pose of its character
+        (skinned on the first request of the frame), or None: no pose table, not a mesh the cache knows, or
+        poses beyond a window or the budget (the caller skins per copy from :meth:`palette`)."""
+        g = self.group_of(rep_key)
+        d = self._rep_mesh.get(rep_key)
+        if g is None or d is None or g not in self._pal:
+            return None
+        key = (g, d)
+        if key not in self._posed:
+            self._posed[key] = self._skin(g, self._meshes[d])
+        return self._posed[key]
+
+    def _limit(self) -> int:
+        cap = int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or POSED_WINDOW_BYTES)
+        return max(POSED_VERTEX_BYTES, min(int(self.window_bytes), cap))
+
+    def _skin(self, group: str, mesh: _Mesh):
+        t0 = time.perf_counter()
+        pal = self._pal[group]
+        P, V = pal.n_poses, mesh.n_vertices
+        per_pose = V * POSED_VERTEX_BYTES
+        if V == 0 or per_pose > self._limit() or P * per_pose > self.budget_bytes:
+            self.last_stats["fallback"] += 1
+            return None
+        spw = max(1, self._limit() // per_pose)
+        windows = []
+        for i, first in enumerate(range(0, P, spw)):
+            n = min(spw, P - first)
+            windows.append(PosedWindow(first, n, self._window_buffer(mesh, i, n * per_pose), n * per_pose))
+        posed = PosedVertices(group, V, windows, P)
+        if self.skinning == "numba":
+            out = skin_poses(mesh.positions, mesh.normals, mesh.joints[:, :mesh.n_inf], mesh.weights[:, :mesh.n_inf],
+                             pal.palettes, mesh.targets, pal.frames)
+            for w in windows:
+                w.buffer.write(out[w.first:w.first + w.count].tobytes())
+        else:
+            self._skin_compute(mesh, pal, posed)
+        self.last_stats["skin_ms"] += 1e3 * (time.perf_counter() - t0)
+        self.last_stats["posed_vertices"] += P * V
+        self.last_stats["windows"] += len(windows)
+        return posed
+
+    def _window_buffer(self, mesh: _Mesh, i: int, nbytes: int):
+        """Window buffer ``i`` of ``mesh`` holding at least ``nbytes`` (kept and grown across frames)."""
+        while len(mesh.windows) <= i:
+            mesh.windows.append(None)
+        have = mesh.windows[i]
+        if have is None or have.size < nbytes:
+            if have is not None:
+                have.release()
+            have = self.ctx.buffer(reserve=max(nbytes, POSED_VERTEX_BYTES))
+            have.label = f"poses.{mesh.digest[:8]}.window{i}"
+            mesh.windows[i] = have
+        return have
+
+    def plan(self, batches, reps: dict) -> tuple:
+        """Which of the frame's built-in batches draw from the pose cache, and how.
+
+        batches : the renderer's triangle batches; reps : rep key -> the renderer's ``_GpuRep``
+
+        Returns (batches, plan): the batches (one whose copies' slots span several posed windows replaced by a
+        copy sorted by window, stable) and ``id(batch) -> (how, source, pieces)``: ``("posed", PosedVertices,
+        [(first instance, count, window), ...])``, or ``("palette", PosePalette, None)`` where the mesh cannot
+        be posed within the limits or the batch is a geomorphed chain level (skinned per copy from the pose
+        palettes). Skinned batches of a rep without a pose palette this frame are not in the plan.
+        """
+        if not self._pal:
+            return batches, {}
+        out, plan = [], {}
+        for b in batches:
+            g = reps.get(b.rep)
+            pal = self.palette(b.rep) if g is not None and g.kind == "skinned" and g.n_indices else None
+            if pal is None:
+                out.append(b)
+                continue
+            posed = None if getattr(b, "morph", None) is not None else self.posed(b.rep)
+            if posed is None:
+                out.append(b)
+                plan[id(b)] = ("palette", pal, None)
+                continue
+            pieces = [(0, b.n_instances, 0)]
+            if len(posed.windows) > 1:
+                w = posed.window_of(np.asarray(b.instance_data[:, SLOT_FLOAT]).round())
+                if (np.diff(w) < 0).any():
+                    order = np.argsort(w, kind="stable")
+                    b = replace(b, instance_ids=np.asarray(b.instance_ids)[order],
+                                instance_data=np.asarray(b.instance_data)[order])
+                    w = w[order]
+                cut = np.concatenate([[0], np.flatnonzero(np.diff(w)) + 1, [w.shape[0]]])
+                pieces = [(int(a), int(e - a), int(w[a])) for a, e in zip(cut[:-1], cut[1:])]
+            out.append(b)
+            plan[id(b)] = ("posed", posed, pieces)
+        return out, plan
+
+    # ------------------------------------------------------------------ compute pass
+    def _program(self, mesh: _Mesh):
+        defines = [f"LOCAL_SIZE {SKIN_LOCAL_SIZE}"]
+        if mesh.n_inf < 4:
+            defines.append(f"SKIN_INFLUENCES_{mesh.n_inf}")
+        if mesh.targets is not None and mesh.target_textures is not None:
+            defines.append(TARGETS_DEFINE)
+        key = tuple(defines)
+        if key not in self._programs:
+            src = load_source("pose_skin.comp")
+            lines = src.split("\n", 1)
+            src = lines[0] + "\n" + "".join(f"#define {d}\n" for d in defines) + lines[1]
+            self._programs[key] = self._track(self.ctx.compute_shader(src), "poses.compute.pose_skin")
+        return self._programs[key]
+
+    def _mesh_buffers(self, mesh: _Mesh) -> list:
+        if not mesh.gpu:
+            n = mesh.n_vertices
+            jn = np.zeros((n, 4), np.uint32)
+            jn[:, :mesh.joints.shape[1]] = mesh.joints
+            wt = np.zeros((n, 4), np.float32)
+            wt[:, :mesh.weights.shape[1]] = mesh.weights
+            for a, label in ((mesh.positions, "positions"), (mesh.normals, "normals"), (jn, "joints"), (wt, "weights")):
+                b = self.ctx.buffer(np.ascontiguousarray(a).tobytes() or bytes(16))
+                b.label = f"poses.{mesh.digest[:8]}.{label}"
+                mesh.gpu.append(b)
+        return mesh.gpu
+
+    def _skin_compute(self, mesh: _Mesh, pal: PosePalette, posed: PosedVertices) -> None:
+        ctx = self.ctx
+        prog = self._program(mesh)
+        for i, b in enumerate(self._mesh_buffers(mesh)):
+            b.bind_to_storage_buffer(i)
+        frames = np.ascontiguousarray(pal.frames, np.float32)
+        if self._frames is None or self._frames.size < frames.nbytes:
+            if self._frames is not None:
+                self._frames.release()
+                self._untrack(self._frames)
+            self._frames = self._track(ctx.buffer(reserve=max(4096, 2 * frames.nbytes)), "poses.frames")
+        self._frames.write(frames.tobytes())
+        self._frames.bind_to_storage_buffer(4)
+        if mesh.joint_texture is not None:
+            mesh.joint_texture.use(0)
+            if "u_joints" in prog:
+                prog["u_joints"].value = 0
+        pal.use(prog)
+        if mesh.targets is not None and mesh.target_textures is not None:
+            use_targets(prog, mesh.target_textures)
+        gx = -(-posed.vertices // SKIN_LOCAL_SIZE)
+        for w in range(len(posed.windows)):
+            posed.bind(w, prog)
+            win = posed.windows[w]
+            for y0 in range(0, win.count, MAX_GROUPS_Y):
+                prog["u_slot_start"].value = win.first + y0
+                prog.run(gx, min(MAX_GROUPS_Y, win.count - y0), 1)
+        ctx.memory_barrier()
+
+
+__all__ = ["POSED_BINDING", "POSED_BUDGET_BYTES", "POSED_VERTEX_BYTES", "POSED_WINDOW_BYTES", "SKINNING_PASSES",
+           "PoseCache", "PosePalette", "PosedVertices", "PosedWindow", "mesh_digest"]
