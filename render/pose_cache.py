@@ -17,14 +17,17 @@ DrawList's :class:`lod.poses.PoseTable` and
   default, scripts/bench_full_detail.md). Copies then draw from the buffer with only their instance transform
   (``shaders/posed.vert``).
 
-Posed-vertex layout (``shaders/posed.glsl``): ``[slot][vertex]``, 32 bytes per vertex ((x, y, z, 1),
-(nx, ny, nz, 0), float32, model space). A storage-buffer binding may address at most
-``GL_MAX_SHADER_STORAGE_BLOCK_SIZE`` bytes (128 MB on llvmpipe), so the slots are cut into *windows* of whole
-slots of at most :attr:`PoseCache.window_bytes`, one buffer each; a reader binds the window of the slots it
-reads and sets ``u_posed_first`` to the window's first slot (:meth:`PosedVertices.bind`). Windows are never
-silently cut short: a pose larger than a window, or posed vertices beyond :attr:`PoseCache.budget_bytes` in
-all, make :meth:`posed` return None, and the copies are skinned in the vertex stage from the pose palettes
-instead (same pixels). Palettes beyond the palette texture's limit (``render.palette.PALETTE_MAX_TEXELS``)
+Posed-vertex layout (``shaders/posed.glsl``): ``[slot][vertex]`` in two RGBA32F textures of
+:data:`POSED_WIDTH` texels per row, positions (x, y, z, 1) and unit normals (nx, ny, nz, 0), model space;
+texel ``t = slot * V + vertex`` at ``(t & 4095, t >> 12)`` (textures, not storage buffers: on llvmpipe
+``texelFetch`` is several times cheaper than per-lane storage-buffer loads, which it scalarises and
+bounds-checks; written by ``imageStore``). The slots are cut into *windows* of whole slots, one texture
+pair each, of at most :attr:`PoseCache.window_bytes` (default 128 MB for the pair, llvmpipe's storage-block
+binding limit: a reader may copy a window into a storage buffer) and of at most ``GL_MAX_TEXTURE_SIZE`` rows;
+a reader binds the window of the slots it reads and sets ``u_posed_first`` to the window's first slot
+(:meth:`PosedVertices.bind`). Windows are never silently cut short: a pose larger than a window, or posed
+vertices beyond :attr:`PoseCache.budget_bytes` in all, make :meth:`posed` return None, and the copies are
+skinned in the vertex stage from the pose palettes instead (same pixels). Palettes beyond the palette texture's limit (``render.palette.PALETTE_MAX_TEXELS``)
 turn the pose cache off for that frame (every copy through the per-copy pre-pass, exact times).
 
 Nothing non-finite is uploaded: pose frames and palettes are checked (FloatingPointError).
@@ -44,11 +47,18 @@ from render.shaders import load_source
 from render.targets import TARGETS_DEFINE, use_targets
 from render.vertex_format import compact_influences
 
-#: storage-buffer binding of the posed vertices (``shaders/posed.glsl`` POSED_BINDING)
-POSED_BINDING = 6
-#: bytes per posed vertex
+#: texels per row of the posed-vertex and mesh textures (``shaders/posed.glsl``: texel t at (t & 4095, t >> 12))
+POSED_WIDTH = 4096
+#: texture units the readers sample the posed positions and normals from (``u_posed_positions``/``_normals``)
+POSED_POSITION_UNIT = 8
+POSED_NORMAL_UNIT = 9
+#: texture units of the skinning pass's mesh tables (``u_bind``, ``u_skin_joints``)
+BIND_UNIT = 10
+JOINTS_UNIT = 11
+#: bytes per posed vertex (position and normal texels)
 POSED_VERTEX_BYTES = 4 * POSED_FLOATS
-#: most bytes of one window (one storage-buffer binding); llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE
+#: most bytes of one window (its two textures); llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE, so that a window
+#: also fits one storage-buffer binding
 POSED_WINDOW_BYTES = 128 * 1024 * 1024
 #: most bytes of posed vertices of one mesh in one frame (beyond: the copies skin from the palettes)
 POSED_BUDGET_BYTES = 1024 * 1024 * 1024
@@ -93,12 +103,14 @@ class PosePalette:
 
 @dataclass
 class PosedWindow:
-    """Slots ``first .. first + count`` of a mesh's posed vertices, in ``buffer`` from byte 0."""
+    """Slots ``first .. first + count`` of a mesh's posed vertices: texel 0 of ``positions`` and ``normals``
+    (RGBA32F, :data:`POSED_WIDTH` wide, at least ``rows`` rows) is the first slot's vertex 0."""
 
     first: int
     count: int
-    buffer: object
-    nbytes: int
+    positions: object
+    normals: object
+    rows: int
 
 
 @dataclass
@@ -121,22 +133,27 @@ class PosedVertices:
         """Window index of each slot."""
         return np.asarray(slots, np.int64) // self.slots_per_window
 
-    def bind(self, w: int, prog=None, binding: int = POSED_BINDING) -> None:
-        """Bind window ``w`` to the storage binding and set ``prog``'s ``u_posed_vertices``/``u_posed_first``."""
+    def bind(self, w: int, prog=None, units: tuple = (POSED_POSITION_UNIT, POSED_NORMAL_UNIT)) -> None:
+        """Bind window ``w``'s textures to ``units`` and set ``prog``'s samplers, ``u_posed_vertices`` and
+        ``u_posed_first`` (``shaders/posed.glsl``)."""
         win = self.windows[w]
-        win.buffer.bind_to_storage_buffer(binding, size=win.nbytes)
+        win.positions.use(units[0])
+        win.normals.use(units[1])
         if prog is not None:
-            if "u_posed_vertices" in prog:
-                prog["u_posed_vertices"].value = self.vertices
-            if "u_posed_first" in prog:
-                prog["u_posed_first"].value = win.first
+            for name, value in (("u_posed_positions", units[0]), ("u_posed_normals", units[1]),
+                                ("u_posed_vertices", self.vertices), ("u_posed_first", win.first)):
+                if name in prog:
+                    prog[name].value = value
 
     def read(self) -> np.ndarray:
-        """(P, V, 8) float32 of every window read back (tests, debugging)."""
-        parts = [np.frombuffer(w.buffer.read(size=w.nbytes), np.float32).reshape(w.count, self.vertices,
-                                                                                  POSED_FLOATS)
-                 for w in self.windows]
-        return np.concatenate(parts) if parts else np.zeros((0, self.vertices, POSED_FLOATS), np.float32)
+        """(P, V, 8) float32 of every window read back: position, 1, normal, 0 (tests, debugging)."""
+        out = np.zeros((self.poses, self.vertices, POSED_FLOATS), np.float32)
+        for w in self.windows:
+            n = w.count * self.vertices
+            for tex, c in ((w.positions, 0), (w.normals, 4)):
+                raw = np.frombuffer(tex.read(), np.float32).reshape(-1, 4)[:n]
+                out[w.first:w.first + w.count, :, c:c + 4] = raw.reshape(w.count, self.vertices, 4)
+        return out
 
 
 @dataclass
@@ -152,8 +169,8 @@ class _Mesh:
     targets: object
     joint_texture: object
     target_textures: object
-    gpu: list = field(default_factory=list)  # bind positions, bind normals, joints, weights (storage buffers)
-    windows: list = field(default_factory=list)  # window buffers kept from frame to frame
+    gpu: list = field(default_factory=list)  # the skinning pass's tables: bind (RGBA32F), joints (RGBA32UI)
+    windows: list = field(default_factory=list)  # (positions, normals) textures kept from frame to frame
 
     @property
     def n_vertices(self) -> int:
@@ -230,7 +247,7 @@ class PoseCache:
 
     def release(self) -> None:
         for m in self._meshes.values():
-            for b in m.gpu + [w for w in m.windows if w is not None]:
+            for b in m.gpu + [t for w in m.windows if w is not None for t in w]:
                 b.release()
             m.gpu, m.windows = [], []
         for o in reversed(self._objects):
@@ -296,28 +313,34 @@ class PoseCache:
         return self._posed[key]
 
     def _limit(self) -> int:
-        cap = int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or POSED_WINDOW_BYTES)
-        return max(POSED_VERTEX_BYTES, min(int(self.window_bytes), cap))
+        """Most vertices of one window: :attr:`window_bytes` and the texture's rows."""
+        rows = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
+        return max(1, min(int(self.window_bytes) // POSED_VERTEX_BYTES, POSED_WIDTH * rows))
 
     def _skin(self, group: str, mesh: _Mesh):
         t0 = time.perf_counter()
         pal = self._pal[group]
         P, V = pal.n_poses, mesh.n_vertices
-        per_pose = V * POSED_VERTEX_BYTES
-        if V == 0 or per_pose > self._limit() or P * per_pose > self.budget_bytes:
+        if V == 0 or V > self._limit() or P * V * POSED_VERTEX_BYTES > self.budget_bytes:
             self.last_stats["fallback"] += 1
             return None
-        spw = max(1, self._limit() // per_pose)
+        spw = max(1, self._limit() // V)
         windows = []
         for i, first in enumerate(range(0, P, spw)):
             n = min(spw, P - first)
-            windows.append(PosedWindow(first, n, self._window_buffer(mesh, i, n * per_pose), n * per_pose))
+            rows = -(-n * V // POSED_WIDTH)
+            windows.append(PosedWindow(first, n, *self._window_textures(mesh, i, rows), rows))
         posed = PosedVertices(group, V, windows, P)
         if self.skinning == "numba":
             out = skin_poses(mesh.positions, mesh.normals, mesh.joints[:, :mesh.n_inf], mesh.weights[:, :mesh.n_inf],
                              pal.palettes, mesh.targets, pal.frames)
             for w in windows:
-                w.buffer.write(out[w.first:w.first + w.count].tobytes())
+                full = np.zeros((2, w.rows * POSED_WIDTH, 4), np.float32)
+                part = out[w.first:w.first + w.count].reshape(-1, POSED_FLOATS)
+                full[0, :part.shape[0]] = part[:, :4]
+                full[1, :part.shape[0]] = part[:, 4:]
+                w.positions.write(full[0].tobytes(), viewport=(0, 0, POSED_WIDTH, w.rows))
+                w.normals.write(full[1].tobytes(), viewport=(0, 0, POSED_WIDTH, w.rows))
         else:
             self._skin_compute(mesh, pal, posed)
         self.last_stats["skin_ms"] += 1e3 * (time.perf_counter() - t0)
@@ -325,18 +348,28 @@ class PoseCache:
         self.last_stats["windows"] += len(windows)
         return posed
 
-    def _window_buffer(self, mesh: _Mesh, i: int, nbytes: int):
-        """Window buffer ``i`` of ``mesh`` holding at least ``nbytes`` (kept and grown across frames)."""
+    def _window_textures(self, mesh: _Mesh, i: int, rows: int) -> tuple:
+        """(positions, normals) textures of window ``i`` of ``mesh`` with at least ``rows`` rows (kept across
+        frames, re-made when a frame needs more rows)."""
         while len(mesh.windows) <= i:
             mesh.windows.append(None)
         have = mesh.windows[i]
-        if have is None or have.size < nbytes:
-            if have is not None:
-                have.release()
-            have = self.ctx.buffer(reserve=max(nbytes, POSED_VERTEX_BYTES))
-            have.label = f"poses.{mesh.digest[:8]}.window{i}"
+        if have is None or have[0].height < rows:
+            for t in have or ():
+                t.release()
+            have = tuple(self._texture((POSED_WIDTH, rows), 4, "f4", f"poses.{mesh.digest[:8]}.window{i}.{what}")
+                         for what in ("positions", "normals"))
             mesh.windows[i] = have
         return have
+
+    def _texture(self, size, components: int, dtype: str, label: str, data=None):
+        import moderngl
+
+        t = self.ctx.texture(size, components, data, dtype=dtype)
+        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        t.repeat_x = t.repeat_y = False
+        t.label = label
+        return t
 
     def plan(self, batches, reps: dict) -> tuple:
         """Which of the frame's built-in batches draw from the pose cache, and how.
@@ -392,24 +425,33 @@ class PoseCache:
             self._programs[key] = self._track(self.ctx.compute_shader(src), "poses.compute.pose_skin")
         return self._programs[key]
 
-    def _mesh_buffers(self, mesh: _Mesh) -> list:
+    def _mesh_textures(self, mesh: _Mesh) -> list:
+        """(bind, joints) textures of the skinning pass (``shaders/pose_skin.comp``), made on first use."""
         if not mesh.gpu:
             n = mesh.n_vertices
+            bind = np.zeros((n, 3, 4), np.float32)
+            bind[:, 0, :3] = mesh.positions
+            bind[:, 0, 3] = 1.0
+            bind[:, 1, :3] = mesh.normals
+            bind[:, 2, :mesh.weights.shape[1]] = mesh.weights
             jn = np.zeros((n, 4), np.uint32)
             jn[:, :mesh.joints.shape[1]] = mesh.joints
-            wt = np.zeros((n, 4), np.float32)
-            wt[:, :mesh.weights.shape[1]] = mesh.weights
-            for a, label in ((mesh.positions, "positions"), (mesh.normals, "normals"), (jn, "joints"), (wt, "weights")):
-                b = self.ctx.buffer(np.ascontiguousarray(a).tobytes() or bytes(16))
-                b.label = f"poses.{mesh.digest[:8]}.{label}"
-                mesh.gpu.append(b)
+            for a, dtype, what in ((bind.reshape(-1, 4), "f4", "bind"), (jn, "u4", "joints")):
+                rows = max(1, -(-a.shape[0] // POSED_WIDTH))
+                full = np.zeros((rows * POSED_WIDTH, 4), a.dtype)
+                full[:a.shape[0]] = a
+                mesh.gpu.append(self._texture((POSED_WIDTH, rows), 4, dtype, f"poses.{mesh.digest[:8]}.{what}",
+                                              full.tobytes()))
         return mesh.gpu
 
     def _skin_compute(self, mesh: _Mesh, pal: PosePalette, posed: PosedVertices) -> None:
         ctx = self.ctx
         prog = self._program(mesh)
-        for i, b in enumerate(self._mesh_buffers(mesh)):
-            b.bind_to_storage_buffer(i)
+        bind, joints = self._mesh_textures(mesh)
+        bind.use(BIND_UNIT)
+        joints.use(JOINTS_UNIT)
+        prog["u_bind"].value = BIND_UNIT
+        prog["u_skin_joints"].value = JOINTS_UNIT
         frames = np.ascontiguousarray(pal.frames, np.float32)
         if self._frames is None or self._frames.size < frames.nbytes:
             if self._frames is not None:
@@ -426,14 +468,16 @@ class PoseCache:
         if mesh.targets is not None and mesh.target_textures is not None:
             use_targets(prog, mesh.target_textures)
         gx = -(-posed.vertices // SKIN_LOCAL_SIZE)
-        for w in range(len(posed.windows)):
-            posed.bind(w, prog)
-            win = posed.windows[w]
+        prog["u_posed_vertices"].value = posed.vertices
+        for win in posed.windows:
+            prog["u_posed_first"].value = win.first
+            win.positions.bind_to_image(0, read=False, write=True)
+            win.normals.bind_to_image(1, read=False, write=True)
             for y0 in range(0, win.count, MAX_GROUPS_Y):
                 prog["u_slot_start"].value = win.first + y0
                 prog.run(gx, min(MAX_GROUPS_Y, win.count - y0), 1)
         ctx.memory_barrier()
 
 
-__all__ = ["POSED_BINDING", "POSED_BUDGET_BYTES", "POSED_VERTEX_BYTES", "POSED_WINDOW_BYTES", "SKINNING_PASSES",
+__all__ = ["POSED_NORMAL_UNIT", "POSED_POSITION_UNIT", "POSED_WIDTH", "POSED_BUDGET_BYTES", "POSED_VERTEX_BYTES", "POSED_WINDOW_BYTES", "SKINNING_PASSES",
            "PoseCache", "PosePalette", "PosedVertices", "PosedWindow", "mesh_digest"]

@@ -1,4 +1,4 @@
-#version 430
+#version 330 core
 // A copy drawn from the pose cache (render/pose_cache.py, posed.glsl): its
 // vertices were skinned once for its pose slot (i_anim.y) by pose_skin.comp,
 // so the vertex stage reads them and applies only the instance transform.
@@ -14,10 +14,9 @@ out vec3 v_normal;
 out vec4 v_color;
 
 void main() {
-    vec3 p, n;
-    posed_vertex(int(i_anim.y + 0.5), gl_VertexID, p, n);
-    v_world = instance_point(p);
-    v_normal = instance_dir(n);
+    int slot = int(i_anim.y + 0.5);
+    v_world = instance_point(posed_position(slot, gl_VertexID));
+    v_normal = instance_dir(posed_normal(slot, gl_VertexID));
     v_color = tint_color(in_color, i_tint);
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }
