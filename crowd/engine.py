@@ -289,6 +289,7 @@ class Engine:
                 self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
                 params, static_reps=self.statics, progress=progress, **extra)
             reps, selector = built
+            self.pose_sharing.register(reps)  # their skinned copies get pose slots (lod.poses)
             built = (reps, self._keyframed(selector, self.keyframe_every))
             self._modes[mode] = built
         return built
@@ -315,6 +316,17 @@ class Engine:
                 played = gait.reachable(ci, played)
             out.append([names[i] for i in sorted(played)])
         return out
+
+    @property
+    def pose_sharing(self):
+        """The ``lod.poses.PoseSharing`` of the scene's ``[lod] pose_rate``: every frame's skinned copies get
+        pose slots, so the renderer skins each distinct pose once (issue 29)."""
+        ps = self.__dict__.get("_pose_sharing")
+        if ps is None:
+            from lod.poses import KEY_RATE, PoseSharing
+
+            ps = self._pose_sharing = PoseSharing(dict(self.scene.lod_common).get("pose_rate", KEY_RATE))
+        return ps
 
     @property
     def keyframe_every(self) -> int:
@@ -442,6 +454,7 @@ class Engine:
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
         self.apply_live_settings()
         dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+        self.pose_sharing.assign(dl)
         return self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
 
     def apply_live_settings(self) -> None:
@@ -555,6 +568,7 @@ class Engine:
                 camera = self.camera_at(self.world.time)
                 camera, metrics = self.terrain_frame(camera, renderer)
                 dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+                self.pose_sharing.assign(dl)  # pose slots of the skinned copies (lod.poses)
                 self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
                 t2 = time.perf_counter()
                 stages["select"] = (t1 - t_frame, t2 - t1)
@@ -574,6 +588,10 @@ class Engine:
                                "measured_ms": 1e3 * measured, "lod_bound": float(auto.get("bound") or 0.0),
                                # predicted_ms prices the rendering: compare it with this, not with measured_ms
                                "measured_render_ms": 1e3 * (measured - (t2 - t1))}
+                if dl.poses is not None:  # pose sharing (lod.poses, render.pose_cache): what it skinned, and in what time
+                    metrics = {**metrics, "poses": float(dl.stats.get("poses", 0)),
+                               "posed_vertices": float(dl.stats.get("posed_vertices", 0)),
+                               "pose_ms": 1e3 * float(r.get("poses") or 0.0)}
                 off = t2 - t_frame
                 for s in ("upload", "draw", "finish"):
                     d = float(r.get(s) or 0.0)

@@ -197,8 +197,14 @@ def _checked(result: dict) -> dict:
     return result
 
 
+#: common LOD keys the full-detail reference sets away from their defaults: exact per-copy animation times
+#: (``[lod] pose_rate = 0``, lod.poses: the default shares quantised poses, an error the report measures)
+REFERENCE_LOD_COMMON = (("pose_rate", 0.0),)
+
+
 def _is_reference(scene) -> bool:
-    """True when ``scene`` renders its own full-detail reference: mode none, common LOD keys at their defaults."""
+    """True when ``scene`` renders its own full-detail reference: mode none, exact pose times
+    (:data:`REFERENCE_LOD_COMMON`), the other common LOD keys at their defaults."""
     if scene.lod_mode != "none":
         return False
     try:
@@ -206,12 +212,21 @@ def _is_reference(scene) -> bool:
     except ImportError:
         return True
     common = dict(getattr(scene, "lod_common", ()) or ())
-    return all(common.get(k, p.default) == p.default for k, p in LOD_COMMON_PARAMS.items())
+    want = {k: p.default for k, p in LOD_COMMON_PARAMS.items()}
+    want.update((k, v) for k, v in REFERENCE_LOD_COMMON if k in want)
+    return all(common.get(k, LOD_COMMON_PARAMS[k].default) == v for k, v in want.items())
 
 
 def _reference_scene(scene):
-    """The full-detail reference of ``scene``: LOD mode none, no LOD keys (per-frame selection)."""
-    extra = {"lod_common": ()} if any(f.name == "lod_common" for f in dataclasses.fields(scene)) else {}
+    """The full-detail reference of ``scene``: LOD mode none, no LOD keys (per-frame selection) but exact pose
+    times (:data:`REFERENCE_LOD_COMMON`)."""
+    extra = {}
+    if any(f.name == "lod_common" for f in dataclasses.fields(scene)):
+        try:
+            from lod.temporal.selection import LOD_COMMON_PARAMS
+        except ImportError:
+            LOD_COMMON_PARAMS = {}
+        extra = {"lod_common": tuple((k, v) for k, v in REFERENCE_LOD_COMMON if k in LOD_COMMON_PARAMS)}
     return dataclasses.replace(scene, lod_mode="none", lod_params=(), **extra)
 
 

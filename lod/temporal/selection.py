@@ -77,6 +77,7 @@ import numpy as np
 from lod.clusters.morph import morph_batch
 from lod.drawlist import FADE_IN, FADE_OUT, INSTANCE_FLOATS, DrawList
 from lod.full.mode import NoLodSelector
+from lod.poses.table import POSE_PARAMS
 from lod.temporal.terrain_keyframes import TEMPORAL_CULL_MARGIN, TEMPORAL_MODES, extrapolate_camera
 from lod.view import Camera
 from sim.params import Param
@@ -96,6 +97,7 @@ LOD_COMMON_PARAMS: dict = {
     "keyframe_geomorph": Param("bool", True,
                                doc="blend two keyframe cluster cuts or LOD chain levels by geomorphing their "
                                    "vertices (else by a screen-door fade, as point sets are)"),
+    **POSE_PARAMS,  # pose_rate: copies in the same quantised pose skinned once per frame (lod.poses)
 }
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

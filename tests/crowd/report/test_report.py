@@ -328,7 +328,8 @@ def test_cluster_argument_errors(write_scene, tmp_path):
 
 def test_sweep_of_a_key_every_mode_takes(write_scene):
     """``lod.keyframe_every`` (lod.temporal.selection: a key of every mode) is swept across modes and kept when
-    lod.mode is swept; a NoLOD setting with keyframing is not its own reference."""
+    lod.mode is swept; a NoLOD setting with keyframing is not its own reference, nor one sharing quantised poses
+    (``pose_rate`` at its default, lod.poses): the reference draws exact times; ``pose_rate = 0`` is one."""
     ks = pytest.importorskip("lod.temporal.selection", reason="keyframed selection is not in this tree")
     from crowd.report.runs import _is_reference, _reference_scene
 
@@ -339,8 +340,12 @@ def test_sweep_of_a_key_every_mode_takes(write_scene):
                                        "lod.mode=clusters, lod.keyframe_every=1",
                                        "lod.mode=clusters, lod.keyframe_every=4"]
     assert [dict(s.scene.lod_common)["keyframe_every"] for s in sets] == [1, 4, 1, 4]
-    assert [_is_reference(s.scene) for s in sets] == [True, False, False, False]
+    assert [_is_reference(s.scene) for s in sets] == [False, False, False, False]
     assert all(_is_reference(_reference_scene(s.scene)) for s in sets)
+    assert dict(_reference_scene(sets[0].scene).lod_common) == {"pose_rate": 0.0}
+    sets = expand_settings(p, [parse_sweep("lod.pose_rate=0,key,10")])
+    assert [s.label for s in sets] == ["lod.pose_rate=0", "lod.pose_rate=key", "lod.pose_rate=10"]
+    assert [_is_reference(s.scene) for s in sets] == [True, False, False]
 
 
 def test_a_run_that_fails_on_bad_input_is_one_sentence_exit_2(write_scene, tmp_path):
