@@ -283,9 +283,10 @@ class Drawer:
             if k == 0:
                 continue
             data = np.concatenate(data)
+            slots = data[:, PALETTE_SLOT_FLOAT].copy()  # the pose slots (lod.poses), when the frame has a pose table
             data[:, PALETTE_SLOT_FLOAT] = np.arange(k, dtype=np.float32)
             words = instance_words(self.renderer.tint_table, np.concatenate(ids), tint)
-            items.append(SimpleNamespace(st=st, key=key, tint=tint, fade=fade, k=k, data=data, words=words,
+            items.append(SimpleNamespace(st=st, key=key, tint=tint, fade=fade, k=k, data=data, words=words, slots=slots,
                                          offsets=np.concatenate(offs + [np.array([base], np.int64)]),
                                          clusters=np.concatenate(cls), ids=np.concatenate(ids),
                                          part=np.concatenate(part), first_row=np.concatenate(first),
@@ -395,6 +396,10 @@ class Drawer:
         self.last_stats = stats
         if not items:
             return
+        pals = [r.poses.palette(it.key) for it in items]  # pose sharing (render/pose_cache.py)
+        if all(p is not None for p in pals):
+            self._draw_posed(items, pals, drawlist, view_proj, stats)
+            return
         # the skinning palette of every instance (the renderer's pre-pass over a buffer of its own), in chunks
         # that fit the palette (render.palette.plan_chunks); one chunk is the whole frame unless it is huge
         all_data = np.concatenate([it.data for it in items])
@@ -406,9 +411,7 @@ class Drawer:
                                     for it, o in zip(items, offs)])
         for name in {it.program for it in items}:
             r._set_uniforms(r.program(name), view_proj)
-        P = np.asarray(drawlist.proj, np.float64)
-        if P[2, 2] != 1.0 and np.isfinite(P[2, 3] / (P[2, 2] - 1.0)):
-            self._near = abs(float(P[2, 3] / (P[2, 2] - 1.0)))
+        self._near_of(drawlist)
         occlusion = any(it.st.occlusion for it in items)
         prev, merged = self._pvs, {}
         for ch in chunks:
@@ -426,6 +429,30 @@ class Drawer:
             self._pvs = merged
         stats["palette_chunks"] = len(chunks)
         self.frame += 1
+
+    def _draw_posed(self, items, pals, drawlist, view_proj, stats) -> None:
+        """:meth:`draw` with the pose cache's palettes: every instance reads the palette of its pose slot
+        (``i_anim.y``) in its character's block; no per-instance pre-pass, no chunks."""
+        r = self.renderer
+        for it in items:
+            it.data[:, PALETTE_SLOT_FLOAT] = it.slots
+        for name in {it.program for it in items}:
+            r._set_uniforms(r.program(name), view_proj)
+        self._near_of(drawlist)
+        pals[0].texture.use(1)  # one texture holds every character's pose palettes
+        pbases = [p.base for p in pals]
+        r.fbo.use()
+        if any(it.st.occlusion for it in items):
+            self._draw_occlusion(items, pbases, view_proj, stats)
+        else:
+            self._submit(items, [np.arange(it.k) for it in items], pbases, stats)
+        stats["palette_chunks"] = 0
+        self.frame += 1
+
+    def _near_of(self, drawlist) -> None:
+        P = np.asarray(drawlist.proj, np.float64)
+        if P[2, 2] != 1.0 and np.isfinite(P[2, 3] / (P[2, 2] - 1.0)):
+            self._near = abs(float(P[2, 3] / (P[2, 2] - 1.0)))
 
     # ------------------------------------------------------------------ occlusion culling (§5.2)
     def _boxes(self, it) -> tuple:

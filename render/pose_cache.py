@@ -28,7 +28,8 @@ a reader binds the window of the slots it reads and sets ``u_posed_first`` to th
 (:meth:`PosedVertices.bind`). Windows are never silently cut short: a pose larger than a window, or posed
 vertices beyond :attr:`PoseCache.budget_bytes` in all, make :meth:`posed` return None, and the copies are
 skinned in the vertex stage from the pose palettes instead (same pixels). Palettes beyond the palette texture's limit (``render.palette.PALETTE_MAX_TEXELS``)
-turn the pose cache off for that frame (every copy through the per-copy pre-pass, exact times).
+turn the pose cache off for that frame: every copy through the per-copy pre-pass, at its pose's frame coordinate
+(``lod.poses`` writes it into the copy's ``i_anim.x``), so the poses and pixels stay those of the cache.
 
 Nothing non-finite is uploaded: pose frames and palettes are checked (FloatingPointError).
 """

@@ -26,7 +26,9 @@ auto blends a pose once for all of them) in order of first appearance over the D
 them a pure function of the DrawList. :func:`assign_slots` is the numba kernel (a parallel quantisation pass
 above :data:`ASSIGN_PARALLEL_MIN` instances, then a serial first-appearance pass over a dense key table),
 :func:`assign_slots_numpy` its plain numpy reference (tests compare them). The slot goes to the instance float
-:data:`SLOT_FLOAT` (``i_anim.y`` in the shaders); :class:`PoseTable` (``DrawList.poses``) lists each group's
+:data:`SLOT_FLOAT` (``i_anim.y`` in the shaders) and the pose's frame coordinate replaces the copy's own in
+:data:`FRAME_FLOAT` (``i_anim.x``), so whatever reads a copy's animation -- the posed vertices, a skinning
+palette, the morph-target weights, a point placement -- sees one and the same pose; :class:`PoseTable` (``DrawList.poses``) lists each group's
 distinct frame coordinates in slot order, and ``DrawList.stats`` gains ``"poses"`` (distinct poses) and
 ``"posed_vertices"`` (vertices the pose cache skins for the meshes drawn from it).
 """
@@ -291,8 +293,9 @@ def assign_slots(gi, f, clips: _Clips, n_groups: int, parallel_min: int = ASSIGN
 
     Returns
     -------
-    slot : (n,) int64 slot within the instance's group; pose_group : (P,) int64 and pose_frame : (P,) float64
-    the distinct poses in order of first appearance (each group's in slot order)
+    slot : (n,) int64 slot within the instance's group; frame : (n,) float64 the frame coordinate of its pose;
+    pose_group : (P,) int64 and pose_frame : (P,) float64 the distinct poses in order of first appearance (each
+    group's in slot order)
     """
     n = int(f.shape[0])
     gi = np.ascontiguousarray(gi, np.int64)
@@ -306,7 +309,7 @@ def assign_slots(gi, f, clips: _Clips, n_groups: int, parallel_min: int = ASSIGN
     pg = np.empty(n, np.int64)
     pf = np.empty(n, np.float64)
     m = _first_appearance(gi, key, qf, max(1, clips.n_keys), max(1, int(n_groups)), slot, pg, pf)
-    return slot, pg[:m].copy(), pf[:m].copy()
+    return slot, qf, pg[:m].copy(), pf[:m].copy()
 
 
 def assign_slots_numpy(gi, f, clips: _Clips, n_groups: int):
@@ -315,7 +318,7 @@ def assign_slots_numpy(gi, f, clips: _Clips, n_groups: int):
     f = np.asarray(f, np.float64)
     n = f.shape[0]
     if n == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), np.zeros(0)
     c = np.empty(n, np.int64)
     for g in range(int(n_groups)):
         m = gi == g
@@ -344,7 +347,7 @@ def assign_slots_numpy(gi, f, clips: _Clips, n_groups: int):
         slot[m] = np.arange(int(m.sum()))
     slot = slot[leader]
     order = np.flatnonzero(new)
-    return slot, gi[order], qf[order]
+    return slot, qf, gi[order], qf[order]
 
 
 # ---------------------------------------------------------------------------- sharing
@@ -424,17 +427,18 @@ class PoseSharing:
         if bs:
             gi_a, f_a = np.concatenate(gi), np.concatenate(fs)
             if self.use_kernel:
-                slot, pg, pf = assign_slots(gi_a, f_a, self._clips, n_groups)
+                slot, qf, pg, pf = assign_slots(gi_a, f_a, self._clips, n_groups)
             else:
-                slot, pg, pf = assign_slots_numpy(gi_a, f_a, self._clips, n_groups)
+                slot, qf, pg, pf = assign_slots_numpy(gi_a, f_a, self._clips, n_groups)
         else:
-            slot, pg, pf = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+            slot, qf, pg, pf = np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), np.zeros(0)
         a = 0
         for b in bs:
             k = b.n_instances
             if not b.instance_data.flags.writeable:
                 b.instance_data = np.array(b.instance_data, np.float32)
             b.instance_data[:, SLOT_FLOAT] = slot[a:a + k]
+            b.instance_data[:, FRAME_FLOAT] = qf[a:a + k]  # the pose's frame: every reader of i_anim.x agrees
             a += k
         counts = np.bincount(np.concatenate(gi) if gi else np.zeros(0, np.int64), minlength=n_groups)
         order = np.argsort(pg, kind="stable")

@@ -47,6 +47,28 @@ def test_gpu_skinning_matches_cpu_reference_at_baked_frames(renderer, make):
             assert err <= 1e-4 * extent, f"{name} frame {idx[k]}: max error {err}"
 
 
+def test_gpu_normals_are_the_inverse_transpose_of_the_blended_matrix(renderer):
+    """Issue 29 item 5: where blended joints rotate apart the blended matrix is not a rotation, and its linear
+    part bends normals wrongly; both GPU paths now take its inverse transpose, as sim.skinning does."""
+    ch = humanoid(3000, seed=1)
+    rep = build_rep(ch, fps=30)
+    renderer.upload(rep)
+    c = 0
+    clip = ch.clips[rep.clip_names[c]]
+    idx = np.array([4, 11, 19])
+    _, gpu = renderer.capture(rep.key, _identity_instances(rep.clip_offset[c] + idx))
+    worst_linear = 0.0
+    for k, M in enumerate(clip.skinning_matrices(ch.skeleton, idx / rep.clip_fps[c])):
+        _, cpu = skin(ch.mesh, M)
+        unit = gpu[k] / np.linalg.norm(gpu[k], axis=1, keepdims=True)
+        assert np.abs(unit - cpu).max() < 2e-4, f"frame {idx[k]}"
+        B = np.einsum("vk,vkab->vab", rep.weights.astype(np.float64), M[rep.joints.astype(np.int64)])[:, :3, :3]
+        lin = np.einsum("vab,vb->va", B, np.asarray(ch.mesh.ensure_normals(), np.float64))
+        lin /= np.linalg.norm(lin, axis=1, keepdims=True)
+        worst_linear = max(worst_linear, float(np.abs(lin - cpu).max()))
+    assert worst_linear > 1e-2  # the blended matrix's linear part would be visibly off
+
+
 def test_gpu_interpolates_matrices_between_frames_and_applies_instance(renderer):
     ch = tiny_skinned()
     rep = build_rep(ch, fps=30)
