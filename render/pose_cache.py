@@ -134,6 +134,15 @@ class PosedVertices:
         """Window index of each slot."""
         return np.asarray(slots, np.int64) // self.slots_per_window
 
+    def runs(self, slots, first: int, count: int) -> list:
+        """``[(first, count, window), ...]``: copies ``first .. first + count`` (slots ``slots``, all copies of
+        the batch) cut into runs of consecutive copies whose slots lie in one window."""
+        if len(self.windows) == 1 or count <= 0:
+            return [(first, count, 0)] if count > 0 else []
+        w = self.window_of(np.asarray(slots[first:first + count]).round())
+        cut = np.concatenate([[0], np.flatnonzero(np.diff(w)) + 1, [count]])
+        return [(first + int(a), int(e - a), int(w[a])) for a, e in zip(cut[:-1], cut[1:])]
+
     def bind(self, w: int, prog=None, units: tuple = (POSED_POSITION_UNIT, POSED_NORMAL_UNIT)) -> None:
         """Bind window ``w``'s textures to ``units`` and set ``prog``'s samplers, ``u_posed_vertices`` and
         ``u_posed_first`` (``shaders/posed.glsl``)."""
@@ -372,44 +381,37 @@ class PoseCache:
         t.label = label
         return t
 
-    def plan(self, batches, reps: dict) -> tuple:
-        """Which of the frame's built-in batches draw from the pose cache, and how.
+    def shared(self, b):
+        """How the skinned batch ``b`` draws from the pose cache this frame: ``("posed", PosedVertices)``,
+        ``("palette", PosePalette)`` (its mesh cannot be posed within the limits, or it is a geomorphed chain
+        level: skinned per copy from the pose palettes), or None (no pose palette: the per-copy pre-pass)."""
+        pal = self.palette(b.rep) if self._pal else None
+        if pal is None:
+            return None
+        posed = None if getattr(b, "morph", None) is not None else self.posed(b.rep)
+        return ("palette", pal) if posed is None else ("posed", posed)
+
+    def plan(self, batches, reps: dict) -> list:
+        """Skin the posed vertices the frame's skinned batches draw from (before anything is drawn) and return
+        the batches, one whose copies' slots span several posed windows replaced by a copy sorted by window
+        (stable), so that it draws in one run per window.
 
         batches : the renderer's triangle batches; reps : rep key -> the renderer's ``_GpuRep``
-
-        Returns (batches, plan): the batches (one whose copies' slots span several posed windows replaced by a
-        copy sorted by window, stable) and ``id(batch) -> (how, source, pieces)``: ``("posed", PosedVertices,
-        [(first instance, count, window), ...])``, or ``("palette", PosePalette, None)`` where the mesh cannot
-        be posed within the limits or the batch is a geomorphed chain level (skinned per copy from the pose
-        palettes). Skinned batches of a rep without a pose palette this frame are not in the plan.
         """
         if not self._pal:
-            return batches, {}
-        out, plan = [], {}
+            return batches
+        out = []
         for b in batches:
             g = reps.get(b.rep)
-            pal = self.palette(b.rep) if g is not None and g.kind == "skinned" and g.n_indices else None
-            if pal is None:
-                out.append(b)
-                continue
-            posed = None if getattr(b, "morph", None) is not None else self.posed(b.rep)
-            if posed is None:
-                out.append(b)
-                plan[id(b)] = ("palette", pal, None)
-                continue
-            pieces = [(0, b.n_instances, 0)]
-            if len(posed.windows) > 1:
-                w = posed.window_of(np.asarray(b.instance_data[:, SLOT_FLOAT]).round())
+            how = self.shared(b) if g is not None and g.kind == "skinned" and g.n_indices else None
+            if how is not None and how[0] == "posed" and len(how[1].windows) > 1:
+                w = how[1].window_of(np.asarray(b.instance_data[:, SLOT_FLOAT]).round())
                 if (np.diff(w) < 0).any():
                     order = np.argsort(w, kind="stable")
                     b = replace(b, instance_ids=np.asarray(b.instance_ids)[order],
                                 instance_data=np.asarray(b.instance_data)[order])
-                    w = w[order]
-                cut = np.concatenate([[0], np.flatnonzero(np.diff(w)) + 1, [w.shape[0]]])
-                pieces = [(int(a), int(e - a), int(w[a])) for a, e in zip(cut[:-1], cut[1:])]
             out.append(b)
-            plan[id(b)] = ("posed", posed, pieces)
-        return out, plan
+        return out
 
     # ------------------------------------------------------------------ compute pass
     def _program(self, mesh: _Mesh):

@@ -67,6 +67,7 @@ from render.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteC
 from render.shaders import program_sources
 from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
+from lod.poses.table import SLOT_FLOAT
 from render.pixel_ray import write_pixel_ray
 from render.pose_cache import PoseCache
 from render.timing import gpu_seconds
@@ -197,7 +198,6 @@ class Renderer:
         #: use the DrawList's pose table (``DrawList.poses``) when it has one; False draws every copy with its
         #: own palette (the per-instance pre-pass, as before pose sharing)
         self.pose_sharing = True
-        self._pose_plan: dict = {}
         # separate queries, nested: a combined samples+time query reads a
         # constant ~20 ns on llvmpipe (see gpu_seconds)
         self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
@@ -470,7 +470,7 @@ class Renderer:
         if g.n_indices == 0:
             return
         morph = getattr(b, "morph", None) if g.kind == "skinned" else None
-        shared = self._pose_plan.get(id(b))  # pose sharing: (how, posed vertices or palette, pieces)
+        shared = self.poses.shared(b) if g.kind == "skinned" else None  # pose sharing (render/pose_cache.py)
         if shared is not None:
             vao, locs = self._pose_vao(g, shared[0], morph is not None)
         else:
@@ -496,7 +496,7 @@ class Renderer:
         else:
             first, count = 0, g.default_count
         if shared is not None:
-            self._draw_shared(g, prog, vao, locs, shared, offset, count, first, b.n_instances)
+            self._draw_shared(g, prog, vao, locs, shared, b, offset, count, first, pieces)
             return
         for f, k, c, j in pieces or [(0, b.n_instances, -1, 0)]:
             pb = cursor.base(c, j) if cursor is not None and c >= 0 else None
@@ -528,21 +528,25 @@ class Renderer:
             g.pose_vaos[how] = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog})
         return g.pose_vaos[how]
 
-    def _draw_shared(self, g: _GpuRep, prog, vao, locs, shared, offset: int, count: int, first: int, n: int) -> None:
-        """Draw ``n`` copies of ``g`` from the pose cache (``shared``: ``("posed", PosedVertices, pieces)``, each
-        piece (first instance, count, window), or ``("palette", PosePalette, None)``)."""
-        how, src, pieces = shared
+    def _draw_shared(self, g: _GpuRep, prog, vao, locs, shared, b, offset: int, count: int, first: int,
+                     pieces=None) -> None:
+        """Draw the copies of batch ``b`` (those of ``pieces``, (first instance, count, ...) each; default all)
+        from the pose cache: ``shared`` = ``("posed", PosedVertices)`` (one draw per run of copies in one
+        window) or ``("palette", PosePalette)``."""
+        how, src = shared
         if how == "palette":
             src.use(prog)
             if g.joints is not None:
                 g.joints.use(0)  # its row count bounds the frame pairs of the morph weights (targets.glsl)
         (self.ctx.enable if g.cull else self.ctx.disable)(self.ctx.CULL_FACE)  # single-sided reps
-        for f, k, w in pieces or [(0, n, None)]:
-            if w is not None:
-                src.bind(w, prog)
-            off = offset + f * INSTANCE_BYTES
-            self._bind_instances(vao, locs, self._instances, off)
-            self._render_instanced(g, prog, None, off, count, first, k, vao, locs)
+        slots = b.instance_data[:, SLOT_FLOAT]
+        for f0, k0 in [(p[0], p[1]) for p in pieces] if pieces else [(0, b.n_instances)]:
+            for f, k, w in src.runs(slots, f0, k0) if how == "posed" else [(f0, k0, None)]:
+                if w is not None:
+                    src.bind(w, prog)
+                off = offset + f * INSTANCE_BYTES
+                self._bind_instances(vao, locs, self._instances, off)
+                self._render_instanced(g, prog, None, off, count, first, k, vao, locs)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.
@@ -571,7 +575,7 @@ class Renderer:
         # batches draw from them (a batch whose slots span several posed windows is sorted by window)
         self.poses.begin(getattr(drawlist, "poses", None) if self.pose_sharing and self.skinning == "palette"
                          else None)
-        batches, self._pose_plan = self.poses.plan(batches, self._reps)
+        batches = self.poses.plan(batches, self._reps)
         t0 = time.perf_counter()
         total = sum(b.n_instances for b in batches)
         if batches:
@@ -604,7 +608,7 @@ class Renderer:
             chunks: list = []
             if self.skinning == "palette":
                 sk = [i for i, b in enumerate(batches) if self._reps[b.rep].kind == "skinned"
-                      and self._reps[b.rep].n_indices and id(b) not in self._pose_plan]
+                      and self._reps[b.rep].n_indices and self.poses.shared(b) is None]
                 chunks = self._palette_chunks([(self._reps[batches[i].rep], self._instances, int(starts[i]),
                                                 batches[i].n_instances) for i in sk]) if sk else []
                 for c, ch in enumerate(chunks):
@@ -631,7 +635,6 @@ class Renderer:
         t2 = time.perf_counter()
         ctx.finish()
         t3 = time.perf_counter()
-        self._pose_plan = {}
         timings = {
             "upload": t1 - t0,
             "draw": t2 - t1 + (t0 - tp),  # the pose cache's palettes and skinning pass included

@@ -1,4 +1,4 @@
-"""Benchmark: where the time of full detail (LOD mode "none") goes on heavy skinned characters (issue 21).
+"""Benchmark: where the time of full detail (LOD mode "none") goes on heavy skinned characters (issues 21, 29).
 
 The crowds of ``scripts/bench_peer.py`` (its scenario: grid, camera, 1280x720), one DrawList per crowd drawn
 by renderer variants on one GL context, round-robin with the order rotated every frame (the machine is
@@ -22,6 +22,17 @@ diagnostics (not shipped; they change the image: they bound what a part of the p
   no fetch        the palette loop reads no texel (the weights still sum constant rows)
   static          the static program (no skinning at all: no joints, weights, palette)
   discard         GL_RASTERIZER_DISCARD: vertex shading only, nothing rasterised
+experiments of issue 29 (speeds against "shipped", the per-copy palette path without a pose table; PSNR against it)
+  pose sharing    lod.poses at the default rate (the clip's keys): copies in one pose skinned once by the pose
+                  cache's compute pass (render/pose_cache.py), every copy drawn from the posed vertices
+                  (shaders/posed.vert); the scenario's copies all play from time 0, so they share one pose
+  pose sharing, random phases  the same with every copy at a random time of the clip (pose_rate "key")
+  exact poses     pose_rate 0: every copy its own pose, each skinned once by the compute pass, drawn from the posed
+                  vertices (pose sharing off, the skinning moved out of the vertex stage)
+  exact poses, numba  the same with the numba skinning pass instead of the compute shader
+  compute raster  the compute rasteriser of small triangles (render/raster/, when this tree has it) with exact poses
+                  (pose sharing off)
+  both            the compute rasteriser with pose sharing
 
 Reported per variant: the median CPU time of a frame (draw + ``ctx.finish``; every thread of the process, the
 driver's rasterizer threads included: the work done, which other jobs on a shared machine do not inflate as
@@ -51,6 +62,13 @@ for p in (ROOT, ROOT / "scripts"):
 
 SHIPPED = ("before", "shipped", "no cull", "world varying", "4 influences", "packed", "no split")
 DIAGNOSTIC = ("flat fragment", "1 influence", "no fetch", "static", "discard")
+#: issue 29's experiments: variant -> (pose_rate or None for no pose table, skinning pass, compute raster, random phases)
+EXPERIMENTS = {"pose sharing": ("key", "compute", False, False),
+               "pose sharing, random phases": ("key", "compute", False, True),
+               "exact poses": (0.0, "compute", False, False),
+               "exact poses, numba": (0.0, "numba", False, False),
+               "compute raster": (0.0, "compute", True, False),
+               "both": ("key", "compute", True, False)}
 GL_RASTERIZER_DISCARD = 0x8C89
 
 FLAT_FRAGMENT = """#version 330 core
@@ -95,6 +113,10 @@ def make_variant(name, ctx, rep, static_rep, size):
             return super().program(pname, varyings, tuple(d for d in defines if d != "PIXEL_RAY"))
 
     r = Variant(size, ctx=ctx)
+    if hasattr(r, "compute_raster"):  # render/raster/ (issue 29): on only in its experiments
+        r.compute_raster = bool(EXPERIMENTS.get(name, (None, None, False))[2])
+    if name in EXPERIMENTS:
+        r.poses.skinning = EXPERIMENTS[name][1]
     r.packed_vertices = name == "packed"
     drawn = rep
     if name in ("before", "no cull"):
@@ -146,9 +168,22 @@ def run_case(path: Path, n: int, variants, frames: int, size):
 
     ctx = create_context()
     cases = {}
+    from lod.poses import PoseSharing
+
+    phases = eng.world.state.anim_time.copy()
     for v in variants:
         r, drawn = make_variant(v, ctx, rep, static_rep, size)
-        cases[v] = (r, NoLodSelector([drawn]).select(eng.world.state, cam, size))
+        rate, _, _, random_phases = EXPERIMENTS.get(v, (None, None, False, False))
+        st = eng.world.state
+        if random_phases:  # every copy somewhere in its clip (seeded)
+            st.anim_time[:] = np.random.default_rng(1).uniform(0.0, float(rep.clip_duration[0]), st.n)
+        dl = NoLodSelector([drawn]).select(st, cam, size)
+        st.anim_time[:] = phases
+        if rate is not None:
+            ps = PoseSharing(rate)
+            ps.register([drawn])
+            ps.assign(dl)
+        cases[v] = (r, dl)
     times = {v: [] for v in variants}
     cpu = {v: [] for v in variants}
     images = {}
@@ -169,10 +204,11 @@ def run_case(path: Path, n: int, variants, frames: int, size):
             if k == frames:
                 images[v] = r.read_pixels()
     tris = {v: cases[v][1].triangles for v in variants}
+    poses = {v: cases[v][1].stats.get("poses") for v in variants}
     for r, _ in cases.values():
         r.release()
     ctx.release()
-    return times, cpu, images, tris, int(ch.mesh.n_triangles)
+    return times, cpu, images, tris, int(ch.mesh.n_triangles), poses
 
 
 def main(argv=None) -> int:
@@ -180,7 +216,8 @@ def main(argv=None) -> int:
     ap.add_argument("--models", nargs="+", default=["h4", "h1", "fox"], choices=["h4", "h1", "fox", "cesiumman"])
     ap.add_argument("--counts", type=int, nargs="+", help="instances per model (default h4/h1/cesiumman 100, fox 1024)")
     ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--variants", nargs="+", default=list(SHIPPED + DIAGNOSTIC), choices=list(SHIPPED + DIAGNOSTIC))
+    every = list(SHIPPED + DIAGNOSTIC) + list(EXPERIMENTS)
+    ap.add_argument("--variants", nargs="+", default=every, choices=every)
     ap.add_argument("--size", type=int, nargs=2, default=[1280, 720])
     ap.add_argument("--models-dir", type=Path, default=ROOT / "out" / "bench_peer" / "models")
     ap.add_argument("--out", type=Path, default=ROOT / "scripts" / "bench_full_detail.md")
@@ -197,6 +234,10 @@ def main(argv=None) -> int:
 
     paths = bp.model_paths(args.models_dir)
     variants = list(dict.fromkeys(["shipped", *args.variants]))
+    from render.renderer import Renderer
+
+    absent = [v for v in variants if EXPERIMENTS.get(v, (0, 0, False))[2] and not hasattr(Renderer, "raster")]
+    variants = [v for v in variants if v not in absent]  # the compute rasteriser is not in this tree
     start = bp.machine_note()
     print(f"# start: {start}")
     sections = []
@@ -205,17 +246,23 @@ def main(argv=None) -> int:
         if path is None:
             sections.append(f"- {desc}")
             continue
-        times, cpu, images, tris, model_tris = run_case(path, n, variants, args.frames, tuple(args.size))
+        times, cpu, images, tris, model_tris, poses = run_case(path, n, variants, args.frames, tuple(args.size))
         ref, ref_cpu = statistics.median(times["shipped"]), statistics.median(cpu["shipped"])
         lines = [f"### {desc}, {n:,} copies ({model_tris:,} triangles each)", "",
                  "| variant | CPU ms (median) | speed vs shipped, CPU | wall ms (median) | speed vs shipped, wall | "
                  "triangles submitted | PSNR vs before (dB) |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+        if absent:
+            lines.insert(1, f"(not in this tree, skipped: {', '.join(absent)})")
         print(f"{mk} x{n}")
         for v in variants:
             med, mc = statistics.median(times[v]), statistics.median(cpu[v])
             q = psnr(images[v], images["before"]) if (v in SHIPPED and "before" in images) else None
+            if v in EXPERIMENTS and not EXPERIMENTS[v][3]:  # the same times as shipped: PSNR against it
+                q = psnr(images[v], images["shipped"])
             qs = "-" if q is None else ("identical" if q == float("inf") else f"{q:.1f}")
-            lines.append(f"| {v} | {mc * 1e3:.1f} | {ref_cpu / mc:.2f}x | {med * 1e3:.1f} | {ref / med:.2f}x | "
+            qs += " (vs shipped)" if v in EXPERIMENTS and q is not None else ""
+            label = v if poses[v] is None else f"{v} ({poses[v]:,} poses)"
+            lines.append(f"| {label} | {mc * 1e3:.1f} | {ref_cpu / mc:.2f}x | {med * 1e3:.1f} | {ref / med:.2f}x | "
                          f"{tris[v]:,} | {qs} |")
             print(f"  {v:14s} cpu {mc * 1e3:8.1f} ms {ref_cpu / mc:.2f}x  wall {med * 1e3:8.1f} ms {ref / med:.2f}x  "
                   f"psnr {qs}")

@@ -50,7 +50,10 @@ FOV = 50.0
 #: grid spacing in largest rest extents
 SPACING = 1.5
 PEERS_ENV = "CROWD_PEERS_PYTHON"
-ASSETS = ROOT.parent / "shared" / "assets"
+#: the shared glTF assets: ``../shared/assets`` beside the checkout (a git worktree one level deeper finds it
+#: one folder further up)
+ASSETS = next((p for p in (ROOT.parent / "shared" / "assets", ROOT.parents[1] / "shared" / "assets") if p.is_dir()),
+              ROOT.parent / "shared" / "assets")
 
 
 def model_paths(models_dir: Path) -> dict:

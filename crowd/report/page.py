@@ -94,6 +94,8 @@ def render_html(data: dict) -> str:
                    f"<img src='{e(p['flicker'])}' alt='flicker'>")
         out.append(f"<h3>Accuracy against time ({e(sc['pareto_error'])})</h3>"
                    f"<img src='{e(p['pareto'])}' alt='pareto'>")
+        for key, img in (p.get("sweeps") or {}).items():  # a numeric swept setting: error and time against it
+            out.append(f"<h3>Accuracy and time against {e(key)}</h3><img src='{e(img)}' alt='sweep {e(key)}'>")
         if sc.get("pedestrian"):
             from crowd.report.pedestrian import html_section
 

@@ -106,6 +106,49 @@ def _plots(tmp: Path, entry: dict, runs: list) -> None:
     plots["pareto"] = _save(fig, tmp, f"plots/{slug}_pareto.png")
     entry["pareto_front"] = [sets[i]["slug"] for i in front]
     entry["pareto_error"] = name
+    plots["sweeps"] = _sweep_curves(plt, tmp, entry)
+
+
+#: swept keys with no curve of their own (the mode is a category; sizes are pairs)
+_NO_CURVE = ("lod.mode", "render.size")
+
+
+def _sweep_curves(plt, tmp: Path, entry: dict) -> dict:
+    """key -> plot of the accuracy (PSNR against the NoLOD reference) and the median frame time against each
+    swept setting with numeric values (e.g. ``lod.pose_rate``: the pose quantisation's error as a curve against
+    its rate); a setting's non-numeric value (``pose_rate = "key"``) is a dashed level of its own."""
+    out = {}
+    sets = entry["settings"]
+    keys = sorted({k for s in sets for k in s.get("values", {}) if k not in _NO_CURVE})
+    for key in keys:
+        num = [(float(s["values"][key]), s) for s in sets
+               if isinstance(s["values"].get(key), (int, float)) and not isinstance(s["values"].get(key), bool)]
+        other = [s for s in sets if key in s["values"] and isinstance(s["values"][key], str)]
+        if len(num) < 2:
+            continue
+        num.sort(key=lambda vs: vs[0])
+        fig, ax = plt.subplots(figsize=(7, 3.8), dpi=96)
+        cap = 99.0  # an identical setting (PSNR inf) is drawn at the top of the axis
+        ps = [min(cap, s["accuracy"]["psnr"]) if s["accuracy"]["psnr"] is not None else np.nan for _, s in num]
+        ax.plot([v for v, _ in num], ps, marker="o", lw=1.4, label="PSNR vs NoLOD (dB; identical at the top)")
+        for s in other:
+            if s["accuracy"]["psnr"] is not None:
+                ax.axhline(min(cap, s["accuracy"]["psnr"]), ls="--", lw=1, color="grey")
+                ax.annotate(f"{key.split('.')[-1]} = {s['values'][key]}", (num[0][0], min(cap, s["accuracy"]["psnr"])),
+                            fontsize=7, xytext=(2, 3), textcoords="offset points")
+        xs = [v for v, _ in num]
+        if min(xs) > 0 and max(xs) > 20 * min(xs):
+            ax.set_xscale("log")
+        ax.set_xlabel(key)
+        ax.set_ylabel("PSNR, dB")
+        tx = ax.twinx()
+        tx.plot(xs, [s["frame_ms"]["p50"] for _, s in num], color="tab:orange", marker="s", lw=1, label="frame ms")
+        tx.set_ylabel("median frame time, ms", color="tab:orange")
+        ax.set_title(f"{entry['name']}: accuracy and time against {key}", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+        out[key] = _save(fig, tmp, f"plots/{entry['slug']}_sweep_{key.replace('.', '_')}.png")
+    return out
 
 
 def _save(fig, tmp: Path, rel: str) -> str:
