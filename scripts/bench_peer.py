@@ -41,8 +41,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-#: LOD modes timed (ours)
-MODES = ("none", "points", "clusters", "triangles", "auto")
+#: LOD modes timed (ours); "none-exact" is mode none with pose sharing off (``[lod] pose_rate = 0``: every copy
+#: its own pose, issue 29), the others share poses at the default rate (lod.poses)
+MODES = ("none", "none-exact", "points", "clusters", "triangles", "auto")
+#: a timed mode -> (LOD mode, pose_rate)
+MODE_RATES = {"none-exact": ("none", 0.0)}
 #: model name -> default instance counts
 DEFAULT_COUNTS = {"fox": [100, 324, 1024], "cesiumman": [100], "h4": [100], "h1": [100]}
 #: vertical field of view, degrees
@@ -86,7 +89,7 @@ def scenario(extent: float, n: int) -> dict:
             "near": 0.01 * width, "far": 10.0 * width, "width": width, "spacing": s}
 
 
-def scene_text(model: Path, clip: str, sc: dict, size) -> str:
+def scene_text(model: Path, clip: str, sc: dict, size, phase: str = "zero") -> str:
     pos = ", ".join(f"[{x:.6g}, {y:.6g}, {z:.6g}]" for x, y, z in sc["positions"])
     return f"""name = "bench_peer"
 seed = 0
@@ -103,7 +106,7 @@ character = "model"
 clip = "{clip}"
 positions = [{pos}]
 heading = 0.0
-phase = "zero"
+phase = "{phase}"
 
 [camera]
 fov = {sc['fov']}
@@ -120,10 +123,11 @@ mode = "none"
 """
 
 
-def run_peer(python: str, model: Path, clip: str, sc: dict, size, frames, warmup, hw, png=None) -> dict:
+def run_peer(python: str, model: Path, clip: str, sc: dict, size, frames, warmup, hw, png=None, phases=None) -> dict:
     spec = {"model": str(model), "clip": clip, "positions": sc["positions"], "eye": sc["eye"],
             "target": sc["target"], "fov": sc["fov"], "near": sc["near"], "far": sc["far"], "size": list(size),
-            "frames": frames, "warmup": warmup, "hardware_skinning": hw}
+            "frames": frames, "warmup": warmup, "hardware_skinning": hw,
+            "phases": None if phases is None else [float(x) for x in phases]}
     if png:
         spec["screenshot"] = str(png)
     p = subprocess.run([python, str(ROOT / "scripts" / "peer_panda3d.py")], input=json.dumps(spec),
@@ -135,8 +139,12 @@ def run_peer(python: str, model: Path, clip: str, sc: dict, size, frames, warmup
 
 
 def time_ours(eng, mode: str, frames: int, warmup: int, png=None) -> tuple:
-    """(wall seconds, CPU seconds) of each timed frame of ``mode``."""
-    eng.set_lod_mode(mode)
+    """(wall seconds, CPU seconds) of each timed frame of ``mode`` (:data:`MODES`)."""
+    from lod.poses import KEY_RATE
+
+    base, rate = MODE_RATES.get(mode, (mode, KEY_RATE))
+    eng.set_lod_mode(base)
+    eng.pose_sharing.rate = rate
     r = eng.renderer
     size = eng.scene.render.size
     wall, cpu = [], []
@@ -152,6 +160,7 @@ def time_ours(eng, mode: str, frames: int, warmup: int, png=None) -> tuple:
             cpu.append(c1 - c0)
     if png:
         r.save_png(png)
+    eng.pose_sharing.rate = KEY_RATE
     return wall, cpu
 
 
@@ -180,6 +189,9 @@ def main(argv=None) -> int:
     ap.add_argument("--peers-python", default=os.environ.get(PEERS_ENV, str(ROOT / ".venv-peers" / "bin" / "python")),
                     help=f"interpreter with panda3d and panda3d-gltf (default ${PEERS_ENV} or .venv-peers/bin/python)")
     ap.add_argument("--hardware-skinning", action="store_true", help="Panda3D hardware-animated-vertices on")
+    ap.add_argument("--phase", choices=("zero", "random"), default="zero",
+                    help="every copy from time 0 (default: one shared pose), or each at a random time of its clip "
+                         "(the same times on both sides)")
     ap.add_argument("--models-dir", type=Path, default=ROOT / "out" / "bench_peer" / "models")
     ap.add_argument("--png", type=Path, help="write the last frame of each side here")
     ap.add_argument("--out", type=Path, default=ROOT / "scripts" / "bench_peer.md")
@@ -221,12 +233,13 @@ def main(argv=None) -> int:
             sc = scenario(extent, n)
             with tempfile.TemporaryDirectory() as td:
                 scene_path = Path(td) / "bench_peer.toml"
-                scene_path.write_text(scene_text(path.resolve(), clip, sc, size))
+                scene_path.write_text(scene_text(path.resolve(), clip, sc, size, args.phase))
                 eng = Engine(load_scene(scene_path), quiet=True)
+                phases = eng.world.state.anim_time.copy() if args.phase == "random" else None
                 try:
                     eng.open_renderer()
                     for m in args.modes:  # build (or load from the cache) before any timing
-                        eng.set_lod_mode(m)
+                        eng.set_lod_mode(MODE_RATES.get(m, (m,))[0])
                     from render.context import gl_info
 
                     info = gl_info(eng.renderer.ctx)
@@ -239,7 +252,7 @@ def main(argv=None) -> int:
                         if png:
                             png.parent.mkdir(parents=True, exist_ok=True)
                         pr = run_peer(args.peers_python, path.resolve(), clip, sc, size, args.frames, args.warmup,
-                                      args.hardware_skinning, png)
+                                      args.hardware_skinning, png, phases)
                         peer_line = f"Panda3D {pr['panda3d']} on {pr['renderer']}"
                         peer_t += pr["frames_s"]
                         peer_c += pr["cpu_s"]
@@ -285,10 +298,13 @@ def write_md(args, rows, notes, gl_line, peer_line, start_note, end_note) -> Non
         lines.append(f"| {r['desc']} | {r['triangles']:,} | {r['n']:,} | {r['peer'] * 1e3:.1f} | {cells} |")
         cells = " | ".join(f"{r['ours_cpu'][m] * 1e3:.1f} ({r['peer_cpu'] / r['ours_cpu'][m]:.2f}x)" for m in modes)
         cpu_lines.append(f"| {r['desc']} | {r['triangles']:,} | {r['n']:,} | {r['peer_cpu'] * 1e3:.1f} | {cells} |")
-    text = f"""# Peer benchmark: ours in every LOD mode against Panda3D (issue 21)
+    text = f"""# Peer benchmark: ours in every LOD mode against Panda3D (issues 21, 29)
 
 Command: `{cmd}` ({args.rounds} round(s) x {args.frames} timed frames after {args.warmup} warm-up frames per side,
-{args.size[0]}x{args.size[1]}; Panda3D hardware-animated-vertices {'on' if args.hardware_skinning else 'off'}).
+{args.size[0]}x{args.size[1]}; Panda3D hardware-animated-vertices {'on' if args.hardware_skinning else 'off'}; every
+copy {'from time 0' if args.phase == 'zero' else 'at a random time of its clip, the same on both sides'}). Our
+modes share poses at the default `pose_rate` (the clip's keys; lod.poses), except `none-exact` (`pose_rate = 0`:
+every copy its own pose, pose sharing off).
 
 Ours: {gl_line}. Peer: {peer_line}. CPU: {_cpu()}.
 

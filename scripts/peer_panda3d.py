@@ -67,12 +67,17 @@ def main() -> int:
     if names and clip not in names:
         clip = names[0]
     actors = []
-    for p in spec["positions"]:
+    phases = spec.get("phases")  # seconds into the clip per copy (None: every copy from time 0)
+    for i, p in enumerate(spec["positions"]):
         a = Actor(spec["model"])
         a.reparentTo(base.render)
         a.setPos(z_up(p))
         if clip:
             a.loop(clip)
+            if phases is not None:  # start the loop at the copy's phase
+                ac = a.getAnimControl(clip)
+                ac.pose(float(phases[i]) * ac.getFrameRate() % max(1, ac.getNumFrames()))
+                ac.loop(False)
         actors.append(a)
     proto.cleanup()
     load_s = time.perf_counter() - t0
