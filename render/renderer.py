@@ -67,7 +67,7 @@ from render.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteC
 from render.shaders import program_sources
 from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
-from lod.poses.table import SLOT_FLOAT
+from render import posed_draw
 from render.pixel_ray import write_pixel_ray
 from render.pose_cache import PoseCache
 from render.timing import gpu_seconds
@@ -472,7 +472,7 @@ class Renderer:
         morph = getattr(b, "morph", None) if g.kind == "skinned" else None
         shared = self.poses.shared(b) if g.kind == "skinned" else None  # pose sharing (render/pose_cache.py)
         if shared is not None:
-            vao, locs = self._pose_vao(g, shared[0], morph is not None)
+            vao, locs = posed_draw.pose_vao(self, g, shared[0], morph is not None)  # render/posed_draw.py
         else:
             vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
         prog = vao.program
@@ -496,7 +496,7 @@ class Renderer:
         else:
             first, count = 0, g.default_count
         if shared is not None:
-            self._draw_shared(g, prog, vao, locs, shared, b, offset, count, first, pieces)
+            posed_draw.draw_shared(self, g, prog, vao, locs, shared, b, offset, count, first, pieces)
             return
         for f, k, c, j in pieces or [(0, b.n_instances, -1, 0)]:
             pb = cursor.base(c, j) if cursor is not None and c >= 0 else None
@@ -509,44 +509,6 @@ class Renderer:
             self._bind_instances(vao, locs, self._instances, off)
             (self.ctx.enable if g.cull else self.ctx.disable)(self.ctx.CULL_FACE)  # single-sided reps
             self._render_instanced(g, prog, pb, off, count, first, k, vao, locs)
-
-    def _pose_vao(self, g: _GpuRep, how: str, morph: bool) -> tuple:
-        """(vertex array, instance locations) drawing ``g`` from the pose cache: ``"posed"``, the posed
-        vertices (``shaders/posed.vert``: colours from the rep's buffer, positions and normals from the pose's
-        slot); ``"palette"``, the skinned program reading the pose palettes by slot (``POSE_SLOT``), the
-        geomorph one for a geomorphed chain level. Made on first use."""
-        if how == "palette" and morph:
-            return self._morph_of(g, ("POSE_SLOT",))
-        if how not in g.pose_vaos:
-            prog = self.program("posed") if how == "posed" else \
-                self.program(prog_name(g.kind, self.skinning), defines=g.defines + ("POSE_SLOT",))
-            vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
-                                        index_element_size=4)
-            vao.label = f"{g.key}.vao_{how}"
-            g.objects.append(vao)
-            self._objects.append(vao)
-            g.pose_vaos[how] = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog})
-        return g.pose_vaos[how]
-
-    def _draw_shared(self, g: _GpuRep, prog, vao, locs, shared, b, offset: int, count: int, first: int,
-                     pieces=None) -> None:
-        """Draw the copies of batch ``b`` (those of ``pieces``, (first instance, count, ...) each; default all)
-        from the pose cache: ``shared`` = ``("posed", PosedVertices)`` (one draw per run of copies in one
-        window) or ``("palette", PosePalette)``."""
-        how, src = shared
-        if how == "palette":
-            src.use(prog)
-            if g.joints is not None:
-                g.joints.use(0)  # its row count bounds the frame pairs of the morph weights (targets.glsl)
-        (self.ctx.enable if g.cull else self.ctx.disable)(self.ctx.CULL_FACE)  # single-sided reps
-        slots = b.instance_data[:, SLOT_FLOAT]
-        for f0, k0 in [(p[0], p[1]) for p in pieces] if pieces else [(0, b.n_instances)]:
-            for f, k, w in src.runs(slots, f0, k0) if how == "posed" else [(f0, k0, None)]:
-                if w is not None:
-                    src.bind(w, prog)
-                off = offset + f * INSTANCE_BYTES
-                self._bind_instances(vao, locs, self._instances, off)
-                self._render_instanced(g, prog, None, off, count, first, k, vao, locs)
 
     def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> dict:
         """Draw a ``lod.drawlist.DrawList`` into the offscreen framebuffer.

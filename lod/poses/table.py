@@ -67,7 +67,10 @@ class PoseRate(Param):
             if value != KEY_RATE:
                 raise ParamError(key, f"expected {self.describe()}, got {value!r}")
             return value
-        return Param("float", min=0.0, max=RATE_MAX).check(key, value)
+        try:
+            return Param("float", min=0.0, max=RATE_MAX).check(key, value)
+        except ParamError:
+            raise ParamError(key, f"expected {self.describe()}, got {value!r}") from None
 
 
 #: ``[lod]`` keys of pose sharing, valid for every mode (joined into lod.temporal.selection.LOD_COMMON_PARAMS)
