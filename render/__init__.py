@@ -6,6 +6,9 @@ Modules in data-flow order (representations and DrawList in, pixels and timings 
 - ``render.shaders``: GLSL sources under ``render/shaders/`` by name.
 - ``render.renderer``: uploads representations, draws a DrawList's triangle batches (GPU skinning, the
   full-detail and chain levels of ``lod.full`` and ``lod.chains``), hands the other kinds to their drawers.
+- ``render.pose_cache``: ``Renderer.poses``: per frame the joint palette of each distinct pose (``lod.poses``)
+  and, on request, each distinct pose's posed vertices (compute pass ``shaders/pose_skin.comp`` or numba,
+  ``render.pose_skin``), in windowed ``[slot][vertex]`` textures; ``render.posed_draw`` draws copies from them.
 - ``render.tint``: per-instance colour words (an agent's colour variation, the debug colour of its batch) that
   every draw path applies through ``shaders/tint.glsl``, so LOD modes agree on colours.
 - ``render.capture``: transform-feedback capture of a representation's skinned vertices (tests).

@@ -172,7 +172,7 @@ class PosedVertices:
 
 @dataclass
 class _Mesh:
-    """A mesh the pose cache can pose: CPU arrays, and its storage buffers once first posed."""
+    """A mesh the pose cache can pose: CPU arrays, and its skinning-pass textures once first posed."""
 
     digest: str
     positions: np.ndarray
@@ -211,7 +211,7 @@ class PoseCache:
     Attributes
     ----------
     skinning : "compute" or "numba", the posed-vertex pass
-    window_bytes : most bytes per window (clamped to the context's storage-block limit)
+    window_bytes : most bytes per window, both textures (and at most GL_MAX_TEXTURE_SIZE rows)
     budget_bytes : most posed bytes of one mesh per frame
     last_stats : dict of the last frame: "poses", "posed_vertices", "palette_ms", "skin_ms", "windows",
         "fallback" (meshes skinned per copy from the palettes because their poses exceed the budget)
@@ -253,7 +253,10 @@ class PoseCache:
             return
         d = mesh_digest(rep)
         self._rep_mesh[rep.key] = d
-        if d not in self._meshes:
+        m = self._meshes.get(d)
+        if m is not None:  # the newest upload's tables (an earlier rep's may have been released)
+            m.joint_texture, m.target_textures = joint_texture, target_textures
+        else:
             jn, wt, n_inf = compact_influences(rep.joints, rep.weights)
             self._meshes[d] = _Mesh(d, np.ascontiguousarray(rep.positions, np.float32),
                                     np.ascontiguousarray(rep.normals, np.float32), np.ascontiguousarray(jn),
