@@ -34,7 +34,9 @@ def test_keyframed_triangles_run_selects_every_nth_frame(tmp_path):
 def test_keyframe_every_is_valid_for_every_mode(tmp_path, mode):
     s = load_scene(_scene(tmp_path, mode=mode, extra="keyframe_every = 3"))
     assert dict(s.lod_common) == {"keyframe_every": 3, "keyframe_extrapolation": "extrapolated",
-                                  "keyframe_geomorph": True}
+                                  "keyframe_geomorph": True, "pose_rate": "key"}  # pose_rate: lod.poses
+
+
 
 
 @pytest.mark.parametrize("line,needle", [("keyframe_every = 0", "lod.keyframe_every"),
