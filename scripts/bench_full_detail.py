@@ -62,6 +62,19 @@ for p in (ROOT, ROOT / "scripts"):
 
 SHIPPED = ("before", "shipped", "no cull", "world varying", "4 influences", "packed", "no split")
 DIAGNOSTIC = ("flat fragment", "1 influence", "no fetch", "static", "discard")
+#: notes kept under every run's tables (what was tried and dropped)
+NOTES = """
+- Tried and dropped (issue 21): triangles in Morton order of their centroids for llvmpipe's vertex splitter
+  (`draw_pt_vsplit.c`: segments of 1,024 indices, a 256-entry direct-mapped reuse table). Its cache model says
+  the 60 K humanoid's ring-by-ring strips shade each vertex 2.4 times per instance and the Morton order 1.6
+  times, but a later run of this script at load 2.4 measured no gain (mesh order vs Morton: 0.99x CPU on h4),
+  so the splitter's re-shading is not where this frame's time goes; the change was reverted.
+- The pose cache's skinning pass (issue 29): the compute shader (`shaders/pose_skin.comp`) against numba over both
+  cores (`render/pose_skin.py`), CPU time of the pass alone at load 14-15: h4 (30,042 vertices, 4 influences) x 100
+  poses 75 vs 188 ns per posed vertex, Fox (1,728 vertices) x 1,024 poses 72.5 vs 117 ns (numba includes writing
+  the textures); the rows "exact poses" / "exact poses, numba" above compare them inside a frame. The compute
+  pass is the default. Its palettes come from a uniform block (1.1x faster than texel fetches, same output).
+"""
 #: issue 29's experiments: variant -> (pose_rate or None for no pose table, skinning pass, compute raster, random phases)
 EXPERIMENTS = {"pose sharing": ("key", "compute", False, False),
                "pose sharing, random phases": ("key", "compute", False, True),
@@ -271,18 +284,21 @@ def main(argv=None) -> int:
     print(f"# end: {end}")
     from lod.atomic_io import write_atomic
 
-    text = f"""# Full detail on heavy skinned characters: where the time goes (issue 21)
+    text = f"""# Full detail on heavy skinned characters: where the time goes (issues 21, 29)
 
 Command: `scripts/bench_full_detail.py {' '.join(sys.argv[1:] if argv is None else argv)}` ({args.frames} timed frames per
 variant after one warm-up, round-robin, order rotated every frame). CPU: {bp._cpu()}. Mesa llvmpipe through EGL.
 The scenario of `scripts/bench_peer.py` (grid spaced 1.5x the model's extent, camera above the near edge).
-Variants: see the script's docstring; "speed vs shipped" > 1 means faster than the shipped renderer; the
-PSNR column compares each shipped change's last frame with the renderer before issue 21 ("before").
+Variants: see the script's docstring; "speed vs shipped" > 1 means faster than the shipped renderer (the per-copy
+palette path, no pose table); the PSNR column compares each shipped change's last frame with the renderer before
+issue 21 ("before"), and issue 29's experiments (pose sharing, exact poses, compute raster) with "shipped" where
+they draw the same times. On a loaded machine the wall times are several times the CPU times: read the CPU
+columns (the work of every thread of the process) there.
 
 {chr(10).join(chr(10) + s for s in sections)}
 
 Machine at the start: {start}. At the end: {end}.
-"""
+{NOTES}"""
     write_atomic(args.out, text)
     return 0
 
