@@ -301,10 +301,10 @@ def write_md(args, rows, notes, gl_line, peer_line, start_note, end_note) -> Non
     text = f"""# Peer benchmark: ours in every LOD mode against Panda3D (issues 21, 29)
 
 Command: `{cmd}` ({args.rounds} round(s) x {args.frames} timed frames after {args.warmup} warm-up frames per side,
-{args.size[0]}x{args.size[1]}; Panda3D hardware-animated-vertices {'on' if args.hardware_skinning else 'off'}; every
-copy {'from time 0' if args.phase == 'zero' else 'at a random time of its clip, the same on both sides'}). Our
-modes share poses at the default `pose_rate` (the clip's keys; lod.poses), except `none-exact` (`pose_rate = 0`:
-every copy its own pose, pose sharing off).
+{args.size[0]}x{args.size[1]}; Panda3D hardware-animated-vertices {'on' if args.hardware_skinning else 'off'}; every copy
+{'from time 0' if args.phase == 'zero' else 'at a random time of its clip, the same on both sides'}). Our modes share
+poses at the default `pose_rate` (the clip's keys; lod.poses), except `none-exact` (`pose_rate = 0`: every copy
+its own pose, pose sharing off).
 
 Ours: {gl_line}. Peer: {peer_line}. CPU: {_cpu()}.
 
