@@ -68,6 +68,8 @@ from render.shaders import program_sources
 from render.shadows import Lighting
 from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.pixel_ray import write_pixel_ray
+from render.raster.hook import hardware_pieces
+from render.raster.hook import split as raster_split
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
 from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
@@ -85,6 +87,9 @@ DEBUG_ENV = "CROWD_GL_DEBUG"
 #: (see "Bounded driver memory" in the module docstring); at ~300 bytes per
 #: binned triangle, 100,000 triangles fit one 36 MB llvmpipe scene
 MAX_TRIANGLES_IN_FLIGHT = 100_000
+#: default [render] raster_threshold (pixels): triangles whose window box is at most this wide and tall are
+#: rasterised in compute (render/raster/; the measurement behind the value: render/raster/__init__.py)
+RASTER_THRESHOLD = 8.0
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
 _DRAW_ATTRS = (*_INSTANCE_ATTRS, "i_tint")  # + the colour words (render/tint.py)
@@ -207,6 +212,11 @@ class Renderer:
         self.pixel_ray = True
         #: skinned programs read only as many influences as the rep's vertices use (reps uploaded from now on)
         self.specialize_influences = True
+        #: rasterise small triangles in compute (render/raster/; off on contexts below GL 4.3), and the
+        #: threshold (pixels, [render] raster_threshold) above which a triangle stays on the hardware path
+        self.compute_raster = int(getattr(self.ctx, "version_code", 0)) >= 430
+        self.raster_threshold = RASTER_THRESHOLD
+        self._raster = None
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -244,6 +254,15 @@ class Renderer:
                                     lambda self, v: setattr(self._palette, "max_texels", int(v)),
                                     doc="most palette texels per chunk (render.palette)")
     _palette_tex = property(lambda self: self._palette.texture)
+
+    @property
+    def raster(self):
+        """The compute rasteriser (render.raster.frame.Raster), made on first use."""
+        if self._raster is None:
+            from render.raster.frame import Raster
+
+            self._raster = Raster(self)
+        return self._raster
 
     def _build_palette(self, items) -> list:
         """Palette pre-pass of one chunk (``render.palette.Palette.build``): items are
@@ -341,6 +360,7 @@ class Renderer:
         # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
         g.defines = defines
+        g.source = rep  # the compute rasteriser reads its arrays (render/raster/)
         if TARGETS_DEFINE in defines:  # morph targets (render.targets); g.objects is objs
             g.targets = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key)
             objs.extend(g.targets)
@@ -514,6 +534,8 @@ class Renderer:
                 raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
                                f"uploaded: {sorted(self._reps)}")
         t0 = time.perf_counter()
+        # small triangles to the compute rasteriser: its instances last in their batches (render/raster/hook.py)
+        batches, hw_counts, raster_work = raster_split(self, batches, drawlist)
         total = sum(b.n_instances for b in batches)
         if batches:
             data = np.concatenate([np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
@@ -555,8 +577,12 @@ class Renderer:
             offsets = starts.tolist()
             self.lighting.shadow_pass(batches, plugin, drawlist, pieces, cursor, offsets)  # [render] shadows = "map"
             for i, b in enumerate(batches):
-                self._draw_batch(b, offsets[i], view_proj, used, pieces.get(i), cursor)
+                p = pieces.get(i) if i not in hw_counts else hardware_pieces(pieces.get(i), b.n_instances, hw_counts[i])
+                if p != []:
+                    self._draw_batch(b, offsets[i], view_proj, used, p, cursor)
             ctx.disable(ctx.CULL_FACE)
+            rc = self.raster.draw(raster_work, view_proj) if raster_work else {}
+            drawlist.stats["raster_triangles"] = int(rc.get("triangles", 0)) - int(rc.get("spilled", 0))
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time
@@ -614,6 +640,8 @@ class Renderer:
         for d in reversed(list(self._drawers.values())):
             d.release()
         self._drawers.clear()
+        if self._raster is not None:
+            self._raster.release()
         self._plugin_reps.clear()
         for o in reversed(self._objects):
             try:

@@ -1,0 +1,78 @@
+"""The renderer's side of the compute rasteriser: which instances of the built-in triangle batches (modes
+none and triangles: static, keyframed and skinned representations, LOD chain levels) it takes.
+
+:func:`split` reorders every eligible batch so that the instances the hardware path draws come first (the
+camera pass draws only those; the shadow map still draws every instance, its casters) and returns the others
+as compute work (``render.raster.frame.Work``). Not eligible, drawn by the hardware as before: a renderer with
+MSAA (the visibility buffer has one sample per pixel), geomorphed chain levels, batches in a screen-door
+transition, and representations of other kinds.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from render.raster.frame import MAX_THRESHOLD, Work
+from render.raster.route import compute_mask, near_distance
+from render.tint import batch_words
+
+
+def triangle_range(g, b) -> tuple[int, int]:
+    """(first triangle, triangles) batch ``b`` draws of the renderer's uploaded rep ``g``."""
+    if g.kind == "keyframed":
+        return int(g.seg_first[b.part]) // 3, int(g.seg_count[b.part]) // 3
+    if getattr(b, "index_range", None) is not None:
+        f, c = (int(v) for v in b.index_range)
+        return f // 3, c // 3
+    return 0, int(g.default_count) // 3
+
+
+def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
+    """(batches, hardware counts, work): the batches with each eligible one's hardware instances first, batch
+    index -> how many instances the hardware draws (eligible batches only), and the compute work."""
+    raster = renderer.raster
+    threshold = float(renderer.raster_threshold)
+    if not renderer.compute_raster or renderer.samples or not batches or threshold <= 0.0:
+        return batches, {}, []
+    threshold = min(threshold, MAX_THRESHOLD)
+    raster.threshold = threshold
+    proj = np.asarray(drawlist.proj, np.float64)
+    near = near_distance(proj)
+    height = int(renderer.size[1])
+    out, hw, work = list(batches), {}, []
+    for i, b in enumerate(batches):
+        g = renderer._reps[b.rep]
+        if g.n_indices == 0 or g.kind not in ("static", "keyframed", "skinned") or getattr(g, "source", None) is None:
+            continue
+        if getattr(b, "morph", None) is not None or getattr(b, "fade", None) is not None:
+            continue
+        m = raster.mesh(g, g.source)
+        if m is None:
+            continue
+        data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
+        mask = compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        if not mask.any():
+            continue
+        ids = np.asarray(b.instance_ids)
+        order = np.concatenate([np.flatnonzero(~mask), np.flatnonzero(mask)])
+        h = int((~mask).sum())
+        nb = replace(b, instance_ids=ids[order], instance_data=data[order])
+        out[i] = nb
+        hw[i] = h
+        sub = replace(b, instance_ids=ids[mask], instance_data=data[mask])
+        first, count = triangle_range(g, b)
+        work.append(Work(m, data[mask], batch_words([sub], renderer.tint_table), first, count))
+    return out, hw, work
+
+
+def hardware_pieces(pieces, n_instances: int, h: int) -> list:
+    """The (first instance, count, palette chunk, item) pieces of a batch cut to its first ``h`` instances
+    (``pieces`` None: one piece of all ``n_instances``, no palette)."""
+    pieces = pieces or [(0, n_instances, -1, 0)]
+    out = []
+    for f, k, c, j in pieces:
+        k = min(k, h - f)
+        if k > 0:
+            out.append((f, k, c, j))
+    return out

@@ -1,0 +1,56 @@
+"""Posed vertices of skinned instances for the compute rasteriser: the adapter that stands for the pose cache.
+
+Until the pose cache (lod/pose_table.py, render/pose_cache.py: each distinct pose skinned once into a
+[slot][vertex] table) lands, every skinned instance the compute path draws is its own pose slot: a compute
+pass (``shaders/raster_pose.glsl``) skins its vertices from the representation's baked joint table at the
+instance's frame coordinate, as ``skinned_direct.vert`` does (morph targets first), into the posed table that
+the rasteriser's vertex and shading passes read (``shaders/raster_common.glsl``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from render.raster import tables as tb
+
+
+def skin_table(ctx, rep, track):
+    """RGBA32UI texture of a skinned rep's joints and weights, 2 texels per vertex (weights as float bits)."""
+    j = np.asarray(rep.joints, np.uint32).reshape(-1, 4)
+    w = tb._bits(np.asarray(rep.weights, np.float32).reshape(-1, 4))
+    data = np.stack([j, w], axis=1).reshape(-1, 4)
+    rows = tb.rows_for(data.shape[0])
+    full = np.zeros((rows * tb.WIDTH, 4), np.uint32)
+    full[:data.shape[0]] = data
+    import moderngl
+
+    tex = track(ctx.texture((tb.WIDTH, rows), 4, full.tobytes(), dtype="u4"), f"raster.{rep.key}.skin")
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex
+
+
+def pose_pass(raster, meshes, wi, rows, vcount, vfirst, kind) -> None:
+    """Skin every vertex of the window's skinned instances into the posed table (one dispatch per mesh)."""
+    from render.raster.frame import UNITS, VERTEX_JOB, VERTS_PER_THREAD, _vertex_jobs
+    from render.targets import TARGETS_DEFINE, use_targets
+
+    raster.posed_table.texture.bind_to_image(1, read=False, write=True)
+    frame = np.ascontiguousarray(rows[:, 12], np.float32).view(np.uint32)
+    for b in np.unique(wi[kind == tb.POSED]):
+        m = meshes[b]
+        sel = np.flatnonzero(wi == b)
+        jobs = _vertex_jobs(vcount[sel], vfirst[sel])
+        jobs[:, 3] = frame[sel][jobs[:, 0]]
+        jobs[:, 0] = sel[jobs[:, 0]]
+        skin, joints, targets = m.skin
+        cs = raster._compute("raster_pose", (f"RS_VERTS_PER_THREAD {VERTS_PER_THREAD}",)
+                             + ((TARGETS_DEFINE,) if targets is not None else ()))
+        raster._samplers(cs)
+        joints.use(0)
+        cs["u_joints"].value = 0
+        skin.use(UNITS["u_skin"])
+        use_targets(cs, targets)
+        cs["u_njobs"].value = int(jobs.shape[0])
+        raster._buffer("pose_jobs", jobs).bind_to_storage_buffer(5)
+        raster._dispatch(cs, int(jobs.shape[0]))
+    raster.ctx.memory_barrier()
+    assert VERTEX_JOB == 8 * VERTS_PER_THREAD
