@@ -112,6 +112,9 @@ class Raster:
         self._tiles = self._track(self.ctx.buffer(reserve=4 * self._tiles_xy[0] * self._tiles_xy[1]), "raster.tiles")
         self.ssbo_limit = None
         self.texel_limit = None
+        #: every eligible instance to the compute path, whatever its estimated triangle size (its large and
+        #: near-plane triangles still go to the hardware): tests and benchmarks
+        self.route_all = False
         self.last_counts: dict = {}
         #: seconds of each pass of the last frame (only while ``profile`` is set: a ctx.finish after each pass)
         self.profile = False
@@ -254,6 +257,19 @@ class Raster:
             counts["windows"] += 1
         return counts
 
+    def hit_counts(self, work: list, view_proj: np.ndarray) -> np.ndarray:
+        """Diagnostic (tests): (h, w) uint32, how many of ``work``'s rasterised triangles cover each pixel centre
+        (the depth pass's coverage with ``atomicAdd`` in place of the depth test; one window)."""
+        self._count_pass = True
+        try:
+            self.draw(work, view_proj)
+        finally:
+            self._count_pass = False
+        w, h = self.r.size
+        return np.frombuffer(self._ids.read(), np.uint32)[:w * h].reshape(h, w).copy()
+
+    _count_pass = False
+
     def _window(self, work, wi, rows, tints, tcount, vcount, vp, counts) -> None:
         ctx = self.ctx
         k = rows.shape[0]
@@ -318,7 +334,10 @@ class Raster:
         # 3. depth pass
         ntri = int(tcount.sum())
         self._depth.clear(chunk=b"\xff\xff\xff\xff")
-        self._ids.clear(chunk=b"\xff\xff\xff\xff")
+        if self._count_pass:
+            self._ids.clear()
+        else:
+            self._ids.clear(chunk=b"\xff\xff\xff\xff")
         self._counts.clear()
         self._depth.bind_to_storage_buffer(0)
         self._ids.bind_to_storage_buffer(1)
@@ -327,7 +346,7 @@ class Raster:
         spill = self._buffer("spill", nbytes=8 * ntri)
         spill.bind_to_storage_buffer(4)
         w, h = self.r.size
-        cs = self._compute("raster_tri", (f"RS_LOG_CHUNK {LOG_CHUNK}",))
+        cs = self._compute("raster_tri", (f"RS_LOG_CHUNK {LOG_CHUNK}",) + (("COUNT_PASS",) if self._count_pass else ()))
         self._samplers(cs)
         cs["u_size"].value = (w, h)
         cs["u_count"].value = int(jobs.shape[0])
@@ -341,6 +360,8 @@ class Raster:
         counts["candidates"] += n_cand
         counts["spilled"] += n_cull + n_keep
         counts["rasterised"] += ntri - n_cull - n_keep
+        if self._count_pass:
+            return
         # 4. id pass
         if n_cand:
             cs = self._compute("raster_tri", (f"RS_LOG_CHUNK {LOG_CHUNK}", "ID_PASS", f"RS_TILE {TILE}"))

@@ -51,7 +51,8 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         if m is None:
             continue
         data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
-        mask = compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        mask = np.ones(data.shape[0], bool) if raster.route_all else \
+            compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
         if not mask.any():
             continue
         ids = np.asarray(b.instance_ids)

@@ -90,7 +90,9 @@ void rasterise(uint item, uint flags, ivec4 a, ivec4 b, ivec4 c) {
             if (!(z >= 0.0 && z <= 1.0)) continue;  // beyond the far plane (near: the hardware path)
             uint key = floatBitsToUint(z);
             uint at = uint(y * u_size.x + x);
-#ifdef ID_PASS
+#if defined(COUNT_PASS)
+            atomicAdd(ids[at], 1u);  // diagnostic: how many triangles cover each pixel (Raster.hit_counts)
+#elif defined(ID_PASS)
             if (depth[at] == key) {
                 atomicMin(ids[at], item);
                 tiles[(y / RS_TILE) * u_tiles_x + x / RS_TILE] = 1u;  // every writer stores the same value
@@ -100,7 +102,7 @@ void rasterise(uint item, uint flags, ivec4 a, ivec4 b, ivec4 c) {
 #endif
         }
     }
-#ifndef ID_PASS
+#if !defined(ID_PASS) && !defined(COUNT_PASS)
     if (wrote) cand[atomicAdd(counts[0], 1u)] = item;
 #endif
 }
