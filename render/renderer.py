@@ -70,6 +70,7 @@ from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.pixel_ray import write_pixel_ray
 from render.raster.hook import hardware_pieces
 from render.raster.hook import split as raster_split
+from render.raster.route import DEFAULT_THRESHOLD
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
 from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
@@ -87,9 +88,6 @@ DEBUG_ENV = "CROWD_GL_DEBUG"
 #: (see "Bounded driver memory" in the module docstring); at ~300 bytes per
 #: binned triangle, 100,000 triangles fit one 36 MB llvmpipe scene
 MAX_TRIANGLES_IN_FLIGHT = 100_000
-#: default [render] raster_threshold (pixels): triangles whose window box is at most this wide and tall are
-#: rasterised in compute (render/raster/; the measurement behind the value: render/raster/__init__.py)
-RASTER_THRESHOLD = 8.0
 
 _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
 _DRAW_ATTRS = (*_INSTANCE_ATTRS, "i_tint")  # + the colour words (render/tint.py)
@@ -215,7 +213,7 @@ class Renderer:
         #: rasterise small triangles in compute (render/raster/; off on contexts below GL 4.3), and the
         #: threshold (pixels, [render] raster_threshold) above which a triangle stays on the hardware path
         self.compute_raster = int(getattr(self.ctx, "version_code", 0)) >= 430
-        self.raster_threshold = RASTER_THRESHOLD
+        self.raster_threshold = DEFAULT_THRESHOLD
         self._raster = None
 
     # ------------------------------------------------------------------ resources

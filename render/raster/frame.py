@@ -26,7 +26,7 @@ import numpy as np
 
 from render.context import track
 from render.raster import tables as tb
-from render.raster.route import triangle_extent
+from render.raster.route import DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
 from render.shaders import load_source, with_defines
 
 #: triangles per job (raster_common.glsl RS_LOG_CHUNK): a triangle's id is job * CHUNK + index, so a window
@@ -39,8 +39,6 @@ VERTEX_JOB = 8 * VERTS_PER_THREAD
 #: texture units of the tables (0..7: the renderer's joints, palette, morph and target tables, shadow map)
 UNITS = {"u_rs_tris": 8, "u_rs_mesh": 9, "u_rs_posed": 10, "u_rs_inst": 11, "u_rs_jobs": 12, "u_screen": 13,
          "u_skin": 14}
-#: largest threshold (pixels): the edge functions of a triangle within it stay below 2^31
-MAX_THRESHOLD = 64.0
 #: side (pixels) of the tiles the id pass marks: the shading pass draws the marked tiles only (a crowd
 #: covers a small share of the screen: 100 copies of a 60 K-triangle character fill 3 % of 1280 x 720, where
 #: a full-screen pass cost 170-240 ms on a loaded machine)
@@ -464,7 +462,7 @@ class Raster:
 
     #: pixels: a triangle whose window box is wider or taller goes to the hardware path ([render]
     #: raster_threshold; measured default: render/raster/__init__.py)
-    threshold = 8.0
+    threshold = DEFAULT_THRESHOLD
 
 
 class Work:

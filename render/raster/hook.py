@@ -13,8 +13,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from render.raster.frame import MAX_THRESHOLD, Work
-from render.raster.route import compute_mask, near_distance
+from render.raster.frame import Work
+from render.raster.route import MAX_THRESHOLD, compute_mask, near_distance
 from render.tint import batch_words
 
 

@@ -11,6 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
+#: default [render] raster_threshold (pixels): triangles whose window box is at most this wide and tall are
+#: rasterised in compute (the measurement behind the value: render/raster/__init__.py)
+DEFAULT_THRESHOLD = 8.0
+#: largest threshold (pixels): the edge functions of a triangle within it stay below 2^31 (raster_tri.glsl)
+MAX_THRESHOLD = 64.0
 #: percentile of the triangles' extents that must fall below the threshold for an instance to go to compute
 EXTENT_PERCENTILE = 90.0
 
