@@ -215,6 +215,8 @@ class Renderer:
         self.compute_raster = int(getattr(self.ctx, "version_code", 0)) >= 430
         self.raster_threshold = DEFAULT_THRESHOLD
         self._raster = None
+        #: this frame's compute work (render.raster.frame.Work), filled by render/raster/hook.py and the world drawer
+        self.raster_work: list = []
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -533,7 +535,7 @@ class Renderer:
                                f"uploaded: {sorted(self._reps)}")
         t0 = time.perf_counter()
         # small triangles to the compute rasteriser: its instances last in their batches (render/raster/hook.py)
-        batches, hw_counts, raster_work = raster_split(self, batches, drawlist)
+        batches, hw_counts, self.raster_work = raster_split(self, batches, drawlist)
         total = sum(b.n_instances for b in batches)
         if batches:
             data = np.concatenate([np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
@@ -579,8 +581,6 @@ class Renderer:
                 if p != []:
                     self._draw_batch(b, offsets[i], view_proj, used, p, cursor)
             ctx.disable(ctx.CULL_FACE)
-            rc = self.raster.draw(raster_work, view_proj) if raster_work else {}
-            drawlist.stats["raster_triangles"] = int(rc.get("triangles", 0)) - int(rc.get("spilled", 0))
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time
@@ -590,6 +590,10 @@ class Renderer:
                     continue
                 self.fbo.use()
                 self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
+            # the compute rasteriser's work of the frame (built-in batches, the world's props and solids)
+            rc = self.raster.draw(self.raster_work, view_proj) if self.raster_work else {}
+            drawlist.stats["raster_triangles"] = int(rc.get("triangles", 0)) - int(rc.get("spilled", 0))
+            self.raster_work = []
         for kind in querying:
             self.fbo.use()
             self._drawers[kind].draw(plugin[kind], drawlist, view_proj)

@@ -36,15 +36,18 @@ CHUNK = 1 << LOG_CHUNK
 #: vertices per thread of the vertex and pose passes (8 threads a work group)
 VERTS_PER_THREAD = 16
 VERTEX_JOB = 8 * VERTS_PER_THREAD
-#: texture units of the tables (0..7: the renderer's joints, palette, morph and target tables, shadow map)
-UNITS = {"u_rs_tris": 8, "u_rs_mesh": 9, "u_rs_posed": 10, "u_rs_inst": 11, "u_rs_jobs": 12, "u_screen": 13,
-         "u_skin": 14}
+#: texture units of the tables (0..7: the renderer's joints, palette, morph and target tables, shadow map;
+#: 8, 9: the pose cache's posed vertices, render/pose_cache.py)
+UNITS = {"u_rs_tris": 20, "u_rs_mesh": 21, "u_rs_posed": 22, "u_rs_inst": 23, "u_rs_jobs": 24, "u_screen": 25,
+         "u_skin": 26}
 #: side (pixels) of the tiles the id pass marks: the shading pass draws the marked tiles only (a crowd
 #: covers a small share of the screen: 100 copies of a 60 K-triangle character fill 3 % of 1280 x 720, where
 #: a full-screen pass cost 170-240 ms on a loaded machine)
 TILE = 8
 #: the shading pass draws one full-screen triangle instead of the tiles' rectangles above this share of the screen
 FULL_SHADE_SHARE = 0.6
+#: lists of set-aside triangles (raster_tri.glsl): characters with back faces culled, other characters, the world
+SPILL_LISTS = 3
 #: work groups per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS = 65535
 #: bytes a storage-buffer binding may address when the context does not say
@@ -171,14 +174,16 @@ class Raster:
         self._meshes.clear()
 
     # ------------------------------------------------------------------ meshes
-    def mesh(self, g, rep) -> _Mesh | None:
-        """The uploaded mesh of representation ``rep`` (the renderer's ``_GpuRep`` ``g``), registered on first
-        use; None for a kind the compute path does not draw."""
+    def mesh(self, rep, cull: bool, g=None) -> _Mesh | None:
+        """The uploaded mesh of representation ``rep`` (back faces culled or not; a skinned one needs the
+        renderer's ``_GpuRep`` ``g`` for its joint table), registered on first use; None for a kind the compute
+        path does not draw. Props and obstacle solids (kind "world", lod.props) are static meshes."""
         m = self._meshes.get(rep.key)
         if m is not None and m.rep is rep:
             return m
-        kind = {"static": tb.STATIC, "keyframed": tb.KEYFRAMED, "skinned": tb.POSED}.get(getattr(rep, "kind", ""))
-        if kind is None:
+        kind = {"static": tb.STATIC, "keyframed": tb.KEYFRAMED, "skinned": tb.POSED,
+                "world": tb.STATIC}.get(getattr(rep, "kind", ""))
+        if kind is None or (kind == tb.POSED and g is None):
             return None
         if kind == tb.KEYFRAMED:
             recs = np.concatenate([tb.vertex_records(rep.positions0, rep.normals0, rep.colors0),
@@ -188,7 +193,7 @@ class Raster:
             recs = tb.vertex_records(rep.positions, rep.normals, rep.colors)
             verts = int(np.asarray(rep.positions).shape[0])
         tris = tb.triangle_rows(rep.indices)
-        m = _Mesh(rep, kind, self._records.shape[0], verts, self._tris.shape[0], tris.shape[0], bool(g.cull))
+        m = _Mesh(rep, kind, self._records.shape[0], verts, self._tris.shape[0], tris.shape[0], bool(cull))
         self._records = np.concatenate([self._records, recs])
         self._tris = np.concatenate([self._tris, tris])
         self._dirty = True
@@ -341,7 +346,7 @@ class Raster:
         self._ids.bind_to_storage_buffer(1)
         self._counts.bind_to_storage_buffer(2)
         self._buffer("candidates", nbytes=4 * ntri).bind_to_storage_buffer(3)
-        spill = self._buffer("spill", nbytes=8 * ntri)
+        spill = self._buffer("spill", nbytes=4 * SPILL_LISTS * ntri)
         spill.bind_to_storage_buffer(4)
         w, h = self.r.size
         cs = self._compute("raster_tri", (f"RS_LOG_CHUNK {LOG_CHUNK}",) + (("COUNT_PASS",) if self._count_pass else ()))
@@ -353,11 +358,11 @@ class Raster:
         ctx.memory_barrier()
         self._dispatch(cs, int(jobs.shape[0]))
         ctx.memory_barrier()
-        n_cand, n_cull, n_keep = (int(x) for x in np.frombuffer(self._counts.read(size=12), np.uint32))
+        n_cand, *n_spill = (int(x) for x in np.frombuffer(self._counts.read(size=16), np.uint32))
         self._mark("depth")
         counts["candidates"] += n_cand
-        counts["spilled"] += n_cull + n_keep
-        counts["rasterised"] += ntri - n_cull - n_keep
+        counts["spilled"] += sum(n_spill)
+        counts["rasterised"] += ntri - sum(n_spill)
         if self._count_pass:
             return
         # 4. id pass
@@ -376,8 +381,8 @@ class Raster:
             self._shade(vp)
             self._mark("shade")
         # 6. the triangles set aside, drawn by the hardware
-        if n_cull or n_keep:
-            self._spill(vp, ntri, n_cull, n_keep)
+        if sum(n_spill):
+            self._spill(vp, ntri, n_spill)
             self._mark("spill")
 
     def _samplers(self, prog) -> None:
@@ -391,9 +396,9 @@ class Raster:
         gx = min(groups, MAX_GROUPS)
         cs.run(gx, -(-groups // gx), 1)
 
-    def _lit_program(self, name: str, vertex: str, fragment: str):
+    def _lit_program(self, name: str, vertex: str, fragment: str, extra=()):
         """A draw program of ``vertex`` and ``fragment`` files with the renderer's PIXEL_RAY choice."""
-        defines = ("PIXEL_RAY",) if self.r.pixel_ray else ()
+        defines = tuple(extra) + (("PIXEL_RAY",) if self.r.pixel_ray and not extra else ())
         k = (name, defines)
         if k not in self._progs:
             prog = self.ctx.program(vertex_shader=with_defines(load_source(vertex), defines),
@@ -443,21 +448,25 @@ class Raster:
         self.ctx.disable(self.ctx.CULL_FACE)
         self._progs[key].render(self.ctx.TRIANGLES, vertices=int(verts.shape[0]))
 
-    def _spill(self, vp, cap: int, n_cull: int, n_keep: int) -> None:
-        prog = self._lit_program("spill", "raster_spill.vert", "lit.frag")
-        self._uniforms(prog, vp)
-        key = ("vao", id(prog))
-        if key not in self._progs:
-            self._progs[key] = self._track(self.ctx.vertex_array(prog, []), "raster.spill_vao")
-        vao = self._progs[key]
+    def _spill(self, vp, cap: int, n_spill: list) -> None:
+        """Draw the set-aside triangles: the lists of culling characters, other characters, the world."""
         self._bufs["spill"].bind_to_storage_buffer(4)
         self.r.fbo.use()
-        for first, n, cull in ((0, n_cull, True), (cap, n_keep, False)):
+        for lst, n in enumerate(n_spill):
             if not n:
                 continue
-            (self.ctx.enable if cull else self.ctx.disable)(self.ctx.CULL_FACE)
-            prog["u_first"].value = first
-            vao.render(self.ctx.TRIANGLES, vertices=3 * n)
+            world = lst == 2
+            prog = (self._lit_program("spill_world", "raster_spill.vert", "world_mesh.frag", ("RS_WORLD_SPILL",))
+                    if world else self._lit_program("spill", "raster_spill.vert", "lit.frag"))
+            self._uniforms(prog, vp)
+            if "u_tint" in prog:
+                prog["u_tint"].value = (0.0, 0.0, 0.0, 0.0)  # the debug colour rides in the vertex colour
+            key = ("vao", id(prog))
+            if key not in self._progs:
+                self._progs[key] = self._track(self.ctx.vertex_array(prog, []), "raster.spill_vao")
+            (self.ctx.enable if lst == 0 else self.ctx.disable)(self.ctx.CULL_FACE)
+            prog["u_first"].value = lst * cap
+            self._progs[key].render(self.ctx.TRIANGLES, vertices=3 * n)
         self.ctx.disable(self.ctx.CULL_FACE)
 
     #: pixels: a triangle whose window box is wider or taller goes to the hardware path ([render]

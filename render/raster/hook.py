@@ -47,7 +47,7 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
             continue
         if getattr(b, "morph", None) is not None or getattr(b, "fade", None) is not None:
             continue
-        m = raster.mesh(g, g.source)
+        m = raster.mesh(g.source, g.cull, g)
         if m is None:
             continue
         data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
@@ -77,3 +77,40 @@ def hardware_pieces(pieces, n_instances: int, h: int) -> list:
         if k > 0:
             out.append((f, k, c, j))
     return out
+
+
+def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
+    """Props and obstacle solids (the world drawer's mesh batches, ``lod.props``): (the batches the hardware
+    draws, each cut to its hardware instances, batches left with none dropped; the compute work, shaded as the
+    world: world_light.glsl, the batch's debug colour, no variation)."""
+    raster = renderer.raster
+    threshold = float(renderer.raster_threshold)
+    if not renderer.compute_raster or renderer.samples or not batches or threshold <= 0.0:
+        return batches, []
+    from render.tint import debug_word
+
+    threshold = min(threshold, MAX_THRESHOLD)
+    raster.threshold = threshold
+    proj = np.asarray(drawlist.proj, np.float64)
+    near = near_distance(proj)
+    height = int(renderer.size[1])
+    out, work = [], []
+    for b in batches:
+        rep = renderer.drawer("world")._reps[b.rep].get("rep")
+        m = raster.mesh(rep, False) if rep is not None and getattr(b, "fade", None) is None else None
+        data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
+        if m is None:
+            out.append(b)
+            continue
+        mask = np.ones(data.shape[0], bool) if raster.route_all else \
+            compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        ids = np.asarray(b.instance_ids)
+        if (~mask).any():
+            out.append(replace(b, instance_ids=ids[~mask], instance_data=data[~mask]) if mask.any() else b)
+        if mask.any():
+            first, count = ((int(b.index_range[0]) // 3, int(b.index_range[1]) // 3)
+                            if getattr(b, "index_range", None) is not None else (0, m.tris))
+            tints = np.zeros((int(mask.sum()), 2), np.uint32)
+            tints[:, 1] = debug_word(getattr(b, "tint", None))
+            work.append(Work(m, data[mask], tints, first, count, world=True))
+    return out, work

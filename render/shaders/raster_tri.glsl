@@ -5,7 +5,7 @@
 // Default (depth pass): one work group of 8 threads per job (an instance and up to RS_CHUNK of its
 // triangles), a thread per triangle. A triangle all of whose vertices lie outside one clip plane is culled;
 // one with a vertex behind the near plane, or whose window bounding box is wider or taller than u_max_extent
-// (fixed point), goes to the hardware path (the spill lists: one for culling instances, one for the others);
+// (fixed point), goes to the hardware path (the spill lists: culling characters, other characters, the world);
 // a back face of a culling instance and a degenerate triangle are culled; the others are rasterised: every
 // pixel centre of the bounding box inside the screen is tested with the three edge functions in integer
 // arithmetic (exact) with the fill rule llvmpipe applies to GL (a sample on an edge belongs to the triangle
@@ -22,14 +22,14 @@ layout(local_size_x = 8) in;
 uniform isampler2D u_screen;
 layout(std430, binding = 0) buffer Depth { uint depth[]; };
 layout(std430, binding = 1) buffer Ids { uint ids[]; };
-// [0] candidates, [1] spilled triangles of culling instances, [2] spilled triangles of the others
+// [0] candidates, [1..3] set-aside triangles of culling characters, other characters, the world
 layout(std430, binding = 2) buffer Counts { uint counts[]; };
 layout(std430, binding = 3) buffer Candidates { uint cand[]; };
 layout(std430, binding = 4) buffer Spill { uint spill[]; };
 uniform ivec2 u_size;
 uniform uint u_count;      // jobs (depth pass) or candidates (id pass)
 uniform int u_max_extent;  // most fixed-point units a rasterised triangle's box spans (threshold x 256)
-uniform uint u_spill_cap;  // entries of each half of Spill (the second half holds the non-culling list)
+uniform uint u_spill_cap;  // entries of each list in Spill (three lists one after another)
 #ifdef ID_PASS
 // one flag per RS_TILE x RS_TILE pixels: the tiles holding a won pixel, which the shading pass draws
 layout(std430, binding = 6) buffer Tiles { uint tiles[]; };
@@ -123,7 +123,7 @@ void triangle(uint item, uvec4 job, uint screen, uint flags) {
         aside = hi.x - lo.x > u_max_extent || hi.y - lo.y > u_max_extent;
     }
     if (aside) {
-        uint list = (flags & RS_CULL) != 0u ? 1u : 2u;
+        uint list = (flags & RS_WORLD) != 0u ? 3u : ((flags & RS_CULL) != 0u ? 1u : 2u);
         uint s = atomicAdd(counts[list], 1u);
         if (s < u_spill_cap) spill[(list - 1u) * u_spill_cap + s] = item;
         return;

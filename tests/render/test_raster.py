@@ -275,7 +275,7 @@ def test_non_finite_instance_data_never_reach_the_gpu(gl_ctx):
     rep = _rep(*_soup(np.random.default_rng(2), 10))
     with Renderer(SIZE, ctx=gl_ctx, debug=False) as r:
         r.upload(rep)
-        m = r.raster.mesh(r._reps[rep.key], rep)
+        m = r.raster.mesh(rep, False)
         rows = np.zeros((1, 16), np.float32)
         rows[0, [0, 5, 10]] = 1.0
         rows[0, 3] = np.nan
