@@ -38,7 +38,7 @@ def psnr(a, b) -> float:
     return float("inf") if mse == 0 else 10.0 * np.log10(255.0 ** 2 / mse)
 
 
-def run_scene(path: Path, mode: str | None, size, steps: int, frames: int) -> dict:
+def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thresholds=()) -> dict:
     from crowd.engine import Engine
     from crowd.report.settings import expand_settings
 
@@ -51,24 +51,126 @@ def run_scene(path: Path, mode: str | None, size, steps: int, frames: int) -> di
         cam = eng.camera_at(eng.world.time)
         dl = eng.select(cam, tuple(size))
         on = bool(r.compute_raster)
-        images, wall, cpu, share = {}, {True: [], False: []}, {True: [], False: []}, 0
+        scene_t = float(r.raster_threshold)
+        # variants: True = the scene's threshold, False = hardware only, a number = that threshold
+        variants = [True, False, *[float(t) for t in thresholds]]
+        images, share = {}, {}
+        wall = {v: [] for v in variants}
+        cpu = {v: [] for v in variants}
         for k in range(frames + 1):
-            for c in ((True, False) if k % 2 == 0 else (False, True)):
-                r.compute_raster = c and on
+            rot = k % len(variants)
+            for v in variants[rot:] + variants[:rot]:
+                r.compute_raster = on and v is not False
+                r.raster_threshold = scene_t if isinstance(v, bool) else v
                 t0, c0 = time.perf_counter(), time.process_time()
                 r.draw(dl, setting.scene.render.background)
                 t1, c1 = time.perf_counter(), time.process_time()
                 if k:
-                    wall[c].append(t1 - t0)
-                    cpu[c].append(c1 - c0)
+                    wall[v].append(t1 - t0)
+                    cpu[v].append(c1 - c0)
                 if k == frames:
-                    images[c] = r.read_pixels().copy()
-                if c:
-                    share = int(dl.stats.get("raster_triangles", 0))
+                    images[v] = r.read_pixels().copy()
+                share[v] = int(dl.stats.get("raster_triangles", 0))
+        r.raster_threshold = scene_t
         return {"mode": eng.scene.lod_mode if mode is None else mode, "psnr": psnr(images[True], images[False]),
-                "triangles": int(dl.stats.get("triangles", dl.triangles)), "raster": share,
+                "triangles": int(dl.stats.get("triangles", dl.triangles)) + int(dl.stats.get("props", 0)),
+                "raster": share[True], "share": share,
                 "cpu": {c: statistics.median(v) for c, v in cpu.items()},
-                "wall": {c: statistics.median(v) for c, v in wall.items()}}
+                "wall": {c: statistics.median(v) for c, v in wall.items()},
+                "psnr_t": {v: psnr(images[v], images[False]) for v in variants if not isinstance(v, bool)}}
+
+
+def peer_case(key: str, n: int, size, frames: int, models_dir: Path) -> dict:
+    """The crowd of scripts/bench_peer.py (model ``key`` x ``n``, its grid and camera) drawn in mode none by
+    the hardware path and by the compute rasteriser, round-robin: CPU and wall medians, PSNR, compute share."""
+    import tempfile
+
+    import bench_peer as bp
+
+    from crowd.engine import Engine
+    from crowd.scene import load_scene
+    from sim.gltf.load import load_gltf
+
+    path, desc = bp.model_paths(models_dir)[key]
+    if path is None:
+        return {"desc": desc, "skipped": True}
+    ch = load_gltf(path)
+    rest = np.asarray(ch.mesh.positions, np.float64)
+    sc = bp.scenario(float((rest.max(0) - rest.min(0)).max()), n)
+    with tempfile.TemporaryDirectory() as td:
+        sp = Path(td) / "s.toml"
+        sp.write_text(bp.scene_text(path.resolve(), ch.clip_names()[0], sc, size))
+        eng = Engine(load_scene(sp), quiet=True)
+    with eng:
+        r = eng._open_renderer()
+        eng.step()
+        dl = eng.select(eng.camera_at(eng.world.time), tuple(size))
+        variants = ("hardware", "compute raster alone")
+        wall = {v: [] for v in variants}
+        cpu = {v: [] for v in variants}
+        images, share = {}, 0
+        for k in range(frames + 1):
+            for v in (variants if k % 2 == 0 else variants[::-1]):
+                r.compute_raster = v != "hardware"
+                t0, c0 = time.perf_counter(), time.process_time()
+                r.draw(dl)
+                t1, c1 = time.perf_counter(), time.process_time()
+                if k:
+                    wall[v].append(t1 - t0)
+                    cpu[v].append(c1 - c0)
+                if k == frames:
+                    images[v] = r.read_pixels().copy()
+                if r.compute_raster:
+                    share = int(dl.stats.get("raster_triangles", 0))
+        return {"desc": desc, "n": n, "triangles": int(dl.triangles), "compute": share,
+                "psnr": psnr(images[variants[0]], images[variants[1]]),
+                "cpu": {v: statistics.median(x) for v, x in cpu.items()},
+                "wall": {v: statistics.median(x) for v, x in wall.items()}}
+
+
+RASTER_BEGIN = "<!-- bench_raster.py --peer-models: begin (rows of the compute rasteriser, issue 29) -->"
+RASTER_END = "<!-- bench_raster.py --peer-models: end -->"
+
+
+def write_full_detail_rows(md: Path, cases: list, command: str, start: str, end: str) -> None:
+    """Put the compute rasteriser's rows into scripts/bench_full_detail.md between the RASTER markers (that
+    section only: the rest of the file is scripts/bench_full_detail.py's), atomically."""
+    from lod.atomic_io import write_atomic
+
+    lines = [RASTER_BEGIN, "", "## Compute rasteriser of small triangles (issue 29; `scripts/bench_raster.py`)", "",
+             f"Command: `{command}`. The same crowds (bench_peer's grid and camera), mode none, drawn by the "
+             "shipped hardware path and with the compute rasteriser on (its skinning: every copy posed by "
+             "render/raster/poses.py until the pose cache lands), alternately; medians. PSNR: compute against "
+             "hardware.", "",
+             "| crowd | variant | CPU ms (median) | speed vs hardware, CPU | wall ms (median) | speed vs hardware, wall | "
+             "triangles in compute | PSNR vs hardware (dB) |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for c in cases:
+        if c.get("skipped"):
+            lines.append(f"| {c['desc']} | - | | | | | | |")
+            continue
+        h = "hardware"
+        for v in ("hardware", "compute raster alone"):
+            q = "-" if v == h else ("identical" if c["psnr"] == float("inf") else f"{c['psnr']:.1f}")
+            lines.append(f"| {c['desc']} x{c['n']:,} | {v} | {c['cpu'][v] * 1e3:.1f} | {c['cpu'][h] / c['cpu'][v]:.2f}x | "
+                         f"{c['wall'][v] * 1e3:.1f} | {c['wall'][h] / c['wall'][v]:.2f}x | "
+                         f"{(c['compute'] if v != h else 0):,} of {c['triangles']:,} | {q} |")
+    lines += ["", f"Machine at the start: {start}; at the end: {end}.", "", RASTER_END]
+    text = md.read_text() if md.is_file() else ""
+    if RASTER_BEGIN in text and RASTER_END in text:
+        a = text.index(RASTER_BEGIN)
+        b = text.index(RASTER_END) + len(RASTER_END)
+        text = text[:a] + "\n".join(lines) + text[b:]
+    else:
+        text = text.rstrip("\n") + "\n\n" + "\n".join(lines) + "\n"
+    write_atomic(md, text)
+
+
+def _sweep_text(sweep: list) -> str:
+    if not sweep:
+        return ""
+    return ("\n## The threshold (`--thresholds`): each value timed in the same rounds as the hardware path\n\n"
+            "| scene | mode | threshold px | compute | PSNR dB | CPU ms | CPU vs hardware | wall ms | wall vs hardware |\n"
+            "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n" + "\n".join(sweep) + "\n")
 
 
 def machine_note() -> str:
@@ -84,8 +186,32 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=[1280, 720])
     ap.add_argument("--steps", type=int, default=3)
     ap.add_argument("--frames", type=int, default=3)
+    ap.add_argument("--thresholds", type=float, nargs="*", default=[],
+                    help="also time these [render] raster_threshold values (pixels): the default's measurement")
     ap.add_argument("--out", type=Path, default=ROOT / "scripts" / "bench_raster.md")
+    ap.add_argument("--peer-models", nargs="+", choices=["h4", "h1", "fox", "cesiumman"],
+                    help="instead: bench_peer's crowds (h4, h1 x100, fox x1024), hardware vs compute, rows into "
+                         "scripts/bench_full_detail.md")
+    ap.add_argument("--models-dir", type=Path, default=ROOT / "out" / "bench_peer" / "models")
     args = ap.parse_args(argv)
+    if args.peer_models:
+        start = machine_note()
+        print(f"# start: {start}")
+        cases = []
+        for key in args.peer_models:
+            n = 1024 if key == "fox" else 100
+            c = peer_case(key, n, args.size, args.frames, args.models_dir)
+            cases.append(c)
+            if not c.get("skipped"):
+                print(f"{key} x{n}: hardware cpu {c['cpu']['hardware'] * 1e3:.1f} wall {c['wall']['hardware'] * 1e3:.1f}; "
+                      f"compute cpu {c['cpu']['compute raster alone'] * 1e3:.1f} "
+                      f"wall {c['wall']['compute raster alone'] * 1e3:.1f} ms; PSNR {c['psnr']:.1f}; "
+                      f"{c['compute']:,} of {c['triangles']:,} in compute", flush=True)
+        end = machine_note()
+        print(f"# end: {end}")
+        cmd = "scripts/bench_raster.py " + " ".join(sys.argv[1:] if argv is None else argv)
+        write_full_detail_rows(ROOT / "scripts" / "bench_full_detail.md", cases, cmd, start, end)
+        return 0
     if args.frames < 1 or args.steps < 0:
         print("bench_raster.py: --frames must be >= 1 and --steps >= 0", file=sys.stderr)
         return 2
@@ -99,11 +225,18 @@ def main(argv=None) -> int:
         paths.append(p)
     start = machine_note()
     print(f"# start: {start}")
-    rows = []
+    rows, sweep = [], []
     for p in paths:
         for mode in (args.modes or [None]):
             t0 = time.perf_counter()
-            r = run_scene(p, mode, args.size, args.steps, args.frames)
+            r = run_scene(p, mode, args.size, args.steps, args.frames, args.thresholds)
+            for t in args.thresholds:
+                sweep.append(f"| {p.stem} | {r['mode']} | {t:g} | {r['share'][t]:,} | {r['psnr_t'][t]:.1f} | "
+                             f"{r['cpu'][t] * 1e3:.1f} | {r['cpu'][False] / r['cpu'][t]:.2f}x | "
+                             f"{r['wall'][t] * 1e3:.1f} | {r['wall'][False] / r['wall'][t]:.2f}x |")
+                print(f"    threshold {t:g}: compute {r['share'][t]:,}  cpu {r['cpu'][t] * 1e3:.1f} ms "
+                      f"({r['cpu'][False] / r['cpu'][t]:.2f}x)  wall {r['wall'][t] * 1e3:.1f} ms "
+                      f"({r['wall'][False] / r['wall'][t]:.2f}x)", flush=True)
             q = "identical" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
             ratio_c = r["cpu"][False] / r["cpu"][True]
             ratio_w = r["wall"][False] / r["wall"][True]
@@ -133,7 +266,7 @@ alternately, {args.frames} timed draws each (medians). "compute" = triangles the
 {chr(10).join(r for r, _ in rows)}
 
 Worst PSNR: {'identical' if worst == float('inf') else f'{worst:.1f} dB'}. Machine at the start: {start}; at the end: {end}.
-"""
+{_sweep_text(sweep)}"""
     write_atomic(args.out, text)
     return 0
 

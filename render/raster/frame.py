@@ -204,6 +204,24 @@ class Raster:
         self._meshes[rep.key] = m
         return m
 
+    def _frame_triangles(self, work: list) -> None:
+        """Place the explicit triangles of this frame's work (cluster cuts) after the meshes' in the triangle
+        table (from the row after the last mesh row)."""
+        extra = [w for w in work if w.tris is not None]
+        if not extra:
+            return
+        base = -(-self._tris.shape[0] // tb.WIDTH) * tb.WIDTH
+        rows = np.concatenate([w.tris for w in extra])
+        at = base
+        for w in extra:
+            w.tri_abs = at
+            at += w.tris.shape[0]
+        if self.tri_table.rows < tb.rows_for(at):  # grown: the mesh rows are written again
+            self._dirty = True
+            self.tri_table.ensure(at)
+            self._upload_meshes()
+        self.tri_table.write(tb.triangle_rows(rows), base)
+
     def _upload_meshes(self) -> None:
         if not self._dirty:
             return
@@ -212,7 +230,7 @@ class Raster:
         full = np.zeros((self.mesh_table.rows * tb.WIDTH, 4), np.uint32)
         full[:n] = self._records.reshape(-1, 4)
         self.mesh_table.write(full)
-        self.tri_table.ensure(self._tris.shape[0])
+        self.tri_table.ensure(max(self._tris.shape[0], self.tri_table.rows * tb.WIDTH))
         full = np.zeros((self.tri_table.rows * tb.WIDTH, 4), np.uint32)
         full[:self._tris.shape[0]] = self._tris
         self.tri_table.write(full)
@@ -239,6 +257,7 @@ class Raster:
 
             self.last_passes, self._t = {}, time.perf_counter()
         self._upload_meshes()
+        self._frame_triangles(work)
         # one row per instance: batch index, rows, tints
         n = np.array([w.rows.shape[0] for w in work], np.int64)
         wi = np.repeat(np.arange(len(work)), n)
@@ -283,7 +302,7 @@ class Raster:
         vfirst = np.array([w.vfirst for w in work], np.int64)[wi]
         tfirst = np.array([w.first for w in work], np.int64)[wi]
         mesh_rec = np.array([m.record for m in meshes], np.int64)[wi]
-        mesh_tri = np.array([m.tri for m in meshes], np.int64)[wi]
+        mesh_tri = np.array([m.tri if w.tri_abs is None else w.tri_abs for m, w in zip(meshes, work)], np.int64)[wi]
         verts = np.array([m.verts for m in meshes], np.int64)[wi]
         screen = np.zeros(k, np.int64)
         np.cumsum(vcount[:-1], out=screen[1:])
@@ -477,14 +496,23 @@ class Raster:
 class Work:
     """Instances of one mesh part handed to the compute path: ``rows`` (k, 16) float32 instance data
     (lod.drawlist), ``tints`` (k, 2) uint32 colour words, triangles ``first .. first + count - 1`` of the mesh
-    using vertices ``vfirst .. vfirst + vcount - 1``; ``world``: shaded as props and obstacle solids."""
+    (or, given ``tris`` (count, 3): those triangles of the mesh's vertices, e.g. a cluster cut's, placed in the
+    frame's part of the triangle table) using vertices ``vfirst .. vfirst + vcount - 1``; ``world``: shaded as
+    props and obstacle solids."""
 
-    __slots__ = ("mesh", "rows", "tints", "first", "count", "vfirst", "vcount", "world")
+    __slots__ = ("mesh", "rows", "tints", "first", "count", "vfirst", "vcount", "world", "tris", "tri_abs")
 
-    def __init__(self, mesh, rows, tints, first: int, count: int, world: bool = False):
+    def __init__(self, mesh, rows, tints, first: int, count: int, world: bool = False, tris=None):
         self.mesh, self.rows, self.tints = mesh, np.asarray(rows, np.float32).reshape(-1, 16), tints
         self.first, self.count, self.world = int(first), int(count), bool(world)
-        self.vfirst, self.vcount = mesh.vertex_range(self.first, self.count)
+        self.tris = None if tris is None else np.asarray(tris, np.uint32).reshape(-1, 3)
+        self.tri_abs = None  # first row of ``tris`` in the triangle table (Raster.draw)
+        if self.tris is None:
+            self.vfirst, self.vcount = mesh.vertex_range(self.first, self.count)
+        else:
+            self.first, self.count = 0, int(self.tris.shape[0])
+            lo = int(self.tris.min()) if self.tris.size else 0
+            self.vfirst, self.vcount = lo, (int(self.tris.max()) - lo + 1 if self.tris.size else 0)
 
 
 def _windows(tcount, vcount, posed_texels, max_tris: int, max_texels: int) -> list:

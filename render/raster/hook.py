@@ -114,3 +114,60 @@ def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
             tints[:, 1] = debug_word(getattr(b, "tint", None))
             work.append(Work(m, data[mask], tints, first, count, world=True))
     return out, work
+
+
+def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
+    """VDR-AM cluster cuts (the clusters drawer's collected items, ``render/clusters.py``): (the items the
+    hardware draws, their compute rows removed; the compute work: per distinct cut of the compute rows, its
+    gathered triangles). Geomorphed rows, screen-door transitions and items with occlusion culling stay on
+    the hardware path."""
+    raster = renderer.raster
+    threshold = float(renderer.raster_threshold)
+    if (not renderer.compute_raster or renderer.samples or not items or threshold <= 0.0
+            or getattr(renderer.lighting, "_casting", False)):  # the shadow map's pass: every caster drawn there
+        return items, []
+    from types import SimpleNamespace
+
+    from render.cluster_cuts import PALETTE_SLOT_FLOAT, _sub_csr, gather, group_cuts
+
+    threshold = min(threshold, MAX_THRESHOLD)
+    raster.threshold = threshold
+    proj = np.asarray(drawlist.proj, np.float64)
+    near = near_distance(proj)
+    height = int(renderer.size[1])
+    out, work = [], []
+    for it in items:
+        g = it.st.skin
+        src = getattr(g, "source", None)
+        if it.program != "clusters" or tuple(it.fade) != (0.0, 0.0) or it.st.occlusion or src is None:
+            out.append(it)
+            continue
+        m = raster.mesh(src, g.cull, g)
+        mask = np.ones(it.k, bool) if raster.route_all else \
+            compute_mask(it.data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        if not mask.any():
+            out.append(it)
+            continue
+        sub = np.flatnonzero(mask)
+        offsets, clusters = _sub_csr(it.offsets, it.clusters, sub)
+        order, counts, first = group_cuts(offsets, clusters)
+        co = np.zeros(first.shape[0] + 1, np.int64)
+        np.cumsum(offsets[first + 1] - offsets[first], out=co[1:])
+        cc = _sub_csr(offsets, clusters, first)[1]
+        idx, ifirst = gather(it.st.flat, it.st.hierarchy.tri_start, co, cc)
+        tris = np.asarray(idx, np.uint32).reshape(-1, 3)
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        for gi in range(counts.shape[0]):
+            rows = sub[order[starts[gi]:starts[gi + 1]]]
+            t = tris[ifirst[gi] // 3:ifirst[gi + 1] // 3]
+            if t.shape[0]:
+                work.append(Work(m, it.data[rows], it.words[rows], 0, t.shape[0], tris=t))
+        keep = np.flatnonzero(~mask)
+        if keep.shape[0]:
+            offsets, clusters = _sub_csr(it.offsets, it.clusters, keep)
+            data = it.data[keep].copy()
+            data[:, PALETTE_SLOT_FLOAT] = np.arange(keep.shape[0], dtype=np.float32)
+            out.append(SimpleNamespace(**{**vars(it), "k": int(keep.shape[0]), "data": data, "words": it.words[keep],
+                                          "offsets": offsets, "clusters": clusters, "ids": it.ids[keep],
+                                          "part": it.part[keep], "first_row": it.first_row[keep]}))
+    return out, work

@@ -48,18 +48,20 @@ def frames(tmp_path_factory):
             for on in (True, False):
                 r.compute_raster = on
                 r.draw(dl, (0.1, 0.1, 0.12))
-                out[m, on] = (r.read_pixels().copy(), int(dl.stats["raster_triangles"]))
+                out[m, on] = (r.read_pixels().copy(), int(dl.stats["raster_triangles"]), int(dl.stats.get("props", 0)))
             r.compute_raster = True
     return out
 
 
 @pytest.mark.parametrize("mode", MODES)
 def test_every_mode_draws_the_same_frame_with_the_switch_on_and_off(frames, mode):
-    on, n_on = frames[mode, True]
-    off, n_off = frames[mode, False]
+    on, n_on, props = frames[mode, True]
+    off, n_off, _ = frames[mode, False]
     assert on.std() > 5
     assert _psnr(on, off) >= 45.0
-    assert n_off == 0 and n_on > 0  # the props at least (modes none and triangles: the characters too)
+    assert n_off == 0 and n_on > 0  # the props at least
+    if mode in ("none", "triangles", "clusters"):
+        assert n_on > props  # and characters: full detail, chain levels, cluster cuts
 
 
 def test_full_detail_goes_to_compute(frames):
