@@ -306,9 +306,11 @@ class Raster:
         verts = np.array([m.verts for m in meshes], np.int64)[wi]
         screen = np.zeros(k, np.int64)
         np.cumsum(vcount[:-1], out=screen[1:])
-        posed_n = np.where(kind == tb.POSED, vcount, 0)
-        posed = np.zeros(k, np.int64)
-        np.cumsum(posed_n[:-1], out=posed[1:])
+        # one pose slot per distinct (mesh, frame coordinate, vertex range): copies in the very same pose are
+        # skinned once (exact: no quantisation; the pose cache will share quantised poses)
+        from render.raster.poses import pose_slots
+
+        posed, posed_n, reps = pose_slots(kind == tb.POSED, mesh_rec, rows[:, 12], vfirst, vcount)
         wrap = lambda x: (np.asarray(x, np.int64) % (1 << 32)).astype(np.uint32)  # noqa: E731 (GLSL uint wraps)
         u = rows[:, 12]
         recs = tb.instance_records(rows, np.where(kind == tb.KEYFRAMED, u, 0.0), kind, flags, mesh_rec,
@@ -340,7 +342,7 @@ class Raster:
             from render.raster.poses import pose_pass
 
             self._mark("tables")
-            pose_pass(self, meshes, wi, rows, vcount, vfirst, kind)
+            pose_pass(self, meshes, wi, rows, vcount, vfirst, reps)
             self._mark("poses")
         # 2. vertex pass
         cs = self._compute("raster_vertex", (f"RS_VERTS_PER_THREAD {VERTS_PER_THREAD}",))

@@ -28,16 +28,42 @@ def skin_table(ctx, rep, track):
     return tex
 
 
-def pose_pass(raster, meshes, wi, rows, vcount, vfirst, kind) -> None:
-    """Skin every vertex of the window's skinned instances into the posed table (one dispatch per mesh)."""
+def pose_slots(posed, mesh, frame, vfirst, vcount) -> tuple:
+    """Pose slots of a window's instances: (first posed vertex of each instance (its slot's base: the slot
+    holds the instance's vertex range), posed vertices per slot (k,) with 0 for all but the first instance of a
+    slot, the instances that represent the slots). Instances of one mesh at the very same frame coordinate and
+    vertex range share a slot; ``posed`` (k,) bool marks the skinned instances."""
+    k = posed.shape[0]
+    base = np.zeros(k, np.int64)
+    n = np.zeros(k, np.int64)
+    sel = np.flatnonzero(posed)
+    if not sel.shape[0]:
+        return base, n, sel
+    key = np.stack([np.asarray(mesh, np.int64)[sel], np.ascontiguousarray(frame, np.float32)[sel].view(np.uint32),
+                    np.asarray(vfirst, np.int64)[sel], np.asarray(vcount, np.int64)[sel]], 1)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    reps = sel[np.sort(first)]
+    order = np.argsort(np.argsort(first))  # unique rows in order of first appearance
+    sizes = np.asarray(vcount, np.int64)[reps]
+    starts = np.zeros(reps.shape[0], np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    base[sel] = starts[order[inv]]
+    n[reps] = sizes
+    return base, n, reps
+
+
+def pose_pass(raster, meshes, wi, rows, vcount, vfirst, reps) -> None:
+    """Skin the window's pose slots (``reps``: the instance standing for each slot, its record naming the
+    slot) into the posed table, one dispatch per mesh."""
     from render.raster.frame import UNITS, VERTEX_JOB, VERTS_PER_THREAD, _vertex_jobs
     from render.targets import TARGETS_DEFINE, use_targets
 
     raster.posed_table.texture.bind_to_image(1, read=False, write=True)
     frame = np.ascontiguousarray(rows[:, 12], np.float32).view(np.uint32)
-    for b in np.unique(wi[kind == tb.POSED]):
+    for b in np.unique(wi[reps]):
         m = meshes[b]
-        sel = np.flatnonzero(wi == b)
+        sel = reps[wi[reps] == b]
         jobs = _vertex_jobs(vcount[sel], vfirst[sel])
         jobs[:, 3] = frame[sel][jobs[:, 0]]
         jobs[:, 0] = sel[jobs[:, 0]]
