@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import render.light as _light
-import render.raster.route as _raster
+import lod.raster_route as _raster
 from crowd.errors import SceneError
 from crowd.scene_props import PropSpec, parse_props  # noqa: F401 (PropSpec re-exported)
 from crowd.scene_variation import DEFAULT_VARIATION, VARIATION_SCHEMA, parse_variation  # noqa: F401

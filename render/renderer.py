@@ -70,7 +70,7 @@ from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.pixel_ray import write_pixel_ray
 from render.raster.hook import hardware_pieces
 from render.raster.hook import split as raster_split
-from render.raster.route import DEFAULT_THRESHOLD
+from lod.raster_route import DEFAULT_THRESHOLD
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
 from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes

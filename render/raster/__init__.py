@@ -3,7 +3,7 @@ rasterisation: Karis, Stubbe, Wihlidal, *Nanite, a deep dive*, SIGGRAPH 2021 Adv
 
 Why: on Mesa llvmpipe the vertex stage runs on one thread while compute shaders run on every core, and most
 triangles of a crowd are smaller than a pixel. A copy whose triangles are estimated below ``[render]
-raster_threshold`` pixels (``route``) is drawn by compute passes instead of the fixed-function pipeline:
+raster_threshold`` pixels (``lod/raster_route.py``) is drawn by compute passes instead of the fixed-function pipeline:
 
 1. vertex pass (``shaders/raster_vertex.glsl``): every used vertex of every copy to window coordinates in fixed
    point with 8 sub-pixel bits (llvmpipe's FIXED_ORDER), pixel centres on integers, its window depth and clip
@@ -35,7 +35,7 @@ one slot per distinct pose). A frame above a texture's size or a storage buffer'
 is cut into windows of whole copies, each through all passes (``frame``). Not taken by the compute path: MSAA
 renderers, geomorphed LOD levels, screen-door transitions, occlusion-culled cluster cuts, point splats' triangles.
 
-Modules, in data-flow order: ``route`` (which copies the compute path takes), ``tables`` (the CPU side of its
+Modules, in data-flow order (the routing rule is ``lod/raster_route.py``): ``tables`` (the CPU side of its
 textures), ``poses`` (posed vertices of skinned copies), ``frame`` (the ``Raster``: uploaded meshes, the per-frame
 passes, windows), ``hook`` (the renderer's, world drawer's and cluster drawer's side: splitting their instances
 between the paths).

@@ -26,7 +26,7 @@ import numpy as np
 
 from render.context import track
 from render.raster import tables as tb
-from render.raster.route import DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
+from lod.raster_route import DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
 from render.shaders import load_source, with_defines
 
 #: triangles per job (raster_common.glsl RS_LOG_CHUNK): a triangle's id is job * CHUNK + index, so a window

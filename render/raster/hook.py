@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from render.raster.frame import Work
-from render.raster.route import MAX_THRESHOLD, compute_mask, near_distance
+from lod.raster_route import MAX_THRESHOLD, compute_mask, near_distance
 from render.tint import batch_words
 
 

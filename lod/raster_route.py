@@ -1,4 +1,4 @@
-"""Which instances the compute rasteriser takes (Nanite's split of hardware and software rasterisation,
+"""Which instances the compute rasteriser (render/raster/) takes (Nanite's split of hardware and software rasterisation,
 made per instance here: an instance whose triangles are all small on screen is rasterised in compute, the
 others by the hardware path; inside the compute path every triangle is tested again, and one whose window
 box exceeds the threshold, or that crosses the near plane, goes to the hardware path after all).
@@ -6,6 +6,10 @@ box exceeds the threshold, or that crosses the near plane, goes to the hardware 
 A representation's triangle size is summarised once (:func:`triangle_extent`: a high percentile of its
 triangles' largest model-space extent, over the bind or first-keyframe pose); an instance's estimate is that
 size scaled by the instance's scale and projected at the distance of the nearest point of its bounding sphere.
+
+It lives in ``lod`` (plain numpy, no GL) so that the LOD layer can predict the split the renderer will make
+(mode auto's cost model prices the two paths' triangles apart; ``DrawList.stats["raster_triangles"]`` is the
+renderer's count after the draw).
 """
 from __future__ import annotations
 
@@ -50,7 +54,7 @@ def compute_mask(rows, extent: float, radius: float, centre, proj, height: int, 
     focal = 0.5 * float(height) * abs(float(np.asarray(proj)[1, 1]))
     with np.errstate(divide="ignore", invalid="ignore"):
         px = extent * scale * focal / dist
-    return np.isfinite(px) & (dist > 2.0 * near) & (px <= threshold)
+    return np.isfinite(px) & np.isfinite(dist) & (dist > 2.0 * near) & (px <= threshold)
 
 
 def near_distance(proj) -> float:
