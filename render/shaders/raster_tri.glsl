@@ -79,14 +79,20 @@ void rasterise(uint item, uint flags, ivec4 a, ivec4 b, ivec4 c) {
     float d1 = z1 - z0;
     float d2 = z2 - z0;
     bool wrote = false;
+    // edge values at the first pixel centre of the box, stepped exactly in integers: +256 * (-dy) per pixel
+    // along x and +256 * dx per row (raster_reference.py evaluates each pixel afresh: the same integers)
+    ivec2 p0 = (lo << 8) - a.xy;
+    ivec3 row = ivec3(edge(f1, f2, p0), edge(f2, f0, p0), edge(f0, f1, p0));
+    ivec3 sx = ivec3(f1.y - f2.y, f2.y - f0.y, f0.y - f1.y) << 8;
+    ivec3 sy = ivec3(f2.x - f1.x, f0.x - f2.x, f1.x - f0.x) << 8;
+    ivec3 bias = ivec3(bias0, bias1, bias2);
     for (int y = lo.y; y <= hi.y; ++y) {
-        for (int x = lo.x; x <= hi.x; ++x) {
-            ivec2 p = (ivec2(x, y) << 8) - a.xy;
-            int w0 = edge(f1, f2, p);
-            int w1 = edge(f2, f0, p);
-            int w2 = edge(f0, f1, p);
-            if (((w0 + bias0) | (w1 + bias1) | (w2 + bias2)) < 0) continue;
-            float z = z0 + (float(w1) * d1 + float(w2) * d2) * inv;
+        ivec3 w = row;
+        row += sy;
+        for (int x = lo.x; x <= hi.x; ++x, w += sx) {
+            ivec3 wb = w + bias;
+            if ((wb.x | wb.y | wb.z) < 0) continue;
+            float z = z0 + (float(w.y) * d1 + float(w.z) * d2) * inv;
             if (!(z >= 0.0 && z <= 1.0)) continue;  // beyond the far plane (near: the hardware path)
             uint key = floatBitsToUint(z);
             uint at = uint(y * u_size.x + x);
