@@ -100,8 +100,8 @@ RENDER_SCHEMA = {
     "png_every": Param("int", 0, min=0, doc="write every k-th frame as PNG; 0 = none"),
     "ground": Param("bool", True, doc="draw the ground plane and its grid (not with [terrain]: it is the ground)"),
     "raster_threshold": Param("float", _raster.DEFAULT_THRESHOLD, min=0.0, max=_raster.MAX_THRESHOLD,
-                              doc="pixels: triangles at most this wide and tall on screen are rasterised in "
-                                  "compute (render/raster/); 0 = the hardware path only"),
+                              doc="pixels: copies whose triangles are at most this large on screen are "
+                                  "rasterised in compute (render/raster/); 0 = the hardware path only"),
     **LIGHT_SCHEMA,  # the directional light and the shadows (render.light, render.shadows)
 }
 SIZE_RANGE = (16, 8192)

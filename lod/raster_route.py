@@ -15,9 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-#: default [render] raster_threshold (pixels): triangles whose window box is at most this wide and tall are
-#: rasterised in compute (the measurement behind the value: render/raster/__init__.py)
-DEFAULT_THRESHOLD = 8.0
+#: default [render] raster_threshold (pixels): copies whose triangles' 90th-percentile window extent is at most
+#: this go to the compute rasteriser. Measured (scripts/bench_raster_sizes.md, a static 3,000-triangle humanoid,
+#: both paths alternately, loaded 2-core machine): compute / hardware CPU 1.76x faster at 0.5 px, 1.53x at 1 px,
+#: 1.15x at 2 px, 0.81x at 4 px, 0.42x at 8 px: the crossover lies between 2 and 4 px
+DEFAULT_THRESHOLD = 2.0
+#: inside the compute path a triangle goes back to the hardware when its window box is wider or taller than
+#: this many thresholds (a few larger triangles of a small copy cost less rasterised in compute than drawn by
+#: the vertex-pulling hardware draw)
+ASIDE_FACTOR = 4.0
 #: largest threshold (pixels): the edge functions of a triangle within it stay below 2^31 (raster_tri.glsl)
 MAX_THRESHOLD = 64.0
 #: percentile of the triangles' extents that must fall below the threshold for an instance to go to compute

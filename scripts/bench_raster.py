@@ -52,16 +52,16 @@ def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thres
         dl = eng.select(cam, tuple(size))
         on = bool(r.compute_raster)
         scene_t = float(r.raster_threshold)
-        # variants: True = the scene's threshold, False = hardware only, a number = that threshold
-        variants = [True, False, *[float(t) for t in thresholds]]
+        # variants: "scene" = the scene's threshold, "hardware" = hardware only, a number = that threshold
+        variants = ["scene", "hardware", *[float(t) for t in thresholds]]
         images, share = {}, {}
         wall = {v: [] for v in variants}
         cpu = {v: [] for v in variants}
         for k in range(frames + 1):
             rot = k % len(variants)
             for v in variants[rot:] + variants[:rot]:
-                r.compute_raster = on and v is not False
-                r.raster_threshold = scene_t if isinstance(v, bool) else v
+                r.compute_raster = on and v != "hardware"
+                r.raster_threshold = scene_t if isinstance(v, str) else v
                 t0, c0 = time.perf_counter(), time.process_time()
                 r.draw(dl, setting.scene.render.background)
                 t1, c1 = time.perf_counter(), time.process_time()
@@ -72,12 +72,13 @@ def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thres
                     images[v] = r.read_pixels().copy()
                 share[v] = int(dl.stats.get("raster_triangles", 0))
         r.raster_threshold = scene_t
-        return {"mode": eng.scene.lod_mode if mode is None else mode, "psnr": psnr(images[True], images[False]),
-                "triangles": int(dl.stats.get("triangles", dl.triangles)) + int(dl.stats.get("props", 0)),
-                "raster": share[True], "share": share,
-                "cpu": {c: statistics.median(v) for c, v in cpu.items()},
-                "wall": {c: statistics.median(v) for c, v in wall.items()},
-                "psnr_t": {v: psnr(images[v], images[False]) for v in variants if not isinstance(v, bool)}}
+        out = {"mode": eng.scene.lod_mode if mode is None else mode, "psnr": psnr(images["scene"], images["hardware"]),
+               "triangles": int(dl.stats.get("triangles", dl.triangles)) + int(dl.stats.get("props", 0)),
+               "raster": share["scene"], "share": share,
+               "cpu": {c: statistics.median(v) for c, v in cpu.items()},
+               "wall": {c: statistics.median(v) for c, v in wall.items()},
+               "psnr_t": {v: psnr(images[v], images["hardware"]) for v in variants if not isinstance(v, str)}}
+        return out
 
 
 def peer_case(key: str, n: int, size, frames: int, models_dir: Path) -> dict:
@@ -126,6 +127,67 @@ def peer_case(key: str, n: int, size, frames: int, models_dir: Path) -> dict:
                 "psnr": psnr(images[variants[0]], images[variants[1]]),
                 "cpu": {v: statistics.median(x) for v, x in cpu.items()},
                 "wall": {v: statistics.median(x) for v, x in wall.items()}}
+
+
+def size_sweep(sizes, size, frames: int, triangles: int = 3000) -> list:
+    """The cost of a triangle on each path as its size on screen grows: a static humanoid of ``triangles``
+    triangles (the posed mesh the pose cache hands both paths) on a grid facing the camera at the distance
+    where its triangles' 90th-percentile window extent is ``s`` pixels (lod/raster_route.py), as many copies as
+    fit the view (at most 400); the hardware path and the compute path (every copy routed to it, threshold 64
+    px) drawn alternately. Returns rows (s, copies, triangles, candidates, hardware and compute CPU / wall ms)."""
+    import lod.raster_route as rr
+    from lod.drawlist import DrawBatch, DrawList
+    from lod.full.reps import build_static_rep
+    from lod.view import Camera
+    from render.renderer import Renderer
+    from sim.procedural import humanoid
+
+    rep = build_static_rep(humanoid(triangles, 5).mesh, key="sweep")
+    ext, radius, centre = rr.triangle_extent(rep.positions, rep.indices)
+    w, h = size
+    fov = 50.0
+    focal = 0.5 * h / np.tan(np.radians(fov / 2))
+    height = float(rep.aabb[1, 1] - rep.aabb[0, 1])
+    rows_out = []
+    with Renderer(size) as r:
+        r.upload(rep)
+        cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=fov, near=0.05, far=5000.0)
+        view, proj = cam.view_matrix(), cam.projection(w / h)
+        for s in sizes:
+            d = ext * focal / s + radius  # the nearest point of the sphere at extent/d = s px
+            span_y = 2 * d * np.tan(np.radians(fov / 2))
+            spacing = 1.1 * height
+            ny = max(1, min(20, int(span_y / spacing)))
+            nx = max(1, min(20, int(span_y * w / h / spacing)))
+            gx, gy = np.meshgrid((np.arange(nx) - (nx - 1) / 2) * spacing, (np.arange(ny) - (ny - 1) / 2) * spacing)
+            k = gx.size
+            data = np.zeros((k, 16), np.float32)
+            data[:, [0, 5, 10]] = 1.0
+            data[:, 3] = gx.ravel()
+            data[:, 7] = gy.ravel() - centre[1]
+            data[:, 11] = -d
+            dl = DrawList(np.zeros(3), view, proj, size, [DrawBatch("sweep", 0, np.arange(k, dtype=np.int32), data,
+                                                                    triangles=k * rep.n_triangles)])
+            cpu = {"hardware": [], "compute": []}
+            wall = {"hardware": [], "compute": []}
+            for i in range(frames + 1):
+                for v in (("hardware", "compute") if i % 2 else ("compute", "hardware")):
+                    r.compute_raster = v == "compute"
+                    r.raster.route_all = True
+                    r.raster_threshold = rr.MAX_THRESHOLD
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    r.draw(dl)
+                    t1, c1 = time.perf_counter(), time.process_time()
+                    if i:
+                        cpu[v].append(c1 - c0)
+                        wall[v].append(t1 - t0)
+            cand = r.raster.last_counts.get("candidates", 0)
+            row = (s, k, k * rep.n_triangles, cand, *(statistics.median(cpu[v]) * 1e3 for v in ("hardware", "compute")),
+                   *(statistics.median(wall[v]) * 1e3 for v in ("hardware", "compute")))
+            print(f"  {s:5g} px: {k:4d} copies {row[2]:>10,} triangles  CPU hardware {row[4]:7.1f} compute {row[5]:7.1f} ms "
+                  f"({row[4] / row[5]:.2f}x)  wall {row[6]:7.1f} / {row[7]:7.1f} ms ({row[6] / row[7]:.2f}x)", flush=True)
+            rows_out.append(row)
+    return rows_out
 
 
 RASTER_BEGIN = "<!-- bench_raster.py --peer-models: begin (rows of the compute rasteriser, issue 29) -->"
@@ -193,7 +255,33 @@ def main(argv=None) -> int:
                     help="instead: bench_peer's crowds (h4, h1 x100, fox x1024), hardware vs compute, rows into "
                          "scripts/bench_full_detail.md")
     ap.add_argument("--models-dir", type=Path, default=ROOT / "out" / "bench_peer" / "models")
+    ap.add_argument("--sizes", type=float, nargs="*", default=[],
+                    help="instead: the triangle-size sweep behind the default threshold (pixels of triangle extent)")
     args = ap.parse_args(argv)
+    if args.sizes:
+        start = machine_note()
+        print(f"# start: {start}")
+        rows = size_sweep(args.sizes, tuple(args.size), args.frames)
+        end = machine_note()
+        print(f"# end: {end}")
+        from lod.atomic_io import write_atomic
+
+        cmd = "scripts/bench_raster.py " + " ".join(sys.argv[1:] if argv is None else argv)
+        table = "\n".join(f"| {s:g} | {k:,} | {t:,} | {c:,} | {hc:.1f} | {cc:.1f} | {hc / cc:.2f}x | {hw:.1f} | {cw:.1f} | "
+                          f"{hw / cw:.2f}x |" for s, k, t, c, hc, cc, hw, cw in rows)
+        write_atomic(args.out, f"""# Compute rasteriser: the cost of a triangle by its size on screen (issue 29)
+
+Command: `{cmd}`. A static 3,000-triangle humanoid on a grid facing the camera at the distance where its
+triangles' 90th-percentile window extent is the given size; both paths alternately ({args.frames} timed draws each,
+medians; the compute path takes every copy, threshold 64 px). "x" > 1: the compute path is faster.
+
+| triangle extent px | copies | triangles | compute candidates | CPU ms hardware | CPU ms compute | CPU | wall ms hardware | wall ms compute | wall |
+| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |
+{table}
+
+Machine at the start: {start}; at the end: {end}.
+""")
+        return 0
     if args.peer_models:
         start = machine_note()
         print(f"# start: {start}")
@@ -232,21 +320,21 @@ def main(argv=None) -> int:
             r = run_scene(p, mode, args.size, args.steps, args.frames, args.thresholds)
             for t in args.thresholds:
                 sweep.append(f"| {p.stem} | {r['mode']} | {t:g} | {r['share'][t]:,} | {r['psnr_t'][t]:.1f} | "
-                             f"{r['cpu'][t] * 1e3:.1f} | {r['cpu'][False] / r['cpu'][t]:.2f}x | "
-                             f"{r['wall'][t] * 1e3:.1f} | {r['wall'][False] / r['wall'][t]:.2f}x |")
+                             f"{r['cpu'][t] * 1e3:.1f} | {r['cpu']['hardware'] / r['cpu'][t]:.2f}x | "
+                             f"{r['wall'][t] * 1e3:.1f} | {r['wall']['hardware'] / r['wall'][t]:.2f}x |")
                 print(f"    threshold {t:g}: compute {r['share'][t]:,}  cpu {r['cpu'][t] * 1e3:.1f} ms "
-                      f"({r['cpu'][False] / r['cpu'][t]:.2f}x)  wall {r['wall'][t] * 1e3:.1f} ms "
-                      f"({r['wall'][False] / r['wall'][t]:.2f}x)", flush=True)
+                      f"({r['cpu']['hardware'] / r['cpu'][t]:.2f}x)  wall {r['wall'][t] * 1e3:.1f} ms "
+                      f"({r['wall']['hardware'] / r['wall'][t]:.2f}x)", flush=True)
             q = "identical" if r["psnr"] == float("inf") else f"{r['psnr']:.1f}"
-            ratio_c = r["cpu"][False] / r["cpu"][True]
-            ratio_w = r["wall"][False] / r["wall"][True]
+            ratio_c = r["cpu"]['hardware'] / r["cpu"]['scene']
+            ratio_w = r["wall"]['hardware'] / r["wall"]['scene']
             rows.append(f"| {p.stem} | {r['mode']} | {r['triangles']:,} | {r['raster']:,} | {q} | "
-                        f"{r['cpu'][False] * 1e3:.1f} | {r['cpu'][True] * 1e3:.1f} | {ratio_c:.2f}x | "
-                        f"{r['wall'][False] * 1e3:.1f} | {r['wall'][True] * 1e3:.1f} | {ratio_w:.2f}x |")
+                        f"{r['cpu']['hardware'] * 1e3:.1f} | {r['cpu']['scene'] * 1e3:.1f} | {ratio_c:.2f}x | "
+                        f"{r['wall']['hardware'] * 1e3:.1f} | {r['wall']['scene'] * 1e3:.1f} | {ratio_w:.2f}x |")
             rows[-1] = (rows[-1], r["psnr"])
             print(f"{p.stem:12s} {r['mode']:9s} tris {r['triangles']:>11,} compute {r['raster']:>11,}  PSNR {q:>9s}  "
-                  f"cpu {r['cpu'][False] * 1e3:7.1f} -> {r['cpu'][True] * 1e3:7.1f} ms ({ratio_c:.2f}x)  "
-                  f"wall {r['wall'][False] * 1e3:7.1f} -> {r['wall'][True] * 1e3:7.1f} ms ({ratio_w:.2f}x)  "
+                  f"cpu {r['cpu']['hardware'] * 1e3:7.1f} -> {r['cpu']['scene'] * 1e3:7.1f} ms ({ratio_c:.2f}x)  "
+                  f"wall {r['wall']['hardware'] * 1e3:7.1f} -> {r['wall']['scene'] * 1e3:7.1f} ms ({ratio_w:.2f}x)  "
                   f"[{time.perf_counter() - t0:.0f} s]", flush=True)
     end = machine_note()
     print(f"# end: {end}")

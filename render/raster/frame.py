@@ -26,7 +26,7 @@ import numpy as np
 
 from render.context import track
 from render.raster import tables as tb
-from lod.raster_route import DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
+from lod.raster_route import ASIDE_FACTOR, DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
 from render.shaders import load_source, with_defines
 
 #: triangles per job (raster_common.glsl RS_LOG_CHUNK): a triangle's id is job * CHUNK + index, so a window
@@ -374,7 +374,7 @@ class Raster:
         self._samplers(cs)
         cs["u_size"].value = (w, h)
         cs["u_count"].value = int(jobs.shape[0])
-        cs["u_max_extent"].value = int(round(self.threshold * 256.0))
+        cs["u_max_extent"].value = int(round(min(MAX_THRESHOLD, ASIDE_FACTOR * self.threshold) * 256.0))
         cs["u_spill_cap"].value = ntri
         ctx.memory_barrier()
         self._dispatch(cs, int(jobs.shape[0]))
@@ -490,8 +490,8 @@ class Raster:
             self._progs[key].render(self.ctx.TRIANGLES, vertices=3 * n)
         self.ctx.disable(self.ctx.CULL_FACE)
 
-    #: pixels: a triangle whose window box is wider or taller goes to the hardware path ([render]
-    #: raster_threshold; measured default: render/raster/__init__.py)
+    #: pixels ([render] raster_threshold, lod/raster_route.py): a triangle whose window box is wider or taller
+    #: than ASIDE_FACTOR times it goes to the hardware path
     threshold = DEFAULT_THRESHOLD
 
 
