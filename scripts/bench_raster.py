@@ -38,6 +38,33 @@ def psnr(a, b) -> float:
     return float("inf") if mse == 0 else 10.0 * np.log10(255.0 ** 2 / mse)
 
 
+def alternate(r, dl, variants, setup, frames: int, background=(0.1, 0.1, 0.12)) -> dict:
+    """Draw ``dl`` with each variant in turn (``setup(v)`` configures the renderer ``r``; the order rotated every
+    round), ``frames`` timed rounds after a warm-up. Returns {"cpu", "wall": variant -> median seconds,
+    "images": variant -> the last image, "share": variant -> stats["raster_triangles"], "counts": variant -> the
+    rasteriser's last counts}."""
+    cpu = {v: [] for v in variants}
+    wall = {v: [] for v in variants}
+    images, share, counts = {}, {}, {}
+    for k in range(frames + 1):
+        rot = k % len(variants)
+        for v in variants[rot:] + variants[:rot]:
+            setup(v)
+            t0, c0 = time.perf_counter(), time.process_time()
+            r.draw(dl, background)
+            t1, c1 = time.perf_counter(), time.process_time()
+            if k:
+                wall[v].append(t1 - t0)
+                cpu[v].append(c1 - c0)
+            if k == frames:
+                images[v] = r.read_pixels().copy()
+            share[v] = int(dl.stats.get("raster_triangles", 0))
+            counts[v] = dict(r.raster.last_counts) if r.compute_raster else {}
+    return {"cpu": {v: statistics.median(x) for v, x in cpu.items()},
+            "wall": {v: statistics.median(x) for v, x in wall.items()}, "images": images, "share": share,
+            "counts": counts}
+
+
 def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thresholds=()) -> dict:
     from crowd.engine import Engine
     from crowd.report.settings import expand_settings
@@ -54,29 +81,17 @@ def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thres
         scene_t = float(r.raster_threshold)
         # variants: "scene" = the scene's threshold, "hardware" = hardware only, a number = that threshold
         variants = ["scene", "hardware", *[float(t) for t in thresholds]]
-        images, share = {}, {}
-        wall = {v: [] for v in variants}
-        cpu = {v: [] for v in variants}
-        for k in range(frames + 1):
-            rot = k % len(variants)
-            for v in variants[rot:] + variants[:rot]:
-                r.compute_raster = on and v != "hardware"
-                r.raster_threshold = scene_t if isinstance(v, str) else v
-                t0, c0 = time.perf_counter(), time.process_time()
-                r.draw(dl, setting.scene.render.background)
-                t1, c1 = time.perf_counter(), time.process_time()
-                if k:
-                    wall[v].append(t1 - t0)
-                    cpu[v].append(c1 - c0)
-                if k == frames:
-                    images[v] = r.read_pixels().copy()
-                share[v] = int(dl.stats.get("raster_triangles", 0))
+
+        def setup(v):
+            r.compute_raster = on and v != "hardware"
+            r.raster_threshold = scene_t if isinstance(v, str) else v
+
+        t = alternate(r, dl, variants, setup, frames, setting.scene.render.background)
         r.raster_threshold = scene_t
+        images, share = t["images"], t["share"]
         out = {"mode": eng.scene.lod_mode if mode is None else mode, "psnr": psnr(images["scene"], images["hardware"]),
                "triangles": int(dl.stats.get("triangles", dl.triangles)) + int(dl.stats.get("props", 0)),
-               "raster": share["scene"], "share": share,
-               "cpu": {c: statistics.median(v) for c, v in cpu.items()},
-               "wall": {c: statistics.median(v) for c, v in wall.items()},
+               "raster": share["scene"], "share": share, "cpu": t["cpu"], "wall": t["wall"],
                "psnr_t": {v: psnr(images[v], images["hardware"]) for v in variants if not isinstance(v, str)}}
         return out
 
@@ -107,26 +122,12 @@ def peer_case(key: str, n: int, size, frames: int, models_dir: Path) -> dict:
         eng.step()
         dl = eng.select(eng.camera_at(eng.world.time), tuple(size))
         variants = ("hardware", "compute raster alone")
-        wall = {v: [] for v in variants}
-        cpu = {v: [] for v in variants}
-        images, share = {}, 0
-        for k in range(frames + 1):
-            for v in (variants if k % 2 == 0 else variants[::-1]):
-                r.compute_raster = v != "hardware"
-                t0, c0 = time.perf_counter(), time.process_time()
-                r.draw(dl)
-                t1, c1 = time.perf_counter(), time.process_time()
-                if k:
-                    wall[v].append(t1 - t0)
-                    cpu[v].append(c1 - c0)
-                if k == frames:
-                    images[v] = r.read_pixels().copy()
-                if r.compute_raster:
-                    share = int(dl.stats.get("raster_triangles", 0))
+        t = alternate(r, dl, variants, lambda v: setattr(r, "compute_raster", v != "hardware"), frames,
+                      eng.scene.render.background)
+        images, share, cpu, wall = t["images"], t["share"][variants[1]], t["cpu"], t["wall"]
         return {"desc": desc, "n": n, "triangles": int(dl.triangles), "compute": share,
                 "psnr": psnr(images[variants[0]], images[variants[1]]),
-                "cpu": {v: statistics.median(x) for v, x in cpu.items()},
-                "wall": {v: statistics.median(x) for v, x in wall.items()}}
+                "cpu": cpu, "wall": wall}
 
 
 def size_sweep(sizes, size, frames: int, triangles: int = 3000) -> list:
@@ -168,22 +169,15 @@ def size_sweep(sizes, size, frames: int, triangles: int = 3000) -> list:
             data[:, 11] = -d
             dl = DrawList(np.zeros(3), view, proj, size, [DrawBatch("sweep", 0, np.arange(k, dtype=np.int32), data,
                                                                     triangles=k * rep.n_triangles)])
-            cpu = {"hardware": [], "compute": []}
-            wall = {"hardware": [], "compute": []}
-            for i in range(frames + 1):
-                for v in (("hardware", "compute") if i % 2 else ("compute", "hardware")):
-                    r.compute_raster = v == "compute"
-                    r.raster.route_all = True
-                    r.raster_threshold = rr.MAX_THRESHOLD
-                    t0, c0 = time.perf_counter(), time.process_time()
-                    r.draw(dl)
-                    t1, c1 = time.perf_counter(), time.process_time()
-                    if i:
-                        cpu[v].append(c1 - c0)
-                        wall[v].append(t1 - t0)
-            cand = r.raster.last_counts.get("candidates", 0)
-            row = (s, k, k * rep.n_triangles, cand, *(statistics.median(cpu[v]) * 1e3 for v in ("hardware", "compute")),
-                   *(statistics.median(wall[v]) * 1e3 for v in ("hardware", "compute")))
+            def setup(v):
+                r.compute_raster = v == "compute"
+                r.raster.route_all = True
+                r.raster_threshold = rr.MAX_THRESHOLD
+
+            t = alternate(r, dl, ("compute", "hardware"), setup, frames)
+            cand = t["counts"]["compute"].get("candidates", 0)
+            row = (s, k, k * rep.n_triangles, cand, *(t["cpu"][v] * 1e3 for v in ("hardware", "compute")),
+                   *(t["wall"][v] * 1e3 for v in ("hardware", "compute")))
             print(f"  {s:5g} px: {k:4d} copies {row[2]:>10,} triangles  CPU hardware {row[4]:7.1f} compute {row[5]:7.1f} ms "
                   f"({row[4] / row[5]:.2f}x)  wall {row[6]:7.1f} / {row[7]:7.1f} ms ({row[6] / row[7]:.2f}x)", flush=True)
             rows_out.append(row)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from render.context import track
+from render.context import release_all, track
 from render.raster import tables as tb
 from lod.raster_route import ASIDE_FACTOR, DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
 from render.shaders import load_source, with_defines
@@ -163,12 +163,7 @@ class Raster:
         return b
 
     def release(self) -> None:
-        for o in reversed(self._objects):
-            try:
-                o.release()
-            except Exception:  # pragma: no cover - released with the context
-                pass
-        self._objects.clear()
+        release_all(self._objects)
         self._progs.clear()
         self._bufs.clear()
         self._meshes.clear()

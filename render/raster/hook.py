@@ -28,18 +28,34 @@ def triangle_range(g, b) -> tuple[int, int]:
     return 0, int(g.default_count) // 3
 
 
+def _routing(renderer, items, drawlist):
+    """(raster, threshold, proj, near distance, height) of this frame's routing, or None when the compute path
+    takes nothing (switched off, threshold 0, MSAA, nothing to draw, or the shadow map's pass)."""
+    threshold = float(renderer.raster_threshold)
+    if (not renderer.compute_raster or renderer.samples or not items or threshold <= 0.0
+            or getattr(renderer.lighting, "_casting", False)):  # the shadow map's pass: every caster drawn there
+        return None
+    raster = renderer.raster
+    raster.threshold = min(threshold, MAX_THRESHOLD)
+    proj = np.asarray(drawlist.proj, np.float64)
+    return raster, raster.threshold, proj, near_distance(proj), int(renderer.size[1])
+
+
+def _mask(raster, m, data, route) -> np.ndarray:
+    """(k,) bool: the copies (rows ``data``) of mesh ``m`` the compute path takes."""
+    _, threshold, proj, near, height = route
+    if raster.route_all:
+        return np.ones(data.shape[0], bool)
+    return compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+
+
 def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
     """(batches, hardware counts, work): the batches with each eligible one's hardware instances first, batch
     index -> how many instances the hardware draws (eligible batches only), and the compute work."""
-    raster = renderer.raster
-    threshold = float(renderer.raster_threshold)
-    if not renderer.compute_raster or renderer.samples or not batches or threshold <= 0.0:
+    route = _routing(renderer, batches, drawlist)
+    if route is None:
         return batches, {}, []
-    threshold = min(threshold, MAX_THRESHOLD)
-    raster.threshold = threshold
-    proj = np.asarray(drawlist.proj, np.float64)
-    near = near_distance(proj)
-    height = int(renderer.size[1])
+    raster = route[0]
     out, hw, work = list(batches), {}, []
     for i, b in enumerate(batches):
         g = renderer._reps[b.rep]
@@ -51,8 +67,7 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         if m is None:
             continue
         data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
-        mask = np.ones(data.shape[0], bool) if raster.route_all else \
-            compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        mask = _mask(raster, m, data, route)
         if not mask.any():
             continue
         ids = np.asarray(b.instance_ids)
@@ -83,17 +98,12 @@ def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
     """Props and obstacle solids (the world drawer's mesh batches, ``lod.props``): (the batches the hardware
     draws, each cut to its hardware instances, batches left with none dropped; the compute work, shaded as the
     world: world_light.glsl, the batch's debug colour, no variation)."""
-    raster = renderer.raster
-    threshold = float(renderer.raster_threshold)
-    if not renderer.compute_raster or renderer.samples or not batches or threshold <= 0.0:
+    route = _routing(renderer, batches, drawlist)
+    if route is None:
         return batches, []
     from render.tint import debug_word
 
-    threshold = min(threshold, MAX_THRESHOLD)
-    raster.threshold = threshold
-    proj = np.asarray(drawlist.proj, np.float64)
-    near = near_distance(proj)
-    height = int(renderer.size[1])
+    raster = route[0]
     out, work = [], []
     for b in batches:
         rep = renderer.drawer("world")._reps[b.rep].get("rep")
@@ -102,8 +112,7 @@ def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
         if m is None:
             out.append(b)
             continue
-        mask = np.ones(data.shape[0], bool) if raster.route_all else \
-            compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        mask = _mask(raster, m, data, route)
         ids = np.asarray(b.instance_ids)
         if (~mask).any():
             out.append(replace(b, instance_ids=ids[~mask], instance_data=data[~mask]) if mask.any() else b)
@@ -121,20 +130,14 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
     hardware draws, their compute rows removed; the compute work: per distinct cut of the compute rows, its
     gathered triangles). Geomorphed rows, screen-door transitions and items with occlusion culling stay on
     the hardware path."""
-    raster = renderer.raster
-    threshold = float(renderer.raster_threshold)
-    if (not renderer.compute_raster or renderer.samples or not items or threshold <= 0.0
-            or getattr(renderer.lighting, "_casting", False)):  # the shadow map's pass: every caster drawn there
+    route = _routing(renderer, items, drawlist)
+    if route is None:
         return items, []
     from types import SimpleNamespace
 
     from render.cluster_cuts import PALETTE_SLOT_FLOAT, _sub_csr, gather, group_cuts
 
-    threshold = min(threshold, MAX_THRESHOLD)
-    raster.threshold = threshold
-    proj = np.asarray(drawlist.proj, np.float64)
-    near = near_distance(proj)
-    height = int(renderer.size[1])
+    raster = route[0]
     out, work = [], []
     for it in items:
         g = it.st.skin
@@ -143,8 +146,7 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
             out.append(it)
             continue
         m = raster.mesh(src, g.cull, g)
-        mask = np.ones(it.k, bool) if raster.route_all else \
-            compute_mask(it.data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+        mask = _mask(raster, m, it.data, route)
         if not mask.any():
             out.append(it)
             continue
