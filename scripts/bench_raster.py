@@ -121,12 +121,17 @@ def peer_case(key: str, n: int, size, frames: int, models_dir: Path) -> dict:
         r = eng._open_renderer()
         eng.step()
         dl = eng.select(eng.camera_at(eng.world.time), tuple(size))
-        variants = ("hardware", "compute raster alone")
-        t = alternate(r, dl, variants, lambda v: setattr(r, "compute_raster", v != "hardware"), frames,
-                      eng.scene.render.background)
+        variants = ("hardware", "compute raster alone", "compute raster, same-time copies posed once")
+
+        def setup(v):
+            r.compute_raster = v != "hardware"
+            r.raster.share_poses = v == variants[2]
+
+        t = alternate(r, dl, variants, setup, frames, eng.scene.render.background)
         images, share, cpu, wall = t["images"], t["share"][variants[1]], t["cpu"], t["wall"]
+        r.raster.share_poses = True
         return {"desc": desc, "n": n, "triangles": int(dl.triangles), "compute": share,
-                "psnr": psnr(images[variants[0]], images[variants[1]]),
+                "psnr": psnr(images[variants[0]], images[variants[1]]), "variants": variants,
                 "cpu": cpu, "wall": wall}
 
 
@@ -195,9 +200,11 @@ def write_full_detail_rows(md: Path, cases: list, command: str, start: str, end:
 
     lines = [RASTER_BEGIN, "", "## Compute rasteriser of small triangles (issue 29; `scripts/bench_raster.py`)", "",
              f"Command: `{command}`. The same crowds (bench_peer's grid and camera), mode none, drawn by the "
-             "shipped hardware path and with the compute rasteriser on (its skinning: every copy posed by "
-             "render/raster/poses.py until the pose cache lands), alternately; medians. PSNR: compute against "
-             "hardware.", "",
+             "shipped hardware path and with the compute rasteriser on, alternately; medians. \"compute raster "
+             "alone\": every copy skinned by the rasteriser's own pose pass (render/raster/poses.py, the adapter "
+             "until the pose cache lands: no pose sharing); \"same-time copies posed once\": copies at the very "
+             "same frame coordinate share one pose (exact; the bench's copies all play from time 0, so one pose). "
+             "PSNR: compute against hardware.", "",
              "| crowd | variant | CPU ms (median) | speed vs hardware, CPU | wall ms (median) | speed vs hardware, wall | "
              "triangles in compute | PSNR vs hardware (dB) |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for c in cases:
@@ -205,7 +212,7 @@ def write_full_detail_rows(md: Path, cases: list, command: str, start: str, end:
             lines.append(f"| {c['desc']} | - | | | | | | |")
             continue
         h = "hardware"
-        for v in ("hardware", "compute raster alone"):
+        for v in c["variants"]:
             q = "-" if v == h else ("identical" if c["psnr"] == float("inf") else f"{c['psnr']:.1f}")
             lines.append(f"| {c['desc']} x{c['n']:,} | {v} | {c['cpu'][v] * 1e3:.1f} | {c['cpu'][h] / c['cpu'][v]:.2f}x | "
                          f"{c['wall'][v] * 1e3:.1f} | {c['wall'][h] / c['wall'][v]:.2f}x | "
@@ -249,6 +256,8 @@ def main(argv=None) -> int:
                     help="instead: bench_peer's crowds (h4, h1 x100, fox x1024), hardware vs compute, rows into "
                          "scripts/bench_full_detail.md")
     ap.add_argument("--models-dir", type=Path, default=ROOT / "out" / "bench_peer" / "models")
+    ap.add_argument("--assets", type=Path, help="folder of the shared glTF assets (Fox, CesiumMan) when not "
+                                                "scripts/bench_peer.py's ../shared/assets")
     ap.add_argument("--sizes", type=float, nargs="*", default=[],
                     help="instead: the triangle-size sweep behind the default threshold (pixels of triangle extent)")
     args = ap.parse_args(argv)
@@ -277,6 +286,10 @@ Machine at the start: {start}; at the end: {end}.
 """)
         return 0
     if args.peer_models:
+        if args.assets is not None:
+            import bench_peer
+
+            bench_peer.ASSETS = args.assets
         start = machine_note()
         print(f"# start: {start}")
         cases = []
@@ -285,10 +298,9 @@ Machine at the start: {start}; at the end: {end}.
             c = peer_case(key, n, args.size, args.frames, args.models_dir)
             cases.append(c)
             if not c.get("skipped"):
-                print(f"{key} x{n}: hardware cpu {c['cpu']['hardware'] * 1e3:.1f} wall {c['wall']['hardware'] * 1e3:.1f}; "
-                      f"compute cpu {c['cpu']['compute raster alone'] * 1e3:.1f} "
-                      f"wall {c['wall']['compute raster alone'] * 1e3:.1f} ms; PSNR {c['psnr']:.1f}; "
-                      f"{c['compute']:,} of {c['triangles']:,} in compute", flush=True)
+                print(f"{key} x{n}: " + "; ".join(f"{v} cpu {c['cpu'][v] * 1e3:.1f} wall {c['wall'][v] * 1e3:.1f}"
+                                                  for v in c["variants"])
+                      + f" ms; PSNR {c['psnr']:.1f}; {c['compute']:,} of {c['triangles']:,} in compute", flush=True)
         end = machine_note()
         print(f"# end: {end}")
         cmd = "scripts/bench_raster.py " + " ".join(sys.argv[1:] if argv is None else argv)

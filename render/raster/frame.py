@@ -113,6 +113,9 @@ class Raster:
         self._tiles = self._track(self.ctx.buffer(reserve=4 * self._tiles_xy[0] * self._tiles_xy[1]), "raster.tiles")
         self.ssbo_limit = None
         self.texel_limit = None
+        #: copies of a mesh at the very same frame coordinate skinned once (False: every copy posed: the
+        #: benchmarks' "without pose sharing")
+        self.share_poses = True
         #: every eligible instance to the compute path, whatever its estimated triangle size (its large and
         #: near-plane triangles still go to the hardware): tests and benchmarks
         self.route_all = False
@@ -305,7 +308,7 @@ class Raster:
         # skinned once (exact: no quantisation; the pose cache will share quantised poses)
         from render.raster.poses import pose_slots
 
-        posed, posed_n, reps = pose_slots(kind == tb.POSED, mesh_rec, rows[:, 12], vfirst, vcount)
+        posed, posed_n, reps = pose_slots(kind == tb.POSED, mesh_rec, rows[:, 12], vfirst, vcount, self.share_poses)
         wrap = lambda x: (np.asarray(x, np.int64) % (1 << 32)).astype(np.uint32)  # noqa: E731 (GLSL uint wraps)
         u = rows[:, 12]
         recs = tb.instance_records(rows, np.where(kind == tb.KEYFRAMED, u, 0.0), kind, flags, mesh_rec,

@@ -28,11 +28,12 @@ def skin_table(ctx, rep, track):
     return tex
 
 
-def pose_slots(posed, mesh, frame, vfirst, vcount) -> tuple:
+def pose_slots(posed, mesh, frame, vfirst, vcount, share: bool = True) -> tuple:
     """Pose slots of a window's instances: (first posed vertex of each instance (its slot's base: the slot
     holds the instance's vertex range), posed vertices per slot (k,) with 0 for all but the first instance of a
     slot, the instances that represent the slots). Instances of one mesh at the very same frame coordinate and
-    vertex range share a slot; ``posed`` (k,) bool marks the skinned instances."""
+    vertex range share a slot (``share`` False: every instance its own slot); ``posed`` (k,) bool marks the
+    skinned instances."""
     k = posed.shape[0]
     base = np.zeros(k, np.int64)
     n = np.zeros(k, np.int64)
@@ -40,7 +41,8 @@ def pose_slots(posed, mesh, frame, vfirst, vcount) -> tuple:
     if not sel.shape[0]:
         return base, n, sel
     key = np.stack([np.asarray(mesh, np.int64)[sel], np.ascontiguousarray(frame, np.float32)[sel].view(np.uint32),
-                    np.asarray(vfirst, np.int64)[sel], np.asarray(vcount, np.int64)[sel]], 1)
+                    np.asarray(vfirst, np.int64)[sel], np.asarray(vcount, np.int64)[sel]]
+                   + ([] if share else [sel]), 1)
     _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inv = inv.reshape(-1)
     reps = sel[np.sort(first)]
