@@ -113,6 +113,8 @@ class Raster:
         self._tiles = self._track(self.ctx.buffer(reserve=4 * self._tiles_xy[0] * self._tiles_xy[1]), "raster.tiles")
         self.ssbo_limit = None
         self.texel_limit = None
+        #: bytes the per-pixel buffers may bind (None: the context's storage-buffer limit); tests inject one
+        self.pixel_limit = None
         #: copies of a mesh at the very same frame coordinate skinned once (False: every copy posed: the
         #: benchmarks' "without pose sharing")
         self.share_poses = True
@@ -239,8 +241,14 @@ class Raster:
         """(triangles per window, texels per table) this context allows."""
         ssbo = int(self.ssbo_limit or self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", DEFAULT_SSBO_LIMIT))
         texels = int(self.texel_limit or tb.WIDTH * int(self.ctx.info["GL_MAX_TEXTURE_SIZE"]))
-        # the spill buffer holds two lists of 4 bytes per triangle; ids hold 2^32 / CHUNK jobs
-        return max(1, min(ssbo // 8, (1 << 32) - CHUNK)), texels
+        # the spill buffer holds SPILL_LISTS lists of 4 bytes per triangle (the largest per-triangle buffer)
+        return max(1, min(ssbo // (4 * SPILL_LISTS), (1 << 32) - CHUNK)), texels
+
+    def fits(self) -> bool:
+        """Whether the per-pixel buffers (depth keys, ids: 4 bytes a pixel) bind within the storage-buffer
+        limit; above it (renders beyond ~5,792 x 5,792 on llvmpipe) the compute path stays off."""
+        ssbo = int(self.pixel_limit or self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", DEFAULT_SSBO_LIMIT))
+        return 4 * self._pixels <= ssbo
 
     def draw(self, work: list, view_proj: np.ndarray) -> dict:
         """Rasterise ``work`` (a list of :class:`Work`) into the renderer's framebuffer (bound, depth test on);

@@ -30,12 +30,15 @@ def triangle_range(g, b) -> tuple[int, int]:
 
 def _routing(renderer, items, drawlist):
     """(raster, threshold, proj, near distance, height) of this frame's routing, or None when the compute path
-    takes nothing (switched off, threshold 0, MSAA, nothing to draw, or the shadow map's pass)."""
+    takes nothing (switched off, threshold 0, MSAA, nothing to draw, the shadow map's pass, or a frame whose
+    per-pixel buffers would pass the storage-buffer binding limit)."""
     threshold = float(renderer.raster_threshold)
     if (not renderer.compute_raster or renderer.samples or not items or threshold <= 0.0
             or getattr(renderer.lighting, "_casting", False)):  # the shadow map's pass: every caster drawn there
         return None
     raster = renderer.raster
+    if not raster.fits():
+        return None
     raster.threshold = min(threshold, MAX_THRESHOLD)
     proj = np.asarray(drawlist.proj, np.float64)
     return raster, raster.threshold, proj, near_distance(proj), int(renderer.size[1])
