@@ -127,13 +127,15 @@ class Raster:
         self.last_passes: dict = {}
 
     def _mark(self, name: str) -> None:
+        """Profiling (``profile``): wall and CPU seconds (every thread: llvmpipe's) since the last mark."""
         if self.profile:
             import time
 
             self.ctx.finish()
-            t = time.perf_counter()
-            self.last_passes[name] = self.last_passes.get(name, 0.0) + t - self._t
-            self._t = t
+            t, c = time.perf_counter(), time.process_time()
+            w0, c0 = self.last_passes.get(name, (0.0, 0.0))
+            self.last_passes[name] = (w0 + t - self._t[0], c0 + c - self._t[1])
+            self._t = (t, c)
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label):
@@ -261,7 +263,8 @@ class Raster:
         if self.profile:
             import time
 
-            self.last_passes, self._t = {}, time.perf_counter()
+            self.ctx.finish()
+            self.last_passes, self._t = {}, (time.perf_counter(), time.process_time())
         self._upload_meshes()
         self._frame_triangles(work)
         # one row per instance: batch index, rows, tints
