@@ -65,6 +65,18 @@ class _Mesh:
         self.skin = None  # (texture, joint texture, targets) of a skinned mesh (render.raster.poses)
         self._ranges: dict = {}  # (first triangle, count) -> (first vertex, vertices) used
 
+    def extent_of(self, first: int, count: int) -> float:
+        """The routing summary (lod.raster_route.triangle_extent) of triangles first .. first + count - 1: a LOD
+        chain's coarse levels have larger triangles than its level 0 (cached)."""
+        if first == 0 and count >= self.tris:
+            return self.extent
+        k = ("extent", first, count)
+        e = self._ranges.get(k)
+        if e is None:
+            pos = self.rep.positions0 if self.kind == tb.KEYFRAMED else self.rep.positions
+            e = self._ranges[k] = triangle_extent(pos, np.asarray(self.rep.indices).reshape(-1, 3)[first:first + count])[0]
+        return e
+
     def vertex_range(self, first: int, count: int) -> tuple[int, int]:
         """(first vertex, vertices) spanned by triangles first .. first + count - 1 (cached)."""
         k = (first, count)

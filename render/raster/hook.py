@@ -44,12 +44,14 @@ def _routing(renderer, items, drawlist):
     return raster, raster.threshold, proj, near_distance(proj), int(renderer.size[1])
 
 
-def _mask(raster, m, data, route) -> np.ndarray:
-    """(k,) bool: the copies (rows ``data``) of mesh ``m`` the compute path takes."""
+def _mask(raster, m, data, route, extent=None) -> np.ndarray:
+    """(k,) bool: the copies (rows ``data``) of mesh ``m`` the compute path takes (``extent``: of the drawn
+    triangles, default the whole mesh's)."""
     _, threshold, proj, near, height = route
     if raster.route_all:
         return np.ones(data.shape[0], bool)
-    return compute_mask(data, m.extent, m.radius, m.centre, proj, height, threshold, near)
+    return compute_mask(data, m.extent if extent is None else extent, m.radius, m.centre, proj, height, threshold,
+                        near)
 
 
 def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
@@ -70,7 +72,8 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         if m is None:
             continue
         data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
-        mask = _mask(raster, m, data, route)
+        first, count = triangle_range(g, b)
+        mask = _mask(raster, m, data, route, m.extent_of(first, count))
         if not mask.any():
             continue
         ids = np.asarray(b.instance_ids)
@@ -80,7 +83,6 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         out[i] = nb
         hw[i] = h
         sub = replace(b, instance_ids=ids[mask], instance_data=data[mask])
-        first, count = triangle_range(g, b)
         work.append(Work(m, data[mask], batch_words([sub], renderer.tint_table), first, count))
     return out, hw, work
 
@@ -115,13 +117,13 @@ def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
         if m is None:
             out.append(b)
             continue
-        mask = _mask(raster, m, data, route)
+        first, count = ((int(b.index_range[0]) // 3, int(b.index_range[1]) // 3)
+                        if getattr(b, "index_range", None) is not None else (0, m.tris))
+        mask = _mask(raster, m, data, route, m.extent_of(first, count))
         ids = np.asarray(b.instance_ids)
         if (~mask).any():
             out.append(replace(b, instance_ids=ids[~mask], instance_data=data[~mask]) if mask.any() else b)
         if mask.any():
-            first, count = ((int(b.index_range[0]) // 3, int(b.index_range[1]) // 3)
-                            if getattr(b, "index_range", None) is not None else (0, m.tris))
             tints = np.zeros((int(mask.sum()), 2), np.uint32)
             tints[:, 1] = debug_word(getattr(b, "tint", None))
             work.append(Work(m, data[mask], tints, first, count, world=True))
