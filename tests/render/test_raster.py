@@ -85,6 +85,20 @@ def _soup(rng, n, spread=1.0, size=0.25, depth=(-9.0, -3.0)):
     return pos, np.arange(3 * n).reshape(-1, 3)
 
 
+def _both_paths(ctx, rep, dl):
+    """(hardware image, compute image, the compute path's counts) of one frame, every copy routed to compute."""
+    with Renderer(SIZE, ctx=ctx, debug=True) as r:
+        r.upload(rep)
+        r.compute_raster = False
+        r.draw(dl)
+        hw = r.read_pixels().copy()
+        r.compute_raster = True
+        r.raster.route_all = True
+        r.raster_threshold = 64.0
+        r.draw(dl)
+        return hw, r.read_pixels().copy(), dict(r.raster.last_counts)
+
+
 def _window_positions(rep, dl):
     """float64 fixed-point window positions of the rep's vertices (the vertex pass's rule, exactly)."""
     p = np.concatenate([np.asarray(rep.positions, np.float64), np.ones((rep.positions.shape[0], 1))], 1)
@@ -324,18 +338,12 @@ def test_skinned_copies_with_morph_targets_match_the_hardware_path(gl_ctx):
     dl = _drawlist(rep, rows)
     with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
         r.upload(rep)
-        r.compute_raster = False
-        r.draw(dl)
-        hw = r.read_pixels().copy()
-        r.compute_raster = True
-        r.raster.route_all = True
-        r.raster_threshold = 64.0
-        r.draw(dl)
-        shared = r.read_pixels().copy()
-        assert r.raster.last_counts["rasterised"] > 0
+        r.raster.route_all, r.raster_threshold = True, 64.0
         r.raster.share_poses = False
         r.draw(dl)
         alone = r.read_pixels().copy()
+    hw, shared, counts = _both_paths(gl_ctx, rep, dl)
+    assert counts["rasterised"] > 0
     assert hw.std() > 3
     assert _psnr(hw, shared) >= 45.0 and (shared == alone).all()
 
@@ -361,15 +369,6 @@ def test_keyframed_segments_match_the_hardware_path(gl_ctx):
         batches.append(DrawBatch(rep.key, part, np.arange(k, dtype=np.int32) + 4 * part, rows))
     cam = _camera()
     dl = DrawList(np.zeros(3), cam.view_matrix(), cam.projection(SIZE[0] / SIZE[1]), SIZE, batches)
-    with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
-        r.upload(rep)
-        r.compute_raster = False
-        r.draw(dl)
-        hw = r.read_pixels().copy()
-        r.compute_raster = True
-        r.raster.route_all = True
-        r.raster_threshold = 64.0
-        r.draw(dl)
-        cs = r.read_pixels().copy()
-        assert r.raster.last_counts["rasterised"] > 0
+    hw, cs, counts = _both_paths(gl_ctx, rep, dl)
+    assert counts["rasterised"] > 0
     assert hw.std() > 3 and _psnr(hw, cs) >= 45.0
