@@ -65,7 +65,7 @@ def alternate(r, dl, variants, setup, frames: int, background=(0.1, 0.1, 0.12)) 
             "counts": counts}
 
 
-def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thresholds=()) -> dict:
+def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thresholds=(), route_all=False) -> dict:
     from crowd.engine import Engine
     from crowd.report.settings import expand_settings
 
@@ -79,6 +79,7 @@ def run_scene(path: Path, mode: str | None, size, steps: int, frames: int, thres
         dl = eng.select(cam, tuple(size))
         on = bool(r.compute_raster)
         scene_t = float(r.raster_threshold)
+        r.raster.route_all = bool(route_all)  # every eligible copy to compute: the image check of the whole path
         # variants: "scene" = the scene's threshold, "hardware" = hardware only, a number = that threshold
         variants = ["scene", "hardware", *[float(t) for t in thresholds]]
 
@@ -249,6 +250,9 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=[1280, 720])
     ap.add_argument("--steps", type=int, default=3)
     ap.add_argument("--frames", type=int, default=3)
+    ap.add_argument("--route-all", action="store_true",
+                    help="every eligible copy to the compute path (its triangles beyond 4x the threshold still go "
+                         "back): the PSNR of compute-rasterised frames, not of the default split")
     ap.add_argument("--thresholds", type=float, nargs="*", default=[],
                     help="also time these [render] raster_threshold values (pixels): the default's measurement")
     ap.add_argument("--out", type=Path, default=ROOT / "scripts" / "bench_raster.md")
@@ -323,7 +327,7 @@ Machine at the start: {start}; at the end: {end}.
     for p in paths:
         for mode in (args.modes or [None]):
             t0 = time.perf_counter()
-            r = run_scene(p, mode, args.size, args.steps, args.frames, args.thresholds)
+            r = run_scene(p, mode, args.size, args.steps, args.frames, args.thresholds, args.route_all)
             for t in args.thresholds:
                 sweep.append(f"| {p.stem} | {r['mode']} | {t:g} | {r['share'][t]:,} | {r['psnr_t'][t]:.1f} | "
                              f"{r['cpu'][t] * 1e3:.1f} | {r['cpu']['hardware'] / r['cpu'][t]:.2f}x | "
@@ -352,7 +356,8 @@ Machine at the start: {start}; at the end: {end}.
 Command: `scripts/bench_raster.py {' '.join(sys.argv[1:] if argv is None else argv)}`. Each scene in its LOD mode,
 {args.size[0]}x{args.size[1]}, the DrawList after {args.steps} steps drawn with the compute rasteriser on and off,
 alternately, {args.frames} timed draws each (medians). "compute" = triangles the compute path took
-(`stats["raster_triangles"]`); PSNR of the two images (acceptance >= 45 dB); CPU = every thread of the process
+(`stats["raster_triangles"]`; with `--route-all` every eligible copy); PSNR of the two images (acceptance >= 45 dB);
+CPU = every thread of the process
 (llvmpipe's rasteriser and compute threads); "x" > 1: the compute path is faster. Mesa llvmpipe through EGL.
 
 | scene | mode | triangles | compute | PSNR dB | CPU ms hardware | CPU ms compute | CPU | wall ms hardware | wall ms compute | wall |
