@@ -155,6 +155,7 @@ class LiveSettings:
     occlusion : bool, occlusion culling on/off (VDR-AM §6)
     freeze : bool, keep the last DrawList's selection while the camera moves (VDR-AM Fig. 9)
     color_by : one of ``COLOR_BY``
+    compute_raster : bool, small triangles rasterised in compute (render/raster/; ``[render] raster_threshold``)
     """
 
     lod_mode: str = "none"
@@ -164,6 +165,7 @@ class LiveSettings:
     occlusion: bool = False
     freeze: bool = False
     color_by: str = "none"
+    compute_raster: bool = True
 
 
 
@@ -404,6 +406,8 @@ class Engine:
         """``renderer`` with the scene's light and shadows (``[render] light_*``, ``shadows``; render.shadows)."""
         r = self.scene.render
         renderer.lighting.configure(r.light, r.shadows, r.shadow_distance, r.shadow_map_size)
+        renderer.raster_threshold = r.raster_threshold  # the compute rasteriser (render/raster/)
+        renderer.compute_raster = renderer.compute_raster and self.settings.compute_raster
         return renderer
 
     @property
@@ -613,7 +617,8 @@ class Engine:
                           "culled": dl.stats.get("culled", 0),
                           "triangles": dl.stats.get("triangles", dl.triangles),
                           "points": dl.stats.get("points", dl.points),
-                          "batches": len(dl.batches), "props": dl.stats.get("props", 0)}
+                          "batches": len(dl.batches), "props": dl.stats.get("props", 0),
+                          "raster_triangles": dl.stats.get("raster_triangles", 0)}
                 tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
                                     total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
                                     counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))

@@ -15,6 +15,7 @@ Controls (also printed by H / F1)::
     , .            keyframe interval -/+  O     occlusion culling on/off
     F              freeze the LOD selection (VDR-AM Fig. 9: look at a frozen cut from outside)
     C              colour by: none / representation / level (VDR-AM Fig. 11)
+    K              compute rasteriser of small triangles on/off (render/raster/)
     R              start / stop recording the camera path (JSON, replayable as [camera] path_file)
     P or F12       screenshot (PNG of the rendered frame, without HUD)
     Tab            HUD on/off        H or F1   help        Esc   quit
@@ -74,7 +75,8 @@ EXIT_NO_DISPLAY = 2
 HELP_TEXT = """\
 W A S D: move (along the view)   Q / E: down / up   mouse drag (left/right button): look   scroll: speed
 space: pause   N: step while paused   M: LOD mode   [ ]: splat size   - =: PoE   , .: keyframe interval
-O: occlusion culling   F: freeze LOD selection   C: colour by rep/level   R: record camera path
+O: occlusion culling   F: freeze LOD selection   C: colour by rep/level   K: compute raster
+R: record camera path
 P / F12: screenshot   Tab: HUD   H / F1: help   Esc: quit"""
 
 
@@ -201,6 +203,7 @@ class FlyController:
         self._press = {
             k.KEY_SPACE: self.toggle_pause, k.KEY_N: self.request_step, k.KEY_M: self.cycle_mode,
             k.KEY_O: self.toggle_occlusion, k.KEY_F: self.toggle_freeze, k.KEY_C: self.cycle_color,
+            k.KEY_K: self.toggle_compute_raster,
             k.KEY_R: self.toggle_recording, k.KEY_P: self.request_screenshot, k.KEY_F12: self.request_screenshot,
             k.KEY_H: self.show_help, k.KEY_F1: self.show_help, k.KEY_TAB: self.toggle_hud,
             k.KEY_ESCAPE: self.request_quit,
@@ -335,6 +338,15 @@ class FlyController:
         self.settings.occlusion = not self.settings.occlusion
         self.say(f"occlusion culling {'on' if self.settings.occlusion else 'off'}", echo=False)
 
+    def toggle_compute_raster(self) -> None:
+        """Small triangles to the compute rasteriser (render/raster/) or all to the hardware path."""
+        s = self.settings
+        s.compute_raster = not s.compute_raster
+        r = getattr(self.engine, "renderer", None)
+        if r is not None:
+            r.compute_raster = s.compute_raster and int(getattr(r.ctx, "version_code", 0)) >= 430
+        self.say(f"compute raster {'on' if s.compute_raster else 'off'}", echo=False)
+
     def toggle_freeze(self) -> None:
         self.settings.freeze = not self.settings.freeze
         self.say("LOD selection frozen" if self.settings.freeze else "LOD selection live", echo=False)
@@ -395,7 +407,7 @@ class FlyController:
         s = self.settings
         return (f"lod {s.lod_mode}  splat {s.splat_size:g}px  PoE {s.poe:g}px  kf {s.keyframe_interval}  "
                 f"occlusion {'on' if s.occlusion else 'off'}  freeze {'on' if s.freeze else 'off'}  "
-                f"colour {s.color_by}")
+                f"colour {s.color_by}  raster {'compute' if s.compute_raster else 'hardware'}")
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -476,7 +488,8 @@ class FlyApp:
             f"ms  simulate {ms('simulate')}  select {ms('select')}  upload {ms('upload')}  draw {ms('draw')}  "
             f"finish {ms('finish')}  hud {ms('hud')}  total {ms('total')}",
             f"drawn  {s.get('instances', 0):,} instances ({s.get('culled', 0):,} culled)  "
-            f"{s.get('triangles', 0):,} triangles  {s.get('points', 0):,} points  {s.get('batches', 0)} batches",
+            f"{s.get('triangles', 0):,} triangles ({s.get('raster_triangles', 0):,} in compute)  "
+            f"{s.get('points', 0):,} points  {s.get('batches', 0)} batches",
             c.settings_line(),
             f"camera  ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f})  "
             f"yaw {math.degrees(c.yaw):.0f}  pitch {math.degrees(c.pitch):.0f}  speed {c.speed:.2g} m/s   H: help",

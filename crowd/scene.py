@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import render.light as _light
+import lod.raster_route as _raster
 from crowd.errors import SceneError
 from crowd.scene_props import PropSpec, parse_props  # noqa: F401 (PropSpec re-exported)
 from crowd.scene_variation import DEFAULT_VARIATION, VARIATION_SCHEMA, parse_variation  # noqa: F401
@@ -98,6 +99,9 @@ RENDER_SCHEMA = {
     "background": Param("vec3", [0.1, 0.1, 0.12], doc="linear RGB in [0, 1]"),
     "png_every": Param("int", 0, min=0, doc="write every k-th frame as PNG; 0 = none"),
     "ground": Param("bool", True, doc="draw the ground plane and its grid (not with [terrain]: it is the ground)"),
+    "raster_threshold": Param("float", _raster.DEFAULT_THRESHOLD, min=0.0, max=_raster.MAX_THRESHOLD,
+                              doc="pixels: copies whose triangles are at most this large on screen are "
+                                  "rasterised in compute (render/raster/); 0 = the hardware path only"),
     **LIGHT_SCHEMA,  # the directional light and the shadows (render.light, render.shadows)
 }
 SIZE_RANGE = (16, 8192)
@@ -196,6 +200,7 @@ class RenderSpec:
     shadows: str = _light.DEFAULT_SHADOWS
     shadow_distance: float = 60.0
     shadow_map_size: int = 2048
+    raster_threshold: float = _raster.DEFAULT_THRESHOLD
 
 
 @dataclass(frozen=True)
@@ -577,7 +582,7 @@ class _Parser:
             self.fail(f"render.{e.key}", e.message)
         return RenderSpec(size=size, background=tuple(bg), png_every=r["png_every"], ground=r["ground"], light=light,
                           shadows=r["shadows"], shadow_distance=r["shadow_distance"],
-                          shadow_map_size=r["shadow_map_size"])
+                          shadow_map_size=r["shadow_map_size"], raster_threshold=r["raster_threshold"])
 
 
 def parse_size(value: Any) -> tuple | None:

@@ -36,7 +36,7 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-COUNTS = ("instances", "culled", "triangles", "points", "batches", "props")
+COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "raster_triangles")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 

@@ -391,6 +391,11 @@ class Drawer:
         """
         r = self.renderer
         items = self._collect(batches)
+        # instances whose cut's triangles are small on screen to the compute rasteriser (render/raster/hook.py)
+        from render.raster.hook import split_clusters
+
+        items, work = split_clusters(r, items, drawlist)
+        r.raster_work.extend(work)
         stats = {"commands": 0, "draws": 0, "groups": 0, "instances": 0, "triangles": 0, "index_bytes": 0,
                  "queries": 0, "occluded": 0, "morph_rows": 0}
         self.last_stats = stats

@@ -28,6 +28,17 @@ def track(objects: list, obj, label: str):
     return obj
 
 
+def release_all(objects: list) -> None:
+    """Release the GL objects of ``objects`` (an owner's :func:`track` list) in reverse creation order, skipping
+    any the context already released, and empty the list."""
+    for o in reversed(objects):
+        try:
+            o.release()
+        except Exception:  # pragma: no cover - released with the context
+            pass
+    objects.clear()
+
+
 def create_context(backend: str = "egl"):
     """A standalone (headless) moderngl context.
 

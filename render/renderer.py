@@ -70,6 +70,9 @@ from render.targets import TARGETS_DEFINE, target_textures, use_targets
 from render import posed_draw
 from render.pixel_ray import write_pixel_ray
 from render.pose_cache import PoseCache
+from render.raster.hook import hardware_pieces
+from render.raster.hook import split as raster_split
+from lod.raster_route import DEFAULT_THRESHOLD
 from render.timing import gpu_seconds
 from render.tint import TintStream, batch_words
 from render.vertex_format import PACKED_VERTICES, compact_influences, skin_attributes, surface_attributes
@@ -215,6 +218,13 @@ class Renderer:
         self.pixel_ray = True
         #: skinned programs read only as many influences as the rep's vertices use (reps uploaded from now on)
         self.specialize_influences = True
+        #: rasterise small triangles in compute (render/raster/; off on contexts below GL 4.3), and the
+        #: threshold (pixels, [render] raster_threshold) above which a triangle stays on the hardware path
+        self.compute_raster = int(getattr(self.ctx, "version_code", 0)) >= 430
+        self.raster_threshold = DEFAULT_THRESHOLD
+        self._raster = None
+        #: this frame's compute work (render.raster.frame.Work), filled by render/raster/hook.py and the world drawer
+        self.raster_work: list = []
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -252,6 +262,15 @@ class Renderer:
                                     lambda self, v: setattr(self._palette, "max_texels", int(v)),
                                     doc="most palette texels per chunk (render.palette)")
     _palette_tex = property(lambda self: self._palette.texture)
+
+    @property
+    def raster(self):
+        """The compute rasteriser (render.raster.frame.Raster), made on first use."""
+        if self._raster is None:
+            from render.raster.frame import Raster
+
+            self._raster = Raster(self)
+        return self._raster
 
     def _build_palette(self, items) -> list:
         """Palette pre-pass of one chunk (``render.palette.Palette.build``): items are
@@ -349,6 +368,7 @@ class Renderer:
         # a LOD chain (lod.chains.mode) holds all its levels: a batch without index_range draws level 0
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
         g.defines = defines
+        g.source = rep  # the compute rasteriser reads its arrays (render/raster/)
         if TARGETS_DEFINE in defines:  # morph targets (render.targets); g.objects is objs
             g.targets = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key)
             objs.extend(g.targets)
@@ -539,6 +559,8 @@ class Renderer:
                          else None)
         batches = self.poses.plan(batches, self._reps)
         t0 = time.perf_counter()
+        # small triangles to the compute rasteriser: its instances last in their batches (render/raster/hook.py)
+        batches, hw_counts, self.raster_work = raster_split(self, batches, drawlist)
         total = sum(b.n_instances for b in batches)
         if batches:
             data = np.concatenate([np.asarray(b.instance_data, np.float32).reshape(-1, INSTANCE_FLOATS)
@@ -580,7 +602,9 @@ class Renderer:
             offsets = starts.tolist()
             self.lighting.shadow_pass(batches, plugin, drawlist, pieces, cursor, offsets)  # [render] shadows = "map"
             for i, b in enumerate(batches):
-                self._draw_batch(b, offsets[i], view_proj, used, pieces.get(i), cursor)
+                p = pieces.get(i) if i not in hw_counts else hardware_pieces(pieces.get(i), b.n_instances, hw_counts[i])
+                if p != []:
+                    self._draw_batch(b, offsets[i], view_proj, used, p, cursor)
             ctx.disable(ctx.CULL_FACE)
             kinds = sorted(plugin, key=lambda k: (getattr(self._drawers[k], "order", 0), k))
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
@@ -591,6 +615,10 @@ class Renderer:
                     continue
                 self.fbo.use()
                 self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
+            # the compute rasteriser's work of the frame (built-in batches, the world's props and solids)
+            rc = self.raster.draw(self.raster_work, view_proj) if self.raster_work else {}
+            drawlist.stats["raster_triangles"] = int(rc.get("triangles", 0)) - int(rc.get("spilled", 0))
+            self.raster_work = []
         for kind in querying:
             self.fbo.use()
             self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
@@ -640,6 +668,8 @@ class Renderer:
         for d in reversed(list(self._drawers.values())):
             d.release()
         self._drawers.clear()
+        if self._raster is not None:
+            self._raster.release()
         self._plugin_reps.clear()
         self.poses.release()
         for o in reversed(self._objects):

@@ -100,7 +100,7 @@ class Drawer:
         self._objects.append(vao)
         locs = {a: prog[a].location for a in _INSTANCE_ATTRS if a in prog}
         self._reps[rep.key] = {"vao": vao, "locs": locs, "n_indices": int(np.asarray(rep.indices).size),
-                               "objects": objs}
+                               "objects": objs, "rep": rep}  # rep: the compute rasteriser reads its arrays
 
     def _uniforms(self, prog, view_proj):
         """View-projection, and the scene's light and shadow-map uniforms (``renderer.lighting.apply``)."""
@@ -126,7 +126,12 @@ class Drawer:
                 prog["u_grid_phase"].value = (float(d[13] - d[3]), float(d[14] - d[11]))
             prog["u_ground_color"].value = tuple(float(c) for c in rep.color)
             self.ground_vao.render(ctx.TRIANGLE_STRIP, vertices=4)
-        self._draw_meshes(self._meshes(batches), view_proj, tinted=True)
+        # small props and solids to the compute rasteriser (render/raster/hook.py; drawn after the plug-ins)
+        from render.raster.hook import split_world
+
+        meshes, work = split_world(self.r, self._meshes(batches), drawlist)
+        self.r.raster_work.extend(work)
+        self._draw_meshes(meshes, view_proj, tinted=True)
 
     def cast_shadows(self, batches, drawlist, light_vp) -> None:
         """Draw the depth of the props and obstacle solids of ``batches`` with the light's view-projection

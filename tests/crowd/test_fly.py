@@ -212,9 +212,15 @@ def test_live_settings_keys(app):
     press(app, glfw.KEY_O)
     press(app, glfw.KEY_C)
     assert s.occlusion and s.color_by == "representation"
+    assert s.compute_raster and app.renderer.compute_raster
+    press(app, glfw.KEY_K)  # the compute rasteriser off: every triangle to the hardware path
+    assert not s.compute_raster and not app.renderer.compute_raster
     app.frame(1 / 30)
     line = app.hud_lines()[3]
-    assert "occlusion on" in line and "colour representation" in line
+    assert "occlusion on" in line and "colour representation" in line and "raster hardware" in line
+    assert app.last.drawlist.stats["raster_triangles"] == 0
+    press(app, glfw.KEY_K)
+    assert s.compute_raster and app.renderer.compute_raster
     press(app, glfw.KEY_H)
     assert HELP_TEXT in app.echoed
     assert HELP_TEXT.splitlines()[0] in app.hud_lines()

@@ -40,12 +40,18 @@ def _state(pos, heading, t, clip=None):
                            heading=np.asarray(heading, float))
 
 
-def _render(sc, selector, state, cam, poe=None, strategy="indices"):
+def _render(sc, selector, state, cam, poe=None, strategy="indices", compute=True):
+    """The frame; ``compute`` False: every triangle through the hardware path (the drawer's own commands,
+    which the compute rasteriser would otherwise take for these small instances, render/raster/)."""
     if poe is not None:
         selector.poe = poe
     sc.r.drawer("clusters").strategy = strategy
     dl = selector.select(state, cam, SIZE)
-    sc.r.draw(dl, background=BG)
+    sc.r.compute_raster = compute
+    try:
+        sc.r.draw(dl, background=BG)
+    finally:
+        sc.r.compute_raster = True
     return sc.r.read_pixels(), dl
 
 
@@ -177,9 +183,9 @@ def test_crack_and_error_measures_can_fail(scene, hires):
 def test_strategies_render_the_same_image(scene):
     st = _state(*CROWD)
     cam = Camera.look_at((0, 1.2, 9.0), (0, 0.9, 0))
-    a, _ = _render(scene, scene.sel, st, cam, poe=1.0, strategy="indices")
+    a, _ = _render(scene, scene.sel, st, cam, poe=1.0, strategy="indices", compute=False)
     sa = dict(scene.r.drawer("clusters").last_stats)
-    b, _ = _render(scene, scene.sel, st, cam, poe=1.0, strategy="ranges")
+    b, _ = _render(scene, scene.sel, st, cam, poe=1.0, strategy="ranges", compute=False)
     sb = dict(scene.r.drawer("clusters").last_stats)
     assert np.array_equal(a, b)
     assert sa["triangles"] == sb["triangles"] and sa["draws"] == sb["draws"] == 1
@@ -190,7 +196,7 @@ def test_identical_cuts_share_one_command(scene):
     # four instances side by side at the same distance and pose: one distinct cut
     st = _state([[x, 0, 0] for x in (-1.5, -0.5, 0.5, 1.5)], [0.0] * 4, [0.3] * 4)
     cam = Camera.look_at((0, 30.0, 0.01), (0, 0, 0))  # straight above: equal distances
-    _render(scene, scene.sel, st, cam, poe=1.0)
+    _render(scene, scene.sel, st, cam, poe=1.0, compute=False)
     s = scene.r.drawer("clusters").last_stats
     assert s["instances"] == 4 and s["draws"] == 1
     assert s["groups"] <= 2 and s["commands"] == s["groups"]
@@ -260,6 +266,8 @@ def occlusion_pair(scene, gl_ctx):
     from dataclasses import replace
 
     with_oc, without = Renderer(SIZE, ctx=gl_ctx), Renderer(SIZE, ctx=gl_ctx)
+    # occlusion-culled items stay on the hardware path (render/raster/hook.py split_clusters): compare like with like
+    with_oc.compute_raster = without.compute_raster = False
     try:
         for rep in scene.reps:
             with_oc.upload(replace(rep, occlusion=True, occlusion_every=3))
@@ -393,8 +401,9 @@ def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
 
     st = _state(*CROWD)
     cam = Camera.look_at((0, 1.2, 5.0), (0, 0.9, 0))
-    img_a, dl_a = _render(scene, scene.sel, st, cam, poe=8.0, strategy=strategy)
-    img_b, dl_b = _render(scene, scene.sel, st, cam, poe=0.7, strategy=strategy)
+    # geomorphed rows stay on the hardware path (render/raster/hook.py): the ends through it too, to compare exactly
+    img_a, dl_a = _render(scene, scene.sel, st, cam, poe=8.0, strategy=strategy, compute=False)
+    img_b, dl_b = _render(scene, scene.sel, st, cam, poe=0.7, strategy=strategy, compute=False)
     assert [(x.rep, x.part) for x in dl_a.batches] == [(x.rep, x.part) for x in dl_b.batches] and \
         len(dl_a.batches) == 2  # two clips
     h = scene.reps[0].hierarchy

@@ -55,6 +55,7 @@ def crowd(gl_ctx):
 
 def _draw(gl_ctx, reps, dl, chunk_texels):
     r = Renderer(SIZE, ctx=gl_ctx)
+    r.compute_raster = False  # the palette chunks of the hardware path (the compute rasteriser poses its own copies)
     try:
         if chunk_texels is not None:
             r.palette_chunk_texels = chunk_texels
