@@ -59,7 +59,9 @@ def test_every_mode_draws_the_same_frame_with_the_switch_on_and_off(frames, mode
     off, n_off, _ = frames[mode, False]
     assert on.std() > 5
     assert _psnr(on, off) >= 45.0
-    assert n_off == 0 and n_on > 0  # the props at least
+    assert n_off == 0
+    if mode != "points":  # mode points draws the props at a coarse chain level: triangles beyond the threshold
+        assert n_on > 0  # the props at least
     if mode in ("none", "triangles", "clusters"):
         assert n_on > props  # and characters: full detail, chain levels, cluster cuts
 
