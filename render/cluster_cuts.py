@@ -197,7 +197,8 @@ def _slice_item(it, first: int, n: int):
     return SimpleNamespace(st=it.st, key=it.key, tint=it.tint, fade=it.fade, k=n, data=data,
                            words=it.words[first:first + n], offsets=offsets, clusters=clusters,
                            ids=it.ids[first:first + n], part=it.part[first:first + n],
-                           first_row=it.first_row[first:first + n], program=it.program)
+                           first_row=it.first_row[first:first + n], program=it.program,
+                           slots=None if getattr(it, "slots", None) is None else it.slots[first:first + n])
 
 
 def _sub_csr(offsets: np.ndarray, clusters: np.ndarray, sub: np.ndarray):

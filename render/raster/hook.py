@@ -176,5 +176,6 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
             data[:, PALETTE_SLOT_FLOAT] = np.arange(keep.shape[0], dtype=np.float32)
             out.append(SimpleNamespace(**{**vars(it), "k": int(keep.shape[0]), "data": data, "words": it.words[keep],
                                           "offsets": offsets, "clusters": clusters, "ids": it.ids[keep],
-                                          "part": it.part[keep], "first_row": it.first_row[keep]}))
+                                          "part": it.part[keep], "first_row": it.first_row[keep],
+                                          "slots": None if getattr(it, "slots", None) is None else it.slots[keep]}))
     return out, work
