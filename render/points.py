@@ -47,6 +47,8 @@ import numpy as np
 from lod.drawlist import fade_uniform
 from render import occlusion as occ
 from render.context import track
+from render.points_follow import FollowFrame
+from render.points_follow import upload as upload_follow
 from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
 from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
@@ -100,7 +102,7 @@ PATHS = ("compute", "gl_points")
 #: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
 #: culling left out with their points and triangles, and 1 when the culling was paused this frame
 COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
-          "occluded_triangles", "occlusion_paused")
+          "occluded_triangles", "occlusion_paused", "placed_points", "posed_vertices", "poses")
 
 
 def sample_box(*positions) -> tuple[np.ndarray, float]:
@@ -153,21 +155,25 @@ def pack_samples(p0, p1, n0, n1, c0, c1, lo=(0.0, 0.0, 0.0), scale=1.0) -> np.nd
     out[:, 0] = a[:, 0] | (a[:, 1] << 16)
     out[:, 1] = a[:, 2] | (b[:, 0] << 16)
     out[:, 2] = b[:, 1] | (b[:, 2] << 16)
-
-    def rgba8(c):
-        c = np.nan_to_num(np.clip(np.asarray(c, np.float64), 0.0, 1.0))
-        b = np.rint(c * 255.0).astype(np.uint32)
-        return b[:, 0] | (b[:, 1] << 8) | (b[:, 2] << 16) | (b[:, 3] << 24)
-
-    def snorm2(v):
-        q = np.rint(oct_encode(v) * 32767.0).astype(np.int16).view(np.uint16).astype(np.uint32)
-        return q[:, 0] | (q[:, 1] << 16)
-
-    out[:, 4] = rgba8(c0)
-    out[:, 5] = rgba8(c1)
-    out[:, 6] = snorm2(n0)
-    out[:, 7] = snorm2(n1)
+    out[:, 4] = rgba8_words(c0)
+    out[:, 5] = rgba8_words(c1)
+    out[:, 6] = oct_words(n0)
+    out[:, 7] = oct_words(n1)
     return out
+
+
+def rgba8_words(c) -> np.ndarray:
+    """(n,) uint32 RGBA8 words of (n, 4) colours in [0, 1] (clipped; NaN as 0), as GLSL packUnorm4x8."""
+    c = np.nan_to_num(np.clip(np.asarray(c, np.float64).reshape(-1, 4), 0.0, 1.0))
+    b = np.rint(c * 255.0).astype(np.uint32)
+    return b[:, 0] | (b[:, 1] << 8) | (b[:, 2] << 16) | (b[:, 3] << 24)
+
+
+def oct_words(v) -> np.ndarray:
+    """(n,) uint32 octahedral snorm16x2 words of (n, 3) directions (:func:`oct_encode`; ``oct_decode`` in
+    shaders/points_placed.glsl reads them)."""
+    q = np.rint(oct_encode(v) * 32767.0).astype(np.int16).view(np.uint16).astype(np.uint32)
+    return q[:, 0] | (q[:, 1] << 16)
 
 
 def unpack_samples(words: np.ndarray, lo=(0.0, 0.0, 0.0), scale=1.0) -> dict:
@@ -282,6 +288,7 @@ class Drawer:
         #: bytes one storage-buffer binding may address (None: the context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE)
         self.ssbo_limit = None
         self._reps: dict[str, _GpuPoints] = {}
+        self._follow: dict = {}  # key -> render.points_follow.FollowGpu
         self._objects: list = []
         self._bufs: dict = {}
         self._progs: dict = {}
@@ -308,10 +315,12 @@ class Drawer:
     def _track(self, obj, label: str):
         return track(self._objects, obj, label)  # render.context.track
 
-    def _program(self, name):
-        if name not in self._progs:
-            self._progs[name] = self._track(self.ctx.program(**program_sources(name)), f"points.program.{name}")
-        return self._progs[name]
+    def _program(self, name, defines=()):
+        k = (name, tuple(defines)) if defines else name
+        if k not in self._progs:
+            self._progs[k] = self._track(self.ctx.program(**program_sources(name, defines=tuple(defines))),
+                                         f"points.program.{name}")
+        return self._progs[k]
 
     def _compute(self, name, defines=()):
         k = (name, tuple(defines))
@@ -322,15 +331,17 @@ class Drawer:
             self._progs[k] = self._track(self.ctx.compute_shader(src), f"points.compute.{name}")
         return self._progs[k]
 
-    def _buffer(self, name, data: np.ndarray):
-        """Per-frame storage buffer ``name`` (grown by doubling) holding ``data``."""
-        raw = np.ascontiguousarray(data).tobytes()
+    def _buffer(self, name, data: np.ndarray | None, reserve: int = 0):
+        """Per-frame storage buffer ``name`` (grown by doubling) holding ``data`` (None: at least ``reserve``
+        bytes, contents left as they are, for a pass to write)."""
+        raw = np.ascontiguousarray(data).tobytes() if data is not None else b""
+        need = max(len(raw), int(reserve))
         b = self._bufs.get(name)
-        if b is None or b.size < len(raw):
+        if b is None or b.size < need:
             if b is not None:
                 b.release()
                 self._objects.remove(b)
-            size = 1 << max(8, int(np.ceil(np.log2(max(len(raw), 1)))))
+            size = 1 << max(8, int(np.ceil(np.log2(max(need, 1)))))
             b = self._track(self.ctx.buffer(reserve=size, dynamic=True), f"points.{name}")
             self._bufs[name] = b
         if raw:
@@ -338,9 +349,15 @@ class Drawer:
         return b
 
     def upload(self, rep) -> None:
-        """GPU storage of all segment hierarchies of a PointsRep (replaces a previous upload)."""
+        """GPU storage of all segment hierarchies of a PointsRep, or of a FollowRep's samples and animation
+        (``render/points_follow.py``); replaces a previous upload."""
         if rep.key in self._reps:
             self._release_rep(self._reps.pop(rep.key))
+        if rep.key in self._follow:
+            self._release_rep(self._follow.pop(rep.key))
+        if getattr(rep, "follow", False):
+            self._follow[rep.key] = upload_follow(self.ctx, rep, self._track)
+            return
         ctx = self.ctx
         objs = []
 
@@ -396,13 +413,16 @@ class Drawer:
 
     def _release_rep(self, g) -> None:
         for o in reversed(g.objects):
+            if o in self._objects:
+                self._objects.remove(o)
             o.release()
 
     def release(self) -> None:
         """Release every GL object (reverse creation order; safe twice)."""
-        for g in list(self._reps.values()):
+        for g in list(self._reps.values()) + list(self._follow.values()):
             self._release_rep(g)
         self._reps.clear()
+        self._follow.clear()
         for o in reversed(self._objects):
             try:
                 o.release()
@@ -433,9 +453,10 @@ class Drawer:
         cs.run(gx, gy, 1)
 
     def draw(self, batches, drawlist, view_proj) -> None:
-        """Draw point batches (``lod.points.rep.PointsBatch``) of this frame."""
+        """Draw point batches (``lod.points.rep.PointsBatch``, and ``FollowBatch`` es of representations whose
+        samples follow the animation, ``render/points_follow.py``) of this frame."""
         ctx = self.ctx
-        batches = [b for b in batches if b.rep in self._reps and b.n_instances]
+        batches = [b for b in batches if (b.rep in self._reps or b.rep in self._follow) and b.n_instances]
         self.last_counts = dict.fromkeys(COUNTS, 0)
         if not batches:
             return
@@ -443,8 +464,8 @@ class Drawer:
         for b in batches:
             offs[id(b)] = rows
             rows += b.n_instances
-        # the model matrices also dequantise their rep's positions (pack_samples)
-        inst = np.concatenate([fold_box(b.instance_data, *self._reps[b.rep].box) for b in batches])
+        # the model matrices also dequantise their rep's positions (pack_samples; the follow reps' pose box)
+        inst = np.concatenate([fold_box(b.instance_data, *self._gpu_of(b.rep).box) for b in batches])
         if not np.isfinite(inst).all():
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
         inst_buf = self._buffer("instances", inst)
@@ -466,13 +487,20 @@ class Drawer:
         vp = np.asarray(view_proj, np.float64)
         # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.temporal.selection) draw together
         by_fade: dict = {}
+        fol_fade: dict = {}
         for b in batches:
-            by_fade.setdefault(fade_uniform(getattr(b, "fade", None)), []).append(b)
-        first = next(g for b in batches for k, g in self._reps.items() if k == b.rep)
+            (fol_fade if b.rep in self._follow else by_fade).setdefault(fade_uniform(getattr(b, "fade", None)),
+                                                                         []).append(b)
+        first = self._gpu_of(batches[0].rep)
         path = self.path or first.path
         # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
         # the [lod] splat_size
         splat = int(drawlist.options.get("splat_size", first.splat))
+        # samples that follow the animation: their poses placed this frame (render/points_follow.py)
+        fol = None
+        if fol_fade:
+            fol = FollowFrame(self, [b for b in batches if b.rep in self._follow], offs, limit)
+            self.last_counts.update({k: v for k, v in fol.counts.items()})
         # 1. the traversal's jobs: triangle tables per (fade, rep), point tables per fade over every
         # rep (their samples share one buffer)
         tris = [(f, k, g, job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
@@ -484,10 +512,11 @@ class Drawer:
             parts = [j for j in parts if j.shape[0]]
             if parts:
                 groups.append((fade, _merge_jobs(parts)))
-        if groups and path not in PATHS:
+        if (groups or fol is not None) and path not in PATHS:
             raise ValueError(f"points drawer: path must be one of {PATHS}, got {path!r}")
         # occlusion culling (render.occlusion): the nearest share first, the rest tested against its depth
-        # (a frame of triangles only draws them all: nothing splatted to test afterwards)
+        # (a frame of triangles only draws them all: nothing splatted to test afterwards); the samples that
+        # follow the animation are drawn without the test (their node boxes depend on the pose)
         occl = bool(self.occlusion and path == "compute" and not getattr(self.r, "samples", 0) and groups)
         if occl and self._occl_pause > 0:  # the last test found too little hidden (render.occlusion)
             self._occl_pause -= 1
@@ -495,22 +524,12 @@ class Drawer:
             occl = False
         hidden = self._occlusion_split(by_fade, tris, groups, vp, splat) if occl else None
         self._draw_triangles(tris, vp, None if hidden is None else hidden[0])
-        if not groups:
+        if fol is not None:
+            self._follow_triangles(fol, fol_fade, vp)
+        if not groups and fol is None:
             return
-        self._points.bind_to_storage_buffer(0)
         if path == "gl_points":  # the reference path: one binding (not windowed)
-            bind_rows(0)
-            self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in groups)
-            prog = self._program("points_gl")
-            self._uniforms(prog, vp)
-            ctx.enable(ctx.PROGRAM_POINT_SIZE)
-            for fade, jobs in groups:
-                self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
-                if "u_fade" in prog:
-                    prog["u_fade"].value = fade
-                prog["u_splat"].value = float(splat)
-                self._empty_for(prog).render(moderngl.POINTS, vertices=int(jobs[-1, 1]) + int(jobs[-1, 3]))
-            ctx.disable(ctx.PROGRAM_POINT_SIZE)
+            self._gl_points(groups, fol, fol_fade, vp, splat)
             return
         self._depth.bind_to_storage_buffer(3)
         self._color.bind_to_storage_buffer(4)
@@ -556,7 +575,11 @@ class Drawer:
                 drawn.append((f, _sub(j, a | v)))
         drawn = [(f, j) for f, j in drawn if j.shape[0]]
         self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in drawn)
+        if fol is not None:
+            self.last_counts["points"] += self._splat_follow(fol, fol_fade, vp, splat, color=False)
         self._splat(drawn, vp, splat, color=True)
+        if fol is not None:
+            self._splat_follow(fol, fol_fade, vp, splat, color=True)
         # 3. resolve: the pixels the filled anchor tiles reach (the next frame's clear resets
         # only those tiles)
         tx, ty = self._slot_tiles
@@ -576,6 +599,81 @@ class Drawer:
         vao = self._vao_of("resolve_vao", vbo, lambda: self.ctx.vertex_array(rprog, [(vbo, "2f", "in_pos")]))
         self.r.fbo.use()
         vao.render(moderngl.TRIANGLES, vertices=verts.shape[0])
+
+    def _gpu_of(self, key):
+        """The uploaded GPU resources of representation ``key`` (stored or following the animation)."""
+        g = self._reps.get(key)
+        return g if g is not None else self._follow[key]
+
+    def _gl_points(self, groups, fol, fol_fade, vp, splat: int) -> None:
+        """The GL_POINTS reference path: one (sample, instance) vertex per work item, not windowed."""
+        ctx = self.ctx
+        bind_rows = self._win[0]
+        bind_rows(0)
+        ctx.enable(ctx.PROGRAM_POINT_SIZE)
+        todo = [(self._program("points_gl"), self._points, f, j) for f, j in groups]
+        if fol is not None:
+            for r in range(len(fol.rounds)):
+                fol.ensure(r)
+                for fade, bs in fol_fade.items():
+                    j = fol.point_jobs(r, bs)
+                    if j.shape[0]:
+                        self._gl_points_draw(self._program("points_gl", ("PLACED",)), fol.placed_buffer(), fade, j,
+                                             vp, splat)
+        for prog, buf, fade, jobs in todo:
+            self._gl_points_draw(prog, buf, fade, jobs, vp, splat)
+        ctx.disable(ctx.PROGRAM_POINT_SIZE)
+
+    def _gl_points_draw(self, prog, buf, fade, jobs, vp, splat: int) -> None:
+        buf.bind_to_storage_buffer(0)
+        self._uniforms(prog, vp)
+        self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
+        if "u_fade" in prog:
+            prog["u_fade"].value = fade
+        prog["u_splat"].value = float(splat)
+        n = int(jobs[-1, 1]) + int(jobs[-1, 3])
+        self.last_counts["points"] += n
+        self._empty_for(prog).render(moderngl.POINTS, vertices=n)
+
+    def _follow_triangles(self, fol, fol_fade, vp) -> None:
+        """The triangles the traversal keeps of the representations that follow the animation, drawn from
+        their poses' posed vertices (``points_tri.vert`` PLACED)."""
+        tprog = self._program("points_tri", ("PLACED",))
+        self._uniforms(tprog, vp)
+        bind_rows = self._win[0]
+        for r in range(len(fol.rounds)):
+            todo = [(fade, key) for fade in fol_fade for key in {b.rep for b in fol_fade[fade]}]
+            work = [(fade, *fol.triangle_items(r, fol_fade[fade], key)) for fade, key in todo]
+            work = [x for x in work if x[2].shape[0]]
+            if not work:
+                continue
+            fol.ensure(r, place=False)
+            bind_rows(0)
+            fol.placed_buffer().bind_to_storage_buffer(5)
+            for fade, items, index in work:
+                if "u_fade" in tprog:
+                    tprog["u_fade"].value = fade
+                self._buffer("tri_items", items).bind_to_storage_buffer(7)
+                ibo = self._buffer("tri_index", index)
+                vao = self._vao_of("tri_vao_placed", ibo, lambda: self.ctx.vertex_array(
+                    tprog, [], index_buffer=ibo, index_element_size=4))
+                vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
+                self.last_counts["triangles"] += int(index.shape[0]) // 3
+
+    def _splat_follow(self, fol, fol_fade, vp, splat: int, color: bool) -> int:
+        """One splat pass over the placed samples of every round; returns the points splatted."""
+        n = 0
+        for r in range(len(fol.rounds)):
+            groups = [(fade, fol.point_jobs(r, bs)) for fade, bs in fol_fade.items()]
+            groups = [(f, j) for f, j in groups if j.shape[0]]
+            if not groups:
+                continue
+            fol.ensure(r)
+            fol.placed_buffer().bind_to_storage_buffer(0)
+            self._splat(groups, vp, splat, color, placed=True)
+            n += sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in groups)
+        self._points.bind_to_storage_buffer(0)
+        return n
 
     def _draw_triangles(self, tris, vp, masks=None) -> None:
         """Draw triangle job tables [(fade, key, gpu rep, jobs)], only the rows of
@@ -609,9 +707,12 @@ class Drawer:
                 vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += int(jobs[-1, 1]) + int(jobs[-1, 3])
 
-    def _splat(self, groups, vp, splat: int, color: bool) -> None:
+    def _splat(self, groups, vp, splat: int, color: bool, placed: bool = False) -> None:
         """One splat pass (depth keys, or with ``color`` the colour of the winners)
-        over point job tables [(fade, jobs)]."""
+        over point job tables [(fade, jobs)] of the stored samples (bound at 0), or with ``placed`` of the
+        frame's placed samples (``render/points_follow.py``, bound at 0 by the caller)."""
+        if not placed:
+            self._points.bind_to_storage_buffer(0)
         w, h = self.r.size
         common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
                   f"TILE {TILE}")
@@ -626,7 +727,7 @@ class Drawer:
                     continue
                 t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
                 cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common
-                                   + (("THREAD_PER_JOB",) if thread else ()))
+                                   + (("THREAD_PER_JOB",) if thread else ()) + (("PLACED",) if placed else ()))
                 self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
                 if "u_fade" in cs:
                     cs["u_fade"].value = fade

@@ -229,17 +229,23 @@ class _Node:
         self.pending = None  # lod.points.stratify.stratify_async handle
         self.pos = self.keep = self.anyk = self.filtered = None
 
-    def positions(self, V0, V1, times):
+    def positions(self, V0, V1, times, VK=None):
         """``at(j)``: (2, N, 3) candidate positions at the ends of interval j,
         computed for all the boundaries by the first work item that asks
-        (thread-safe) and dropped by :meth:`filter`."""
+        (thread-safe) and dropped by :meth:`filter`. With ``VK`` (K, T, 3, 3),
+        the triangle corners at K poses (``build_hierarchy(poses=...)``, one
+        interval): (K, N, 3) the candidates at every pose."""
         lock = threading.Lock()
 
         def at(j):
             with lock:
                 if self.pos is None:
-                    self.pos = sample_positions_at(V0[self.tris], V1[self.tris], self.ctri, self.cbary, times)
-                return self.pos[j:j + 2]
+                    if VK is None:
+                        self.pos = sample_positions_at(V0[self.tris], V1[self.tris], self.ctri, self.cbary, times)
+                    else:
+                        self.pos = np.stack([sample_positions_at(v[self.tris], v[self.tris], self.ctri, self.cbary,
+                                                                 [0.0])[0] for v in VK])
+                return self.pos if VK is not None else self.pos[j:j + 2]
         return at
 
     def filter(self, keep, V0, V1, CC0, CC1, NN0, NN1, areas, sigma):
@@ -291,7 +297,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                     filter_sigma: float = C.POINTS_FILTER_SIGMA,
                     max_depth: int = C.POINTS_MAX_DEPTH,
                     seed: int = 0, adaptive_intervals: bool = True,
-                    progress: bool | None = None, threads: int | None = None) -> PointHierarchy:
+                    progress: bool | None = None, threads: int | None = None,
+                    poses=None, areas=None) -> PointHierarchy:
     """Build the point/triangle octree of one keyframe pair (§3.1, §3.3-3.5).
 
     Parameters
@@ -317,6 +324,16 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
         (``lod.points.stratify.choose_interval_times``; equal when that gains
         under 1%, as for animated characters) or always equal intervals
     progress : show a tqdm bar (None: only if the build takes over a second)
+    poses : None, or (K, V, 3) float positions of the vertices at K poses
+        (``lod.points.follow``: samples that follow an animation): one
+        interval (``intervals`` must be 1) whose stratification keeps a
+        candidate unless another covers it at every pose, and whose node
+        spacing is a fraction of the largest box side over p0 and the poses;
+        p0 (= p1) is the pose the octree cells, boxes and filtered attributes
+        are taken at
+    areas : None or (T,) float sampling weights of the candidates and of the
+        filter set in place of the maximum areas over p0 -> p1 (§3.4.1: the
+        largest area a triangle takes over the animation)
     threads : worker threads of the stratification and filtering (None:
         ``lod.points.stratify.worker_count``); the result does not depend on it
 
@@ -343,7 +360,19 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     V1 = triangle_vertices(p1, idx)
     CC0, CC1 = c0[idx], c1[idx]
     NN0, NN1 = n0[idx], n1[idx]
-    areas, _ = max_area(V0, V1)
+    if poses is not None:
+        poses = np.asarray(poses, np.float64)
+        if poses.ndim != 3 or poses.shape[0] < 1 or poses.shape[1:] != p0.shape or not np.isfinite(poses).all():
+            raise ValueError(f"build_hierarchy: poses must be finite (K, {p0.shape[0]}, 3), got {poses.shape}")
+        if m != 1:
+            raise ValueError(f"build_hierarchy: poses need intervals = 1, got {m}")
+    VK = None if poses is None else np.stack([triangle_vertices(p, idx) for p in poses])  # (K, T, 3, 3)
+    if areas is None:
+        areas, _ = max_area(V0, V1)
+    else:
+        areas = np.asarray(areas, np.float64).reshape(-1)
+        if areas.shape != (idx.shape[0],) or not np.isfinite(areas).all() or (areas < 0.0).any():
+            raise ValueError(f"build_hierarchy: areas must be {idx.shape[0]} finite values >= 0")
     tlo0, thi0 = V0.min(1), V0.max(1)
     tlo1, thi1 = V1.min(1), V1.max(1)
     centre = V0.mean(1)
@@ -383,7 +412,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     while me < len(queue):
         # 1. boxes, spacing and the random draws of §3.4.1/§3.5 of the next
         #    nodes, then their stratification (§3.4.2) and filtering (§3.5)
-        while drawn < len(queue) and (drawn == me or ahead < PIPELINE_CANDIDATES):
+        while drawn < len(queue) and (drawn == me or ahead < PIPELINE_CANDIDATES * 2 // (2 if VK is None else
+                                                                                     max(2, VK.shape[0]))):
             nd = queue[drawn]
             drawn += 1
             tris = nd.tris
@@ -394,6 +424,10 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                 nd.box0 = np.stack([nd.cube_lo, nd.cube_lo])
                 nd.box1 = nd.box0.copy()
             maxside = float(max((nd.box0[1] - nd.box0[0]).max(), (nd.box1[1] - nd.box1[0]).max()))
+            if VK is not None and tris.size:  # the largest box over the poses too (§3.3 generalised)
+                for v in VK:
+                    vt = v[tris].reshape(-1, 3)
+                    maxside = max(maxside, float((vt.max(0) - vt.min(0)).max()))
             nd.r = min(spacing_fraction * maxside, 0.5 * nd.r_parent)
             nd.leaf = tris.size <= leaf_triangles or nd.depth >= max_depth or nd.r <= eps_len
             if nd.leaf:
@@ -411,7 +445,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                 nd.fcount = int(min(filter_factor * int(np.ceil(a.sum() / (h * h))), C.POINTS_MAX_CANDIDATES))
                 nd.fset = filter_set(a, nd.fcount, rng)
                 ahead += ctri.size
-                nd.pending = stratify_async((m, nd.positions(V0, V1, times)), nd.r, order, workers,
+                nd.pending = stratify_async((m, nd.positions(V0, V1, times, VK)), nd.r, order, workers,
                                             on_done=filtered(nd), eligible=eligible)
         # 2. stored triangles, children and points of node me
         if bar is None and (show or (show is None and time.perf_counter() - t_start > 1.0)):

@@ -79,6 +79,29 @@ class PointsBatch(DrawBatch):
     tri_jobs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
 
 
+@dataclass
+class FollowBatch(PointsBatch):
+    """A :class:`PointsBatch` of a ``lod.points.follow.FollowRep`` (samples that follow the animation):
+    besides its jobs, the frame's distinct poses of its instances and what each pose needs placed.
+
+    slot : (k,) int64 the pose of each instance row (index into ``pose``)
+    pose : (S,) float64 the poses: the fractional baked row of the base's joint table (skinned; instance
+        float 12 holds it too) or the segment's u (keyframed: the segment is ``part``)
+    pose_points : (S,) int64 samples (a prefix) each pose's instances draw from
+    pose_vertices : (S,) int64 vertices (a prefix, the follow numbering) those samples and triangles use
+    """
+
+    slot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    pose: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pose_points: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    pose_vertices: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    @property
+    def placed(self) -> int:
+        """Samples and vertices the frame places for this batch (one set per distinct pose)."""
+        return int(self.pose_points.sum() + self.pose_vertices.sum())
+
+
 # ---------------------------------------------------------------------------- cache
 def cache_dir() -> Path:
     """Folder of cached hierarchies: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
