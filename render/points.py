@@ -499,7 +499,8 @@ class Drawer:
         # samples that follow the animation: their poses placed this frame (render/points_follow.py)
         fol = None
         if fol_fade:
-            fol = FollowFrame(self, [b for b in batches if b.rep in self._follow], offs, limit)
+            fol = FollowFrame(self, [b for b in batches if b.rep in self._follow], offs, limit,
+                              int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27)))
             self.last_counts.update({k: v for k, v in fol.counts.items()})
         # 1. the traversal's jobs: triangle tables per (fade, rep), point tables per fade over every
         # rep (their samples share one buffer)
@@ -637,28 +638,13 @@ class Drawer:
 
     def _follow_triangles(self, fol, fol_fade, vp) -> None:
         """The triangles the traversal keeps of the representations that follow the animation, drawn from
-        their poses' posed vertices (``points_tri.vert`` PLACED)."""
-        tprog = self._program("points_tri", ("PLACED",))
-        self._uniforms(tprog, vp)
-        bind_rows = self._win[0]
+        their poses' posed vertices (``points_tri.vert`` PLACED), round by round."""
         for r in range(len(fol.rounds)):
-            todo = [(fade, key) for fade in fol_fade for key in {b.rep for b in fol_fade[fade]}]
-            work = [(fade, *fol.triangle_items(r, fol_fade[fade], key)) for fade, key in todo]
-            work = [x for x in work if x[2].shape[0]]
-            if not work:
+            tris, shift = fol.triangle_jobs(r, fol_fade)
+            if not tris:
                 continue
             fol.ensure(r, place=False)
-            bind_rows(0)
-            fol.placed_buffer().bind_to_storage_buffer(5)
-            for fade, items, index in work:
-                if "u_fade" in tprog:
-                    tprog["u_fade"].value = fade
-                self._buffer("tri_items", items).bind_to_storage_buffer(7)
-                ibo = self._buffer("tri_index", index)
-                vao = self._vao_of("tri_vao_placed", ibo, lambda: self.ctx.vertex_array(
-                    tprog, [], index_buffer=ibo, index_element_size=4))
-                vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
-                self.last_counts["triangles"] += int(index.shape[0]) // 3
+            self._draw_triangles(tris, vp, placed=(fol.placed_buffer(), shift))
 
     def _splat_follow(self, fol, fol_fade, vp, splat: int, color: bool) -> int:
         """One splat pass over the placed samples of every round; returns the points splatted."""
@@ -675,10 +661,12 @@ class Drawer:
         self._points.bind_to_storage_buffer(0)
         return n
 
-    def _draw_triangles(self, tris, vp, masks=None) -> None:
+    def _draw_triangles(self, tris, vp, masks=None, placed=None) -> None:
         """Draw triangle job tables [(fade, key, gpu rep, jobs)], only the rows of
-        ``masks`` (a bool array per table) when given."""
-        tprog = self._program("points_tri")
+        ``masks`` (a bool array per table) when given. ``placed``: (buffer, shift) of the
+        representations that follow the animation: their vertices are the posed ones in
+        ``buffer``, vertex v of instance row i at ``shift[i] + v`` (render/points_follow.py)."""
+        tprog = self._program("points_tri", ("PLACED",) if placed is not None else ())
         self._uniforms(tprog, vp)
         for i, (fade, key, g, jobs) in enumerate(tris):
             if masks is not None:
@@ -699,11 +687,14 @@ class Drawer:
                     pieces[:0] = [(first, piece[:half]), (first, piece[half:])]
                     continue
                 bind_rows(first)
+                if placed is not None:  # the instance's pose's posed vertices
+                    items = items.copy()
+                    items[:, 0] += placed[1][first + items[:, 1].astype(np.int64)].astype(np.uint32)
                 self._buffer("tri_items", items).bind_to_storage_buffer(7)
-                g.verts.bind_to_storage_buffer(5)
+                (g.verts if placed is None else placed[0]).bind_to_storage_buffer(5)
                 ibo = self._buffer("tri_index", index)
-                vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
-                                                                                    index_element_size=4))
+                vao = self._vao_of("tri_vao" if placed is None else "tri_vao_placed", ibo,
+                                   lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo, index_element_size=4))
                 vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += int(jobs[-1, 1]) + int(jobs[-1, 3])
 

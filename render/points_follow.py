@@ -179,14 +179,16 @@ class FollowFrame:
     drawer : render.points.Drawer (its context, programs, buffers and instance windows)
     batches : the frame's FollowBatches (of uploaded reps), in the drawer's order
     offs : id(batch) -> first row of the batch in the frame's instance buffer
-    limit : bytes one storage binding may address
+    limit : bytes a round of poses may place (the drawer's storage-binding limit, maybe an injected one)
+    hard : bytes one storage binding can address (the GL limit): one pose may exceed ``limit`` up to it
     """
 
-    def __init__(self, drawer, batches, offs: dict, limit: int):
+    def __init__(self, drawer, batches, offs: dict, limit: int, hard: int | None = None):
         self.d = drawer
         self.batches = batches
         self.offs = offs
         cap = max(1, int(limit) // PLACED_BYTES)
+        hard_cap = max(cap, int(hard if hard is not None else limit) // PLACED_BYTES)
         slots = [_Slot(bi, s, int(b.pose_vertices[s]), int(b.pose_points[s]))
                  for bi, b in enumerate(batches) for s in range(b.pose.shape[0])]
         slots = [s for s in slots if s.vertices + s.samples > 0]
@@ -197,7 +199,7 @@ class FollowFrame:
             if cur and used + n > cap:
                 self.rounds.append(cur)
                 cur, used = [], 0
-            if n > cap:
+            if n > hard_cap:
                 raise ValueError(f"points drawer: one pose of {batches[s.batch].rep!r} needs {n} placed samples and "
                                  f"vertices, above the storage-block limit of {cap}")
             cur.append(s)
@@ -323,37 +325,30 @@ class FollowFrame:
             return np.zeros((0, 4), np.uint32)
         return _with_prefix(np.concatenate(parts))
 
-    def triangle_items(self, r: int, batches_of_fade, key: str) -> tuple:
-        """(items (V, 2) uint32 (posed vertex, instance row), index (3 T,) uint32) of the triangles the traversal
-        kept for representation ``key``'s instances of round r among ``batches_of_fade``."""
+    def triangle_jobs(self, r: int, fol_fade: dict) -> tuple[list, np.ndarray]:
+        """Round r's triangle job tables [(fade, key, FollowGpu, jobs (first triangle, count, instance row,
+        prefix))] as the drawer's triangle pass takes them, and per instance row of the frame the first posed
+        vertex of its pose (-1: not in this round)."""
         vb, _, _ = self._layout(r)
-        g = self.d._follow[key]
-        items, index = [], []
-        n = 0
-        mine = {id(x) for x in batches_of_fade}
-        for bi, b in enumerate(self.batches):
-            if b.rep != key or id(b) not in mine:
-                continue
-            j = np.asarray(b.tri_jobs, np.int64).reshape(-1, 3)
-            j = j[j[:, 2] > 0]
-            if not j.shape[0]:
-                continue
-            base = vb[bi][np.asarray(b.slot, np.int64)[j[:, 0]]]
-            keep = base >= 0
-            if not keep.any():
-                continue
-            jobs = _with_prefix(np.stack([j[keep, 1], j[keep, 2], j[keep, 0]], 1))
-            it, ix = indexed_triangle_jobs(jobs, g.tri_corners, g.tri_ranges)
-            local = it[:, 1].astype(np.int64)  # the batch's row
-            it = it.copy()
-            it[:, 0] = (it[:, 0].astype(np.int64) + vb[bi][np.asarray(b.slot, np.int64)[local]]).astype(np.uint32)
-            it[:, 1] = (self.offs[id(b)] + local).astype(np.uint32)
-            items.append(it)
-            index.append(ix.astype(np.int64) + n)
-            n += it.shape[0]
-        if not items:
-            return np.zeros((0, 2), np.uint32), np.zeros(0, np.uint32)
-        return np.concatenate(items), np.concatenate(index).astype(np.uint32)
+        rows = sum(b.n_instances for b in self.batches) + max(self.offs.values(), default=0)
+        shift = np.full(max(rows, 1), -1, np.int64)
+        out = []
+        for fade, bs in fol_fade.items():
+            mine = {id(x) for x in bs}
+            per_key: dict = {}
+            for bi, b in enumerate(self.batches):
+                if id(b) not in mine:
+                    continue
+                o = self.offs[id(b)]
+                base = vb[bi][np.asarray(b.slot, np.int64)]
+                shift[o:o + b.n_instances] = base
+                j = np.asarray(b.tri_jobs, np.int64).reshape(-1, 3)
+                j = j[(j[:, 2] > 0) & (base[j[:, 0]] >= 0)]
+                if j.shape[0]:
+                    per_key.setdefault(b.rep, []).append(np.stack([j[:, 1], j[:, 2], o + j[:, 0]], 1))
+            for key, parts in per_key.items():
+                out.append((fade, key, self.d._follow[key], _with_prefix(np.concatenate(parts))))
+        return out, shift
 
     def placed_buffer(self):
         return self.d._bufs["follow_placed"]

@@ -261,7 +261,12 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
         lbox = np.zeros((N, 2, 3))
     say("order")
     if coarse and N:
-        add_coarse(h)  # farthest-point order of the root's points at the rest pose
+        # farthest-point order of the root's points by their largest distance over the stratification poses
+        s0, n0 = int(h.point_start[0, 0]), int(h.point_count[0, 0])
+        c0 = idx[h.tri[s0:s0 + n0].astype(np.int64)]
+        b = np.asarray(h.bary[s0:s0 + n0], np.float64)
+        wb = np.stack([1.0 - b[:, 0] - b[:, 1], b[:, 0], b[:, 1]], 1)[None, :, :, None]
+        add_coarse(h, poses=(P[:, c0] * wb).sum(2) if n0 else None)
         if h.coarse_count.shape[1]:
             counts = h.coarse_count[0]
             uniq = np.unique(counts)
@@ -367,6 +372,7 @@ class FollowRep:
     vbase: np.ndarray | None = None
     splat_size: int = 2
     renderer: str = "compute"
+    coarse: bool = True  # the root's farthest-point prefixes (lod.points.coarse) in the traversal
 
     kind = "points"
     follow = True
@@ -410,8 +416,10 @@ class FollowRep:
                 b1 = np.ascontiguousarray(t.fbox[2 * k + 1], np.float64)
             v = dataclasses.replace(h, box0=b0, box1=b1, spacing=t.effective_spacing(), interval_bounds=None)
             v.intervals = 1
-            if getattr(h, "coarse_count", None) is not None:
+            if self.coarse and getattr(h, "coarse_count", None) is not None:
                 v.coarse_count, v.coarse_spacing = h.coarse_count, h.coarse_spacing
+            else:
+                v.coarse_count = v.coarse_spacing = None
             if self.skinned:
                 v.ref = np.ascontiguousarray(t.ref, np.int32)
                 v.joint_table = np.ascontiguousarray(self.base.joint_table, np.float32)

@@ -58,10 +58,22 @@ def quantise_u(kf, seg: int, u: np.ndarray, rate=KEY_RATE) -> np.ndarray:
     return np.round(u * n) / n
 
 
+def _prefixes(rep, slot, n_poses: int, deep) -> tuple[np.ndarray, np.ndarray]:
+    """(samples, vertices) per pose: the prefixes of the deepest node any of its instances draws."""
+    d = np.full(int(n_poses), -1, np.int64)
+    np.maximum.at(d, np.asarray(slot, np.int64), np.asarray(deep, np.int64))
+    t = rep.tree
+    have = d >= 0
+    return (np.where(have, t.pprefix[np.maximum(d, 0)], 0).astype(np.int64),
+            np.where(have, t.vprefix[np.maximum(d, 0)], 0).astype(np.int64))
+
+
 def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE) -> FollowBatch:
     """The :class:`lod.points.rep.FollowBatch` of one culled and located batch of ``rep`` (instances of one
     clip, or one segment): poses quantised (module docstring), the hierarchy traversed at each instance's pose
-    (``lod.points.mode.traverse_instances``), the prefixes of every distinct pose."""
+    (``lod.points.mode.traverse_instances``), the prefixes of every distinct pose. The batch also keeps each
+    instance's point and triangle totals and deepest node (``inst_points``, ``inst_triangles``, ``deep``) for
+    :func:`subset` (mode auto's choice among candidates)."""
     from lod.points.mode import traverse_instances
 
     data = np.array(batch.instance_data, np.float32)
@@ -72,18 +84,38 @@ def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE)
         q = quantise_u(rep.base, int(batch.part), col, rate)
     data[:, 12] = q
     pose, slot = np.unique(data[:, 12].astype(np.float64), return_inverse=True)
-    pj, tj, deep = traverse_instances(rep.view(batch.part), data, planes, vscale, splat, deepest=True)
-    d = np.full(pose.shape[0], -1, np.int64)
-    np.maximum.at(d, slot, deep)
-    t = rep.tree
-    have = d >= 0
-    pts = np.where(have, t.pprefix[np.maximum(d, 0)], 0).astype(np.int64)
-    vts = np.where(have, t.vprefix[np.maximum(d, 0)], 0).astype(np.int64)
-    n_p = int(pj[:, 2].sum()) if pj.size else 0
-    n_t = int(tj[:, 2].sum()) if tj.size else 0
-    return FollowBatch(batch.rep, int(batch.part), batch.instance_ids, data, triangles=n_t, points=n_p,
-                       level=batch.level, tint=batch.tint, fade=batch.fade, point_jobs=pj, tri_jobs=tj,
-                       slot=slot.astype(np.int64), pose=pose, pose_points=pts, pose_vertices=vts)
+    pj, tj, psum, tsum, deep = traverse_instances(rep.view(batch.part), data, planes, vscale, splat, totals=True,
+                                                  deepest=True)
+    pts, vts = _prefixes(rep, slot, pose.shape[0], deep)
+    fb = FollowBatch(batch.rep, int(batch.part), batch.instance_ids, data, triangles=int(tsum.sum()),
+                     points=int(psum.sum()), level=batch.level, tint=batch.tint, fade=batch.fade, point_jobs=pj,
+                     tri_jobs=tj, slot=slot.astype(np.int64), pose=pose, pose_points=pts, pose_vertices=vts)
+    fb.inst_points, fb.inst_triangles, fb.deep = psum, tsum, deep
+    return fb
 
 
-__all__ = ["KEYFRAMED_KEY_RATE", "KEY_RATE", "follow_batch", "quantise_frames", "quantise_u"]
+def subset(rep, fb: FollowBatch, rows) -> FollowBatch | None:
+    """The FollowBatch of the instance rows ``rows`` (bool mask or indices) of ``fb`` alone: its jobs
+    renumbered, its poses those the rows use, their prefixes recomputed; None when no row is left."""
+    take = np.zeros(fb.n_instances, bool)
+    take[np.asarray(rows)] = True
+    if take.all():
+        return fb
+    if not take.any():
+        return None
+    local = np.cumsum(take) - 1
+    pj = fb.point_jobs[take[fb.point_jobs[:, 0]]].copy()
+    tj = fb.tri_jobs[take[fb.tri_jobs[:, 0]]].copy()
+    pj[:, 0] = local[pj[:, 0]]
+    tj[:, 0] = local[tj[:, 0]]
+    used, slot = np.unique(fb.slot[take], return_inverse=True)
+    pts, vts = _prefixes(rep, slot, used.shape[0], fb.deep[take])
+    out = FollowBatch(fb.rep, fb.part, fb.instance_ids[take], fb.instance_data[take],
+                      triangles=int(fb.inst_triangles[take].sum()), points=int(fb.inst_points[take].sum()),
+                      level=fb.level, tint=fb.tint, fade=fb.fade, point_jobs=pj, tri_jobs=tj,
+                      slot=slot.astype(np.int64), pose=fb.pose[used], pose_points=pts, pose_vertices=vts)
+    out.inst_points, out.inst_triangles, out.deep = fb.inst_points[take], fb.inst_triangles[take], fb.deep[take]
+    return out
+
+
+__all__ = ["KEYFRAMED_KEY_RATE", "KEY_RATE", "follow_batch", "quantise_frames", "quantise_u", "subset"]

@@ -105,7 +105,7 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
     cache = cache if cache is not None else HierarchyCache()
     key = f"points:{name}"
     bp = {"spacing_fraction": float(params.get("spacing_fraction", C.POINTS_SPACING_FRACTION))}
-    say = (lambda msg: progress([msg], f"follow hierarchy {name}") and None) if callable(progress) else None
+    say = None
     if getattr(character, "kind", None) == "keyframed":
         kf = build_keyframed_rep(character, key=key)
         shared = shared_topology(kf)
@@ -118,7 +118,8 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
         cols, nrms = np.asarray(kf.colors0[sl], np.float64), np.asarray(kf.normals0[sl], np.float64)
         arrays = (kf.positions0, kf.positions1, kf.colors0, kf.normals0, tris, vbase)
         tree = cached_follow(cache, arrays, bp, lambda: build_follow(frames, cols, nrms, progress=say, **bp))
-        return FollowRep(key, kf, tree, vbase, int(params.get("splat_size", 2)), str(params.get("renderer", "compute")))
+        return FollowRep(key, kf, tree, vbase, int(params.get("splat_size", 2)), str(params.get("renderer", "compute")),
+                         bool(params.get("coarse", True)))
     base = build_rep(character, fps=float(fps), key=key)
     if getattr(base, "kind", None) != "skinned":
         raise TypeError(f"points mode: expected a skinned or keyframed character, got {type(character).__name__}")
@@ -129,7 +130,8 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
     tree = cached_follow(cache, arrays, bp, lambda: build_follow(
         frames, base.colors, base.normals, joints=base.joints, weights=base.weights,
         n_joints=int(base.joint_table.shape[1]), progress=say, **bp))
-    return FollowRep(key, base, tree, None, int(params.get("splat_size", 2)), str(params.get("renderer", "compute")))
+    return FollowRep(key, base, tree, None, int(params.get("splat_size", 2)), str(params.get("renderer", "compute")),
+                     bool(params.get("coarse", True)))
 
 
 def follow_bytes(character) -> int:
