@@ -64,12 +64,22 @@ class SkinnedFrames:
     indices: np.ndarray
     jt: np.ndarray
     targets: object = None
+    #: (F,) bool: row f and f + 1 belong to one clip (the GPU blends between them)
+    paired: np.ndarray | None = None
 
     @classmethod
     def of(cls, rep) -> "SkinnedFrames":
+        F = int(rep.joint_table.shape[0])
+        paired = np.zeros(F, bool)
+        for off, n in zip(np.asarray(rep.clip_offset, np.int64), np.asarray(rep.clip_frames, np.int64)):
+            paired[int(off):int(off + n - 1)] = True
         return cls(np.asarray(rep.positions, np.float64), np.asarray(rep.joints, np.int64),
                    np.asarray(rep.weights, np.float64), np.asarray(rep.indices, np.int64).reshape(-1, 3),
-                   np.ascontiguousarray(rep.joint_table, np.float32), getattr(rep, "targets", None))
+                   np.ascontiguousarray(rep.joint_table, np.float32), getattr(rep, "targets", None), paired)
+
+    @property
+    def morphs(self) -> bool:
+        return self.targets is not None and bool(self.targets.n_targets)
 
     @property
     def n_frames(self) -> int:
@@ -84,15 +94,24 @@ class SkinnedFrames:
         return (np.asarray(t.first, np.int64), np.asarray(t.count, np.int64), np.asarray(t.column, np.int64),
                 np.asarray(t.dpos, np.float64), np.asarray(t.weights, np.float64))
 
-    def positions(self, rows, vertices=None) -> np.ndarray:
-        """(n, m, 3) float64 posed positions of ``vertices`` (None: all) at baked ``rows`` (numba)."""
+    def positions(self, rows, vertices=None, weight_rows=None) -> np.ndarray:
+        """(n, m, 3) float64 posed positions of ``vertices`` (None: all) at baked ``rows`` (numba); the morph
+        weights of ``weight_rows`` (default ``rows``)."""
         rows = np.ascontiguousarray(rows, np.int64).reshape(-1)
+        wrows = rows if weight_rows is None else np.ascontiguousarray(weight_rows, np.int64).reshape(-1)
         v = np.arange(self.rest.shape[0]) if vertices is None else np.asarray(vertices, np.int64)
         out = np.empty((rows.shape[0], v.shape[0], 3))
         if rows.size and v.size:
-            _pose_kernel(self.rest, self.joints, self.weights, self.jt, rows, np.ascontiguousarray(v),
+            _pose_kernel(self.rest, self.joints, self.weights, self.jt, rows, wrows, np.ascontiguousarray(v),
                          *self._target_arrays(), out)
         return out
+
+    def control_points(self, rows) -> np.ndarray:
+        """(n, V, 3): between rows f and f + 1 the GPU blends the matrices M and the morphed positions q with
+        one factor a, so a vertex follows the quadratic Bezier curve M0 q0 -> M1 q1 whose middle control point
+        is (M0 q1 + M1 q0) / 2 (``lod.full.targets``); this is that point for each row f of ``rows``."""
+        rows = np.asarray(rows, np.int64).reshape(-1)
+        return 0.5 * (self.positions(rows, weight_rows=rows + 1) + self.positions(rows + 1, weight_rows=rows))
 
     def joint_inverses(self, rows) -> tuple[np.ndarray, np.ndarray]:
         """(inv (n, J, 3, 4) float64, ok (J,) bool): the inverse skinning matrices at ``rows`` and whether
@@ -145,16 +164,17 @@ def chunks(n: int, size: int = FRAME_CHUNK):
 
 # ---------------------------------------------------------------------------- posing
 @njit(cache=True, parallel=True)
-def _pose_kernel(rest, jn, w, jt, rows, verts, tfirst, tcount, tcol, tdpos, tw, out):  # pragma: no cover
+def _pose_kernel(rest, jn, w, jt, rows, wrows, verts, tfirst, tcount, tcol, tdpos, tw, out):  # pragma: no cover
     for k in prange(rows.shape[0]):
         f = rows[k]
+        fw = wrows[k]
         for q in range(verts.shape[0]):
             v = verts[q]
             x = rest[v, 0]
             y = rest[v, 1]
             z = rest[v, 2]
             for e in range(tfirst[v], tfirst[v] + tcount[v]):  # morph first (targets.glsl targets_apply)
-                ww = tw[f, tcol[e]]
+                ww = tw[fw, tcol[e]]
                 x += ww * tdpos[e, 0]
                 y += ww * tdpos[e, 1]
                 z += ww * tdpos[e, 2]
@@ -533,14 +553,22 @@ def node_boxes(frames, ptr, vert, ref, chunk: int = FRAME_CHUNK) -> np.ndarray:
     lo = np.full((N, 3), np.inf)
     hi = np.full((N, 3), -np.inf)
     ref = np.ascontiguousarray(ref, np.int64)
+    skinned = hasattr(frames, "joint_inverses")
     for a, b in chunks(frames.n_frames, chunk):
         rows = np.arange(a, b)
         posed = frames.positions(rows)
-        inv = frames.joint_inverses(rows)[0] if hasattr(frames, "joint_inverses") else np.zeros((b - a, 1, 3, 4))
-        l, h = np.empty((b - a, N, 3)), np.empty((b - a, N, 3))
-        _box_kernel(ptr, vert, ref, posed, inv, l, h)
-        lo = np.minimum(lo, l.min(0))
-        hi = np.maximum(hi, h.max(0))
+        inv = frames.joint_inverses(rows)[0] if skinned else np.zeros((b - a, 1, 3, 4))
+        todo = [(posed, inv)]
+        if skinned and frames.morphs:  # the blend's middle control points, seen from both rows' frames
+            pr = rows[frames.paired[rows]]
+            if pr.size:
+                mid = frames.control_points(pr)
+                todo += [(mid, frames.joint_inverses(pr)[0]), (mid, frames.joint_inverses(pr + 1)[0])]
+        for P, I in todo:
+            l, h = np.empty((P.shape[0], N, 3)), np.empty((P.shape[0], N, 3))
+            _box_kernel(ptr, vert, ref, P, I, l, h)
+            lo = np.minimum(lo, l.min(0))
+            hi = np.maximum(hi, h.max(0))
     empty = ~(lo <= hi).all(1)
     lo[empty] = 0.0
     hi[empty] = 0.0

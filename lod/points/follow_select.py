@@ -4,8 +4,8 @@ frames) and the prefixes each distinct pose needs placed.
 
 Poses (pose sharing, issue 27 item 4 and the board's pose cache): copies at the same quantised pose share
 one: skinned, the frame coordinate rounded to a baked row of the base's joint table (``pose_rate = "key"``,
-the default), to multiples of ``1 / pose_rate`` seconds (a rate > 0), or exact (0); keyframed, the time in
-the segment rounded to 1/30 s (``"key"``), to ``1 / pose_rate`` s, or exact. The rules are those of
+the default), to multiples of ``1 / pose_rate`` seconds (a rate > 0), or exact (0); keyframed, the segment
+cut into about 30 steps a second (``"key"``) or ``pose_rate`` steps a second, or exact (0). The rules are those of
 ``lod.poses`` (the pose cache's LOD side, written by the helper ``poses``): this module is the adapter that
 lets mode points run before that lands, and then calls it. A copy is drawn at its quantised pose, so the
 traversal runs there too: its node boxes are the drawn samples' bounds.
@@ -48,7 +48,8 @@ def quantise_frames(base, clip: int, f: np.ndarray, rate=KEY_RATE) -> np.ndarray
 
 def quantise_u(kf, seg: int, u: np.ndarray, rate=KEY_RATE) -> np.ndarray:
     """The segment parameters ``u`` of segment ``seg`` of a ``KeyframedRep`` quantised in time by ``rate``
-    (``"key"``: :data:`KEYFRAMED_KEY_RATE` per second; 0: exact)."""
+    (``"key"``: :data:`KEYFRAMED_KEY_RATE` per second; 0: exact): the segment cut into
+    ``round(duration * rate)`` equal steps (at least one)."""
     u = np.clip(np.where(np.isfinite(u), u, 0.0), 0.0, 1.0)
     r = KEYFRAMED_KEY_RATE if rate == KEY_RATE else float(rate)
     dur = float(kf.seg_end[seg] - kf.seg_start[seg])
