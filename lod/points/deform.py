@@ -243,14 +243,64 @@ def _stretch(k11, k12, k22, kd, s11, s12, s22, sd, tiny):  # pragma: no cover - 
     return s
 
 
+@njit(cache=True, parallel=True)
+def _grams_kernel(posed, idx, out):  # pragma: no cover - compiled
+    """out (n, T, 4): :func:`grams` of every frame of ``posed`` (n, V, 3)."""
+    for f in prange(posed.shape[0]):
+        for t in range(idx.shape[0]):
+            a = idx[t, 0]
+            b = idx[t, 1]
+            c = idx[t, 2]
+            ex = posed[f, b, 0] - posed[f, a, 0]
+            ey = posed[f, b, 1] - posed[f, a, 1]
+            ez = posed[f, b, 2] - posed[f, a, 2]
+            gx = posed[f, c, 0] - posed[f, a, 0]
+            gy = posed[f, c, 1] - posed[f, a, 1]
+            gz = posed[f, c, 2] - posed[f, a, 2]
+            g11 = ex * ex + ey * ey + ez * ez
+            g12 = ex * gx + ey * gy + ez * gz
+            g22 = gx * gx + gy * gy + gz * gz
+            out[f, t, 0] = g11
+            out[f, t, 1] = g12
+            out[f, t, 2] = g22
+            out[f, t, 3] = g11 * g22 - g12 * g12
+
+
+def frame_grams(posed, idx) -> np.ndarray:
+    """(n, T, 4) float64 :func:`grams` of frames ``posed`` (n, V, 3) (numba; :func:`grams` is the reference)."""
+    posed = np.ascontiguousarray(posed, np.float64)
+    out = np.empty((posed.shape[0], np.asarray(idx).shape[0], 4))
+    if out.size:
+        _grams_kernel(posed, np.ascontiguousarray(idx, np.int64), out)
+    return out
+
+
 def largest_areas(frames, chunk: int = FRAME_CHUNK) -> np.ndarray:
     """(T,) float64 each triangle's largest area over every frame (and the rest pose)."""
     idx = frames.indices
     best = 0.5 * np.sqrt(np.maximum(grams(frames.rest, idx)[:, 3], 0.0))
     for a, b in chunks(frames.n_frames, chunk):
-        g = grams(frames.positions(np.arange(a, b)), idx)
+        g = frame_grams(frames.positions(np.arange(a, b)), idx)
         best = np.maximum(best, 0.5 * np.sqrt(np.maximum(g[..., 3], 0.0)).max(0))
     return best
+
+
+@njit(cache=True, parallel=True)
+def _farthest_kernel(gk, G, scale, tiny, far):  # pragma: no cover - compiled
+    """far[f] = min(far[f], 1 + max_t min(sigma_t(k -> f) - 1, 2 L_t(f) / scale)) (:func:`choose_poses`)."""
+    for f in prange(G.shape[0]):
+        worst = 0.0
+        for t in range(G.shape[1]):
+            s11 = G[f, t, 0]
+            s12 = G[f, t, 1]
+            s22 = G[f, t, 2]
+            s = _stretch(gk[t, 0], gk[t, 1], gk[t, 2], gk[t, 3], s11, s12, s22, G[f, t, 3], tiny) - 1.0
+            L2 = max(s11, s22, s11 + s22 - 2.0 * s12)
+            v = min(s, 2.0 * np.sqrt(max(L2, 0.0)) / scale)
+            if v > worst:
+                worst = v
+        if 1.0 + worst < far[f]:
+            far[f] = 1.0 + worst
 
 
 def degenerate_tolerance(frames) -> float:
@@ -275,22 +325,17 @@ def choose_poses(frames, count: int, target: float, scale: float, triangles: int
     tri = idx_all[sub]
     verts, local = np.unique(tri.reshape(-1), return_inverse=True)
     local = local.reshape(-1, 3)
-    G = np.empty((F, sub.shape[0], 4), np.float32)  # the subset's Gram terms at every frame
+    G = np.empty((F, sub.shape[0], 4))  # the subset's Gram terms at every frame
     for a, b in chunks(F, chunk):
-        G[a:b] = grams(frames.positions(np.arange(a, b), verts), local)
+        G[a:b] = frame_grams(frames.positions(np.arange(a, b), verts), local)
     tiny = degenerate_tolerance(frames)
     far = np.full(F, np.inf)
     rows = [0]
     while True:
-        gk = G[rows[-1]].astype(np.float64)
-        for a, b in chunks(F, 256):
-            gs = G[a:b].astype(np.float64)
-            if sub.size:
-                L = np.sqrt(np.maximum.reduce([gs[..., 0], gs[..., 2], gs[..., 0] + gs[..., 2] - 2.0 * gs[..., 1]]))
-                s = 1.0 + np.minimum(stretch_numpy(gk[None], gs, tiny) - 1.0, 2.0 * L / max(scale, 1e-300)).max(1)
-            else:
-                s = np.ones(b - a)
-            far[a:b] = np.minimum(far[a:b], s)
+        if sub.size:
+            _farthest_kernel(np.ascontiguousarray(G[rows[-1]]), G, max(float(scale), 1e-300), tiny, far)
+        else:
+            far[:] = 1.0
         worst = int(np.argmax(far))
         if far[worst] <= target or len(rows) >= count or worst in rows:
             return np.array(rows, np.int64), float(max(far[worst], 1.0))
@@ -592,6 +637,6 @@ def segment_boxes(frames: KeyframedFrames, ptr, vert) -> np.ndarray:
 
 
 __all__ = ["CHOICE_TRIANGLES", "FRAME_CHUNK", "KeyframedFrames", "STRETCH_CAP", "SkinnedFrames", "choose_poses",
-           "chunks", "degenerate_tolerance", "grams", "largest_areas", "node_boxes", "node_boxes_numpy",
+           "chunks", "degenerate_tolerance", "frame_grams", "grams", "largest_areas", "node_boxes", "node_boxes_numpy",
            "node_coverage", "coverage_numpy", "pose_positions_numpy", "reference_joints", "segment_boxes",
            "stretch_numpy", "subtree_triangles", "subtree_vertices"]

@@ -202,6 +202,28 @@ def _positions_kernel(v0, v1, tri, bary, times, out):  # pragma: no cover - comp
     return out
 
 
+@njit(cache=True, nogil=True)
+def _posed_positions_kernel(VK, tri, bary, out):  # pragma: no cover - compiled
+    for q in range(VK.shape[0]):
+        for i in range(tri.shape[0]):
+            k = tri[i]
+            b1 = bary[i, 0]
+            b2 = bary[i, 1]
+            b0 = 1.0 - b1 - b2
+            for c in range(3):
+                out[q, i, c] = b0 * VK[q, k, 0, c] + b1 * VK[q, k, 1, c] + b2 * VK[q, k, 2, c]
+    return out
+
+
+def sample_positions_posed(VK, tri, bary) -> np.ndarray:
+    """(K, N, 3) float64 positions of barycentric samples on triangles ``tri`` (ids into VK's T) at each of
+    the K poses of ``VK`` (K, T, 3, 3) (numba; equals :func:`sample_positions_at` per pose)."""
+    out = np.empty((VK.shape[0], np.asarray(tri).shape[0], 3))
+    if out.size:
+        _posed_positions_kernel(VK, np.ascontiguousarray(tri, np.int64), np.ascontiguousarray(bary, np.float64), out)
+    return out
+
+
 def sample_positions_at(v0, v1, tri, bary, times) -> np.ndarray:
     """(len(times), N, 3) float64 positions of barycentric samples (numba)."""
     times = np.ascontiguousarray(times, np.float64).reshape(-1)
@@ -243,8 +265,7 @@ class _Node:
                     if VK is None:
                         self.pos = sample_positions_at(V0[self.tris], V1[self.tris], self.ctri, self.cbary, times)
                     else:
-                        self.pos = np.stack([sample_positions_at(v[self.tris], v[self.tris], self.ctri, self.cbary,
-                                                                 [0.0])[0] for v in VK])
+                        self.pos = sample_positions_posed(VK, self.tris[self.ctri], self.cbary)
                 return self.pos if VK is not None else self.pos[j:j + 2]
         return at
 
