@@ -371,6 +371,36 @@ def memory_estimate(characters, params: dict) -> int:
     return int(total)
 
 
+def memory_causes(characters, params: dict, names) -> list:
+    """(bytes, clause) per character of :func:`memory_estimate`, each naming the character, the path and
+    the ``[lod]`` setting that changes it (``crowd.memory``'s refusal)."""
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    out = []
+    for ch, name in zip(characters, names):
+        b = memory_estimate([ch], p)
+        if not b:
+            continue
+        kind = getattr(ch, "kind", None)
+        baked = p["animation"] == "baked" or (kind == "keyframed" and animation_path(ch, p)[0] == "baked")
+        if not baked:
+            out.append((b, f"mode points' hierarchy of character {name!r} (one, whatever its clips' length): fewer "
+                           "triangles"))
+        elif kind == "skinned":
+            poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
+            longest = max(poses, key=lambda c: float(ch.clip(c).duration))
+            out.append((b, f"mode points' octrees of character {name!r}, one per keyframe pair: "
+                           f"{sum(len(cp.times) for cp in poses.values())} poses, {len(poses[longest].times)} of them "
+                           f"for its {float(ch.clip(longest).duration):.3g} s clip {longest!r}; set [lod] animation "
+                           "= \"follow\" (samples placed with the animation, memory independent of the clips' "
+                           "length) or a larger pose_error"))
+        else:
+            out.append((b, f"mode points' octrees of character {name!r}, one per keyframe pair of its keyframe "
+                           "animations: fewer keyframes" + ("" if kind is None else
+                                                           ", or [lod] animation = \"follow\" when they share one "
+                                                           "triangle list")))
+    return out
+
+
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
 def _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start, tri_count,

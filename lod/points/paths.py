@@ -94,6 +94,36 @@ def animation_path(character, params: dict) -> tuple[str, str]:
                      "the clips' length)"
 
 
+def describe_path(character, params: dict) -> list:
+    """Lines for ``crowd info``: the path mode points takes for ``character`` and why, and what it costs (the
+    baked path's poses per clip, ``lod.points.poses``; the follow path's estimate, whatever the clips' length)."""
+    kind = getattr(character, "kind", None)
+    if kind not in ("skinned", "keyframed") or (kind == "skinned" and not character.mesh.is_skinned):
+        return []
+    path, why = animation_path(character, params)
+    out = [f"points: {path} ({why})"]
+    if path == "follow":
+        out.append(f"  one hierarchy of rest-pose samples, an estimated {follow_bytes(character) / 1e6:.1f} MB "
+                   "(independent of the clips' length); [lod] animation = \"baked\" would bake poses per clip")
+        return out
+    if kind == "skinned":
+        from lod.points.poses import character_extent, clip_poses
+
+        p = {k: v for k, v in dict(params).items()}
+        pe = float(p.get("pose_error", C.POINTS_POSE_ERROR))
+        chosen = clip_poses(character, int(p.get("keyframes", 0)), pe, int(p.get("max_keyframes", C.POINTS_MAX_POSES)))
+        ext = character_extent(character)
+        out.append(f"  poses per clip (pose_error {100 * pe:g} % of the extent {ext:.4g}), an estimated "
+                   f"{baked_bytes(character, params) / 1e6:.1f} MB:")
+        for name, cp in chosen.items():
+            d = float(character.clip(name).duration)
+            out.append(f"    {name}: {len(cp.times)} poses over {d:.3g} s, pose error {cp.error:.3g} "
+                       f"({100 * cp.error / ext:.2g} %)" + (" (capped: above the bound)" if cp.capped else ""))
+    else:
+        out.append(f"  an estimated {baked_bytes(character, params) / 1e6:.1f} MB")
+    return out
+
+
 def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cache=None, progress=None):
     """The :class:`lod.points.follow.FollowRep` of a skinned or keyframed character (hierarchy cached in
     ``cache``, a ``lod.points.rep.HierarchyCache``)."""
@@ -152,4 +182,4 @@ FOLLOW_BYTES_PER_TRIANGLE = 300
 
 
 __all__ = ["ANIMATION_PATHS", "BAKED_BUDGET_BYTES", "FOLLOW_BYTES_PER_TRIANGLE", "animation_path", "baked_bytes",
-           "build_follow_rep", "follow_bytes", "shared_topology"]
+           "build_follow_rep", "describe_path", "follow_bytes", "shared_topology"]
