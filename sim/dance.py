@@ -2,9 +2,9 @@
 
 :func:`dance_clip` keys every joint's rotation at 30 Hz (LINEAR) for ``duration`` seconds, in sections of 2-6 s,
 each a different move on a common beat (100-130 beats per minute): for the generated humanoid
-(``sim.procedural.humanoid``'s joint names) arms swung out and overhead (up to 2.6 rad at the shoulders, the
-elbows bending up to 2 rad), hips twisting and swaying with the chest twisting back, knees lifted in turn, head
-nodding; for any other skeleton every joint turns on random axes by up to 0.4 rad. Consecutive sections
+(``sim.procedural.humanoid``'s joint names) arms swung out and overhead over two or four beats (up to 2.6 rad at
+the shoulders, the elbows bending up to 1.8 rad; a brisk dance, at most about 5 rad/s), hips twisting and
+swaying with the chest twisting back, knees lifted in turn, head nodding; for any other skeleton every joint turns on random axes by up to 0.4 rad. Consecutive sections
 cross-fade over 0.3 s, so the motion never repeats and never jumps (within a section it is periodic on the
 beat, as dances are). Deterministic for a seed.
 """
@@ -26,16 +26,16 @@ def _humanoid_moves(rng, names: dict, times: np.ndarray, beat: float) -> dict:
     out = {}
     ph = rng.uniform(0.0, 2.0 * np.pi)
     up = rng.uniform(0.3, 2.6)  # how high the arms go (rad, sideways)
-    fwd = rng.uniform(-1.2, 1.2)
-    elbow = rng.uniform(0.0, 2.0)
-    half = rng.choice([0.5, 1.0])  # arms on every beat or every other
+    fwd = rng.uniform(-0.9, 0.9)
+    elbow = rng.uniform(0.0, 1.8)
+    half = rng.choice([0.25, 0.5])  # arms over four beats or two (at most ~5 rad/s, a brisk dance)
     for side, sgn, off in (("l", 1.0, 0.0), ("r", -1.0, np.pi * rng.integers(0, 2))):
         a = np.zeros((times.size, 3))
-        a[:, 2] = sgn * up * (0.6 + 0.4 * np.sin(half * w * times + ph + off))
+        a[:, 2] = sgn * up * (0.7 + 0.3 * np.sin(half * w * times + ph + off))
         a[:, 0] = -fwd * np.sin(half * w * times + ph + off + 0.7)
         out[names[f"{side}_upper_arm"]] = a
         f = np.zeros((times.size, 3))
-        f[:, 0] = -elbow * (0.5 + 0.5 * np.sin(w * times + ph + off))
+        f[:, 0] = -elbow * (0.5 + 0.5 * np.sin(half * w * times + ph + off + 1.3))
         out[names[f"{side}_forearm"]] = f
         lift = rng.uniform(0.0, 0.9)
         leg = 0.0 if side == "l" else np.pi
