@@ -330,7 +330,7 @@ class FollowFrame:
         prefix))] as the drawer's triangle pass takes them, and per instance row of the frame the first posed
         vertex of its pose (-1: not in this round)."""
         vb, _, _ = self._layout(r)
-        rows = sum(b.n_instances for b in self.batches) + max(self.offs.values(), default=0)
+        rows = max((self.offs[id(b)] + b.n_instances for b in self.batches), default=0)
         shift = np.full(max(rows, 1), -1, np.int64)
         out = []
         for fade, bs in fol_fade.items():

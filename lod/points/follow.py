@@ -188,7 +188,8 @@ def posed_prefix_radii(frames, h: PointHierarchy, counts: np.ndarray) -> np.ndar
     verts, local = np.unique(tri.reshape(-1), return_inverse=True)
     local = local.reshape(-1, 3)
     out = np.zeros(counts.shape[0])
-    for a, e in deform.chunks(frames.n_frames):
+    step = max(1, min(deform.FRAME_CHUNK, 2_000_000 // max(1, n * n)))  # (f, n, n) distances at most 16 MB
+    for a, e in deform.chunks(frames.n_frames, step):
         q = (frames.positions(np.arange(a, e), verts)[:, local] * w).sum(2)  # (f, n, 3)
         d = np.sqrt(((q[:, :, None, :] - q[:, None, :, :]) ** 2).sum(-1))  # (f, n, n)
         for k, m in enumerate(counts.tolist()):
@@ -240,7 +241,9 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
     N = h.n_nodes
     skinned = joints is not None
     if skinned:
-        ok = frames.joint_inverses(np.arange(frames.n_frames))[1] if frames.n_frames else np.ones(n_joints, bool)
+        ok = np.ones(n_joints, bool)  # joints invertible at every frame (a usable box frame)
+        for a, b in deform.chunks(frames.n_frames, 256):
+            ok &= frames.joint_inverses(np.arange(a, b))[1]
         ref = deform.reference_joints(ptr, vert, np.asarray(joints, np.int64), np.asarray(weights, np.float64),
                                       n_joints)
         ref = np.where(ok[ref], ref, -1).astype(np.int32)
