@@ -39,12 +39,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-#: frames posed at once (bounds the scratch: frames x vertices x 3 float64)
-FRAME_CHUNK = 32
+#: frames posed at once (bounds the scratch: frames x vertices x 3 float64; 12 MB for 31 K vertices)
+FRAME_CHUNK = 16
 #: cap on a triangle's stretch (a triangle degenerate at a pose it is mapped from)
 STRETCH_CAP = 64.0
-#: triangles the pose choice measures (evenly strided); the node stretch then uses every triangle
-CHOICE_TRIANGLES = 4096
+#: triangles the pose choice measures (evenly strided; their Gram terms at every frame are kept: 16 B each)
+CHOICE_TRIANGLES = 2048
 #: a triangle whose doubled squared area at a pose is below this fraction of the largest is degenerate there
 DEGENERATE = 1e-14
 
@@ -275,13 +275,34 @@ def frame_grams(posed, idx) -> np.ndarray:
     return out
 
 
+@njit(cache=True, parallel=True)
+def _area_kernel(posed, idx, best):  # pragma: no cover - compiled
+    """best[t] = max(best[t], the triangle's area at every frame of ``posed``)."""
+    for t in prange(idx.shape[0]):
+        a = idx[t, 0]
+        b = idx[t, 1]
+        c = idx[t, 2]
+        for f in range(posed.shape[0]):
+            ex = posed[f, b, 0] - posed[f, a, 0]
+            ey = posed[f, b, 1] - posed[f, a, 1]
+            ez = posed[f, b, 2] - posed[f, a, 2]
+            gx = posed[f, c, 0] - posed[f, a, 0]
+            gy = posed[f, c, 1] - posed[f, a, 1]
+            gz = posed[f, c, 2] - posed[f, a, 2]
+            x = ey * gz - ez * gy
+            y = ez * gx - ex * gz
+            z = ex * gy - ey * gx
+            area = 0.5 * np.sqrt(x * x + y * y + z * z)
+            if area > best[t]:
+                best[t] = area
+
+
 def largest_areas(frames, chunk: int = FRAME_CHUNK) -> np.ndarray:
     """(T,) float64 each triangle's largest area over every frame (and the rest pose)."""
-    idx = frames.indices
+    idx = np.ascontiguousarray(frames.indices, np.int64)
     best = 0.5 * np.sqrt(np.maximum(grams(frames.rest, idx)[:, 3], 0.0))
     for a, b in chunks(frames.n_frames, chunk):
-        g = frame_grams(frames.positions(np.arange(a, b)), idx)
-        best = np.maximum(best, 0.5 * np.sqrt(np.maximum(g[..., 3], 0.0)).max(0))
+        _area_kernel(frames.positions(np.arange(a, b)), idx, best)
     return best
 
 
@@ -325,7 +346,7 @@ def choose_poses(frames, count: int, target: float, scale: float, triangles: int
     tri = idx_all[sub]
     verts, local = np.unique(tri.reshape(-1), return_inverse=True)
     local = local.reshape(-1, 3)
-    G = np.empty((F, sub.shape[0], 4))  # the subset's Gram terms at every frame
+    G = np.empty((F, sub.shape[0], 4), np.float32)  # the subset's Gram terms at every frame (16 B a triangle)
     for a, b in chunks(F, chunk):
         G[a:b] = frame_grams(frames.positions(np.arange(a, b), verts), local)
     tiny = degenerate_tolerance(frames)
@@ -333,7 +354,7 @@ def choose_poses(frames, count: int, target: float, scale: float, triangles: int
     rows = [0]
     while True:
         if sub.size:
-            _farthest_kernel(np.ascontiguousarray(G[rows[-1]]), G, max(float(scale), 1e-300), tiny, far)
+            _farthest_kernel(np.ascontiguousarray(G[rows[-1]], np.float64), G, max(float(scale), 1e-300), tiny, far)
         else:
             far[:] = 1.0
         worst = int(np.argmax(far))
