@@ -243,23 +243,27 @@ def _stretch(k11, k12, k22, kd, s11, s12, s22, sd, tiny):  # pragma: no cover - 
     return s
 
 
+@njit(cache=True, inline="always")
+def _gram(posed, f, idx, t):  # pragma: no cover - compiled
+    """(g11, g12, g22) of triangle t at frame f of ``posed`` (:func:`grams`)."""
+    a = idx[t, 0]
+    b = idx[t, 1]
+    c = idx[t, 2]
+    ex = posed[f, b, 0] - posed[f, a, 0]
+    ey = posed[f, b, 1] - posed[f, a, 1]
+    ez = posed[f, b, 2] - posed[f, a, 2]
+    gx = posed[f, c, 0] - posed[f, a, 0]
+    gy = posed[f, c, 1] - posed[f, a, 1]
+    gz = posed[f, c, 2] - posed[f, a, 2]
+    return ex * ex + ey * ey + ez * ez, ex * gx + ey * gy + ez * gz, gx * gx + gy * gy + gz * gz
+
+
 @njit(cache=True, parallel=True)
 def _grams_kernel(posed, idx, out):  # pragma: no cover - compiled
     """out (n, T, 4): :func:`grams` of every frame of ``posed`` (n, V, 3)."""
     for f in prange(posed.shape[0]):
         for t in range(idx.shape[0]):
-            a = idx[t, 0]
-            b = idx[t, 1]
-            c = idx[t, 2]
-            ex = posed[f, b, 0] - posed[f, a, 0]
-            ey = posed[f, b, 1] - posed[f, a, 1]
-            ez = posed[f, b, 2] - posed[f, a, 2]
-            gx = posed[f, c, 0] - posed[f, a, 0]
-            gy = posed[f, c, 1] - posed[f, a, 1]
-            gz = posed[f, c, 2] - posed[f, a, 2]
-            g11 = ex * ex + ey * ey + ez * ez
-            g12 = ex * gx + ey * gy + ez * gz
-            g22 = gx * gx + gy * gy + gz * gz
+            g11, g12, g22 = _gram(posed, f, idx, t)
             out[f, t, 0] = g11
             out[f, t, 1] = g12
             out[f, t, 2] = g22
@@ -279,20 +283,9 @@ def frame_grams(posed, idx) -> np.ndarray:
 def _area_kernel(posed, idx, best):  # pragma: no cover - compiled
     """best[t] = max(best[t], the triangle's area at every frame of ``posed``)."""
     for t in prange(idx.shape[0]):
-        a = idx[t, 0]
-        b = idx[t, 1]
-        c = idx[t, 2]
         for f in range(posed.shape[0]):
-            ex = posed[f, b, 0] - posed[f, a, 0]
-            ey = posed[f, b, 1] - posed[f, a, 1]
-            ez = posed[f, b, 2] - posed[f, a, 2]
-            gx = posed[f, c, 0] - posed[f, a, 0]
-            gy = posed[f, c, 1] - posed[f, a, 1]
-            gz = posed[f, c, 2] - posed[f, a, 2]
-            x = ey * gz - ez * gy
-            y = ez * gx - ex * gz
-            z = ex * gy - ey * gx
-            area = 0.5 * np.sqrt(x * x + y * y + z * z)
+            g11, g12, g22 = _gram(posed, f, idx, t)
+            area = 0.5 * np.sqrt(max(g11 * g22 - g12 * g12, 0.0))
             if area > best[t]:
                 best[t] = area
 

@@ -37,14 +37,13 @@ change between segments, and where a measured rule prefers them (``lod.points.mo
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from lod.atomic_io import atomic_open, write_atomic
+from lod.atomic_io import atomic_open
 from lod.points import config as C
 from lod.points import deform
 from lod.points.coarse import add_coarse
@@ -323,37 +322,15 @@ def load_follow(path) -> FollowHierarchy:
 
 def follow_key(arrays, params: dict) -> str:
     """sha256 hex digest of the inputs (shape, dtype, bytes), the parameters and :data:`FOLLOW_FORMAT`."""
-    hsh = hashlib.sha256()
-    hsh.update(f"points-follow/{FOLLOW_FORMAT}".encode())
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        hsh.update(f"{a.dtype.str}{a.shape}".encode())
-        hsh.update(a.tobytes())
-    hsh.update(json.dumps(params, sort_keys=True).encode())
-    return hsh.hexdigest()
+    from lod.points.rep import hierarchy_key
+
+    return hierarchy_key(arrays, params, kind=f"points-follow/{FOLLOW_FORMAT}")
 
 
 def cached_follow(cache, arrays, params: dict, build):
     """The cached :class:`FollowHierarchy` of ``arrays`` and ``params`` (``cache``: a
-    ``lod.points.rep.HierarchyCache``, its folder and counters), built with ``build()`` and stored on a miss."""
-    key = "follow-" + follow_key(arrays, params)
-    npz, sha = cache.paths(key)
-    try:
-        if npz.is_file() and sha.read_text().strip() == hashlib.sha256(npz.read_bytes()).hexdigest():
-            t = load_follow(npz)
-            cache.hits += 1
-            return t
-    except (OSError, ValueError):
-        pass
-    cache.misses += 1
-    t = build()
-    try:
-        cache.folder.mkdir(parents=True, exist_ok=True)
-        save_follow(t, npz)
-        write_atomic(sha, hashlib.sha256(npz.read_bytes()).hexdigest() + "\n")
-    except OSError:  # a read-only cache still builds
-        pass
-    return t
+    ``lod.points.rep.HierarchyCache``), built with ``build()`` and stored on a miss."""
+    return cache.fetch("follow-" + follow_key(arrays, params), build, load_follow, save_follow)
 
 
 # ---------------------------------------------------------------------------- representation

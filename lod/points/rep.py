@@ -109,11 +109,11 @@ def cache_dir() -> Path:
     return Path(d) if d else Path.home() / ".cache" / "crowd"
 
 
-def hierarchy_key(arrays, params: dict) -> str:
-    """sha256 hex digest of the input arrays (shape, dtype, bytes), the build
-    parameters and :data:`CACHE_FORMAT`."""
+def hierarchy_key(arrays, params: dict, kind: str = f"points-hierarchy/{CACHE_FORMAT}") -> str:
+    """sha256 hex digest of ``kind`` (the entry type and format: by default :data:`CACHE_FORMAT`'s
+    hierarchies), the input arrays (shape, dtype, bytes) and the build parameters."""
     h = hashlib.sha256()
-    h.update(f"points-hierarchy/{CACHE_FORMAT}".encode())
+    h.update(kind.encode())
     for a in arrays:
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape}".encode())
@@ -144,21 +144,38 @@ class HierarchyCache:
     def paths(self, key: str) -> tuple[Path, Path]:
         return self.folder / f"{key}.npz", self.folder / f"{key}.sha256"
 
-    def load(self, key: str):
-        """The cached hierarchy of ``key`` or None (missing or corrupt)."""
+    def load(self, key: str, reader=load_hierarchy):
+        """The cached entry of ``key`` read by ``reader(path)`` (a hierarchy by default), or None (missing or
+        corrupt)."""
         npz, sha = self.paths(key)
         try:
             if not npz.is_file() or sha.read_text().strip() != _file_sha(npz):
                 return None
-            return load_hierarchy(npz)
+            return reader(npz)
         except (OSError, ValueError):
             return None
 
-    def store(self, key: str, h: PointHierarchy) -> None:
+    def store(self, key: str, h, writer=save_hierarchy) -> None:
+        """Write ``h`` as entry ``key`` with ``writer(h, path)`` (atomic), then its digest."""
         self.folder.mkdir(parents=True, exist_ok=True)
         npz, sha = self.paths(key)
-        save_hierarchy(h, npz)
+        writer(h, npz)
         write_atomic(sha, _file_sha(npz) + "\n")
+
+    def fetch(self, key: str, build, reader, writer):
+        """Entry ``key`` read by ``reader``, or ``build()`` stored by ``writer`` on a miss (a read-only cache
+        still builds); counts hits and misses."""
+        got = self.load(key, reader)
+        if got is not None:
+            self.hits += 1
+            return got
+        self.misses += 1
+        out = build()
+        try:
+            self.store(key, out, writer)
+        except OSError:
+            pass
+        return out
 
     def get_or_build(self, arrays, params: dict) -> PointHierarchy:
         """Cached hierarchy of ``build_hierarchy(*arrays, **params)``, built and stored on a miss."""

@@ -20,6 +20,16 @@ uniform uint u_items;  // work items of this dispatch (the last job's prefix + c
 uniform vec3 u_lo;
 uniform float u_scale;
 
+// this thread's work item: its job (one pose) and the vertex k of the pose's prefix; false past the last
+bool pose_item(out uint j, out uvec4 job, out uint k) {
+    uint g = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * uint(LOCAL_SIZE);
+    if (g >= u_items) return false;
+    j = find_job(g);
+    job = jobs[j];
+    k = g - job.w;
+    return true;
+}
+
 #ifdef KEYFRAMED
 struct Sample {
     uvec4 geo;
@@ -29,11 +39,9 @@ layout(std430, binding = 6) readonly buffer KVerts { Sample kverts[]; };
 layout(std430, binding = 10) readonly buffer PoseU { float pose_u[]; };
 
 void main() {
-    uint g = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * uint(LOCAL_SIZE);
-    if (g >= u_items) return;
-    uint j = find_job(g);
-    uvec4 job = jobs[j];
-    uint k = g - job.w;
+    uint j, k;
+    uvec4 job;
+    if (!pose_item(j, job, k)) return;
     Sample s = kverts[job.z + k];
     float u = clamp(pose_u[j], 0.0, 1.0);
     vec2 a = unpackUnorm2x16(s.geo.x);
@@ -52,11 +60,9 @@ void main() {
 layout(std430, binding = 6) readonly buffer Verts { uvec4 verts[]; };
 
 void main() {
-    uint g = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * uint(LOCAL_SIZE);
-    if (g >= u_items) return;
-    uint j = find_job(g);
-    uvec4 job = jobs[j];
-    uint v = g - job.w;
+    uint j, v;
+    uvec4 job;
+    if (!pose_item(j, job, v)) return;
     float frame = uintBitsToFloat(job.z);
     uvec4 a = verts[3u * v];
     uvec4 b = verts[3u * v + 1u];
