@@ -162,6 +162,13 @@ def chunks(n: int, size: int = FRAME_CHUNK):
         yield a, min(n, a + size)
 
 
+def row_chunks(frames, rows=None, size: int = FRAME_CHUNK):
+    """The frame rows ``rows`` (None: all of ``frames``), ``size`` at a time, as int64 arrays."""
+    rows = np.arange(frames.n_frames) if rows is None else np.asarray(rows, np.int64).reshape(-1)
+    for a in range(0, rows.shape[0], size):
+        yield rows[a:a + size]
+
+
 # ---------------------------------------------------------------------------- posing
 @njit(cache=True, parallel=True)
 def _pose_kernel(rest, jn, w, jt, rows, wrows, verts, tfirst, tcount, tcol, tdpos, tw, out):  # pragma: no cover
@@ -438,12 +445,12 @@ def coverage_numpy(kpos, ppos) -> float:
     return float(d.min(2).max()) if d.size else 0.0
 
 
-def node_coverage(frames, h, probes: float, rng, chunk: int = FRAME_CHUNK, weights=None) -> np.ndarray:
+def node_coverage(frames, h, probes: float, rng, chunk: int = FRAME_CHUNK, weights=None, rows=None) -> np.ndarray:
     """(N,) float64: per node the largest distance, over every frame, from a probe on its subtree's surface to
     the nearest of its samples (0 for nodes without samples). ``probes`` per sample (at least 8 a node) are
     drawn by ``weights`` (each triangle's largest area) on the triangles of the node's subtree and placed with
     the animation as the samples are. This is the covering radius §3.4.2 guarantees at an interval's ends
-    (r/2 for the candidates), measured at every frame instead of constructed at two."""
+    (r/2 for the candidates), measured at every frame (of ``rows``: one clip's) instead of constructed at two."""
     from lod.points.sampling import sample_triangles
 
     N = h.n_nodes
@@ -477,9 +484,9 @@ def node_coverage(frames, h, probes: float, rng, chunk: int = FRAME_CHUNK, weigh
     res = np.zeros(len(nodes))
     ktri = np.ascontiguousarray(h.tri, np.int64)
     kbary = np.ascontiguousarray(h.bary, np.float64)
-    for a, b in chunks(frames.n_frames, chunk):
-        _coverage_kernel(kstart, kcount, ktri, kbary, pstart, pcount, ptri, pbary, idx, frames.positions(np.arange(a, b)),
-                         tau, wit, res)
+    for r in row_chunks(frames, rows, chunk):
+        _coverage_kernel(kstart, kcount, ktri, kbary, pstart, pcount, ptri, pbary, idx, frames.positions(r), tau,
+                         wit, res)
     out[nodes] = res
     return out
 
@@ -605,21 +612,20 @@ def node_boxes_numpy(ptr, vert, ref, posed, inv) -> tuple[np.ndarray, np.ndarray
     return lo, hi
 
 
-def node_boxes(frames, ptr, vert, ref, chunk: int = FRAME_CHUNK) -> np.ndarray:
-    """(N, 2, 3) float64 [lo, hi] per node over every frame, in the frame of joint ``ref[i]`` (skinned
-    frames) or the model frame (-1); empty nodes get a zero box at the origin."""
+def node_boxes(frames, ptr, vert, ref, chunk: int = FRAME_CHUNK, rows=None) -> np.ndarray:
+    """(N, 2, 3) float64 [lo, hi] per node over every frame (of ``rows``: one clip's), in the frame of joint
+    ``ref[i]`` (skinned frames) or the model frame (-1); empty nodes get a zero box at the origin."""
     N = ptr.shape[0] - 1
     lo = np.full((N, 3), np.inf)
     hi = np.full((N, 3), -np.inf)
     ref = np.ascontiguousarray(ref, np.int64)
     skinned = hasattr(frames, "joint_inverses")
-    for a, b in chunks(frames.n_frames, chunk):
-        rows = np.arange(a, b)
-        posed = frames.positions(rows)
-        inv = frames.joint_inverses(rows)[0] if skinned else np.zeros((b - a, 1, 3, 4))
+    for r in row_chunks(frames, rows, chunk):
+        posed = frames.positions(r)
+        inv = frames.joint_inverses(r)[0] if skinned else np.zeros((r.shape[0], 1, 3, 4))
         todo = [(posed, inv)]
         if skinned and frames.morphs:  # the blend's middle control points, seen from both rows' frames
-            pr = rows[frames.paired[rows]]
+            pr = r[frames.paired[r]]
             if pr.size:
                 mid = frames.control_points(pr)
                 todo += [(mid, frames.joint_inverses(pr)[0]), (mid, frames.joint_inverses(pr + 1)[0])]
@@ -651,6 +657,6 @@ def segment_boxes(frames: KeyframedFrames, ptr, vert) -> np.ndarray:
 
 
 __all__ = ["CHOICE_TRIANGLES", "FRAME_CHUNK", "KeyframedFrames", "STRETCH_CAP", "SkinnedFrames", "choose_poses",
-           "chunks", "degenerate_tolerance", "frame_grams", "grams", "largest_areas", "node_boxes", "node_boxes_numpy",
+           "chunks", "row_chunks", "degenerate_tolerance", "frame_grams", "grams", "largest_areas", "node_boxes", "node_boxes_numpy",
            "node_coverage", "coverage_numpy", "pose_positions_numpy", "reference_joints", "segment_boxes",
            "stretch_numpy", "subtree_triangles", "subtree_vertices"]

@@ -70,14 +70,16 @@ class FollowHierarchy:
     octree : PointHierarchy, one interval, built in the rest pose (``pos0 == pos1``); its ``spacing`` is the
         sampled spacing r, its ``coarse_count``/``coarse_spacing`` the root prefixes measured over every frame
     ref : (N,) int32 joint whose frame holds each node's box (-1: the model frame)
-    lbox : (N, 2, 3) float64 node boxes over every frame in those frames (skinned; zeros for keyframed)
+    lbox : (C, N, 2, 3) float64 per clip the node boxes over its frames in those frames (skinned; zeros for
+        keyframed)
     fbox : (F, N, 2, 3) float32 or None: keyframed, the node boxes at every frame (segment ends)
-    stretch : (N,) float64 >= 1, the node's spacing factor over every frame
+    stretch : (C, N) float64 >= 1, per clip the node's spacing factor over its frames
     vorder : (V,) int32 vertex renumbering: new vertex i is old vertex ``vorder[i]``
     vprefix, pprefix : (N,) int64 vertices (new numbering) and samples nodes 0..i need
     corners : (T, 3) int32 the triangles' corners in the new numbering
     lnrm : (P, 3) float16 the samples' filtered normals in their shading frame (:func:`frame_coordinates`)
     poses : (K,) int64 the stratification frames
+    cspacing : (C, L) float64 per clip the spacings of the root's prefixes (``octree.coarse_count``)
     stats : dict of build figures (seconds, poses, stretch left)
     """
 
@@ -92,6 +94,7 @@ class FollowHierarchy:
     corners: np.ndarray
     lnrm: np.ndarray
     poses: np.ndarray
+    cspacing: np.ndarray
     stats: dict = field(default_factory=dict)
 
     @property
@@ -107,9 +110,9 @@ class FollowHierarchy:
         extra = sum(v.nbytes for k, v in self.__dict__.items() if isinstance(v, np.ndarray))
         return int(self.octree.nbytes + extra)
 
-    def effective_spacing(self) -> np.ndarray:
-        """(N,) the spacing the traversal tests: r x stretch."""
-        return np.asarray(self.octree.spacing, np.float64) * self.stretch
+    def effective_spacing(self, clip: int = 0) -> np.ndarray:
+        """(N,) the spacing the traversal tests for ``clip``: r x stretch."""
+        return np.asarray(self.octree.spacing, np.float64) * self.stretch[min(int(clip), self.stretch.shape[0] - 1)]
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -176,7 +179,7 @@ def frame_coordinates(p, n, idx, tri, bary, nrm) -> np.ndarray:
     return np.where(ln > 1e-12, out / np.where(ln > 1e-12, ln, 1.0), np.array([0.0, 0.0, 1.0]))
 
 
-def posed_prefix_radii(frames, h: PointHierarchy, counts: np.ndarray) -> np.ndarray:
+def posed_prefix_radii(frames, h: PointHierarchy, counts: np.ndarray, rows=None) -> np.ndarray:
     """(L,) float64: for each prefix size m of the root's points (farthest-point order), the largest distance
     over every frame from a root point to its nearest of the first m (``lod.points.coarse`` at every frame)."""
     s, n = int(h.point_start[0, 0]), int(h.point_count[0, 0])
@@ -188,8 +191,8 @@ def posed_prefix_radii(frames, h: PointHierarchy, counts: np.ndarray) -> np.ndar
     local = local.reshape(-1, 3)
     out = np.zeros(counts.shape[0])
     step = max(1, min(deform.FRAME_CHUNK, 2_000_000 // max(1, n * n)))  # (f, n, n) distances at most 16 MB
-    for a, e in deform.chunks(frames.n_frames, step):
-        q = (frames.positions(np.arange(a, e), verts)[:, local] * w).sum(2)  # (f, n, 3)
+    for r in deform.row_chunks(frames, rows, step):
+        q = (frames.positions(r, verts)[:, local] * w).sum(2)  # (f, n, 3)
         d = np.sqrt(((q[:, :, None, :] - q[:, None, :, :]) ** 2).sum(-1))  # (f, n, n)
         for k, m in enumerate(counts.tolist()):
             out[k] = max(out[k], float(d[:, :, :m].min(2).max()) if m < n else 0.0)
@@ -197,7 +200,7 @@ def posed_prefix_radii(frames, h: PointHierarchy, counts: np.ndarray) -> np.ndar
 
 
 # ---------------------------------------------------------------------------- build
-def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints: int = 0,
+def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints: int = 0, clips=None,
                  spacing_fraction: float = C.POINTS_SPACING_FRACTION, max_poses: int = STRATIFY_POSES,
                  stretch_target: float = STRETCH_TARGET, coarse: bool = True, seed: int = 0,
                  progress=None) -> FollowHierarchy:
@@ -208,6 +211,8 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
     frames : ``lod.points.deform.SkinnedFrames`` or ``KeyframedFrames`` (rest pose, triangles, every frame)
     colors (V, 4), normals (V, 3) : the rest pose's vertex attributes
     joints (V, 4), weights (V, 4), n_joints : the skin (skinned frames; the node boxes' joint frames)
+    clips : None (one group of every frame) or per clip its frame rows: the stretch, node boxes and coarse
+        prefixes are measured per clip (a view draws one clip), the samples and octree are shared
     spacing_fraction : r as a fraction of a node's box side (§3.3)
     max_poses, stretch_target : the stratification poses (``lod.points.deform.choose_poses``)
     coarse : the root's farthest-point prefixes (``lod.points.coarse``)
@@ -228,40 +233,16 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
     h = build_hierarchy(rest, rest, idx, colors, colors, normals, normals, intervals=1,
                         spacing_fraction=spacing_fraction, seed=seed, poses=P, areas=areas, progress=False)
     t_tree = time.perf_counter()
-    say("coverage")
     tri_node = triangle_nodes(h)
     parent = np.asarray(h.parent, np.int64)
-    cover = deform.node_coverage(frames, h, COVERAGE_PROBES, np.random.default_rng([int(seed), 0x636F76]),
-                                 weights=areas)
-    r = np.asarray(h.spacing, np.float64)
-    stretch = np.where(r > 0.0, np.maximum(1.0, 2.0 * cover / np.where(r > 0.0, r, 1.0)), 1.0)
-    say("bounds")
     ptr, vert = deform.subtree_vertices(parent, tri_node, idx, V)
     N = h.n_nodes
     skinned = joints is not None
-    if skinned:
-        ok = np.ones(n_joints, bool)  # joints invertible at every frame (a usable box frame)
-        for a, b in deform.chunks(frames.n_frames, 256):
-            ok &= frames.joint_inverses(np.arange(a, b))[1]
-        ref = deform.reference_joints(ptr, vert, np.asarray(joints, np.int64), np.asarray(weights, np.float64),
-                                      n_joints)
-        ref = np.where(ok[ref], ref, -1).astype(np.int32)
-        lbox = deform.node_boxes(frames, ptr, vert, ref)
-        shallow = np.asarray(h.depth) <= SHALLOW_DEPTH
-        model = deform.node_boxes(frames, ptr, vert, np.where(shallow, -1, -2))
-        better = shallow & ((model[:, 1] - model[:, 0]).sum(1) < (lbox[:, 1] - lbox[:, 0]).sum(1))
-        ref[better] = -1
-        lbox[better] = model[better]
-        pad = BOX_PAD * float(max(np.ptp(rest, axis=0).max(), 1e-9)) if V else 0.0
-        lbox = lbox + np.array([-pad, pad])[None, :, None]
-        fbox = None
-    else:
-        ref = np.full(N, -1, np.int32)
-        fbox = deform.segment_boxes(frames, ptr, vert)
-        pad = BOX_PAD * float(max(np.ptp(rest, axis=0).max(), 1e-9)) if V else 0.0
-        fbox = (fbox + np.array([-pad, pad])[None, None, :, None]).astype(np.float32)
-        lbox = np.zeros((N, 2, 3))
-    say("order")
+    groups = [np.asarray(g, np.int64) for g in clips] if clips is not None else [np.arange(frames.n_frames)]
+    Cn = len(groups)
+    r = np.asarray(h.spacing, np.float64)
+    rng = np.random.default_rng([int(seed), 0x636F76])
+    pad = BOX_PAD * float(max(np.ptp(rest, axis=0).max(), 1e-9)) if V else 0.0
     if coarse and N:
         # farthest-point order of the root's points by their largest distance over the stratification poses
         s0, n0 = int(h.point_start[0, 0]), int(h.point_count[0, 0])
@@ -269,14 +250,50 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
         b = np.asarray(h.bary[s0:s0 + n0], np.float64)
         wb = np.stack([1.0 - b[:, 0] - b[:, 1], b[:, 0], b[:, 1]], 1)[None, :, :, None]
         add_coarse(h, poses=(P[:, c0] * wb).sum(2) if n0 else None)
-        if h.coarse_count.shape[1]:
+    has_coarse = coarse and N and h.coarse_count.shape[1] > 0
+    stretch = np.ones((Cn, N))
+    cspacing = np.zeros((Cn, h.coarse_count.shape[1] if has_coarse else 0))
+    if skinned:
+        ok = np.ones(n_joints, bool)  # joints invertible at every frame (a usable box frame)
+        for a, b in deform.chunks(frames.n_frames, 256):
+            ok &= frames.joint_inverses(np.arange(a, b))[1]
+        ref = deform.reference_joints(ptr, vert, np.asarray(joints, np.int64), np.asarray(weights, np.float64),
+                                      n_joints)
+        ref = np.where(ok[ref], ref, -1).astype(np.int32)
+        shallow = np.asarray(h.depth) <= SHALLOW_DEPTH
+        lbox = np.zeros((Cn, N, 2, 3))
+        model = np.zeros((Cn, N, 2, 3))
+    else:
+        ref = np.full(N, -1, np.int32)
+        lbox = np.zeros((Cn, N, 2, 3))
+    for c, rows in enumerate(groups):  # per clip: its frames alone (memory: clips x nodes, not frames)
+        say(f"clip {c}: coverage and bounds")
+        cover = deform.node_coverage(frames, h, COVERAGE_PROBES, rng, weights=areas, rows=rows)
+        stretch[c] = np.where(r > 0.0, np.maximum(1.0, 2.0 * cover / np.where(r > 0.0, r, 1.0)), 1.0)
+        if skinned:
+            lbox[c] = deform.node_boxes(frames, ptr, vert, ref, rows=rows)
+            model[c] = deform.node_boxes(frames, ptr, vert, np.where(shallow, -1, -2), rows=rows)
+        if has_coarse:
             counts = h.coarse_count[0]
             uniq = np.unique(counts)
-            radii = posed_prefix_radii(frames, h, uniq)
-            r_eff = float(h.spacing[0] * stretch[0])
+            radii = posed_prefix_radii(frames, h, uniq, rows=rows)
+            r_eff = float(r[0] * stretch[c, 0])
             sp = 2.0 * radii[np.searchsorted(uniq, counts)] + r_eff
             sp[counts == int(h.point_count[0, 0])] = r_eff
-            h.coarse_spacing = sp[None].astype(np.float64)
+            cspacing[c] = sp
+    if skinned:  # shallow nodes keep the model frame where its boxes are smaller over the clips
+        ext = lambda x: (x[:, :, 1] - x[:, :, 0]).sum(axis=(0, 2))  # noqa: E731
+        better = shallow & (ext(model) < ext(lbox))
+        ref[better] = -1
+        lbox[:, better] = model[:, better]
+        lbox = lbox + np.array([-pad, pad])[None, None, :, None]
+        fbox = None
+    else:
+        fbox = deform.segment_boxes(frames, ptr, vert)
+        fbox = (fbox + np.array([-pad, pad])[None, None, :, None]).astype(np.float32)
+    if has_coarse:
+        h.coarse_spacing = cspacing[:1].copy()  # the first clip's in the octree; every clip's in ``cspacing``
+    say("order")
     vorder, vprefix, pprefix = vertex_order(h, V)
     inv = np.empty(V, np.int64)
     inv[vorder] = np.arange(V)
@@ -285,7 +302,7 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
     stats = {"seconds": time.perf_counter() - t0, "octree_seconds": t_tree - t0, "poses": int(poses.size),
              "stretch_left": float(left), "frames": int(frames.n_frames)}
     return FollowHierarchy(h, ref, lbox, fbox, stretch, vorder, vprefix, pprefix, corners, lnrm,
-                           poses.astype(np.int64), stats)
+                           poses.astype(np.int64), cspacing, stats)
 
 
 # ---------------------------------------------------------------------------- files
@@ -381,23 +398,24 @@ class FollowRep:
 
     def view(self, part: int) -> PointHierarchy:
         """The octree as the traversal (``lod.points.mode.traverse_instances``) reads it for ``part``:
-        node boxes in joint frames (skinned, every clip) or at segment ``part``'s ends (keyframed), the
-        spacing times the stretch."""
+        node boxes in joint frames over clip ``part``'s frames (skinned) or at segment ``part``'s ends
+        (keyframed), the spacing times the clip's stretch, the clip's coarse prefixes."""
         views = self.__dict__.setdefault("_views", {})
-        k = 0 if self.skinned else int(part)
+        k = int(part)
         v = views.get(k)
         if v is None:
             t = self.tree
             h = t.octree
+            c = k if self.skinned else 0  # skinned: a part is a clip; keyframed: a segment (measured as one)
             if self.skinned:
-                b0 = b1 = np.ascontiguousarray(t.lbox, np.float64)
+                b0 = b1 = np.ascontiguousarray(t.lbox[c], np.float64)
             else:
                 b0 = np.ascontiguousarray(t.fbox[2 * k], np.float64)
                 b1 = np.ascontiguousarray(t.fbox[2 * k + 1], np.float64)
-            v = dataclasses.replace(h, box0=b0, box1=b1, spacing=t.effective_spacing(), interval_bounds=None)
+            v = dataclasses.replace(h, box0=b0, box1=b1, spacing=t.effective_spacing(c), interval_bounds=None)
             v.intervals = 1
-            if self.coarse and getattr(h, "coarse_count", None) is not None:
-                v.coarse_count, v.coarse_spacing = h.coarse_count, h.coarse_spacing
+            if self.coarse and getattr(h, "coarse_count", None) is not None and t.cspacing.shape[1]:
+                v.coarse_count, v.coarse_spacing = h.coarse_count, np.ascontiguousarray(t.cspacing[c:c + 1])
             else:
                 v.coarse_count = v.coarse_spacing = None
             if self.skinned:

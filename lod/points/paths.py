@@ -157,9 +157,10 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
     t = base.targets
     arrays = (base.positions, base.normals, base.colors, base.joints, base.weights, base.indices, base.joint_table) + \
         ((t.first, t.count, t.column, t.dpos, t.weights) if t is not None else ())
+    clips = [np.arange(int(o), int(o) + int(n)) for o, n in zip(base.clip_offset, base.clip_frames)]
     tree = cached_follow(cache, arrays, bp, lambda: build_follow(
         frames, base.colors, base.normals, joints=base.joints, weights=base.weights,
-        n_joints=int(base.joint_table.shape[1]), progress=say, **bp))
+        n_joints=int(base.joint_table.shape[1]), clips=clips, progress=say, **bp))
     return FollowRep(key, base, tree, None, int(params.get("splat_size", 2)), str(params.get("renderer", "compute")),
                      bool(params.get("coarse", True)))
 

@@ -137,7 +137,9 @@ def _placed(rep, f: float):
 def _node_boxes_at(rep, f):
     """(N, 2, 3) each node's box at frame f as the traversal transforms it (lod/points/traverse.py)."""
     if rep.skinned:
-        v = rep.view(0)
+        b = rep.base
+        clip = int(np.searchsorted(np.asarray(b.clip_offset), f, side="right") - 1)  # the clip holding row f
+        v = rep.view(clip)
         F = v.joint_table.shape[0]
         f0 = int(np.clip(np.floor(f), 0, F - 1))
         f1, a = min(f0 + 1, F - 1), f - f0
