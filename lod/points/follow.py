@@ -337,11 +337,32 @@ def load_follow(path) -> FollowHierarchy:
     return t
 
 
-def follow_key(arrays, params: dict) -> str:
-    """sha256 hex digest of the inputs (shape, dtype, bytes), the parameters and :data:`FOLLOW_FORMAT`."""
+#: the modules whose code builds a follow hierarchy: their sources are part of its cache key
+BUILD_MODULES = ("follow.py", "deform.py", "octree.py", "stratify.py", "sampling.py", "filter.py", "coarse.py")
+
+
+def _source_digest() -> str:
+    from pathlib import Path
+
     from lod.points.rep import hierarchy_key
 
-    return hierarchy_key(arrays, params, kind=f"points-follow/{FOLLOW_FORMAT}")
+    here = Path(__file__).resolve().parent
+    return hierarchy_key([np.frombuffer(name.encode() + (here / name).read_bytes(), np.uint8)
+                          for name in BUILD_MODULES], {}, kind="sources")
+
+
+def follow_key(arrays, params: dict) -> str:
+    """sha256 hex digest of the inputs (shape, dtype, bytes), the parameters, :data:`FOLLOW_FORMAT` and the
+    sources of :data:`BUILD_MODULES` (a changed build never reads an entry of the old one)."""
+    from lod.points.rep import hierarchy_key
+
+    global _SOURCES
+    if _SOURCES is None:
+        _SOURCES = _source_digest()
+    return hierarchy_key(arrays, params, kind=f"points-follow/{FOLLOW_FORMAT}/{_SOURCES}")
+
+
+_SOURCES = None
 
 
 def cached_follow(cache, arrays, params: dict, build):
