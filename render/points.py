@@ -50,7 +50,7 @@ from render.context import track
 from render.points_follow import FollowFrame
 from render.points_follow import upload as upload_follow
 from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
-from render.points_pack import (SAMPLE_BYTES, SAMPLE_WORDS, fold_box, oct_encode, oct_words,  # noqa: F401
+from render.points_samples import (SAMPLE_BYTES, SAMPLE_WORDS, fold_box, oct_encode, oct_words,  # noqa: F401
                                 pack_samples, rgba8_words, sample_box, unpack_samples)
 from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources

@@ -62,7 +62,7 @@ class FollowGpu:
 
 def pose_box(rep) -> tuple:
     """(lo, scale) of the cube holding every posed vertex of ``rep`` (its base's clip or segment boxes)."""
-    from render.points_pack import sample_box
+    from render.points_samples import sample_box
 
     b = rep.base
     boxes = np.asarray(b.clip_aabb if rep.skinned else b.seg_aabb, np.float64).reshape(-1, 2, 3)
@@ -73,7 +73,7 @@ def pose_box(rep) -> tuple:
 
 def sample_words(tree) -> np.ndarray:
     """(P, 4) uint32 rest-pose samples: triangle, barycentric unorm16x2, colour RGBA8, shading-frame normal."""
-    from render.points_pack import oct_words, rgba8_words
+    from render.points_samples import oct_words, rgba8_words
 
     h = tree.octree
     out = np.zeros((h.n_points, 4), np.uint32)
@@ -88,7 +88,7 @@ def sample_words(tree) -> np.ndarray:
 def skinned_vertex_words(base, vorder) -> np.ndarray:
     """(V, 12) uint32 vertices in the follow numbering: position (float bits), normal (octahedral), colour
     (RGBA8), joints (uint16 pairs), weights (float bits): the inputs of points_pose.glsl."""
-    from render.points_pack import oct_words, rgba8_words
+    from render.points_samples import oct_words, rgba8_words
 
     o = np.asarray(vorder, np.int64)
     V = o.shape[0]
@@ -105,7 +105,7 @@ def skinned_vertex_words(base, vorder) -> np.ndarray:
 
 def upload(ctx, rep, track) -> FollowGpu:
     """The GPU resources of a FollowRep (``track(obj, label)`` registers each GL object)."""
-    from render.points_pack import pack_samples
+    from render.points_samples import pack_samples
     from render.targets import target_textures
 
     t = rep.tree

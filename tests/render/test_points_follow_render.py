@@ -65,7 +65,7 @@ def _draw(gl_ctx, reps, dl, size=SIZE, limit=None):
 
 
 def _decode(words, lo, scale):
-    from render.points_pack import unpack_samples
+    from render.points_samples import unpack_samples
 
     w = np.zeros((words.shape[0], 8), np.uint32)
     w[:, 0], w[:, 1] = words[:, 0], words[:, 1]

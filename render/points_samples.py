@@ -1,4 +1,4 @@
-"""Packing of the point drawer's samples (``render/points.py``, which re-exports these): positions
+"""The point drawer's sample words (``render/points.py``, which re-exports these): positions
 quantised to unorm16 in a representation's box (folded into each instance's matrix), colours RGBA8, normals
 octahedral snorm16x2 (``shaders/points_common.glsl``, ``points_placed.glsl``)."""
 from __future__ import annotations
