@@ -405,6 +405,12 @@ class FollowRep:
         return {}
 
     @property
+    def pose_source(self):
+        """The SkinnedRep whose joint table the copies' frame coordinates index (the pose cache's group of the
+        character, ``lod.poses``), or None (keyframed)."""
+        return self.base if self.skinned else None
+
+    @property
     def n_parts(self) -> int:
         return int(self.base.n_parts)
 

@@ -213,14 +213,19 @@ def group_keyframes(rep, clip: int, params: dict) -> tuple:
     if not rep.skinned:
         return rep.base, int(clip)
     ch = rep.character
-    name = list(ch.clips)[int(clip)]
-    if float(ch.clip(name).duration) > SUPER_CLIP_SECONDS:
+    names = list(ch.clips)
+    short = [n for n in names if float(ch.clip(n).duration) <= SUPER_CLIP_SECONDS]
+    if names[int(clip)] not in short:
         return None, -1
-    import dataclasses
+    kf = rep.__dict__.get("_super_keyframes")
+    if kf is None:  # the short clips baked as the baked path bakes them (same arrays: its cached super-hierarchies)
+        import dataclasses
 
-    one = dataclasses.replace(ch, clips={name: ch.clip(name)})
-    kfc = keyframed_character(one, int(params["keyframes"]), float(params["pose_error"]), int(params["max_keyframes"]))
-    return build_keyframed_rep(kfc, key=f"{rep.key}#clip{int(clip)}"), 0
+        some = dataclasses.replace(ch, clips={n: ch.clip(n) for n in short})
+        kfc = keyframed_character(some, int(params["keyframes"]), float(params["pose_error"]),
+                                  int(params["max_keyframes"]))
+        kf = rep.__dict__["_super_keyframes"] = build_keyframed_rep(kfc, key=rep.key)
+    return kf, short.index(names[int(clip)])
 
 
 def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None):
