@@ -266,7 +266,7 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
             continue
         a0, ns = int(kf.anim_first_seg[ci]), int(kf.anim_n_segs[ci])
         if getattr(rep, "follow", False):
-            r_root = float(rep.view(a0 if not rep.skinned else 0).spacing[0])
+            r_root = float(rep.view(int(h.clip) if rep.skinned else a0).spacing[0])
         else:
             r_root = max(float(rep.hierarchies[s].spacing[0]) for s in range(a0, a0 + ns))
         if r_root <= 0.0:  # a character small enough to be one leaf: its own box sets the scale
