@@ -542,7 +542,8 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray, threads: 
     Parameters
     ----------
     positions : (m + 1, N, 3) float64 candidate positions at the interval
-        boundaries (:func:`interval_times`); finite
+        boundaries (:func:`interval_times`); finite; or a pair (m, at) as
+        :func:`stratify_async` takes it (``at(j)`` may give (K, N, 3): K poses)
     spacing : float > 0, the node's maximum sample distance r; coverage radius
         is r/2
     order : (N,) int64 permutation of range(N), the random deletion order

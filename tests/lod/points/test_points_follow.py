@@ -90,6 +90,88 @@ def test_coverage_and_box_kernels_match_references():
     assert out[0] == pytest.approx(ref_cov, rel=1e-12)
 
 
+def test_small_kernels_match_their_references():
+    """Gram terms, largest areas, posed candidate positions, subtree triangles, the pose choice's farthest pass and
+    the K-pose farthest-point order against plain numpy."""
+    from lod.points.coarse import farthest_order
+    from lod.points.octree import sample_positions_at, sample_positions_posed
+
+    rng = np.random.default_rng(5)
+    ch = humanoid(600, 2)
+    base = build_rep(ch, fps=30, key="h")
+    fr = deform.SkinnedFrames.of(base)
+    P = fr.positions(np.arange(0, fr.n_frames, 7))
+    np.testing.assert_allclose(deform.frame_grams(P, fr.indices), deform.grams(P, fr.indices), rtol=1e-12, atol=1e-15)
+    want = np.maximum(0.5 * np.sqrt(np.maximum(deform.grams(fr.positions(np.arange(fr.n_frames)), fr.indices)[..., 3],
+                                               0.0)).max(0), 0.5 * np.sqrt(np.maximum(deform.grams(fr.rest, fr.indices)
+                                                                                      [:, 3], 0.0)))
+    np.testing.assert_allclose(deform.largest_areas(fr), want, rtol=1e-12)
+    VK = np.stack([P[k][fr.indices] for k in range(3)])
+    tri = rng.integers(0, fr.indices.shape[0], 40)
+    b = rng.random((40, 2)) * 0.5
+    got = sample_positions_posed(VK, tri, b)
+    for k in range(3):
+        np.testing.assert_allclose(got[k], sample_positions_at(VK[k], VK[k], tri, b, [0.0])[0], atol=1e-12)
+    parent = np.array([-1, 0, 0, 1, 1, 2])
+    tn = np.array([3, 4, 4, 5, 0, -1, 2])
+    ptr, tris = deform.subtree_triangles(parent, tn)
+    sub = {0: {0, 1, 2, 3, 4, 5}, 1: {1, 3, 4}, 2: {2, 5}, 3: {3}, 4: {4}, 5: {5}}
+    for i in range(6):
+        assert set(tris[ptr[i]:ptr[i + 1]].tolist()) == {t for t in range(7) if tn[t] in sub[i]}
+    G = deform.frame_grams(P, fr.indices)
+    far = np.full(G.shape[0], np.inf)
+    tiny = deform.degenerate_tolerance(fr)
+    deform._farthest_kernel(np.ascontiguousarray(G[0]), G, 0.2, tiny, far)
+    L = np.sqrt(np.maximum.reduce([G[..., 0], G[..., 2], G[..., 0] + G[..., 2] - 2 * G[..., 1]]))
+    ref = 1.0 + np.minimum(deform.stretch_numpy(G[0][None], G, tiny) - 1.0, 2.0 * L / 0.2).max(1)
+    np.testing.assert_allclose(far, ref, rtol=1e-12)
+    pts = rng.random((3, 30, 3))
+    order, radius = farthest_order(None, poses=pts)
+    d = np.sqrt(((pts[:, :, None] - pts[:, None]) ** 2).sum(-1)).max(0)
+    for m in range(1, 30):  # after m points every point is within radius[m - 1] of one of them
+        assert d[:, order[:m]].min(1).max() == pytest.approx(radius[m - 1], rel=1e-12)
+
+
+def test_k_pose_stratification_matches_the_reference():
+    """The witness kernel over K poses (a candidate may go when another covers it at every pose) decides as the
+    dense reference does."""
+    from lod.points.stratify import stratify, stratify_poses_numpy
+
+    rng = np.random.default_rng(2)
+    base = rng.random((400, 3))
+    poses = np.stack([base, base * [1.6, 1.0, 1.0], base + 0.1 * np.sin(5 * base)])
+    order = rng.permutation(400)
+    keep = stratify((1, lambda j: poses), 0.2, order, threads=1)[0]  # one "interval" whose coverage is K poses
+    np.testing.assert_array_equal(keep, stratify_poses_numpy(poses, 0.2, order))
+    assert keep.sum() > stratify_poses_numpy(poses[:1], 0.2, order).sum()  # more poses keep more
+    # two poses are an interval's two ends: the interval reference decides alike
+    np.testing.assert_array_equal(stratify(poses[:2], 0.2, order)[0], stratify_poses_numpy(poses[:2], 0.2, order))
+
+
+def test_traversal_in_joint_frames_matches_the_reference(cache):
+    """The instance kernel (numba) reads node boxes in joint frames at fractional frames as the per-instance
+    Python reference does."""
+    rep = _rep(humanoid(900, 6), cache)
+    from lod.points.mode import traverse_instances, traverse_instances_reference
+    from lod.view import Camera
+
+    rng = np.random.default_rng(4)
+    v = rep.view(0)
+    off, n = int(rep.base.clip_offset[0]), int(rep.base.clip_frames[0])
+    for dist in (2.0, 6.0, 25.0):
+        cam = Camera.look_at((0.0, 1.5, dist), (0.0, 1.0, 0.0), fov_y=50.0, near=0.05, far=500.0)
+        data = np.zeros((12, 16))
+        for i in range(12):
+            yaw = rng.uniform(0, 6.28)
+            m = np.array([[np.cos(yaw), 0, np.sin(yaw)], [0, 1, 0], [-np.sin(yaw), 0, np.cos(yaw)]])
+            data[i, :12] = np.hstack([m, (rng.uniform(-2, 2, 3) * [1, 0, 1] - cam.position)[:, None]]).reshape(-1)
+            data[i, 12] = off + rng.uniform(0, n - 1)  # fractional rows: the union of both rows' boxes
+        got = traverse_instances(v, data, cam.frustum_planes(1.0), 400.0, 2.0)
+        ref = traverse_instances_reference(v, data, cam.frustum_planes(1.0), 400.0, 2.0)
+        for a, b in zip(got, ref):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_stretch_of_a_known_map():
     """sigma: the largest singular value of the map between a triangle's two poses; a sliver degenerate at the
     reference pose and open at the other gets the cap."""
