@@ -79,6 +79,8 @@ ATTR_DTYPE = np.float16
 #: candidates of the nodes drawn ahead of the one being finished (their
 #: stratification runs in the worker threads meanwhile); bounds the memory
 PIPELINE_CANDIDATES = 1_000_000
+#: the same with ``poses`` (each candidate held at K poses): a few dozen nodes keep two threads busy
+PIPELINE_POSED_CANDIDATES = 100_000
 
 
 @dataclass
@@ -433,8 +435,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     while me < len(queue):
         # 1. boxes, spacing and the random draws of §3.4.1/§3.5 of the next
         #    nodes, then their stratification (§3.4.2) and filtering (§3.5)
-        while drawn < len(queue) and (drawn == me or ahead < PIPELINE_CANDIDATES * 2 // (2 if VK is None else
-                                                                                     max(2, VK.shape[0]))):
+        while drawn < len(queue) and (drawn == me or ahead < (PIPELINE_CANDIDATES if VK is None else
+                                                             PIPELINE_POSED_CANDIDATES)):
             nd = queue[drawn]
             drawn += 1
             tris = nd.tris
