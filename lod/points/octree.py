@@ -352,8 +352,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
         interval (``intervals`` must be 1) whose stratification keeps a
         candidate unless another covers it at every pose, and whose node
         spacing is a fraction of the largest box side over p0 and the poses;
-        p0 (= p1) is the pose the octree cells, boxes and filtered attributes
-        are taken at
+        p0 is the pose the octree cells, boxes and filtered attributes are
+        taken at (p1 is ignored: the start and the end are p0)
     areas : None or (T,) float sampling weights of the candidates and of the
         filter set in place of the maximum areas over p0 -> p1 (§3.4.1: the
         largest area a triangle takes over the animation)
@@ -380,16 +380,21 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     rng = np.random.default_rng([int(seed), 0x5753])
     T = idx.shape[0]
     V0 = triangle_vertices(p0, idx)
-    V1 = triangle_vertices(p1, idx)
-    CC0, CC1 = c0[idx], c1[idx]
-    NN0, NN1 = n0[idx], n1[idx]
+    if poses is None:
+        V1 = triangle_vertices(p1, idx)
+        CC0, CC1 = c0[idx], c1[idx]
+        NN0, NN1 = n0[idx], n1[idx]
+    else:  # one pose (p1 is p0): the start and end arrays are the same ones
+        V1, CC0, NN0 = V0, c0[idx], n0[idx]
+        CC1, NN1 = CC0, NN0
     if poses is not None:
         poses = np.asarray(poses, np.float64)
         if poses.ndim != 3 or poses.shape[0] < 1 or poses.shape[1:] != p0.shape or not np.isfinite(poses).all():
             raise ValueError(f"build_hierarchy: poses must be finite (K, {p0.shape[0]}, 3), got {poses.shape}")
         if m != 1:
             raise ValueError(f"build_hierarchy: poses need intervals = 1, got {m}")
-    VK = None if poses is None else np.stack([triangle_vertices(p, idx) for p in poses])  # (K, T, 3, 3)
+    # (K, T, 3, 3) float32: the candidates' positions at the K poses only decide coverage at spacings >> 1e-7
+    VK = None if poses is None else np.stack([triangle_vertices(p, idx).astype(np.float32) for p in poses])
     if areas is None:
         areas, _ = max_area(V0, V1)
     else:
@@ -397,7 +402,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
         if areas.shape != (idx.shape[0],) or not np.isfinite(areas).all() or (areas < 0.0).any():
             raise ValueError(f"build_hierarchy: areas must be {idx.shape[0]} finite values >= 0")
     tlo0, thi0 = V0.min(1), V0.max(1)
-    tlo1, thi1 = V1.min(1), V1.max(1)
+    tlo1, thi1 = (tlo0, thi0) if V1 is V0 else (V1.min(1), V1.max(1))
     centre = V0.mean(1)
     times = choose_interval_times(V0, V1, m) if adaptive_intervals else interval_times(m)
     A_int = interval_areas(V0, V1, times) if m > 1 else None
