@@ -9,7 +9,9 @@ Crowds (the ones points already serves):
 - ``fox``: ``../shared/assets/Fox.glb`` x1,024 in ``scripts/bench_peer.py``'s scenario (a square grid spaced
   1.5 extents, camera above the near edge; skipped when the assets are absent);
 - ``h4``, ``h1``: the generated 60 K-triangle humanoids of ``scripts/peer_models.py`` (four influences; one
-  influence in 59 primitives) x100 in the same scenario.
+  influence in 59 primitives) x100 in the same scenario;
+- ``horse`` (not by default): ``Horse.glb`` x1,024, a keyframed flip-book, the measurement behind the rule that
+  keeps short flip-books baked (``lod.points.paths``).
 
 For each crowd one engine simulates; mode points is built twice from the same characters, instancing groups and
 played clips: ``animation = "baked"`` (today's path, Wand & Straßer §3.3) and ``"follow"`` (``lod.points.follow``);
@@ -18,7 +20,7 @@ frame: select + draw + ``ctx.finish``). Reported: the median frame of each, thei
 median of the per-frame ratios: load cancels in it), the points and triangles drawn, the samples placed and
 poses, and the PSNR of the last frame of each against mode none (full detail) at the same state.
 
-Run:  .venv/bin/python scripts/bench_points_follow.py [--crowds grid fox h4 h1] [--frames 7] [--warmup 2]
+Run:  .venv/bin/python scripts/bench_points_follow.py [--crowds grid fox h4 h1 horse] [--frames 7] [--warmup 2]
       [--size 1280 720] [--skip-none] [--out scripts/bench_points_follow.md]
 """
 from __future__ import annotations
@@ -38,7 +40,9 @@ for p in (ROOT, ROOT / "scripts"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-CROWDS = ("grid", "fox", "h4", "h1")
+CROWDS = ("grid", "fox", "h4", "h1", "horse")
+#: the crowds of the acceptance (``horse``, a keyframed flip-book, measures the rule that bakes short flip-books)
+DEFAULT_CROWDS = ("grid", "fox", "h4", "h1")
 ASSETS = Path(os.environ.get("CROWD_SHARED_ASSETS", ROOT.parent / "shared" / "assets"))
 
 
@@ -50,11 +54,12 @@ def _scene(crowd: str, size, td: Path):
 
     from sim.gltf.load import load_gltf
 
-    if crowd == "fox":
-        path = ASSETS / "Fox.glb"
+    if crowd in ("fox", "horse"):
+        path = ASSETS / ("Fox.glb" if crowd == "fox" else "Horse.glb")
         if not path.is_file():
-            return None, f"fox: {path} absent, skipped"
-        n, desc = 1024, "Fox.glb x1,024 (576 triangles; bench_peer scenario)"
+            return None, f"{crowd}: {path} absent, skipped"
+        n, desc = 1024, ("Fox.glb x1,024 (576 triangles; bench_peer scenario)" if crowd == "fox" else
+                         "Horse.glb x1,024 (984 triangles, morph flip-book: keyframed; bench_peer scenario)")
     else:
         from peer_models import write_models
 
@@ -193,7 +198,7 @@ def main(argv=None) -> int:
     from bench_peer import machine_note
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--crowds", nargs="+", default=list(CROWDS), choices=list(CROWDS))
+    ap.add_argument("--crowds", nargs="+", default=list(DEFAULT_CROWDS), choices=list(CROWDS))
     ap.add_argument("--frames", type=int, default=7)
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--size", type=int, nargs=2, default=[1280, 720])

@@ -318,6 +318,27 @@ def test_bounds_hold_at_every_30hz_sample_of_the_shared_assets(cache):
         assert_bounds_hold(_rep(ch, cache), p.name)
 
 
+def test_degenerate_triangles_and_unnormalised_weights(cache):
+    """Triangles with repeated corners (zero area in every pose) and weights summing to 1.7 (normalised by the
+    full-detail rep the samples follow): the hierarchy builds, its numbers are finite, no sample lies on a
+    degenerate triangle, and the bounds hold at every 30 Hz sample."""
+    ch = humanoid(700, 8)
+    idx = np.array(ch.mesh.indices, np.int64)
+    idx[::25, 1] = idx[::25, 0]  # [a, a, c]: zero area
+    idx[3::50] = idx[3::50, :1]  # [a, a, a]
+    m = dataclasses.replace(ch.mesh, indices=idx.astype(np.uint32), weights=np.asarray(ch.mesh.weights) * 1.7,
+                            normals=None)
+    ch = dataclasses.replace(ch, mesh=m)
+    rep = _rep(ch, cache)
+    t = rep.tree
+    for k, v in list(t.__dict__.items()) + list(t.octree.__dict__.items()):
+        if isinstance(v, np.ndarray) and v.dtype.kind == "f":
+            assert np.isfinite(v).all(), k
+    bad = np.flatnonzero((idx[:, 0] == idx[:, 1]) | (idx[:, 1] == idx[:, 2]) | (idx[:, 0] == idx[:, 2]))
+    assert not np.isin(t.octree.tri, bad).any()
+    assert_bounds_hold(rep, "degenerate")
+
+
 # ---------------------------------------------------------------------------- spacing under deformation
 def stretching_joint(stretch: float = 2.5):
     """A tube of two joints whose upper joint scales ``stretch``-fold along the tube in its looping clip."""
