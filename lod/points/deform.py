@@ -16,16 +16,17 @@ Measurements, streamed over the frames in chunks (never a (frames, vertices) arr
 
 * :func:`largest_areas`: each triangle's largest area over the frames: the sampling weights (§3.4.1: "the
   maximum area that it will have").
-* Stretch. The samples are stratified so that every candidate is within r/2 of a kept sample at each of K
-  stratification poses (§3.4.2 with K poses in place of an interval's two ends). At any other frame s a
-  triangle is the affine image of itself at pose k, and distances on it grow by at most the largest
-  singular value sigma of that map (:func:`stretch_numpy`: the square root of the largest eigenvalue of
-  ``G_k^-1 G_s``, G the Gram matrix of two edges). A node's stretch is ``max_s min_k max_t sigma_t(k -> s)``
-  over the triangles t its points stand for (its subtree), and the traversal uses spacing x stretch
-  (:func:`node_stretch`): where the animation stretches the surface, the node refines.
-* :func:`choose_poses`: the K stratification poses, farthest-first (k-centre) in that stretch: start at the
-  first frame, add the frame whose stretch from the chosen ones is largest, until it is at most
-  ``target`` or K poses are chosen.
+* Stratification poses (:func:`choose_poses`). The samples are stratified so that every candidate is within
+  r/2 of a kept sample at each of K poses (§3.4.2 with K poses in place of an interval's two ends). They are
+  chosen farthest-first (k-centre) in stretch: at frame s a triangle is the affine image of itself at pose k,
+  and distances on it grow by at most the largest singular value sigma of that map (:func:`stretch_numpy`: the
+  square root of the largest eigenvalue of ``G_k^-1 G_s``, G the Gram matrix of two edges), and by at most its
+  longest edge (a sliver opening in its thin direction adds its own size, not sigma times the spacing's);
+  start at the first frame, add the frame farthest from the chosen ones, until that is at most ``target`` or
+  K poses are chosen.
+* Coverage (:func:`node_coverage`): per node the largest distance, at every frame, from a probe on its
+  subtree's surface to the nearest of its samples (witnesses kept from frame to frame, searched again only
+  when farther than r/2): the traversal's spacing factor (``lod.points.follow``).
 * :func:`node_boxes`: per node an axis-aligned box in the frame of one joint (``ref``; -1: the model frame)
   holding the node's subtree vertices at every frame: the box at a frame is its corners through the joint's
   skinning matrix of that row (VDR-AM keeps its cluster bounds relative to the deforming joint likewise).

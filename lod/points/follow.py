@@ -15,14 +15,19 @@ build (a 35 s dance of a 62 K-triangle character: an estimated 144 GB). Here a c
    stratification poses (``lod.points.deform.choose_poses``: farthest-first in stretch), so the kept samples
    cover the surface wherever it is most stretched, not only in the rest pose (a bind pose can be far from
    every frame: the Fox's triangles stretch up to 7.9x from it).
-3. Spacing under deformation. At any other frame the surface is stretched by at most ``stretch`` (per node,
-   ``lod.points.deform.node_stretch``) from the nearest stratification pose, so the traversal (§3.2) tests
-   ``spacing * stretch``: a node refines where the animation would open holes larger than the splat.
-4. Bounds over time. Every node keeps one box in the frame of its reference joint holding its subtree at every
-   frame of every clip (``lod.points.deform.node_boxes``), drawn through that joint's matrix of the pose
-   (``lod.points.traverse``; between two baked rows the union of both). Keyframed characters (one triangle
-   list over all segments) keep the box at every segment end instead, interpolated as §3.3 does.
-5. Coarser than the root (``lod.points.coarse``): the farthest-point prefix radii measured at every frame.
+3. Spacing under deformation. At the other frames the kept samples cover the surface less tightly where it
+   stretches. Every node's covering radius is measured at every frame of each clip (probes on its subtree's
+   surface against its samples, both placed with the animation: ``lod.points.deform.node_coverage``; the same
+   guarantee §3.4.2 constructs at an interval's two ends, and between two baked rows distances are convex in
+   the blend), and the traversal (§3.2) tests ``spacing * stretch`` with ``stretch = max(1, 2 radius / r)``: a
+   node refines where the animation would open holes larger than the splat (tested on a stretching joint).
+4. Bounds over time. Every node keeps, per clip, one box in the frame of its reference joint holding its
+   subtree at every frame of the clip (``lod.points.deform.node_boxes``), drawn through that joint's matrix of
+   the pose (``lod.points.traverse``; between two baked rows the union of both). Keyframed characters (one
+   triangle list over all segments) keep the box at every segment end instead, interpolated as §3.3 does.
+   Per-clip data grow with the number of clips, never with their length.
+5. Coarser than the root (``lod.points.coarse``): the farthest-point order over the stratification poses, the
+   prefix radii measured at every frame of each clip.
 6. Drawing. Samples are stored in breadth-first node order, and the vertices are renumbered by their first use
    in that order (``vorder``), so what the nodes up to the deepest one a pose draws need is a prefix of both:
    ``pprefix`` samples and ``vprefix`` vertices. Per frame and distinct pose the renderer poses that vertex
@@ -32,7 +37,7 @@ build (a 35 s dance of a 62 K-triangle character: an estimated 144 GB). Here a c
    shading normal and first edge (``lnrm``) and turned with it.
 
 The per-keyframe-pair octrees (``lod.points.mode``, "baked") stay for keyframe animations whose triangles
-change between segments, and where a measured rule prefers them (``lod.points.mode.animation_path``).
+change between segments, and where a measured rule prefers them (``lod.points.paths.animation_path``).
 """
 from __future__ import annotations
 
