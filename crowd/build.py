@@ -183,14 +183,21 @@ def build_task(job: BuildJob, cache: str, *after) -> dict:
             os.environ[CACHE_ENV] = old
     seconds = time.time() - start
     return {"label": job.label, "asset": job.asset, "seconds": seconds, "reps": len(reps),
+            "bytes": int(sum(int(getattr(r, "nbytes", 0) or 0) for r in reps)),
             "poses": pose_summary(reps, ch if job.spec is not None else None, seconds)}
 
 
 def pose_summary(reps, character, seconds: float) -> str:
     """One line on the poses mode points baked per clip (``lod.points.poses``), with the build time and
-    hierarchy bytes per second of clip; "" for representations without baked poses."""
+    hierarchy bytes per second of clip; for samples that follow the animation (``lod.points.follow``) the
+    path and the frames measured; "" for other representations."""
     parts = []
     for r in reps:
+        if getattr(r, "follow", False):
+            st = r.tree.stats
+            parts.append(f"points follow: {r.n_points:,} samples, {st.get('poses', 0)} stratification poses, "
+                         f"{st.get('frames', 0)} frames measured")
+            continue
         poses = getattr(r, "poses", None)
         if not poses or character is None:
             continue
@@ -291,8 +298,8 @@ def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None 
 
 def summary(res: BuildResult) -> str:
     """Lines for the terminal: one per job, then the totals."""
-    lines = [f"  {r['label']}: {r['seconds']:.1f} s" + (f" ({r['poses']})" if r.get("poses") else "")
-             for r in res.results]
+    lines = [f"  {r['label']}: {r['seconds']:.1f} s, {r.get('bytes', 0) / 1e6:.1f} MB"
+             + (f" ({r['poses']})" if r.get("poses") else "") for r in res.results]
     lines.append(f"built {len(res.results)} hierarchy set(s) in {res.seconds:.1f} s on {res.cluster}; "
                  f"{len(res.new_entries)} new cache entr{'y' if len(res.new_entries) == 1 else 'ies'} in {res.cache}")
     return "\n".join(lines)

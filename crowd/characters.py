@@ -27,6 +27,10 @@ def build_character(spec: CharacterSpec):
 
         gen = getattr(sim.procedural, spec.generator)
         ch = gen(triangles=spec.triangles, seed=spec.seed)
+        if getattr(spec, "dance", 0.0):  # a long dance-like clip (sim.dance)
+            from sim.dance import dance_clip
+
+            ch.clips["dance"] = dance_clip(ch, float(spec.dance), seed=spec.seed)
     else:
         from sim.gltf.load import load_gltf
 

@@ -276,17 +276,10 @@ def cmd_info(args) -> int:
     from sim.describe import describe
 
     print(format_description(args.asset, describe(ch)))
-    if getattr(ch, "kind", "") == "skinned" and ch.clips and ch.mesh.is_skinned:
-        from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
-        from lod.points.poses import character_extent, clip_poses
+    from lod.points.paths import describe_path
 
-        chosen = clip_poses(ch, 0, POINTS_POSE_ERROR, POINTS_MAX_POSES)
-        ext = character_extent(ch)
-        print(f"  points poses per clip (pose_error {100 * POINTS_POSE_ERROR:g} % of the extent {ext:.4g}):")
-        for name, cp in chosen.items():
-            d = float(ch.clip(name).duration)
-            print(f"    {name}: {len(cp.times)} poses over {d:.3g} s, pose error {cp.error:.3g} "
-                  f"({100 * cp.error / ext:.2g} %)" + (" (capped: above the bound)" if cp.capped else ""))
+    for line in describe_path(ch, {}):  # mode points: which path, why, and what it costs
+        print("  " + line)
     return 0
 
 

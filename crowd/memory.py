@@ -106,6 +106,8 @@ class MemoryEstimate:
 
     agents: int
     parts: dict = field(default_factory=dict)
+    #: (bytes, one clause naming what needs them and the remedy), for the refusal's message (largest first)
+    causes: list = field(default_factory=list)
 
     @property
     def total(self) -> int:
@@ -183,7 +185,8 @@ def spec_bytes(spec) -> tuple[int, int]:
     if spec.generator is not None:
         tri = int(spec.triangles or 5000)
         mesh = (tri // 2 + 2) * VERTEX_BYTES + tri * TRIANGLE_BYTES
-        frames = GENERATOR_CLIPS * (int(round(GENERATOR_CLIP_SECONDS * spec.fps)) + 1)
+        frames = GENERATOR_CLIPS * (int(round(GENERATOR_CLIP_SECONDS * spec.fps)) + 1) + \
+            int(round(float(getattr(spec, "dance", 0.0)) * spec.fps))
         table = frames * GENERATOR_JOINTS * 48
         return 2 * mesh + 2 * table, mesh + table
     try:
@@ -239,7 +242,29 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     lod = _mode_estimate(scene, characters)
     if lod:
         parts["lod"] = lod
-    return MemoryEstimate(agents=int(n), parts={k: int(v) for k, v in parts.items()})
+    causes = [(parts["state"] + parts["selection"], f"the state of {n:,} agents: reduce the placements' counts"),
+              (parts["characters"], "the characters' meshes and baked clips: fewer triangles or a lower "
+                                    "[[characters]] fps"),
+              (parts["gpu"] + parts["driver"], f"the GPU buffers of {n:,} agents at {w}x{h}: fewer agents or a "
+                                               "smaller [render] size")]
+    causes += _mode_causes(scene, characters)
+    causes.sort(key=lambda c: -c[0])
+    return MemoryEstimate(agents=int(n), parts={k: int(v) for k, v in parts.items()}, causes=causes)
+
+
+def _mode_causes(scene, characters) -> list:
+    """(bytes, clause) per character of the LOD mode's hierarchies when the mode says (its
+    ``memory_causes(characters_or_specs, params, names)``), else one clause for them all."""
+    try:
+        from lod.modes import mode_module
+
+        fn = getattr(mode_module(scene.lod_mode), "memory_causes", None)
+    except (ImportError, KeyError):
+        fn = None
+    if fn is None:
+        return []
+    chars = characters if characters is not None else list(scene.characters)
+    return list(fn(chars, dict(scene.lod_params), [c.name for c in scene.characters]))
 
 
 def _triangles(spec, character=None) -> int:
@@ -305,10 +330,13 @@ def check_memory(scene, estimate: MemoryEstimate, available: int | None = None) 
     avail = available_memory() if available is None else int(available)
     if avail is not None and estimate.total > MEMORY_FRACTION * avail:
         parts = ", ".join(f"{k} {human_bytes(v)}" for k, v in estimate.parts.items())
+        causes = getattr(estimate, "causes", None) or [(estimate.total, "reduce the placements' counts or the "
+                                                                          "characters' triangles")]
+        b, why = causes[0]
         raise SceneError(scene.path, "", f"needs an estimated {human_bytes(estimate.total)} for "
-                         f"{estimate.agents:,} agents ({parts}), "
-                         f"more than the {human_bytes(MEMORY_FRACTION * avail)} available; "
-                         f"reduce the placements' counts or the characters' triangles")
+                         f"{estimate.agents:,} agent{'s' if estimate.agents != 1 else ''} ({parts}), "
+                         f"more than the {human_bytes(MEMORY_FRACTION * avail)} available; most of it "
+                         f"({human_bytes(b)}) is {why}")
     return estimate
 
 

@@ -64,6 +64,8 @@ CHARACTER_SCHEMA = {
                        "default: DEFAULT_VARIATION for generated humanoids, none otherwise"),
     "radius": Param("float", None, min=0.001, max=100.0,
                     doc="body radius at scale 1, metres (effect avoidance); default: the footprint"),
+    "dance": Param("float", 0.0, min=0.0, max=600.0,
+                   doc="generator only: seconds of an extra looping clip \"dance\" (sim.dance); 0 = none"),
 }
 #: default ``triangles`` of a generated character
 DEFAULT_TRIANGLES = 5000
@@ -135,6 +137,7 @@ class CharacterSpec:
     fps: int
     variation: tuple | None = None  # ((key, value), ...) of VARIATION_SCHEMA, or None: no colour variation
     radius: float | None = None  # body radius at scale 1 (avoidance); None = the character's footprint
+    dance: float = 0.0  # seconds of a generated "dance" clip (sim.dance), generator only; 0 = none
 
     def spec(self) -> str:
         """Short human-readable source, e.g. ``generator:humanoid:5000`` or the file path."""
@@ -400,6 +403,8 @@ class _Parser:
             if c["file"] is not None:
                 if c["triangles"] is not None:
                     self.fail(f"{where}.triangles", "only accepted with `generator`; a glTF file keeps its own mesh")
+                if c["dance"]:
+                    self.fail(f"{where}.dance", "only accepted with `generator`; a glTF file keeps its own clips")
                 file = (self.base / c["file"]).resolve()
                 if file.suffix.lower() not in GLTF_SUFFIXES:
                     self.fail(f"{where}.file", f"expected a glTF file ({', '.join(GLTF_SUFFIXES)}), got {c['file']!r}")
@@ -410,7 +415,7 @@ class _Parser:
                 triangles = DEFAULT_TRIANGLES
             out.append(CharacterSpec(name=c["name"], generator=c["generator"], file=file, triangles=triangles,
                                      seed=c["seed"] if c["seed"] is not None else scene_seed,
-                                     scale=c["scale"], fps=c["fps"], radius=c["radius"],
+                                     scale=c["scale"], fps=c["fps"], radius=c["radius"], dance=c["dance"],
                                      variation=parse_variation(t.get("variation"), f"{where}.variation",
                                                              c["generator"], self.fail)))
         return out

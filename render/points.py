@@ -47,7 +47,11 @@ import numpy as np
 from lod.drawlist import fade_uniform
 from render import occlusion as occ
 from render.context import track
+from render.points_follow import FollowFrame
+from render.points_follow import upload as upload_follow
 from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
+from render.points_samples import (SAMPLE_BYTES, SAMPLE_WORDS, fold_box, oct_encode, oct_words,  # noqa: F401
+                                pack_samples, rgba8_words, sample_box, unpack_samples)
 from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
 from render.tint import TINT_BYTES, batch_words
@@ -91,122 +95,12 @@ CLEAR_GROUP = 256
 WINDOW_ROWS = 32
 #: largest work-group count per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS_X = 65535
-#: bytes per sample (point or vertex): uvec4 geo, uvec4 attr (points_common.glsl)
-SAMPLE_BYTES = 32
-#: 32-bit words per sample
-SAMPLE_WORDS = SAMPLE_BYTES // 4
 #: point splat paths
 PATHS = ("compute", "gl_points")
 #: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
 #: culling left out with their points and triangles, and 1 when the culling was paused this frame
 COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
-          "occluded_triangles", "occlusion_paused")
-
-
-def sample_box(*positions) -> tuple[np.ndarray, float]:
-    """(lo (3,) float64, scale float > 0): the cube [lo, lo + scale]^3 holding
-    every finite row of the given (n, 3) position arrays, in which
-    :func:`pack_samples` quantises them (uniform scale, so normals transformed
-    by the folded instance matrix keep their directions)."""
-    ps = [np.asarray(p, np.float64).reshape(-1, 3) for p in positions]
-    ps = [p[np.isfinite(p).all(axis=1)] for p in ps]
-    ps = [p for p in ps if p.shape[0]]
-    if not ps:
-        return np.zeros(3), 1.0
-    lo = np.min([p.min(axis=0) for p in ps], axis=0)
-    hi = np.max([p.max(axis=0) for p in ps], axis=0)
-    ext = float((hi - lo).max())
-    return lo, (ext if ext > 0.0 and np.isfinite(ext) else 1.0)
-
-
-def oct_encode(n: np.ndarray) -> np.ndarray:
-    """(n, 2) float64 octahedral coordinates in [-1, 1] of (n, 3) directions
-    (zero or non-finite ones give +z); decoded by ``oct_decode`` in
-    points_common.glsl."""
-    v = np.nan_to_num(np.asarray(n, np.float64).reshape(-1, 3), nan=0.0, posinf=0.0, neginf=0.0)
-    l1 = np.abs(v).sum(axis=1)
-    zero = l1 <= 1e-30
-    v = np.where(zero[:, None], [0.0, 0.0, 1.0], v) / np.where(zero, 1.0, l1)[:, None]
-    e = v[:, :2].copy()
-    neg = v[:, 2] < 0.0
-    sgn = np.where(e[neg] >= 0.0, 1.0, -1.0)
-    e[neg] = (1.0 - np.abs(v[neg][:, [1, 0]])) * sgn
-    return np.clip(e, -1.0, 1.0)
-
-
-def pack_samples(p0, p1, n0, n1, c0, c1, lo=(0.0, 0.0, 0.0), scale=1.0) -> np.ndarray:
-    """(n, 8) uint32 words of samples in the ``Sample`` layout: positions as
-    unorm16 of ``(p - lo) / scale`` (:func:`sample_box`; error at most
-    scale / 131070 per axis), colours RGBA8, normals octahedral snorm16x2.
-
-    Non-finite inputs are replaced by 0 (nothing non-finite reaches the GPU).
-    """
-    n = np.asarray(p0).shape[0]
-    out = np.zeros((n, 8), np.uint32)
-
-    def unorm16(p):
-        q = (np.asarray(p, np.float64).reshape(-1, 3) - np.asarray(lo, np.float64)) / float(scale)
-        q = np.clip(np.nan_to_num(q, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-        return np.rint(q * 65535.0).astype(np.uint32)
-
-    a, b = unorm16(p0), unorm16(p1)
-    out[:, 0] = a[:, 0] | (a[:, 1] << 16)
-    out[:, 1] = a[:, 2] | (b[:, 0] << 16)
-    out[:, 2] = b[:, 1] | (b[:, 2] << 16)
-
-    def rgba8(c):
-        c = np.nan_to_num(np.clip(np.asarray(c, np.float64), 0.0, 1.0))
-        b = np.rint(c * 255.0).astype(np.uint32)
-        return b[:, 0] | (b[:, 1] << 8) | (b[:, 2] << 16) | (b[:, 3] << 24)
-
-    def snorm2(v):
-        q = np.rint(oct_encode(v) * 32767.0).astype(np.int16).view(np.uint16).astype(np.uint32)
-        return q[:, 0] | (q[:, 1] << 16)
-
-    out[:, 4] = rgba8(c0)
-    out[:, 5] = rgba8(c1)
-    out[:, 6] = snorm2(n0)
-    out[:, 7] = snorm2(n1)
-    return out
-
-
-def unpack_samples(words: np.ndarray, lo=(0.0, 0.0, 0.0), scale=1.0) -> dict:
-    """Numpy decoding of :func:`pack_samples` words, as ``sample_at`` in
-    points_common.glsl reads them: dict of p0, p1 (model frame), n0, n1
-    (unit), c0, c1 (RGBA in [0, 1])."""
-    w = np.asarray(words, np.uint32).reshape(-1, SAMPLE_WORDS)
-    lo16 = (w & 0xFFFF).astype(np.float64) / 65535.0
-    hi16 = (w >> 16).astype(np.float64) / 65535.0
-    lo, scale = np.asarray(lo, np.float64), float(scale)
-    p0 = np.stack([lo16[:, 0], hi16[:, 0], lo16[:, 1]], axis=1) * scale + lo
-    p1 = np.stack([hi16[:, 1], lo16[:, 2], hi16[:, 2]], axis=1) * scale + lo
-
-    def octd(col):
-        e = np.stack([(w[:, col] & 0xFFFF).astype(np.uint16).view(np.int16),
-                      (w[:, col] >> 16).astype(np.uint16).view(np.int16)], axis=1) / 32767.0
-        e = np.clip(e, -1.0, 1.0)
-        v = np.concatenate([e, 1.0 - np.abs(e).sum(axis=1, keepdims=True)], axis=1)
-        neg = v[:, 2] < 0.0
-        v[neg, :2] = (1.0 - np.abs(v[neg][:, [1, 0]])) * np.where(v[neg, :2] >= 0.0, 1.0, -1.0)
-        return v / np.linalg.norm(v, axis=1, keepdims=True)
-
-    def rgba(col):
-        return np.stack([(w[:, col] >> (8 * k)) & 0xFF for k in range(4)], axis=1) / 255.0
-
-    return {"p0": p0, "p1": p1, "n0": octd(6), "n1": octd(7), "c0": rgba(4), "c1": rgba(5)}
-
-
-def fold_box(rows: np.ndarray, lo, scale: float) -> np.ndarray:
-    """(k, 16) float32 instance rows whose model part also maps the box
-    coordinates of :func:`pack_samples` to the model frame:
-    M' = M · [scale I | lo]."""
-    r = np.array(rows, np.float64).reshape(-1, 16)
-    lo = np.asarray(lo, np.float64)
-    for i in range(3):
-        m = r[:, 4 * i:4 * i + 3]
-        r[:, 4 * i + 3] += m @ lo
-        r[:, 4 * i:4 * i + 3] = m * float(scale)
-    return r.astype(np.float32)
+          "occluded_triangles", "occlusion_paused", "placed_points", "posed_vertices", "poses")
 
 
 def job_table(batches, key: str, bases: np.ndarray, which: str, inst_offsets: dict) -> np.ndarray:
@@ -282,6 +176,7 @@ class Drawer:
         #: bytes one storage-buffer binding may address (None: the context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE)
         self.ssbo_limit = None
         self._reps: dict[str, _GpuPoints] = {}
+        self._follow: dict = {}  # key -> render.points_follow.FollowGpu
         self._objects: list = []
         self._bufs: dict = {}
         self._progs: dict = {}
@@ -308,10 +203,12 @@ class Drawer:
     def _track(self, obj, label: str):
         return track(self._objects, obj, label)  # render.context.track
 
-    def _program(self, name):
-        if name not in self._progs:
-            self._progs[name] = self._track(self.ctx.program(**program_sources(name)), f"points.program.{name}")
-        return self._progs[name]
+    def _program(self, name, defines=()):
+        k = (name, tuple(defines)) if defines else name
+        if k not in self._progs:
+            self._progs[k] = self._track(self.ctx.program(**program_sources(name, defines=tuple(defines))),
+                                         f"points.program.{name}")
+        return self._progs[k]
 
     def _compute(self, name, defines=()):
         k = (name, tuple(defines))
@@ -322,15 +219,17 @@ class Drawer:
             self._progs[k] = self._track(self.ctx.compute_shader(src), f"points.compute.{name}")
         return self._progs[k]
 
-    def _buffer(self, name, data: np.ndarray):
-        """Per-frame storage buffer ``name`` (grown by doubling) holding ``data``."""
-        raw = np.ascontiguousarray(data).tobytes()
+    def _buffer(self, name, data: np.ndarray | None, reserve: int = 0):
+        """Per-frame storage buffer ``name`` (grown by doubling) holding ``data`` (None: at least ``reserve``
+        bytes, contents left as they are, for a pass to write)."""
+        raw = np.ascontiguousarray(data).tobytes() if data is not None else b""
+        need = max(len(raw), int(reserve))
         b = self._bufs.get(name)
-        if b is None or b.size < len(raw):
+        if b is None or b.size < need:
             if b is not None:
                 b.release()
                 self._objects.remove(b)
-            size = 1 << max(8, int(np.ceil(np.log2(max(len(raw), 1)))))
+            size = 1 << max(8, int(np.ceil(np.log2(max(need, 1)))))
             b = self._track(self.ctx.buffer(reserve=size, dynamic=True), f"points.{name}")
             self._bufs[name] = b
         if raw:
@@ -338,9 +237,15 @@ class Drawer:
         return b
 
     def upload(self, rep) -> None:
-        """GPU storage of all segment hierarchies of a PointsRep (replaces a previous upload)."""
+        """GPU storage of all segment hierarchies of a PointsRep, or of a FollowRep's samples and animation
+        (``render/points_follow.py``); replaces a previous upload."""
         if rep.key in self._reps:
             self._release_rep(self._reps.pop(rep.key))
+        if rep.key in self._follow:
+            self._release_rep(self._follow.pop(rep.key))
+        if getattr(rep, "follow", False):
+            self._follow[rep.key] = upload_follow(self.ctx, rep, self._track)
+            return
         ctx = self.ctx
         objs = []
 
@@ -396,13 +301,16 @@ class Drawer:
 
     def _release_rep(self, g) -> None:
         for o in reversed(g.objects):
+            if o in self._objects:
+                self._objects.remove(o)
             o.release()
 
     def release(self) -> None:
         """Release every GL object (reverse creation order; safe twice)."""
-        for g in list(self._reps.values()):
+        for g in list(self._reps.values()) + list(self._follow.values()):
             self._release_rep(g)
         self._reps.clear()
+        self._follow.clear()
         for o in reversed(self._objects):
             try:
                 o.release()
@@ -433,9 +341,10 @@ class Drawer:
         cs.run(gx, gy, 1)
 
     def draw(self, batches, drawlist, view_proj) -> None:
-        """Draw point batches (``lod.points.rep.PointsBatch``) of this frame."""
+        """Draw point batches (``lod.points.rep.PointsBatch``, and ``FollowBatch`` es of representations whose
+        samples follow the animation, ``render/points_follow.py``) of this frame."""
         ctx = self.ctx
-        batches = [b for b in batches if b.rep in self._reps and b.n_instances]
+        batches = [b for b in batches if (b.rep in self._reps or b.rep in self._follow) and b.n_instances]
         self.last_counts = dict.fromkeys(COUNTS, 0)
         if not batches:
             return
@@ -443,8 +352,8 @@ class Drawer:
         for b in batches:
             offs[id(b)] = rows
             rows += b.n_instances
-        # the model matrices also dequantise their rep's positions (pack_samples)
-        inst = np.concatenate([fold_box(b.instance_data, *self._reps[b.rep].box) for b in batches])
+        # the model matrices also dequantise their rep's positions (pack_samples; the follow reps' pose box)
+        inst = np.concatenate([fold_box(b.instance_data, *self._gpu_of(b.rep).box) for b in batches])
         if not np.isfinite(inst).all():
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
         inst_buf = self._buffer("instances", inst)
@@ -466,13 +375,21 @@ class Drawer:
         vp = np.asarray(view_proj, np.float64)
         # batches of one screen-door fade (lod.drawlist DrawBatch.fade; lod.temporal.selection) draw together
         by_fade: dict = {}
+        fol_fade: dict = {}
         for b in batches:
-            by_fade.setdefault(fade_uniform(getattr(b, "fade", None)), []).append(b)
-        first = next(g for b in batches for k, g in self._reps.items() if k == b.rep)
+            (fol_fade if b.rep in self._follow else by_fade).setdefault(fade_uniform(getattr(b, "fade", None)),
+                                                                         []).append(b)
+        first = self._gpu_of(batches[0].rep)
         path = self.path or first.path
         # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
         # the [lod] splat_size
         splat = int(drawlist.options.get("splat_size", first.splat))
+        # samples that follow the animation: their poses placed this frame (render/points_follow.py)
+        fol = None
+        if fol_fade:
+            fol = FollowFrame(self, [b for b in batches if b.rep in self._follow], offs, limit,
+                              int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27)))
+            self.last_counts.update({k: v for k, v in fol.counts.items()})
         # 1. the traversal's jobs: triangle tables per (fade, rep), point tables per fade over every
         # rep (their samples share one buffer)
         tris = [(f, k, g, job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
@@ -484,10 +401,11 @@ class Drawer:
             parts = [j for j in parts if j.shape[0]]
             if parts:
                 groups.append((fade, _merge_jobs(parts)))
-        if groups and path not in PATHS:
+        if (groups or fol is not None) and path not in PATHS:
             raise ValueError(f"points drawer: path must be one of {PATHS}, got {path!r}")
         # occlusion culling (render.occlusion): the nearest share first, the rest tested against its depth
-        # (a frame of triangles only draws them all: nothing splatted to test afterwards)
+        # (a frame of triangles only draws them all: nothing splatted to test afterwards); the samples that
+        # follow the animation are drawn without the test (their node boxes depend on the pose)
         occl = bool(self.occlusion and path == "compute" and not getattr(self.r, "samples", 0) and groups)
         if occl and self._occl_pause > 0:  # the last test found too little hidden (render.occlusion)
             self._occl_pause -= 1
@@ -495,22 +413,12 @@ class Drawer:
             occl = False
         hidden = self._occlusion_split(by_fade, tris, groups, vp, splat) if occl else None
         self._draw_triangles(tris, vp, None if hidden is None else hidden[0])
-        if not groups:
+        if fol is not None:
+            self._follow_triangles(fol, fol_fade, vp)
+        if not groups and fol is None:
             return
-        self._points.bind_to_storage_buffer(0)
         if path == "gl_points":  # the reference path: one binding (not windowed)
-            bind_rows(0)
-            self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in groups)
-            prog = self._program("points_gl")
-            self._uniforms(prog, vp)
-            ctx.enable(ctx.PROGRAM_POINT_SIZE)
-            for fade, jobs in groups:
-                self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
-                if "u_fade" in prog:
-                    prog["u_fade"].value = fade
-                prog["u_splat"].value = float(splat)
-                self._empty_for(prog).render(moderngl.POINTS, vertices=int(jobs[-1, 1]) + int(jobs[-1, 3]))
-            ctx.disable(ctx.PROGRAM_POINT_SIZE)
+            self._gl_points(groups, fol, fol_fade, vp, splat)
             return
         self._depth.bind_to_storage_buffer(3)
         self._color.bind_to_storage_buffer(4)
@@ -556,7 +464,11 @@ class Drawer:
                 drawn.append((f, _sub(j, a | v)))
         drawn = [(f, j) for f, j in drawn if j.shape[0]]
         self.last_counts["points"] = sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in drawn)
+        if fol is not None:
+            self.last_counts["points"] += self._splat_follow(fol, fol_fade, vp, splat, color=False)
         self._splat(drawn, vp, splat, color=True)
+        if fol is not None:
+            self._splat_follow(fol, fol_fade, vp, splat, color=True)
         # 3. resolve: the pixels the filled anchor tiles reach (the next frame's clear resets
         # only those tiles)
         tx, ty = self._slot_tiles
@@ -577,10 +489,72 @@ class Drawer:
         self.r.fbo.use()
         vao.render(moderngl.TRIANGLES, vertices=verts.shape[0])
 
-    def _draw_triangles(self, tris, vp, masks=None) -> None:
+    def _gpu_of(self, key):
+        """The uploaded GPU resources of representation ``key`` (stored or following the animation)."""
+        g = self._reps.get(key)
+        return g if g is not None else self._follow[key]
+
+    def _gl_points(self, groups, fol, fol_fade, vp, splat: int) -> None:
+        """The GL_POINTS reference path: one (sample, instance) vertex per work item, not windowed."""
+        ctx = self.ctx
+        bind_rows = self._win[0]
+        bind_rows(0)
+        ctx.enable(ctx.PROGRAM_POINT_SIZE)
+        todo = [(self._program("points_gl"), self._points, f, j) for f, j in groups]
+        if fol is not None:
+            for r in range(len(fol.rounds)):
+                fol.ensure(r)
+                for fade, bs in fol_fade.items():
+                    j = fol.point_jobs(r, bs)
+                    if j.shape[0]:
+                        self._gl_points_draw(self._program("points_gl", ("PLACED",)), fol.placed_buffer(), fade, j,
+                                             vp, splat)
+        for prog, buf, fade, jobs in todo:
+            self._gl_points_draw(prog, buf, fade, jobs, vp, splat)
+        ctx.disable(ctx.PROGRAM_POINT_SIZE)
+
+    def _gl_points_draw(self, prog, buf, fade, jobs, vp, splat: int) -> None:
+        buf.bind_to_storage_buffer(0)
+        self._uniforms(prog, vp)
+        self._buffer("point_items", expand_jobs(jobs)).bind_to_storage_buffer(7)
+        if "u_fade" in prog:
+            prog["u_fade"].value = fade
+        prog["u_splat"].value = float(splat)
+        n = int(jobs[-1, 1]) + int(jobs[-1, 3])
+        self.last_counts["points"] += n
+        self._empty_for(prog).render(moderngl.POINTS, vertices=n)
+
+    def _follow_triangles(self, fol, fol_fade, vp) -> None:
+        """The triangles the traversal keeps of the representations that follow the animation, drawn from
+        their poses' posed vertices (``points_tri.vert`` PLACED), round by round."""
+        for r in range(len(fol.rounds)):
+            tris, shift = fol.triangle_jobs(r, fol_fade)
+            if not tris:
+                continue
+            fol.ensure(r, place=False)
+            self._draw_triangles(tris, vp, placed=(fol.placed_buffer(), shift))
+
+    def _splat_follow(self, fol, fol_fade, vp, splat: int, color: bool) -> int:
+        """One splat pass over the placed samples of every round; returns the points splatted."""
+        n = 0
+        for r in range(len(fol.rounds)):
+            groups = [(fade, fol.point_jobs(r, bs)) for fade, bs in fol_fade.items()]
+            groups = [(f, j) for f, j in groups if j.shape[0]]
+            if not groups:
+                continue
+            fol.ensure(r)
+            fol.placed_buffer().bind_to_storage_buffer(0)
+            self._splat(groups, vp, splat, color, placed=True)
+            n += sum(int(j[-1, 1]) + int(j[-1, 3]) for _, j in groups)
+        self._points.bind_to_storage_buffer(0)
+        return n
+
+    def _draw_triangles(self, tris, vp, masks=None, placed=None) -> None:
         """Draw triangle job tables [(fade, key, gpu rep, jobs)], only the rows of
-        ``masks`` (a bool array per table) when given."""
-        tprog = self._program("points_tri")
+        ``masks`` (a bool array per table) when given. ``placed``: (buffer, shift) of the
+        representations that follow the animation: their vertices are the posed ones in
+        ``buffer``, vertex v of instance row i at ``shift[i] + v`` (render/points_follow.py)."""
+        tprog = self._program("points_tri", ("PLACED",) if placed is not None else ())
         self._uniforms(tprog, vp)
         for i, (fade, key, g, jobs) in enumerate(tris):
             if masks is not None:
@@ -601,17 +575,23 @@ class Drawer:
                     pieces[:0] = [(first, piece[:half]), (first, piece[half:])]
                     continue
                 bind_rows(first)
+                if placed is not None:  # the instance's pose's posed vertices
+                    items = items.copy()
+                    items[:, 0] += placed[1][first + items[:, 1].astype(np.int64)].astype(np.uint32)
                 self._buffer("tri_items", items).bind_to_storage_buffer(7)
-                g.verts.bind_to_storage_buffer(5)
+                (g.verts if placed is None else placed[0]).bind_to_storage_buffer(5)
                 ibo = self._buffer("tri_index", index)
-                vao = self._vao_of("tri_vao", ibo, lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo,
-                                                                                    index_element_size=4))
+                vao = self._vao_of("tri_vao" if placed is None else "tri_vao_placed", ibo,
+                                   lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo, index_element_size=4))
                 vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += int(jobs[-1, 1]) + int(jobs[-1, 3])
 
-    def _splat(self, groups, vp, splat: int, color: bool) -> None:
+    def _splat(self, groups, vp, splat: int, color: bool, placed: bool = False) -> None:
         """One splat pass (depth keys, or with ``color`` the colour of the winners)
-        over point job tables [(fade, jobs)]."""
+        over point job tables [(fade, jobs)] of the stored samples (bound at 0), or with ``placed`` of the
+        frame's placed samples (``render/points_follow.py``, bound at 0 by the caller)."""
+        if not placed:
+            self._points.bind_to_storage_buffer(0)
         w, h = self.r.size
         common = (f"LOCAL_SIZE {SPLAT_GROUP}", f"MARGIN {MARGIN}", f"JOBS_PER_GROUP {SPLAT_JOBS_PER_GROUP}",
                   f"TILE {TILE}")
@@ -626,7 +606,7 @@ class Drawer:
                     continue
                 t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
                 cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common
-                                   + (("THREAD_PER_JOB",) if thread else ()))
+                                   + (("THREAD_PER_JOB",) if thread else ()) + (("PLACED",) if placed else ()))
                 self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
                 if "u_fade" in cs:
                     cs["u_fade"].value = fade

@@ -531,6 +531,8 @@ class PointsCandidate(Candidate):
         if r is None or p == 0 or group.k == 0:
             return None
         b = group.batch
+        if getattr(r, "follow", False):  # samples that follow the animation (lod.points.follow_select)
+            return self._follow_options(frame, group, r, p)
         data = np.array(b.instance_data, np.float32)  # a copy: column 12 becomes the segment's u
         if self.kinds[group.char] == "keyframed":
             seg = np.full(group.k, int(b.part), np.int64)
@@ -566,9 +568,40 @@ class PointsCandidate(Candidate):
                                          frame.scale_px)[:, 0]
         return Options(cost[:, None], err[:, None], (r, data, ids, order, jobs, pts, tris, p), (f"splat{p}",))
 
+    def _follow_options(self, frame, group, r, p: int):
+        """Options of a character whose samples follow the animation: its hierarchy at each copy's own pose
+        (no keyframe deviation: the samples follow the skinned animation exactly)."""
+        from dataclasses import replace
+
+        from lod.points.follow_select import follow_batch
+        from lod.points.traverse import viewport_scale
+
+        b = group.batch
+        data = np.array(b.instance_data, np.float32)
+        if self.kinds[group.char] != "keyframed":  # the master's frame coordinate in this rep's joint table
+            t = np.asarray(frame.state.anim_time, np.float64)[np.asarray(b.instance_ids, np.int64)]
+            data[:, 12] = r.base.frame_coordinate(np.full(group.k, int(b.part)), t)
+        vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
+        fb = follow_batch(r, replace(b, rep=r.key, instance_data=data), frame.planes, vs, p)
+        c = frame.model.coefficients
+        cost = c["points"] * fb.inst_points + c["triangles"] * fb.inst_triangles + c["point_instances"]
+        err = np.full(group.k, float(p))
+        return Options(cost[:, None], err[:, None], ("follow", r, fb, p), (f"splat{p}",))
+
     def emit(self, frame, group, options, rows, choice):
         from lod.points.rep import PointsBatch
 
+        if options.plan[0] == "follow":
+            from lod.points.follow_select import subset
+
+            _, r, fb, p = options.plan
+            out = subset(r, fb, rows)
+            if out is None:
+                return []
+            out.tint = group.batch.tint
+            self.points_drawn += out.points
+            self._used = max(self._used, int(p))
+            return [out]
         r, data, ids, order, jobs, pts, tris, p = options.plan
         b = group.batch
         take = np.zeros(group.k, bool)

@@ -13,8 +13,15 @@ Modules in data-flow order:
   (§3.2, §3.3).
 - ``lod.points.rep``: ``PointsRep`` (a hierarchy per segment), ``PointsBatch`` and the hierarchy cache.
 - ``lod.points.instancing``: hierarchical instantiation, super-hierarchies of instance groups (§3.6).
+- ``lod.points.deform``: how a character's surface moves over its clips' frames: posing, largest areas, the
+  stratification poses, the covering radius at every frame, node boxes in joint frames (issue 27).
+- ``lod.points.follow``: one hierarchy of rest-pose samples per character that follows the animation
+  (``FollowHierarchy``, ``FollowRep``, build and cache; memory independent of the clips' length).
+- ``lod.points.follow_select``: per frame, the copies' shared poses, the traversal at them and each pose's prefixes.
+- ``lod.points.paths``: which path a character takes ([lod] animation: follow or baked) and why.
 - ``lod.points.mode``: the builder and ``PointsSelector`` (many instances traversed at once); the mode protocol.
 
 Morph targets of skinned characters (glTF 2.0 §3.7.2.2) are baked into the keyframes (``skin ∘ morph`` at every
-key time, ``lod.points.mode.keyframed_character``).
+key time, ``lod.points.mode.keyframed_character``) on the baked path, and blended before skinning in the pose pass
+on the follow path (``render/points_follow.py``).
 """

@@ -43,8 +43,9 @@ COARSE_LEVELS = 12
 
 
 @njit(cache=True)
-def _farthest_kernel(p0, p1, first, order, radius):  # pragma: no cover - compiled
-    n = p0.shape[0]
+def _farthest_kernel(P, first, order, radius):  # pragma: no cover - compiled
+    # P (K, n, 3): the points at K times; the distance is the largest over them
+    n = P.shape[1]
     dist = np.empty(n)
     used = np.zeros(n, np.bool_)
     cur = first
@@ -56,14 +57,15 @@ def _farthest_kernel(p0, p1, first, order, radius):  # pragma: no cover - compil
         for i in range(n):
             if used[i]:
                 continue
-            d0 = 0.0
-            d1 = 0.0
-            for k in range(3):
-                a = p0[i, k] - p0[cur, k]
-                b = p1[i, k] - p1[cur, k]
-                d0 += a * a
-                d1 += b * b
-            d = np.sqrt(max(d0, d1))
+            dd = 0.0
+            for q in range(P.shape[0]):
+                e = 0.0
+                for k in range(3):
+                    a = P[q, i, k] - P[q, cur, k]
+                    e += a * a
+                if e > dd:
+                    dd = e
+            d = np.sqrt(dd)
             if m == 0 or d < dist[i]:
                 dist[i] = d
             if dist[i] > best:
@@ -73,23 +75,27 @@ def _farthest_kernel(p0, p1, first, order, radius):  # pragma: no cover - compil
         cur = arg
 
 
-def _first(p0, p1) -> int:
-    mid = 0.5 * (p0 + p1)
+def _first(P) -> int:
+    mid = P.mean(axis=0)
     return int(np.argmin(((mid - mid.mean(axis=0)) ** 2).sum(axis=1)))
 
 
-def farthest_order(p0, p1) -> tuple[np.ndarray, np.ndarray]:
-    """Farthest-point order of points moving from ``p0`` to ``p1`` (n, 3).
+def farthest_order(p0, p1=None, poses=None) -> tuple[np.ndarray, np.ndarray]:
+    """Farthest-point order of points moving from ``p0`` to ``p1`` (n, 3), or of points at K times
+    (``poses`` (K, n, 3); ``lod.points.follow``: the stratification poses).
 
     Returns order (n,) int64 and radius (n,) float64: after the first ``m + 1``
-    points of ``order`` every point is within ``radius[m]`` (distance: the larger
-    of the two keyframe distances); ``radius[n - 1] = 0``."""
-    p0 = np.ascontiguousarray(p0, np.float64).reshape(-1, 3)
-    p1 = np.ascontiguousarray(p1, np.float64).reshape(-1, 3)
-    n = p0.shape[0]
+    points of ``order`` every point is within ``radius[m]`` (distance: the largest
+    over the times); ``radius[n - 1] = 0``."""
+    if poses is None:
+        P = np.stack([np.asarray(p0, np.float64).reshape(-1, 3), np.asarray(p1, np.float64).reshape(-1, 3)])
+    else:
+        P = np.asarray(poses, np.float64).reshape(len(poses), -1, 3)
+    P = np.ascontiguousarray(P)
+    n = P.shape[1]
     order, radius = np.zeros(n, np.int64), np.zeros(n, np.float64)
     if n:
-        _farthest_kernel(p0, p1, _first(p0, p1), order, radius)
+        _farthest_kernel(P, _first(P), order, radius)
     return order, radius
 
 
@@ -101,7 +107,7 @@ def farthest_order_numpy(p0, p1) -> tuple[np.ndarray, np.ndarray]:
     if n == 0:
         return np.zeros(0, np.int64), np.zeros(0)
     d = np.sqrt(np.maximum(((p0[:, None] - p0[None]) ** 2).sum(-1), ((p1[:, None] - p1[None]) ** 2).sum(-1)))
-    order, radius = [_first(p0, p1)], []
+    order, radius = [_first(np.stack([p0, p1]))], []
     near = d[order[0]].copy()
     for _ in range(1, n):
         cand = np.where(np.isin(np.arange(n), order), -1.0, near)
@@ -132,10 +138,12 @@ def prefix_table(radius: np.ndarray, root_spacing: float, levels: int = COARSE_L
     return counts, spacing
 
 
-def add_coarse(h) -> None:
+def add_coarse(h, poses=None) -> None:
     """Reorder the root's points of every time interval in farthest-point order and set
     ``h.coarse_count`` and ``h.coarse_spacing`` (J, COARSE_LEVELS). Idempotent; a
-    hierarchy whose root draws no points gets tables of width 0 (no coarse prefixes)."""
+    hierarchy whose root draws no points gets tables of width 0 (no coarse prefixes).
+    ``poses`` (K, n, 3): the root's points (one interval) at K times to order them by
+    (``lod.points.follow``), in place of its two keyframes."""
     if getattr(h, "coarse_count", None) is not None:
         return
     J = int(h.point_count.shape[1]) if h.n_nodes else 0
@@ -147,7 +155,10 @@ def add_coarse(h) -> None:
         return
     for j in range(J):
         s, n = int(h.point_start[0, j]), int(h.point_count[0, j])
-        order, radius = farthest_order(h.pos0[s:s + n], h.pos1[s:s + n])
+        if poses is not None:
+            order, radius = farthest_order(None, poses=poses)
+        else:
+            order, radius = farthest_order(h.pos0[s:s + n], h.pos1[s:s + n])
         for name in _POINT_ARRAYS:
             a = getattr(h, name, None)
             if a is not None and a.shape[0] == h.pos0.shape[0]:  # (a super-hierarchy keeps no tri / bary)

@@ -49,9 +49,10 @@ from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points import config as C
 from lod.points.coarse import add_coarse, coarse_arrays
 from lod.points.octree import PointHierarchy
+from lod.points.paths import ANIMATION_PATHS, animation_path, build_follow_rep, follow_bytes
 from lod.points.poses import clip_poses
 from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
-from lod.points.traverse import _traverse_kernel, traverse, viewport_scale
+from lod.points.traverse import _traverse_kernel, joint_frames, traverse, viewport_scale
 from sim.params import Param
 
 #: instances per call below which :func:`traverse_instances` runs serially (a parallel region costs a
@@ -85,6 +86,11 @@ PARAMS: dict = {
                       doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
     "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
                                           "likely occluders (render.occlusion; not in Wand & Strasser)"),
+    "animation": Param("str", "auto", choices=ANIMATION_PATHS,
+                       doc="how the samples move: \"follow\" = one hierarchy of rest-pose samples per character, "
+                           "placed with the animation at draw time (memory independent of the clips' length); "
+                           "\"baked\" = one octree per keyframe pair (Wand & Strasser 3.3; grows with the clips); "
+                           "\"auto\" = per character by a measured rule (lod.points.paths)"),
 }
 
 
@@ -193,6 +199,35 @@ def build_points_rep(character, name: str, params: dict, cache: HierarchyCache |
     return PointsRep(f"points:{name}", kf, hs, int(p["splat_size"]), str(p["renderer"]), poses=poses)
 
 
+#: longest clip an instancing group's super-hierarchies bake when the character's samples follow the animation
+SUPER_CLIP_SECONDS = 10.0
+
+
+def group_keyframes(rep, clip: int, params: dict) -> tuple:
+    """(KeyframedRep, clip index in it) of a character's clip for the super-hierarchies of §3.6 (a keyframe
+    animation of the whole group, as the paper has it): a baked rep's own; for a rep that follows the
+    animation, the keyframed rep itself (keyframed) or the one clip baked to poses (``lod.points.poses``;
+    (None, -1) when it is longer than :data:`SUPER_CLIP_SECONDS`)."""
+    if not getattr(rep, "follow", False):
+        return rep.keyframed, int(clip)
+    if not rep.skinned:
+        return rep.base, int(clip)
+    ch = rep.character
+    names = list(ch.clips)
+    short = [n for n in names if float(ch.clip(n).duration) <= SUPER_CLIP_SECONDS]
+    if names[int(clip)] not in short:
+        return None, -1
+    kf = rep.__dict__.get("_super_keyframes")
+    if kf is None:  # the short clips baked as the baked path bakes them (same arrays: its cached super-hierarchies)
+        import dataclasses
+
+        some = dataclasses.replace(ch, clips={n: ch.clip(n) for n in short})
+        kfc = keyframed_character(some, int(params["keyframes"]), float(params["pose_error"]),
+                                  int(params["max_keyframes"]))
+        kf = rep.__dict__["_super_keyframes"] = build_keyframed_rep(kfc, key=rep.key)
+    return kf, short.index(names[int(clip)])
+
+
 def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None):
     """Super-hierarchies (§3.6) of every instancing group, as an
     :class:`lod.points.instancing.InstancingPlan`, or None without groups.
@@ -218,15 +253,22 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
             skipped.append((gi, "character index out of range"))
             continue
         rep = reps[h.character]
-        kf = rep.keyframed
-        surf = pi.clip_surface(kf, h.clip)
-        dur = float(kf.anim_duration[h.clip]) if surf is not None else 0.0
+        kf, ci = group_keyframes(rep, h.clip, p)
+        if kf is None:
+            skipped.append((gi, f"its clip is longer than {SUPER_CLIP_SECONDS:g} s: baking it for a super-hierarchy "
+                                "would grow with the clip"))
+            continue
+        surf = pi.clip_surface(kf, ci)
+        dur = float(kf.anim_duration[ci]) if surf is not None else 0.0
         ratio = h.period / dur if dur > 0 else 0.0
-        if surf is None or not bool(kf.anim_loop[h.clip]) or ratio < 0.5 or abs(ratio - round(ratio)) > 1e-6:
+        if surf is None or not bool(kf.anim_loop[ci]) or ratio < 0.5 or abs(ratio - round(ratio)) > 1e-6:
             skipped.append((gi, "clip is not a looping one-topology animation with the tree's period"))
             continue
-        a0, ns = int(kf.anim_first_seg[h.clip]), int(kf.anim_n_segs[h.clip])
-        r_root = max(float(rep.hierarchies[s].spacing[0]) for s in range(a0, a0 + ns))
+        a0, ns = int(kf.anim_first_seg[ci]), int(kf.anim_n_segs[ci])
+        if getattr(rep, "follow", False):
+            r_root = float(rep.view(int(h.clip) if rep.skinned else a0).spacing[0])
+        else:
+            r_root = max(float(rep.hierarchies[s].spacing[0]) for s in range(a0, a0 + ns))
         if r_root <= 0.0:  # a character small enough to be one leaf: its own box sets the scale
             box = kf.seg_aabb[a0:a0 + ns]
             r_root = float(C.POINTS_SPACING_FRACTION * (box[:, 1] - box[:, 0]).max())
@@ -283,7 +325,16 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     for _, h in (getattr(instancing, "groups", None) or []):  # super-hierarchies sample the group's clip
         if 0 <= h.character < len(clips) and clips[h.character] is not None:
             clips[h.character].append(int(h.clip))
-    reps = [build_points_rep(ch, n, p, cache, progress, clips=c) for ch, n, c in zip(characters, names, clips)]
+    fps = list(fps) if fps is not None else [30] * len(characters)
+    reps = []
+    for ch, n, c, f in zip(characters, names, clips, fps):
+        path, _ = animation_path(ch, p)
+        if path == "follow":
+            r = build_follow_rep(ch, n, p, fps=float(f), cache=cache)
+            r.character = ch
+        else:
+            r = build_points_rep(ch, n, p, cache, progress, clips=c)
+        reps.append(r)
     plan = build_instancing(instancing, reps, list(names), p, cache, progress)
     sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan)
     return reps + (plan.reps if plan is not None else []), sel
@@ -302,6 +353,10 @@ def memory_estimate(characters, params: dict) -> int:
     total = 0
     for ch in characters:
         kind = getattr(ch, "kind", None)
+        if p["animation"] != "baked" and (kind == "skinned" or (kind is None and getattr(ch, "generator", None))
+                                         or (kind == "keyframed" and animation_path(ch, p)[0] == "follow")):
+            total += follow_bytes(ch)  # independent of the clips' length (lod.points.follow)
+            continue
         if kind == "skinned" and ch.mesh.is_skinned:
             tris = ch.mesh.n_triangles
             poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
@@ -321,21 +376,53 @@ def memory_estimate(characters, params: dict) -> int:
     return int(total)
 
 
+def memory_causes(characters, params: dict, names) -> list:
+    """(bytes, clause) per character of :func:`memory_estimate`, each naming the character, the path and
+    the ``[lod]`` setting that changes it (``crowd.memory``'s refusal)."""
+    p = {k: v.default for k, v in PARAMS.items()} | dict(params)
+    out = []
+    for ch, name in zip(characters, names):
+        b = memory_estimate([ch], p)
+        if not b:
+            continue
+        kind = getattr(ch, "kind", None)
+        baked = p["animation"] == "baked" or (kind == "keyframed" and animation_path(ch, p)[0] == "baked")
+        if not baked:
+            out.append((b, f"mode points' hierarchy of character {name!r} (one, whatever its clips' length): fewer "
+                           "triangles"))
+        elif kind == "skinned":
+            poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
+            longest = max(poses, key=lambda c: float(ch.clip(c).duration))
+            out.append((b, f"mode points' octrees of character {name!r}, one per keyframe pair: "
+                           f"{sum(len(cp.times) for cp in poses.values())} poses, {len(poses[longest].times)} of them "
+                           f"for its {float(ch.clip(longest).duration):.3g} s clip {longest!r}; set [lod] animation "
+                           "= \"follow\" (samples placed with the animation, memory independent of the clips' "
+                           "length) or a larger pose_error"))
+        else:
+            out.append((b, f"mode points' octrees of character {name!r}, one per keyframe pair of its keyframe "
+                           "animations: fewer keyframes" + ("" if kind is None else
+                                                           ", or [lod] animation = \"follow\" when they share one "
+                                                           "triangle list")))
+    return out
+
+
 # ---------------------------------------------------------------------------- traversal of many instances
 @njit(cache=True)
 def _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start, tri_count,
-                   bounds, coarse_count, coarse_spacing, data, planes, vscale, splat, r0, r1, base, cap, pjobs,
-                   tjobs, psum, tsum):  # pragma: no cover
+                   bounds, coarse_count, coarse_spacing, ref, jt, data, planes, vscale, splat, r0, r1, base, cap,
+                   pjobs, tjobs, psum, tsum, deep):  # pragma: no cover
     """Traverse instances ``r0 .. r1 - 1`` into ``pjobs`` / ``tjobs`` rows ``base ..
     base + cap - 1``; returns (point jobs, triangle jobs) written, or (-1, -1) when
-    they do not fit."""
+    they do not fit. ``deep[r]``: the largest node instance r draws (points or
+    triangles), -1 for none. With joint frames (``ref`` not empty,
+    ``lod.points.follow``) column 12 is the instance's fractional baked row."""
     N = child_start.shape[0]
     out_p = np.empty((N, 2), np.int64)
     out_pn = np.empty(N, np.int32)
     out_t = np.empty((N, 2), np.int64)
     out_tn = np.empty(N, np.int32)
     stack = np.empty(N + 8, np.int64)
-    cs = np.empty((8, 3))
+    cs = np.empty((16, 3))
     lo = np.empty(3)
     hi = np.empty(3)
     model = np.empty((3, 4))
@@ -354,15 +441,32 @@ def _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, p
         u = data[r, 12]
         if not np.isfinite(u):
             u = 0.0
+        f0 = 0
+        f1 = 0
+        a = 0.0
+        if ref.shape[0] > 0:  # a baked row (lod.points.follow), as render/shaders/skinning.glsl frame_pair
+            last = jt.shape[0] - 1
+            f = min(max(u, 0.0), float(last))
+            f0 = int(np.floor(f))
+            f1 = min(f0 + 1, last)
+            a = f - f0
+            u = 0.0
         u = min(max(u, 0.0), 1.0)
         j = 0  # the interval holding u (lod.points.stratify.interval_of)
         while j < intervals - 1 and bounds[j + 1] <= u:
             j += 1
         np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                                   tri_start, tri_count, coarse_count, coarse_spacing, u, j, planes, model, scale,
-                                   vscale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
+                                   tri_start, tri_count, coarse_count, coarse_spacing, ref, jt, f0, f1, a, u, j,
+                                   planes, model, scale, vscale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo,
+                                   hi)
         if npj + np_ > cap or ntj + nt > cap:
             return -1, -1
+        dn = -1
+        for q in range(np_):
+            dn = max(dn, out_pn[q])
+        for q in range(nt):
+            dn = max(dn, out_tn[q])
+        deep[r] = dn
         sp = 0
         for q in range(np_):
             pjobs[base + npj, 0] = r
@@ -384,15 +488,15 @@ def _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, p
 
 @njit(cache=True, parallel=True)
 def _traverse_chunks_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                            tri_count, bounds, coarse_count, coarse_spacing, data, planes, vscale, splat, first, cap,
-                            pjobs, tjobs, npc, ntc, psum, tsum):  # pragma: no cover
+                            tri_count, bounds, coarse_count, coarse_spacing, ref, jt, data, planes, vscale, splat,
+                            first, cap, pjobs, tjobs, npc, ntc, psum, tsum, deep):  # pragma: no cover
     """Chunk c (rows ``first[c] .. first[c + 1] - 1``) into job rows ``c * cap ..``,
     the chunks in parallel (each writes only its own rows and instances)."""
     for c in prange(first.shape[0] - 1):
         npc[c], ntc[c] = _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                                        tri_start, tri_count, bounds, coarse_count, coarse_spacing, data, planes,
-                                        vscale, splat, first[c], first[c + 1], c * cap, cap, pjobs, tjobs, psum,
-                                        tsum)
+                                        tri_start, tri_count, bounds, coarse_count, coarse_spacing, ref, jt, data,
+                                        planes, vscale, splat, first[c], first[c + 1], c * cap, cap, pjobs, tjobs,
+                                        psum, tsum, deep)
 
 
 def _harrays(h: PointHierarchy) -> tuple:
@@ -401,13 +505,14 @@ def _harrays(h: PointHierarchy) -> tuple:
         arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
                np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
                np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
-               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64), *coarse_arrays(h))
+               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64), *coarse_arrays(h),
+               *joint_frames(h))
         h._traverse_arrays = arr
     return arr
 
 
 def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: float, splat: float,
-                       totals: bool = False):
+                       totals: bool = False, deepest: bool = False):
     """Traverse ``h`` (§3.2) once per instance (numba).
 
     Parameters
@@ -417,12 +522,15 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     planes : (6, 4) float64 camera-relative frustum planes; vscale : pixels per
         metre at depth 1; splat : splat size in pixels
     totals : also return each instance's point and triangle totals
+    deepest : also return each instance's largest drawn node (-1: none), whose
+        point and vertex prefixes ``lod.points.follow`` places per pose
 
     Returns
     -------
     point_jobs (J, 3) int64 and tri_jobs (Q, 3) int64: (instance row, start,
     count); with ``totals`` also points (k,) int64 and triangles (k,) int64
-    per instance (the sums of its jobs' counts).
+    per instance (the sums of its jobs' counts); with ``deepest`` then (k,)
+    int64 nodes.
     """
     data = np.asarray(data)
     # float32 instance data is read as it is (the kernel widens each value to float64 as a copy would)
@@ -435,6 +543,7 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     arr = _harrays(h)
     psum = np.empty(k, np.int64)
     tsum = np.empty(k, np.int64)
+    deep = np.empty(k, np.int64)
     chunks = traverse_chunks(k)
     first = np.linspace(0, k, chunks + 1).astype(np.int64)
     rows = int(np.diff(first).max()) if k else 0
@@ -444,12 +553,12 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
         tj = np.empty((cap * chunks, 3), np.int64)
         if chunks == 1:
             npj, ntj = _traverse_rows(*arr, data, planes, float(vscale), float(splat), 0, k, 0, cap, pj, tj, psum,
-                                      tsum)
+                                      tsum, deep)
             npc, ntc = np.array([npj]), np.array([ntj])
         else:
             npc, ntc = np.empty(chunks, np.int64), np.empty(chunks, np.int64)
             _traverse_chunks_kernel(*arr, data, planes, float(vscale), float(splat), first, cap, pj, tj, npc, ntc,
-                                    psum, tsum)
+                                    psum, tsum, deep)
         if (npc >= 0).all():
             break
         cap *= 2
@@ -462,7 +571,8 @@ def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: floa
     else:  # the chunks' jobs in row order: the serial kernel's tables exactly
         pj = np.concatenate([pj[c * cap:c * cap + npc[c]] for c in range(chunks)])
         tj = np.concatenate([tj[c * cap:c * cap + ntc[c]] for c in range(chunks)])
-    return (pj, tj, psum, tsum) if totals else (pj, tj)
+    out = (pj, tj) + ((psum, tsum) if totals else ()) + ((deep,) if deepest else ())
+    return out
 
 
 def traverse_chunks(k: int) -> int:
@@ -480,7 +590,8 @@ def traverse_instances_reference(h: PointHierarchy, data, planes, vscale: float,
     data = np.asarray(data, np.float64).reshape(-1, 16)
     pj, tj = [], []
     for r in range(data.shape[0]):
-        res = traverse(h, float(data[r, 12]), planes, vscale, splat, data[r, :12].reshape(3, 4))
+        res = traverse(h, float(data[r, 12]), planes, vscale, splat, data[r, :12].reshape(3, 4),
+                       frame=float(data[r, 12]))
         pj += [(r, s, c) for s, c in res.point_ranges.tolist()]
         tj += [(r, s, c) for s, c in res.tri_ranges.tolist()]
     return np.array(pj, np.int64).reshape(-1, 3), np.array(tj, np.int64).reshape(-1, 3)
@@ -515,12 +626,15 @@ class PointsSelector:
     splat_size : pixels (1..3)
     """
 
-    def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None):
+    def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None, pose_rate="key"):
         if not 1 <= int(splat_size) <= 3:
             raise ValueError(f"[lod] splat_size: expected 1, 2 or 3 pixels, got {splat_size}")
         self.reps = list(reps)
         self.splat_size = int(splat_size)
-        self._base = NoLodSelector([r.keyframed for r in self.reps], static_reps=static_reps)
+        #: pose sharing of the representations that follow the animation (lod.points.follow_select)
+        self.pose_rate = pose_rate
+        self._base = NoLodSelector([r.base if getattr(r, "follow", False) else r.keyframed for r in self.reps],
+                                   static_reps=static_reps)
         self._by_key = {r.key: r for r in self.reps}
         self.instancing = instancing
         if instancing is not None:
@@ -549,11 +663,21 @@ class PointsSelector:
         else:
             dl = self._base.select(state, camera, size, statics)
         out = []
-        pts = tris = 0
+        pts = tris = placed = poses = 0
         for b in dl.batches:
             rep = self._by_key.get(b.rep)
             if rep is None:
                 out.append(b)
+                continue
+            if getattr(rep, "follow", False):  # samples placed with the animation (lod.points.follow_select)
+                from lod.points.follow_select import follow_batch
+
+                fb = follow_batch(rep, b, planes, vs, self.splat_size, self.pose_rate)
+                pts += fb.points
+                tris += fb.triangles
+                placed += int(fb.pose_points.sum())
+                poses += int(fb.pose.shape[0])
+                out.append(fb)
                 continue
             hier = rep.hierarchies[b.part]
             pj, tj = traverse_instances(hier, b.instance_data, planes, vs, self.splat_size)
@@ -568,6 +692,9 @@ class PointsSelector:
             out.append(b)
         dl.batches = out
         dl.stats["points"] = int(pts)
+        if poses:  # the draw's placement work (render/points_follow.py): samples placed, one set per pose
+            dl.stats["placed_points"] = int(placed)
+            dl.stats["point_poses"] = int(poses)
         dl.options["splat_size"] = self.splat_size  # the drawer splats at the size the traversal assumed
         dl.stats["triangles"] = int(tris) + sum(b.triangles for b in out if not isinstance(b, PointsBatch))
         dl.stats["batches"] = len(out)

@@ -79,6 +79,8 @@ ATTR_DTYPE = np.float16
 #: candidates of the nodes drawn ahead of the one being finished (their
 #: stratification runs in the worker threads meanwhile); bounds the memory
 PIPELINE_CANDIDATES = 1_000_000
+#: the same with ``poses`` (each candidate held at K poses): a few dozen nodes keep two threads busy
+PIPELINE_POSED_CANDIDATES = 100_000
 
 
 @dataclass
@@ -202,6 +204,28 @@ def _positions_kernel(v0, v1, tri, bary, times, out):  # pragma: no cover - comp
     return out
 
 
+@njit(cache=True, nogil=True)
+def _posed_positions_kernel(VK, tri, bary, out):  # pragma: no cover - compiled
+    for q in range(VK.shape[0]):
+        for i in range(tri.shape[0]):
+            k = tri[i]
+            b1 = bary[i, 0]
+            b2 = bary[i, 1]
+            b0 = 1.0 - b1 - b2
+            for c in range(3):
+                out[q, i, c] = b0 * VK[q, k, 0, c] + b1 * VK[q, k, 1, c] + b2 * VK[q, k, 2, c]
+    return out
+
+
+def sample_positions_posed(VK, tri, bary) -> np.ndarray:
+    """(K, N, 3) float64 positions of barycentric samples on triangles ``tri`` (ids into VK's T) at each of
+    the K poses of ``VK`` (K, T, 3, 3) (numba; equals :func:`sample_positions_at` per pose)."""
+    out = np.empty((VK.shape[0], np.asarray(tri).shape[0], 3))
+    if out.size:
+        _posed_positions_kernel(VK, np.ascontiguousarray(tri, np.int64), np.ascontiguousarray(bary, np.float64), out)
+    return out
+
+
 def sample_positions_at(v0, v1, tri, bary, times) -> np.ndarray:
     """(len(times), N, 3) float64 positions of barycentric samples (numba)."""
     times = np.ascontiguousarray(times, np.float64).reshape(-1)
@@ -229,17 +253,22 @@ class _Node:
         self.pending = None  # lod.points.stratify.stratify_async handle
         self.pos = self.keep = self.anyk = self.filtered = None
 
-    def positions(self, V0, V1, times):
+    def positions(self, V0, V1, times, VK=None):
         """``at(j)``: (2, N, 3) candidate positions at the ends of interval j,
         computed for all the boundaries by the first work item that asks
-        (thread-safe) and dropped by :meth:`filter`."""
+        (thread-safe) and dropped by :meth:`filter`. With ``VK`` (K, T, 3, 3),
+        the triangle corners at K poses (``build_hierarchy(poses=...)``, one
+        interval): (K, N, 3) the candidates at every pose."""
         lock = threading.Lock()
 
         def at(j):
             with lock:
                 if self.pos is None:
-                    self.pos = sample_positions_at(V0[self.tris], V1[self.tris], self.ctri, self.cbary, times)
-                return self.pos[j:j + 2]
+                    if VK is None:
+                        self.pos = sample_positions_at(V0[self.tris], V1[self.tris], self.ctri, self.cbary, times)
+                    else:
+                        self.pos = sample_positions_posed(VK, self.tris[self.ctri], self.cbary)
+                return self.pos if VK is not None else self.pos[j:j + 2]
         return at
 
     def filter(self, keep, V0, V1, CC0, CC1, NN0, NN1, areas, sigma):
@@ -291,7 +320,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                     filter_sigma: float = C.POINTS_FILTER_SIGMA,
                     max_depth: int = C.POINTS_MAX_DEPTH,
                     seed: int = 0, adaptive_intervals: bool = True,
-                    progress: bool | None = None, threads: int | None = None) -> PointHierarchy:
+                    progress: bool | None = None, threads: int | None = None,
+                    poses=None, areas=None) -> PointHierarchy:
     """Build the point/triangle octree of one keyframe pair (§3.1, §3.3-3.5).
 
     Parameters
@@ -317,6 +347,16 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
         (``lod.points.stratify.choose_interval_times``; equal when that gains
         under 1%, as for animated characters) or always equal intervals
     progress : show a tqdm bar (None: only if the build takes over a second)
+    poses : None, or (K, V, 3) float positions of the vertices at K poses
+        (``lod.points.follow``: samples that follow an animation): one
+        interval (``intervals`` must be 1) whose stratification keeps a
+        candidate unless another covers it at every pose, and whose node
+        spacing is a fraction of the largest box side over p0 and the poses;
+        p0 is the pose the octree cells, boxes and filtered attributes are
+        taken at (p1 is ignored: the start and the end are p0)
+    areas : None or (T,) float sampling weights of the candidates and of the
+        filter set in place of the maximum areas over p0 -> p1 (§3.4.1: the
+        largest area a triangle takes over the animation)
     threads : worker threads of the stratification and filtering (None:
         ``lod.points.stratify.worker_count``); the result does not depend on it
 
@@ -340,12 +380,29 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     rng = np.random.default_rng([int(seed), 0x5753])
     T = idx.shape[0]
     V0 = triangle_vertices(p0, idx)
-    V1 = triangle_vertices(p1, idx)
-    CC0, CC1 = c0[idx], c1[idx]
-    NN0, NN1 = n0[idx], n1[idx]
-    areas, _ = max_area(V0, V1)
+    if poses is None:
+        V1 = triangle_vertices(p1, idx)
+        CC0, CC1 = c0[idx], c1[idx]
+        NN0, NN1 = n0[idx], n1[idx]
+    else:  # one pose (p1 is p0): the start and end arrays are the same ones
+        V1, CC0, NN0 = V0, c0[idx], n0[idx]
+        CC1, NN1 = CC0, NN0
+    if poses is not None:
+        poses = np.asarray(poses, np.float64)
+        if poses.ndim != 3 or poses.shape[0] < 1 or poses.shape[1:] != p0.shape or not np.isfinite(poses).all():
+            raise ValueError(f"build_hierarchy: poses must be finite (K, {p0.shape[0]}, 3), got {poses.shape}")
+        if m != 1:
+            raise ValueError(f"build_hierarchy: poses need intervals = 1, got {m}")
+    # (K, T, 3, 3) float32: the candidates' positions at the K poses only decide coverage at spacings >> 1e-7
+    VK = None if poses is None else np.stack([triangle_vertices(p, idx).astype(np.float32) for p in poses])
+    if areas is None:
+        areas, _ = max_area(V0, V1)
+    else:
+        areas = np.asarray(areas, np.float64).reshape(-1)
+        if areas.shape != (idx.shape[0],) or not np.isfinite(areas).all() or (areas < 0.0).any():
+            raise ValueError(f"build_hierarchy: areas must be {idx.shape[0]} finite values >= 0")
     tlo0, thi0 = V0.min(1), V0.max(1)
-    tlo1, thi1 = V1.min(1), V1.max(1)
+    tlo1, thi1 = (tlo0, thi0) if V1 is V0 else (V1.min(1), V1.max(1))
     centre = V0.mean(1)
     times = choose_interval_times(V0, V1, m) if adaptive_intervals else interval_times(m)
     A_int = interval_areas(V0, V1, times) if m > 1 else None
@@ -383,7 +440,8 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
     while me < len(queue):
         # 1. boxes, spacing and the random draws of §3.4.1/§3.5 of the next
         #    nodes, then their stratification (§3.4.2) and filtering (§3.5)
-        while drawn < len(queue) and (drawn == me or ahead < PIPELINE_CANDIDATES):
+        while drawn < len(queue) and (drawn == me or ahead < (PIPELINE_CANDIDATES if VK is None else
+                                                             PIPELINE_POSED_CANDIDATES)):
             nd = queue[drawn]
             drawn += 1
             tris = nd.tris
@@ -394,6 +452,10 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                 nd.box0 = np.stack([nd.cube_lo, nd.cube_lo])
                 nd.box1 = nd.box0.copy()
             maxside = float(max((nd.box0[1] - nd.box0[0]).max(), (nd.box1[1] - nd.box1[0]).max()))
+            if VK is not None and tris.size:  # the largest box over the poses too (§3.3 generalised)
+                for v in VK:
+                    vt = v[tris].reshape(-1, 3)
+                    maxside = max(maxside, float((vt.max(0) - vt.min(0)).max()))
             nd.r = min(spacing_fraction * maxside, 0.5 * nd.r_parent)
             nd.leaf = tris.size <= leaf_triangles or nd.depth >= max_depth or nd.r <= eps_len
             if nd.leaf:
@@ -411,7 +473,7 @@ def build_hierarchy(p0, p1, indices, c0=None, c1=None, n0=None, n1=None, *,
                 nd.fcount = int(min(filter_factor * int(np.ceil(a.sum() / (h * h))), C.POINTS_MAX_CANDIDATES))
                 nd.fset = filter_set(a, nd.fcount, rng)
                 ahead += ctri.size
-                nd.pending = stratify_async((m, nd.positions(V0, V1, times)), nd.r, order, workers,
+                nd.pending = stratify_async((m, nd.positions(V0, V1, times, VK)), nd.r, order, workers,
                                             on_done=filtered(nd), eligible=eligible)
         # 2. stored triangles, children and points of node me
         if bar is None and (show or (show is None and time.perf_counter() - t_start > 1.0)):

@@ -79,6 +79,29 @@ class PointsBatch(DrawBatch):
     tri_jobs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
 
 
+@dataclass
+class FollowBatch(PointsBatch):
+    """A :class:`PointsBatch` of a ``lod.points.follow.FollowRep`` (samples that follow the animation):
+    besides its jobs, the frame's distinct poses of its instances and what each pose needs placed.
+
+    slot : (k,) int64 the pose of each instance row (index into ``pose``)
+    pose : (S,) float64 the poses: the fractional baked row of the base's joint table (skinned; instance
+        float 12 holds it too) or the segment's u (keyframed: the segment is ``part``)
+    pose_points : (S,) int64 samples (a prefix) each pose's instances draw from
+    pose_vertices : (S,) int64 vertices (a prefix, the follow numbering) those samples and triangles use
+    """
+
+    slot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    pose: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pose_points: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    pose_vertices: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    @property
+    def placed(self) -> int:
+        """Samples and vertices the frame places for this batch (one set per distinct pose)."""
+        return int(self.pose_points.sum() + self.pose_vertices.sum())
+
+
 # ---------------------------------------------------------------------------- cache
 def cache_dir() -> Path:
     """Folder of cached hierarchies: ``$CROWD_CACHE_DIR`` or ``~/.cache/crowd``."""
@@ -86,11 +109,11 @@ def cache_dir() -> Path:
     return Path(d) if d else Path.home() / ".cache" / "crowd"
 
 
-def hierarchy_key(arrays, params: dict) -> str:
-    """sha256 hex digest of the input arrays (shape, dtype, bytes), the build
-    parameters and :data:`CACHE_FORMAT`."""
+def hierarchy_key(arrays, params: dict, kind: str = f"points-hierarchy/{CACHE_FORMAT}") -> str:
+    """sha256 hex digest of ``kind`` (the entry type and format: by default :data:`CACHE_FORMAT`'s
+    hierarchies), the input arrays (shape, dtype, bytes) and the build parameters."""
     h = hashlib.sha256()
-    h.update(f"points-hierarchy/{CACHE_FORMAT}".encode())
+    h.update(kind.encode())
     for a in arrays:
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape}".encode())
@@ -121,21 +144,38 @@ class HierarchyCache:
     def paths(self, key: str) -> tuple[Path, Path]:
         return self.folder / f"{key}.npz", self.folder / f"{key}.sha256"
 
-    def load(self, key: str):
-        """The cached hierarchy of ``key`` or None (missing or corrupt)."""
+    def load(self, key: str, reader=load_hierarchy):
+        """The cached entry of ``key`` read by ``reader(path)`` (a hierarchy by default), or None (missing or
+        corrupt)."""
         npz, sha = self.paths(key)
         try:
             if not npz.is_file() or sha.read_text().strip() != _file_sha(npz):
                 return None
-            return load_hierarchy(npz)
+            return reader(npz)
         except (OSError, ValueError):
             return None
 
-    def store(self, key: str, h: PointHierarchy) -> None:
+    def store(self, key: str, h, writer=save_hierarchy) -> None:
+        """Write ``h`` as entry ``key`` with ``writer(h, path)`` (atomic), then its digest."""
         self.folder.mkdir(parents=True, exist_ok=True)
         npz, sha = self.paths(key)
-        save_hierarchy(h, npz)
+        writer(h, npz)
         write_atomic(sha, _file_sha(npz) + "\n")
+
+    def fetch(self, key: str, build, reader, writer):
+        """Entry ``key`` read by ``reader``, or ``build()`` stored by ``writer`` on a miss (a read-only cache
+        still builds); counts hits and misses."""
+        got = self.load(key, reader)
+        if got is not None:
+            self.hits += 1
+            return got
+        self.misses += 1
+        out = build()
+        try:
+            self.store(key, out, writer)
+        except OSError:
+            pass
+        return out
 
     def get_or_build(self, arrays, params: dict) -> PointHierarchy:
         """Cached hierarchy of ``build_hierarchy(*arrays, **params)``, built and stored on a miss."""

@@ -205,6 +205,19 @@ def stratify_numpy(positions: np.ndarray, spacing: float, order: np.ndarray) -> 
     return keep
 
 
+def stratify_poses_numpy(poses: np.ndarray, spacing: float, order: np.ndarray) -> np.ndarray:
+    """Reference of the stratification over K poses (``lod.points.follow``): i covers j
+    when they are within r/2 at every pose; (N,) bool kept points (dense matrices, small inputs)."""
+    pos = np.asarray(poses, np.float64)
+    rad2 = (0.5 * float(spacing)) ** 2
+    n = pos.shape[1]
+    adj = np.ones((n, n), bool)
+    for q in range(pos.shape[0]):
+        adj &= ((pos[q][:, None, :] - pos[q][None, :, :]) ** 2).sum(-1) <= rad2
+    np.fill_diagonal(adj, False)
+    return _greedy_numpy(adj, np.asarray(order))
+
+
 # --------------------------------------------------------------------------- kernels
 
 @intrinsic
@@ -318,11 +331,14 @@ def _neighbour_step(o, i, step, near):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - compiled
+def _greedy_witness(pos, rad, order0, out, nbr):  # pragma: no cover - compiled
     """Greedy deletion of §3.4.2 with witnesses instead of neighbour counts.
 
-    The points taking part are those ``order0`` lists (all of pa0's rows, or
-    the eligible subset of an interval); ``out`` is written for them only.
+    ``pos`` (K, N, 3): the candidates at K >= 1 times; i covers j when they
+    are within ``rad`` at every one of them (an interval: its start and end,
+    K = 2; the poses of ``lod.points.follow``: K poses). The grid is built at
+    pos[0]. The points taking part are those ``order0`` lists (all of pos's
+    rows, or the eligible subset of an interval); ``out`` is written for them only.
 
     Every deleted point d keeps a *witness*: a present point covering it
     (linked lists ``head``/``nxt`` per witness). Deleting i needs (a) a present
@@ -344,9 +360,10 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
     decrefs its five arrays atomically on every call, which took 40% of the
     kernel's time (perf).
     """
-    n = order0.shape[0]  # the points taking part: order0 lists them (a subset of pa0's rows, or all)
+    n = order0.shape[0]  # the points taking part: order0 lists them (a subset of pos's rows, or all)
+    K = pos.shape[0]
     rad2 = rad * rad
-    lo, dims, start, cell, cell_of0 = _cells(pa0, rad, order0)
+    lo, dims, start, cell, cell_of0 = _cells(pos[0], rad, order0)
     tot = start.shape[0] - 1
     # renumber the points in (cell, latest in order first) order with a
     # counting sort: the cell scans then read contiguous memory
@@ -360,12 +377,12 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
         order[t] = fill[c]
         cell_of[fill[c]] = c
         fill[c] += 1
-    P = np.empty((n, 6))
+    P = np.empty((n, 3 * K))
     for s in range(n):
         p = perm[s]
-        for k in range(3):
-            P[s, k] = pa0[p, k]
-            P[s, 3 + k] = pb0[p, k]
+        for q in range(K):
+            for k in range(3):
+                P[s, 3 * q + k] = pos[q, p, k]
     ids = np.arange(n).astype(np.int32)
     keep = np.ones(n, np.bool_)
     cs = np.zeros((tot, 3), np.int64)  # per cell: start, unprocessed, permanent
@@ -386,7 +403,7 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
         # point t + 12 and the cell table row of point t + 6 ahead (~10% faster)
         if t + 12 < n:
             _prefetch(cell_of, order[t + 12])
-            _prefetch(P, 6 * order[t + 12])
+            _prefetch(P, 3 * K * order[t + 12])
         if t + 6 < n:
             _prefetch(cs, 3 * cell_of[order[t + 6]])
         i = order[t]
@@ -403,9 +420,6 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
             px = P[k, 0]
             py = P[k, 1]
             pz = P[k, 2]
-            qx = P[k, 3]
-            qy = P[k, 4]
-            qz = P[k, 5]
             fx = (px - lox) / cell
             fy = (py - loy) / cell
             fz = (pz - loz) / cell
@@ -447,10 +461,15 @@ def _greedy_witness(pa0, pb0, rad, order0, out, nbr):  # pragma: no cover - comp
                     e2 = pz - P[j, 2]
                     if e0 * e0 + e1 * e1 + e2 * e2 > rad2:
                         continue
-                    e0 = qx - P[j, 3]
-                    e1 = qy - P[j, 4]
-                    e2 = qz - P[j, 5]
-                    if e0 * e0 + e1 * e1 + e2 * e2 > rad2:
+                    far = False
+                    for q in range(3, 3 * K, 3):  # the other times (an interval's end: K = 2)
+                        e0 = P[k, q] - P[j, q]
+                        e1 = P[k, q + 1] - P[j, q + 1]
+                        e2 = P[k, q + 2] - P[j, q + 2]
+                        if e0 * e0 + e1 * e1 + e2 * e2 > rad2:
+                            far = True
+                            break
+                    if far:
                         continue
                     w = j
                     break
@@ -523,7 +542,8 @@ def stratify(positions: np.ndarray, spacing: float, order: np.ndarray, threads: 
     Parameters
     ----------
     positions : (m + 1, N, 3) float64 candidate positions at the interval
-        boundaries (:func:`interval_times`); finite
+        boundaries (:func:`interval_times`); finite; or a pair (m, at) as
+        :func:`stratify_async` takes it (``at(j)`` may give (K, N, 3): K poses)
     spacing : float > 0, the node's maximum sample distance r; coverage radius
         is r/2
     order : (N,) int64 permutation of range(N), the random deletion order
@@ -556,8 +576,9 @@ def stratify_async(positions, spacing: float, order: np.ndarray, threads: int | 
     ----------
     positions : (m + 1, N, 3) as for :func:`stratify`, or a pair (m, at) with
         ``at(j)`` returning the (2, N, 3) float64 positions at the start and
-        end of interval j; it is called by the work item, so positions are
-        only held while the set is being stratified
+        end of interval j (or (K, N, 3): coverage at K times, the poses of
+        ``lod.points.follow``); it is called by the work item, so positions
+        are only held while the set is being stratified
     spacing, order : as for :func:`stratify`
     threads : None (:func:`worker_count`) or a thread count; with one, or
         below :data:`PARALLEL_MIN_CANDIDATES` candidate-intervals, the work
@@ -611,18 +632,17 @@ def _submit(job, workers: int, on_done, eligible=None) -> _Pending:
     def run(j):
         if callable(pos):
             p = np.ascontiguousarray(pos(j), np.float64)
-            if p.shape != (2, n, 3) or not np.isfinite(p).all():
-                raise ValueError(f"stratify: interval positions must be finite (2, {n}, 3)")
-            pa, pb = p[0], p[1]
+            if p.ndim != 3 or p.shape[0] < 1 or p.shape[1:] != (n, 3) or not np.isfinite(p).all():
+                raise ValueError(f"stratify: interval positions must be finite (K, {n}, 3)")
         else:
-            pa, pb = pos[j], pos[j + 1]
+            p = pos[j:j + 2]
         if eligible is None or eligible[j].all():
-            _greedy_witness(pa, pb, rad, order, keep[j], _NEIGHBOURS)
+            _greedy_witness(p, rad, order, keep[j], _NEIGHBOURS)
         else:  # the eligible candidates alone, in the order's relative order
             keep[j] = False
             sub = np.ascontiguousarray(order[eligible[j][order]])
             if sub.size:
-                _greedy_witness(pa, pb, rad, sub, keep[j], _NEIGHBOURS)
+                _greedy_witness(p, rad, sub, keep[j], _NEIGHBOURS)
         with lock:
             left[0] -= 1
             last = left[0] == 0

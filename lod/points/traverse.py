@@ -81,14 +81,17 @@ def _model(model) -> np.ndarray:
     return np.ascontiguousarray(m)
 
 
-def _corners(lo, hi, model):
-    """(8, 3) transformed corners of the box [lo, hi]."""
+def _corners(lo, hi, model, mats=()):
+    """(8, 3) transformed corners of the box [lo, hi] (through each (3, 4) of ``mats`` first: 8 per matrix)."""
     c = np.array([[lo[0] if (k >> 2) & 1 == 0 else hi[0], lo[1] if (k >> 1) & 1 == 0 else hi[1],
                    lo[2] if k & 1 == 0 else hi[2]] for k in range(8)])
+    if len(mats):
+        c = np.concatenate([c @ np.asarray(m, np.float64)[:, :3].T + np.asarray(m, np.float64)[:, 3] for m in mats])
     return c @ model[:, :3].T + model[:, 3]
 
 
-def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: float, model=None) -> TraversalResult:
+def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: float, model=None,
+                       frame: float = 0.0) -> TraversalResult:
     """Reference traversal (plain Python recursion), same contract as :func:`traverse`."""
     planes = np.asarray(planes, np.float64).reshape(6, 4)
     model = _model(model)
@@ -97,10 +100,13 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
     j = interval_of(u, h.intervals, getattr(h, "interval_bounds", None))
     box = h.box_at(float(u))
     coarse_n, coarse_s = coarse_arrays(h)
+    ref, jt = joint_frames(h)
+    f0, f1, a = frame_rows(frame, jt.shape[0])
     pr, pn, tr, tn = [], [], [], []
 
     def visit(i):
-        cs = _corners(box[i, 0], box[i, 1], model)
+        mats = () if ref.shape[0] == 0 or ref[i] < 0 else [jt[f, ref[i]] for f in ((f0, f1) if a > 0.0 else (f0,))]
+        cs = _corners(box[i, 0], box[i, 1], model, mats)
         if np.any(np.all(cs @ planes[:, :3].T + planes[:, 3] < 0.0, axis=0)):
             return
         if h.tri_count[i] > 0:
@@ -131,13 +137,46 @@ def traverse_reference(h, u: float, planes, viewport_scale: float, splat_size: f
                            np.array(tr, np.int64).reshape(-1, 2), np.array(tn, np.int32))
 
 
+@njit(cache=True, inline="always")
+def _node_corners(i, lo, hi, ref, jt, f0, f1, a, model, cs):  # pragma: no cover - compiled
+    """Corners of node i's box [lo, hi] in camera-relative world space into ``cs``; returns their count.
+
+    Without joint frames (``ref`` empty or ``ref[i] < 0``) the 8 corners through ``model``. In the frame
+    of joint ``ref[i]`` (``lod.points.follow``): the corners through the joint's skinning matrix at baked
+    row ``f0`` (8), and, for a fractional frame (``a > 0``), also at row ``f1`` (16): a vertex between two
+    rows is the blend of its positions at both (LBS is linear in the matrices), inside the hull of both."""
+    n = 0
+    joint = ref.shape[0] > 0 and ref[i] >= 0
+    rows = 2 if joint and a > 0.0 else 1
+    for q in range(rows):
+        f = f0 if q == 0 else f1
+        for c in range(8):
+            x = lo[0] if (c >> 2) & 1 == 0 else hi[0]
+            y = lo[1] if (c >> 1) & 1 == 0 else hi[1]
+            z = lo[2] if c & 1 == 0 else hi[2]
+            if joint:
+                j = ref[i]
+                px = jt[f, j, 0, 0] * x + jt[f, j, 0, 1] * y + jt[f, j, 0, 2] * z + jt[f, j, 0, 3]
+                py = jt[f, j, 1, 0] * x + jt[f, j, 1, 1] * y + jt[f, j, 1, 2] * z + jt[f, j, 1, 3]
+                pz = jt[f, j, 2, 0] * x + jt[f, j, 2, 1] * y + jt[f, j, 2, 2] * z + jt[f, j, 2, 3]
+                x = px
+                y = py
+                z = pz
+            for k in range(3):
+                cs[n, k] = model[k, 0] * x + model[k, 1] * y + model[k, 2] * z + model[k, 3]
+            n += 1
+    return n
+
+
 @njit(cache=True)
 def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                     tri_start, tri_count, coarse_count, coarse_spacing, u, j, planes, model, scale,
-                     viewport_scale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo,
+                     tri_start, tri_count, coarse_count, coarse_spacing, ref, jt, f0, f1, a, u, j, planes, model,
+                     scale, viewport_scale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo,
                      hi):  # pragma: no cover - compiled
-    # stack (N + 8,) int64, cs (8, 3), lo (3,), hi (3,) float64: scratch of the caller (no allocation per
-    # call: the instance kernels call this once per instance, a million times a frame)
+    # stack (N + 8,) int64, cs (16, 3), lo (3,), hi (3,) float64: scratch of the caller (no allocation per
+    # call: the instance kernels call this once per instance, a million times a frame). ref (N,) int32 and
+    # jt (F, J, 3, 4): the joint frames of the node boxes (lod.points.follow; ref empty: none), f0, f1, a
+    # the instance's baked rows and blend
     N = child_start.shape[0]
     sp = 0
     np_ = 0
@@ -153,16 +192,11 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
         for k in range(3):
             lo[k] = w * box0[i, 0, k] + u * box1[i, 0, k]
             hi[k] = w * box0[i, 1, k] + u * box1[i, 1, k]
-        for c in range(8):
-            x = lo[0] if (c >> 2) & 1 == 0 else hi[0]
-            y = lo[1] if (c >> 1) & 1 == 0 else hi[1]
-            z = lo[2] if c & 1 == 0 else hi[2]
-            for k in range(3):
-                cs[c, k] = model[k, 0] * x + model[k, 1] * y + model[k, 2] * z + model[k, 3]
+        nc = _node_corners(i, lo, hi, ref, jt, f0, f1, a, model, cs)
         culled = False
         for p in range(planes.shape[0]):
             outside = True
-            for c in range(8):
+            for c in range(nc):
                 if planes[p, 0] * cs[c, 0] + planes[p, 1] * cs[c, 1] + planes[p, 2] * cs[c, 2] + planes[p, 3] >= 0.0:
                     outside = False
                     break
@@ -184,7 +218,7 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
                 np_ += 1
             continue
         dmin = np.inf
-        for c in range(8):
+        for c in range(nc):
             d = planes[4, 0] * cs[c, 0] + planes[4, 1] * cs[c, 1] + planes[4, 2] * cs[c, 2]
             if d < dmin:
                 dmin = d
@@ -209,7 +243,30 @@ def _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start,
     return np_, nt
 
 
-def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, model=None) -> TraversalResult:
+#: ``ref`` and ``jt`` of a hierarchy without joint frames (the per-keyframe-pair octrees)
+NO_JOINTS = (np.zeros(0, np.int32), np.zeros((1, 1, 3, 4), np.float32))
+
+
+def joint_frames(h) -> tuple:
+    """(ref (N,) int32, jt (F, J, 3, 4) float32) of ``h``'s node boxes: its own (``lod.points.follow``:
+    ``h.ref`` and ``h.joint_table``) or none (:data:`NO_JOINTS`)."""
+    ref = getattr(h, "ref", None)
+    if ref is None:
+        return NO_JOINTS
+    return ref, h.joint_table
+
+
+def frame_rows(frame, rows: int) -> tuple:
+    """(f0, f1, a): the baked rows around a fractional frame coordinate (clamped to 0 .. rows - 1; a
+    non-finite one is row 0), as the GPU blends them (shaders/skinning.glsl ``frame_pair``)."""
+    f = float(frame) if np.isfinite(frame) else 0.0
+    f = min(max(f, 0.0), float(max(rows - 1, 0)))
+    f0 = int(np.floor(f))
+    return f0, min(f0 + 1, max(rows - 1, 0)), f - f0
+
+
+def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, model=None,
+             frame: float = 0.0) -> TraversalResult:
     """Select the points and triangles of hierarchy ``h`` to draw at time u (§3.2).
 
     Parameters
@@ -223,6 +280,8 @@ def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, mode
     splat_size : float > 0, splat size in pixels
     model : (3, 4) or (4, 4) float64 model-to-camera-relative-world transform
         (default identity: the hierarchy is already camera-relative)
+    frame : the fractional baked row of a hierarchy whose node boxes sit in
+        joint frames (``lod.points.follow``; ignored otherwise)
 
     Returns
     -------
@@ -245,12 +304,14 @@ def traverse(h, u: float, planes, viewport_scale: float, splat_size: float, mode
     out_pn = np.empty(N, np.int32)
     out_t = np.empty((N, 2), np.int64)
     out_tn = np.empty(N, np.int32)
+    ref, jt = joint_frames(h)
+    f0, f1, a = frame_rows(frame, jt.shape[0])
     np_, nt = _traverse_kernel(h.child_start.astype(np.int64), h.child_count.astype(np.int64), h.box0, h.box1,
                                h.spacing, h.point_start, h.point_count, h.tri_start, h.tri_count,
-                               *coarse_arrays(h), u,
-                               interval_of(u, h.intervals, getattr(h, "interval_bounds", None)), planes, model, scale, float(viewport_scale),
-                               float(splat_size), out_p, out_pn, out_t, out_tn, np.empty(N + 8, np.int64),
-                               np.empty((8, 3)), np.empty(3), np.empty(3))
+                               *coarse_arrays(h), ref, jt, f0, f1, a, u,
+                               interval_of(u, h.intervals, getattr(h, "interval_bounds", None)), planes, model,
+                               scale, float(viewport_scale), float(splat_size), out_p, out_pn, out_t, out_tn,
+                               np.empty(N + 8, np.int64), np.empty((16, 3)), np.empty(3), np.empty(3))
     return TraversalResult(out_p[:np_].copy(), out_pn[:np_].copy(), out_t[:nt].copy(), out_tn[:nt].copy())
 
 

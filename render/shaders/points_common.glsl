@@ -16,25 +16,14 @@ struct Sample {
 
 // per-instance data: rows 0..2 of the camera-relative model matrix, then (u, 0, 0, 0)
 layout(std430, binding = 1) readonly buffer Instances { vec4 inst[]; };
-// jobs: (first sample, count, instance, exclusive prefix of counts)
-layout(std430, binding = 2) readonly buffer Jobs { uvec4 jobs[]; };
+// jobs: (first sample, count, instance, exclusive prefix of counts); find_job
+#include "points_jobs.glsl"
 // per-instance colour words (variation, debug), as the triangle paths' i_tint (tint.glsl)
 layout(std430, binding = 12) readonly buffer Tints { uvec2 tints[]; };
 #include "tint.glsl"
-
-uniform uint u_njobs;
 #include "light.glsl"
-
-// the job holding work item g (largest j with jobs[j].w <= g)
-uint find_job(uint g) {
-    uint lo = 0u;
-    uint hi = u_njobs - 1u;
-    while (lo < hi) {
-        uint mid = (lo + hi + 1u) >> 1;
-        if (jobs[mid].w <= g) lo = mid; else hi = mid - 1u;
-    }
-    return lo;
-}
+// oct_decode and the placed samples of the representations that follow the animation
+#include "points_placed.glsl"
 
 vec3 inst_point(uint i, vec3 p) {
     vec4 h = vec4(p, 1.0);
@@ -55,14 +44,6 @@ vec3 sample_pos(uvec4 geo, float u) {
     vec2 b = unpackUnorm2x16(geo.y);
     vec2 c = unpackUnorm2x16(geo.z);
     return mix(vec3(a, b.x), vec3(b.y, c), u);
-}
-
-// octahedral normal encoding (Meyer et al. 2010): unit vector from [-1, 1]^2
-vec3 oct_decode(uint w) {
-    vec2 e = unpackSnorm2x16(w);
-    vec3 v = vec3(e, 1.0 - abs(e.x) - abs(e.y));
-    if (v.z < 0.0) v.xy = (1.0 - abs(v.yx)) * vec2(v.x >= 0.0 ? 1.0 : -1.0, v.y >= 0.0 ? 1.0 : -1.0);
-    return v;
 }
 
 void sample_at(Sample s, float u, out vec3 pos, out vec3 nrm, out vec4 col) {

@@ -30,7 +30,12 @@ layout(local_size_x = LOCAL_SIZE) in;
 #include "points_common.glsl"
 #include "fade.glsl"
 
+#ifdef PLACED
+// samples placed with the animation this frame (render/points_follow.py, points_placed.glsl)
+layout(std430, binding = 0) readonly buffer Placed { uvec4 placed[]; };
+#else
 layout(std430, binding = 0) readonly buffer Points { Sample pts[]; };
+#endif
 layout(std430, binding = 3) buffer Depth { uint depth[]; };
 layout(std430, binding = 4) buffer Color { uint color[]; };
 #ifndef COLOR_PASS
@@ -82,7 +87,11 @@ void splat_job(uint j, uint k0, uint stride) {
     for (uint k = k0; k < job.y; k += stride) {
         // positions only: the colour pass loads a point's normal and colour
         // once it has won its anchor (most points of a far view lose)
+#ifdef PLACED
+        vec3 p = placed_pos(placed[job.x + k]);
+#else
         vec3 p = sample_pos(pts[job.x + k].geo, u);
+#endif
         vec4 clip = mvp * vec4(p, 1.0);
         if (!(clip.w > 0.0)) continue;
         vec3 ndc = clip.xyz / clip.w;
@@ -104,7 +113,11 @@ void splat_job(uint j, uint k0, uint stride) {
         if (depth[slot] == key) {
             vec3 n;
             vec4 c;
+#ifdef PLACED
+            placed_at(placed[job.x + k], p, n, c);
+#else
             sample_at(pts[job.x + k], u, p, n, c);
+#endif
             vec4 h = vec4(p, 1.0);
             vec3 world = vec3(dot(m0, h), dot(m1, h), dot(m2, h));
             vec3 nw = vec3(dot(m0.xyz, n), dot(m1.xyz, n), dot(m2.xyz, n));

@@ -4,7 +4,12 @@
 // triangles use (render/points.py indexed_triangle_jobs), so a vertex shared
 // by several triangles is transformed once.
 #include "points_common.glsl"
+#ifdef PLACED
+// posed vertices / placed samples of this frame (render/points_follow.py, points_placed.glsl)
+layout(std430, binding = 5) readonly buffer Placed { uvec4 placed[]; };
+#else
 layout(std430, binding = 5) readonly buffer Verts { Sample verts[]; };
+#endif
 layout(std430, binding = 7) readonly buffer Items { uvec2 items[]; };
 uniform mat4 u_view_proj;
 out vec3 v_world;
@@ -17,7 +22,11 @@ void main() {
     vec3 p;
     vec3 n;
     vec4 c;
+#ifdef PLACED
+    placed_at(placed[it.x], p, n, c);
+#else
     sample_at(verts[it.x], inst_u(i), p, n, c);
+#endif
     v_world = inst_point(i, p);
     v_normal = inst_dir(i, n);
     v_color = tint_color(c, tints[i]);

@@ -60,6 +60,7 @@ def _forbid_builds(monkeypatch):
     one."""
     import lod.chains.chain
     import lod.clusters.mode
+    import lod.points.follow
     import lod.points.rep
 
     def fail(*a, **k):
@@ -67,6 +68,7 @@ def _forbid_builds(monkeypatch):
 
     monkeypatch.setattr(lod.clusters.mode, "build_cluster_hierarchy", fail)
     monkeypatch.setattr(lod.points.rep, "build_hierarchy", fail)
+    monkeypatch.setattr(lod.points.follow, "build_follow", fail)
     monkeypatch.setattr(lod.chains.chain, "build_chain", fail)
 
 
@@ -123,14 +125,21 @@ def test_bad_assets_are_one_sentence_exit_2(tmp_path, asset, msg):
     assert r.stdout == ""
 
 
-def test_build_prints_the_poses_per_clip_and_their_cost(tmp_path, monkeypatch):
-    """``crowd build --mode points`` names the poses baked per clip, the pose error, and the build time and
-    bytes per second of clip."""
+def test_build_prints_seconds_and_megabytes_per_character(tmp_path, monkeypatch, write_scene):
+    """``crowd build --mode points`` prints per character the seconds and the MB of its hierarchies: by default
+    one hierarchy of samples that follow the animation (the samples, stratification poses and frames measured);
+    on the per-keyframe-pair path the poses baked per clip, the pose error, and the cost per second of clip."""
     monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
     r = run_cli("build", "generator:humanoid:600", "--mode", "points", "--cluster", "none")
     assert r.returncode == 0, r.stderr
     line = next(x for x in r.stdout.splitlines() if "[points]" in x)
-    assert "poses per clip: walk " in line and ", run " in line and "% of the extent" in line
-    assert "MB per clip second" in line
+    secs, mb = line.split(": ", 1)[1].split(" (")[0].split(", ")
+    assert secs.endswith(" s") and float(secs[:-2]) > 0 and mb.endswith(" MB") and float(mb[:-3]) > 0
+    assert "points follow: " in line and "stratification poses" in line and "frames measured" in line
+    scene = write_scene(tiny_scene(replace={'mode = "none"': 'mode = "points"\nanimation = "baked"'}), "b.toml")
+    r = run_cli("build", scene, "--mode", "points", "--cluster", "none")
+    assert r.returncode == 0, r.stderr
+    line = next(x for x in r.stdout.splitlines() if "[points]" in x)
+    assert " MB (poses per clip: " in line and "% of the extent" in line and "MB per clip second" in line
     pct = float(line.split("pose error <= ")[1].split("%")[0])
     assert 0.0 < pct <= 2.0

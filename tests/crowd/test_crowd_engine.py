@@ -190,10 +190,21 @@ def test_info_generator_spec():
     assert r.returncode == 0, r.stderr
     assert "joints: 21" in r.stdout and "triangles: 1000" in r.stdout and "walk" in r.stdout
     assert "bounds" in r.stdout
-    # the poses mode points bakes per clip (lod.points.poses), each within the default bound of 2 %
-    assert "points poses per clip (pose_error 2 %" in r.stdout
+    # the path mode points takes (lod.points.paths), why, and its cost
+    assert "points: follow (skinned: rest-pose samples placed with the animation" in r.stdout
+    assert "independent of the clips' length" in r.stdout
+
+
+def test_info_lines_of_the_baked_path():
+    """On the per-keyframe-pair path the lines give the poses baked per clip (lod.points.poses), each within
+    the default bound of 2 %."""
+    from lod.points.paths import describe_path
+    from sim.procedural import humanoid
+
+    lines = describe_path(humanoid(1000, 0), {"animation": "baked"})
+    assert lines[0].startswith("points: baked") and "pose_error 2 %" in lines[1]
     for clip in ("walk", "run"):
-        line = next(x for x in r.stdout.splitlines() if x.strip().startswith(f"{clip}:") and "poses over" in x)
+        line = next(x for x in lines if x.strip().startswith(f"{clip}:") and "poses over" in x)
         n = int(line.split(":")[1].split()[0])
         pct = float(line.rsplit("(", 1)[1].split("%")[0])
         assert 2 <= n <= 64 and 0.0 < pct <= 2.0, line

@@ -145,3 +145,28 @@ def test_driver_part_grows_with_triangles_and_is_capped(write_scene):
     big = memory.estimate_scene(load_scene(write_scene(
         tiny_scene(replace={"rows = 2": "rows = 300", "cols = 2": "cols = 300"}), "big.toml")))
     assert big.parts["driver"] == memory.DRIVER_SCENES * memory.DRIVER_SCENE_BYTES
+
+
+def test_refusal_names_the_character_mode_and_setting(write_scene):
+    """One agent of a character with a long clip in mode points on the per-keyframe-pair path: the refusal says
+    which character, which mode and which setting, not "reduce the placements' counts"; the default path (samples
+    that follow the animation) needs little whatever the clip's length."""
+    from crowd.engine import plan
+
+    text = tiny_scene(replace={'mode = "none"': 'mode = "points"\nanimation = "baked"'})
+    sc = load_scene(write_scene(text, "dance.toml"))
+    chars = plan(sc).characters
+    import dataclasses
+
+    from sim.procedural import varied_clip
+
+    ch = chars[0]
+    chars = [dataclasses.replace(ch, clips={"dance": varied_clip(ch, 30.0, seed=3, name="dance")})] + chars[1:]
+    e = memory.estimate_scene(sc, chars)
+    with pytest.raises(SceneError) as ei:
+        memory.check_memory(sc, e, available=int(e.total * 0.8))
+    msg = str(ei.value)
+    assert "\n" not in msg and f"character {sc.characters[0].name!r}" in msg and "mode points" in msg
+    assert 'animation = "follow"' in msg and "dance" in msg and "placements" not in msg
+    follow = dataclasses.replace(sc, lod_params=tuple((k, v) for k, v in sc.lod_params if k != "animation"))
+    assert memory.estimate_scene(follow, chars).parts["lod"] < e.parts["lod"] / 20

@@ -38,7 +38,13 @@ class Free(ac.Candidate):
 @pytest.fixture(scope="module")
 def built():
     reps, sel = am.build([humanoid(1500, 0)], ["h"], [30], {"poe": 2.0, "keyframes": 3}, cache=False, model=MODEL,
-                         progress=False)
+                         progress=False, points_params={"animation": "baked"})
+    return reps, sel
+
+
+@pytest.fixture(scope="module")
+def follows():
+    reps, sel = am.build([humanoid(1500, 0)], ["h"], [30], {"poe": 2.0}, cache=False, model=MODEL, progress=False)
     return reps, sel
 
 
@@ -77,3 +83,24 @@ def test_coarse_points_only_within_the_bound(built):
     assert seen[0.9] == seen[1.0] == 0
     # from 2 px the far agents qualify, more of them (nearer ones) as the bound grows
     assert 0 < seen[2.0] <= seen[3.0] and seen[3.0] >= 0.9 * st.n
+
+
+def test_samples_that_follow_the_animation_qualify_from_one_pixel(follows):
+    """No keyframe deviation (the samples follow the skinned animation): a 1-pixel bound admits 1-pixel splats,
+    and the far agents draw a prefix of the root (lod/points/coarse.py) at their own poses."""
+    reps, sel = follows
+    pts = next(c for c in sel.candidates if c.name == "points")
+    assert pts.deviation == [0.0] and pts.splat_size(1.0) == 1
+    prep = next(r for r in reps if getattr(r, "follow", False))
+    root = int(prep.tree.octree.point_count[0, 0])
+    st = _far_crowd()
+    cam = Camera.look_at((0.0, 8.0, 0.0), (0.0, 0.0, -300.0), fov_y=40.0, near=0.5, far=2000.0)
+    seen = {}
+    for poe in (0.9, 1.0, 2.0):
+        dl = am.AutoSelector([reps[0]], poe=poe, model=MODEL, candidates=[Free(pts)]).select(st, cam, SIZE)
+        seen[poe] = dl.stats["auto"]["representations"]["points"]
+        drawn = [b for b in dl.batches if getattr(b, "point_jobs", None) is not None]
+        if drawn:
+            assert sum(b.points for b in drawn) / sum(b.n_instances for b in drawn) <= root / 3
+            assert all(b.pose_points.shape == b.pose.shape for b in drawn)  # FollowBatches with their poses
+    assert seen[0.9] == 0 and seen[1.0] >= 0.9 * st.n and seen[2.0] >= 0.9 * st.n

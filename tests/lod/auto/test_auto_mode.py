@@ -36,8 +36,10 @@ def char():
 
 @pytest.fixture(scope="module")
 def built(char):
+    # the point candidate on the per-keyframe-pair path (its keyframe deviation is what several tests measure;
+    # samples that follow the animation: tests/lod/auto/test_auto_coarse.py)
     reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
-                         progress=False)
+                         progress=False, points_params={"animation": "baked"})
     full, fsel = nolod.build([char], ["h"], [30], {})
     return SimpleNamespace(rep=reps[0], reps=reps, tri_reps=[reps[0]], sel=sel, full=full, fsel=fsel)
 
@@ -406,7 +408,8 @@ def test_crowd_run_with_mode_auto(tmp_path, monkeypatch, budget):
     rows = list(csv.DictReader(open(tmp_path / "out" / "frames.csv")))
     assert len(rows) == 3
     tri = [int(float(r["triangles"])) for r in rows]
-    assert all(0 < t < 4 * 600 for t in tri), tri  # far away: coarser than full detail
+    pts = [int(float(r["points"])) for r in rows]
+    assert all(0 < t + p and t < 4 * 600 for t, p in zip(tri, pts)), (tri, pts)  # far away: coarser than full detail
 
 
 # ------------------------------------------------------------------------------------------ rendering
@@ -491,12 +494,13 @@ def test_keyframe_deviation(char):
     d3, d9 = ac.keyframe_deviation(char, 3), ac.keyframe_deviation(char, 9)
     assert 0.0 < d9 < d3 < 2.0
     assert ac.keyframe_deviation(tiny_keyframed(), 3) == 0.0
-    pts = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3}, progress=False)[1].candidates
-               if c.name == "points")
+    baked = {"animation": "baked"}
+    pts = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3}, progress=False,
+                                   points_params=baked)[1].candidates if c.name == "points")
     assert pts.deviation[0] == pytest.approx(d3)
     assert [pts.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0, 6.0, 9.0)] == [0, 1, 1, 2, 3, 3]
     loose = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3, "points_error": "splat"},
-                                     progress=False)[1].candidates if c.name == "points")
+                                     progress=False, points_params=baked)[1].candidates if c.name == "points")
     assert loose.deviation == [0.0] and [loose.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0)] == [0, 1, 2, 3]
 
 

@@ -35,7 +35,7 @@ def test_mode_is_registered_with_its_params():
 
 
 def test_skinned_character_is_baked_one_hierarchy_per_segment(skinned, cache):
-    reps, sel = pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=cache, progress=lambda it, d: it)
+    reps, sel = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 4}, cache=cache, progress=lambda it, d: it)
     rep = reps[0]
     assert rep.kind == "points" and rep.key == "points:col"
     # "bend" loops (4 segments), "twist" does not (3 segments)
@@ -49,9 +49,9 @@ def test_skinned_character_is_baked_one_hierarchy_per_segment(skinned, cache):
 
 
 def test_second_build_hits_the_cache_with_identical_arrays(skinned, cache):
-    a, _ = pm.build([skinned], ["col"], [30], {"keyframes": 3}, cache=cache, progress=lambda it, d: it)
+    a, _ = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 3}, cache=cache, progress=lambda it, d: it)
     c2 = pm.HierarchyCache(cache.folder)
-    b, _ = pm.build([skinned], ["col"], [30], {"keyframes": 3}, cache=c2, progress=lambda it, d: it)
+    b, _ = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 3}, cache=c2, progress=lambda it, d: it)
     assert c2.misses == 0 and c2.hits == a[0].n_parts
     for ha, hb in zip(a[0].hierarchies, b[0].hierarchies):
         for k, v in ha.__dict__.items():
@@ -59,13 +59,13 @@ def test_second_build_hits_the_cache_with_identical_arrays(skinned, cache):
                 np.testing.assert_array_equal(v, getattr(hb, k), err_msg=k)
     # another parameter set is another key
     c3 = pm.HierarchyCache(cache.folder)
-    pm.build([skinned], ["col"], [30], {"keyframes": 3, "intervals": 2}, cache=c3, progress=lambda it, d: it)
+    pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 3, "intervals": 2}, cache=c3, progress=lambda it, d: it)
     assert c3.hits == 0 and c3.misses == a[0].n_parts
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "digest"])
 def test_a_corrupted_entry_is_detected_and_rebuilt(skinned, cache, damage):
-    a, _ = pm.build([skinned], ["col"], [30], {"keyframes": 2}, cache=cache, progress=lambda it, d: it)
+    a, _ = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 2}, cache=cache, progress=lambda it, d: it)
     npz = sorted(cache.folder.glob("*.npz"))[0]
     raw = npz.read_bytes()
     if damage == "truncate":
@@ -75,7 +75,7 @@ def test_a_corrupted_entry_is_detected_and_rebuilt(skinned, cache, damage):
     else:
         npz.with_suffix(".sha256").write_text("0" * 64 + "\n")
     c2 = pm.HierarchyCache(cache.folder)
-    b, _ = pm.build([skinned], ["col"], [30], {"keyframes": 2}, cache=c2, progress=lambda it, d: it)
+    b, _ = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 2}, cache=c2, progress=lambda it, d: it)
     assert c2.misses == 1 and c2.hits == a[0].n_parts - 1
     assert npz.read_bytes() == raw  # rewritten, same deterministic content
     for ha, hb in zip(a[0].hierarchies, b[0].hierarchies):
@@ -102,7 +102,7 @@ def _instances(rng, k, rep, spread=6.0):
 
 
 def test_instance_kernel_matches_the_per_instance_reference(skinned, cache):
-    reps, _ = pm.build([skinned], ["col"], [30], {"keyframes": 3}, cache=cache, progress=lambda it, d: it)
+    reps, _ = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 3}, cache=cache, progress=lambda it, d: it)
     cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=60)
     planes = cam.frustum_planes(4 / 3)
     rng = np.random.default_rng(3)
@@ -122,7 +122,7 @@ def test_instance_kernel_matches_the_per_instance_reference(skinned, cache):
 
 
 def test_selector_stats_and_camera_inside_bounds(skinned, cache):
-    reps, sel = pm.build([skinned], ["col"], [30], {"keyframes": 3, "splat_size": 1}, cache=cache,
+    reps, sel = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 3, "splat_size": 1}, cache=cache,
                          progress=lambda it, d: it)
     st = CrowdState.empty(3)
     st.position[:] = [[0, 0, 0], [0, 0, -60], [0, 0, 500]]
@@ -140,9 +140,9 @@ def test_selector_stats_and_camera_inside_bounds(skinned, cache):
 
 
 def test_only_the_played_clips_get_point_hierarchies(skinned, cache):
-    full, _ = pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=cache, progress=False)
+    full, _ = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 4}, cache=cache, progress=False)
     c2 = pm.HierarchyCache(cache.folder)
-    reps, sel = pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=c2, progress=False, clips=[["bend"]])
+    reps, sel = pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 4}, cache=c2, progress=False, clips=[["bend"]])
     rep, ref = reps[0], full[0]
     kf = rep.keyframed
     played = pm.played_segments(kf, ["bend"])
@@ -168,4 +168,4 @@ def test_only_the_played_clips_get_point_hierarchies(skinned, cache):
     with pytest.raises(ValueError, match="clip index 5"):
         pm.played_segments(kf, [5])
     with pytest.raises(ValueError, match="one entry per character"):
-        pm.build([skinned], ["col"], [30], {"keyframes": 4}, cache=c2, progress=False, clips=[None, None])
+        pm.build([skinned], ["col"], [30], {"animation": "baked", "keyframes": 4}, cache=c2, progress=False, clips=[None, None])

@@ -163,12 +163,13 @@ def test_points_mode_bakes_the_chosen_poses(walker, tmp_path):
 
     ch = dataclasses.replace(walker, clips={"walk": walker.clip("walk")})
     cache = HierarchyCache(tmp_path / "c")
-    reps, _ = pm.build([ch], ["w"], [30], {"intervals": 1}, cache=cache, progress=False)
+    reps, _ = pm.build([ch], ["w"], [30], {"intervals": 1, "animation": "baked"}, cache=cache, progress=False)
     rep = reps[0]
     cp = rep.poses["walk"]
     assert len(cp.times) >= 2 and cp.error <= cp.bound
     assert rep.keyframed.n_parts == len(cp.times)  # a looping clip: one segment per pose
-    fixed, _ = pm.build([ch], ["w"], [30], {"keyframes": 4, "intervals": 1}, cache=cache, progress=False)
+    fixed, _ = pm.build([ch], ["w"], [30], {"keyframes": 4, "intervals": 1, "animation": "baked"}, cache=cache,
+                        progress=False)
     assert len(fixed[0].poses["walk"].times) == 4 and fixed[0].keyframed.n_parts == 4
 
 
@@ -177,11 +178,16 @@ def test_auto_prices_points_with_the_pose_error_of_its_poses(walker):
     from lod.auto import mode as am
 
     ch = dataclasses.replace(walker, clips={"walk": walker.clip("walk")})
-    _, sel = am.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False)
+    _, sel = am.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False,
+                      points_params={"animation": "baked"})
     pts = next(c for c in sel.candidates if c.name == "points")
     dev = ac.keyframe_deviation(ch, 0)
     assert pts.deviation[0] == pytest.approx(dev)
     assert 0.0 < dev <= 0.02 * lp.character_extent(ch)
+    # samples that follow the animation (the default) depart from it by nothing: the splat gets the whole bound
+    _, sel = am.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False)
+    pts = next(c for c in sel.candidates if c.name == "points")
+    assert pts.deviation[0] == 0.0 and pts.splat_size(2.0) == 2
 
 
 def test_pose_error_includes_morph_targets(monkeypatch):
@@ -224,9 +230,15 @@ def test_memory_estimate_counts_the_poses(walker, tmp_path):
     from lod.points.rep import HierarchyCache
 
     ch = dataclasses.replace(walker, clips={"walk": walker.clip("walk")})
+    baked = {"animation": "baked"}
+    reps, _ = pm.build([ch], ["w"], [30], baked, cache=HierarchyCache(tmp_path / "c"), progress=False)
+    est = pm.memory_estimate([ch], baked)
+    assert 0.5 * reps[0].nbytes <= est <= 2.0 * reps[0].nbytes, (est, reps[0].nbytes)
+    long = dataclasses.replace(walker, clips={"dance": varied_clip(walker, 20.0, seed=2, name="dance")})
+    assert pm.memory_estimate([long], baked) > 10 * est
+    assert pm.memory_estimate([long], {"keyframes": 9, **baked}) < 2 * est
+    # the default: samples that follow the animation, whatever the clip's length
     reps, _ = pm.build([ch], ["w"], [30], {}, cache=HierarchyCache(tmp_path / "c"), progress=False)
     est = pm.memory_estimate([ch], {})
     assert 0.5 * reps[0].nbytes <= est <= 2.0 * reps[0].nbytes, (est, reps[0].nbytes)
-    long = dataclasses.replace(walker, clips={"dance": varied_clip(walker, 20.0, seed=2, name="dance")})
-    assert pm.memory_estimate([long], {}) > 10 * est
-    assert pm.memory_estimate([long], {"keyframes": 9}) < 2 * est
+    assert pm.memory_estimate([long], {}) == est
