@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+#: cost above budget * (1 + UP_TOLERANCE): coarsen (raise the bound)
 UP_TOLERANCE = 0.05
 #: cost below budget * (1 - DOWN_TOLERANCE): refine (lower the bound)
 DOWN_TOLERANCE = 0.15
@@ -20,19 +21,11 @@ PERSIST = 2
 URGENT = 1.5
 #: a held bound is released when the cost at it changes by more than this fraction
 HOLD_RELEASE = 0.10
-#: observed frames the online cost-model refit keeps (the most recent)
-ADAPT_FRAMES = 32
-#: observed frames per plan its correction factor is the median of (the most recent: the view moves)
-PLAN_FRAMES = 8
-
-#: an unmeasured plan predicted within this fraction of the best plan is drawn once to measure it
-#: (about the cost model's median error), during the first ``EXPLORE_FRAMES`` frames of a selector
-EXPLORE_MARGIN = 0.3
-EXPLORE_FRAMES = 3
-
 #: clamp of the adaptive bound, pixels
 BOUND_MIN = 0.25
 BOUND_MAX = 1000.0
+
+
 def choose(cost: np.ndarray, error_px: np.ndarray, bound: float) -> np.ndarray:
     """Per instance, the index of the cheapest candidate with error <= ``bound``.
 
