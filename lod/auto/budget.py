@@ -1,5 +1,21 @@
 """The per-instance choice at a pixel bound and the budget controller that moves
-the bound towards a frame-time budget (see :mod:`lod.auto.mode`, "Budget").
+the bound towards a frame-time budget (mode auto, :mod:`lod.auto.mode`).
+
+With ``budget_ms > 0`` (a frame-time budget) the bound adapts once per frame
+from the last frame's cost (measured, when the caller reports it through
+:meth:`lod.auto.mode.AutoSelector.observe`, else predicted) with hysteresis: it is
+multiplied by ``step`` when the cost exceeds the budget by more than
+``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
+``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
+square-rooted at every change of direction (a damped, bisection-like
+search) down to ``MIN_STEP``; a reversal from over- to under-budget at the
+smallest step holds the bound (the cost jumps across the band between two
+neighbouring bounds: the under-budget one is kept) until the cost at the
+held bound changes by more than ``HOLD_RELEASE`` (the view changed). The
+bound is clamped to ``[BOUND_MIN, BOUND_MAX]`` pixels. A cost outside the
+band moves the bound only after ``PERSIST`` consecutive frames on the same
+side (a single noisy measurement does not), or at once when it is off the
+budget by more than a factor ``URGENT``.
 """
 from __future__ import annotations
 

@@ -28,6 +28,9 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the decision rests on the posterior
   and a run of several frames is measured before anything is kept (the rule of run M in
   ``scripts/bench_auto.md``, which explored and switched on single noisy frames, is what this replaces).
+- **Held frames.** While the incumbent is a steady pure plan (one representation), the plans are priced on
+  every :data:`REPRICE_FRAMES`-th frame only; in between the selector asks only that representation's
+  candidate (and the triangle chain, its fallback): its selection costs about what the single mode's does.
 - **No pop.** A change of the drawn plan is a transition of ``switch_frames`` frames: the instances whose
   representation differs between the two plans are drawn by both with complementary screen-door fades
   (``DrawBatch.fade``, as :mod:`lod.temporal.selection` blends two keyframe selections), the weight
@@ -43,6 +46,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: a steady pure incumbent is drawn without pricing the other plans on all but every REPRICE_FRAMES-th frame
+REPRICE_FRAMES = 8
 #: smallest relative gain that moves the incumbent
 MIN_GAIN = 0.03
 #: gain needed, in standard deviations of the predicted difference
@@ -114,6 +119,7 @@ class PlanChooser:
         self.switches = 0
         self.explorations = 0
         self._pending = (None, 0)
+        self._since = 0  # frames since the plans were last priced
         self._transition = None  # [from, to, r]
         self._exploring = None  # [plan, clean frames left, incumbent to return to]
         self._last_explore = -10 ** 9
@@ -174,6 +180,7 @@ class PlanChooser:
         equal : optional function (a, b) -> True when plans a and b draw the same this frame
         """
         self.frames += 1
+        self._since = 1
         st = self._stats(means, fit)
         best = min(st, key=lambda p: st[p][0])
         if self.incumbent is None or self.incumbent not in st:
@@ -266,6 +273,18 @@ class PlanChooser:
         self._transition = [a, b, 1, "transition" if state == "switch" else state] if self.switch_frames > 1 \
             else None
         return Decision(b, a, 1.0 / (self.switch_frames + 1), state, self.incumbent, thr)
+
+    def can_hold(self) -> bool:
+        """True when this frame may draw the incumbent without pricing the other plans: steady (no switch
+        pending, no transition or exploration) and priced within the last :data:`REPRICE_FRAMES` frames."""
+        return (self.incumbent is not None and self._transition is None and self._exploring is None
+                and self._pending[0] is None and 0 < self._since < REPRICE_FRAMES)
+
+    def hold(self) -> Decision:
+        """The decision of a held frame (:meth:`can_hold`): the incumbent, counted as a frame."""
+        self.frames += 1
+        self._since += 1
+        return Decision(self.incumbent, None, 0.0, "held", self.incumbent, None)
 
     def summary(self) -> dict:
         return {"incumbent": self.incumbent, "frames": self.frames, "switches": self.switches,

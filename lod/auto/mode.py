@@ -99,21 +99,9 @@ drawn this way (the keyframe deviation is projected per instance only).
 Accuracy is asked for in one of two ways:
 
 - ``budget_ms = 0`` (default): a fixed bound, ``poe`` pixels.
-- ``budget_ms > 0``: a frame-time budget. The bound adapts once per frame
-  from the last frame's cost (measured, when the caller reports it through
-  :meth:`AutoSelector.observe`, else predicted) with hysteresis: it is
-  multiplied by ``step`` when the cost exceeds the budget by more than
-  ``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
-  ``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
-  square-rooted at every change of direction (a damped, bisection-like
-  search) down to ``MIN_STEP``; a reversal from over- to under-budget at the
-  smallest step holds the bound (the cost jumps across the band between two
-  neighbouring bounds: the under-budget one is kept) until the cost at the
-  held bound changes by more than ``HOLD_RELEASE`` (the view changed). The
-  bound is clamped to ``[BOUND_MIN, BOUND_MAX]`` pixels. A cost outside the
-  band moves the bound only after ``PERSIST`` consecutive frames on the same
-  side (a single noisy measurement does not), or at once when it is off the
-  budget by more than a factor ``URGENT``.
+- ``budget_ms > 0``: a frame-time budget; the bound adapts once per frame to
+  the last frame's measured (else predicted) cost with hysteresis
+  (:class:`lod.auto.budget.BudgetController`, its module docstring).
 
 Telemetry: ``DrawList.stats["auto"]`` = {"levels": instances per triangle
 chain level (full-detail fallbacks at 0), "representations": instances per
@@ -142,6 +130,7 @@ from lod.auto import candidates as ac
 from lod.auto import cost_model
 from lod.auto.budget import BudgetController
 from lod.auto.control import SWITCH_FRAMES, Decision, PlanChooser
+from lod.auto.delegate import Delegates, delegated_stats
 from lod.auto.online import OnlineCostModel
 from lod.auto.plans import _Block, price_plans, price_plans_loop
 from lod.chains import chain as tm_chain
@@ -240,7 +229,7 @@ class AutoSelector:
 
     def __init__(self, reps, static_reps=(), poe: float = 1.0, budget_ms: float = 0.0, model=None,
                  cull: bool = True, candidates=(), adapt: bool = False, explore: bool = True,
-                 switch_frames: int = SWITCH_FRAMES):
+                 switch_frames: int = SWITCH_FRAMES, delegates=None):
         if not (np.isfinite(poe) and float(poe) >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {poe}")
         if not (np.isfinite(budget_ms) and float(budget_ms) >= 0.0):
@@ -256,6 +245,8 @@ class AutoSelector:
         self.model = self.fit.cost_model() if self.fit is not None else self.prior
         #: the plan decision (:mod:`lod.auto.control`; None without ``adapt``: the cheapest plan is drawn)
         self.chooser = PlanChooser(switch_frames, explore) if self.adapt else None
+        #: the single modes' selectors a held pure plan is drawn with once verified (:mod:`lod.auto.delegate`)
+        self.delegates = Delegates(delegates if self.chooser is not None else {})
         #: per-group counts and the fit's state in ``stats["auto"]`` (``crowd run --explain-lod``)
         self.explain = False
         self._last = None
@@ -351,18 +342,19 @@ class AutoSelector:
         self.fit.update(x, render)
         self.model = self.fit.cost_model()
 
-    def _options(self, frame, g, bound):
+    def _options(self, frame, g, bound, only=None):
         """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
         "Selection work": a candidate with a cost lower bound is asked only for the instances where that
-        bound is below the cheapest option within the bound found so far)."""
+        bound is below the cheapest option within the bound found so far). ``only``: the names of the
+        candidates asked (the triangles always), each for every instance (a held pure plan)."""
         opts, a = [], 0
         best = None
         tri = self.candidates[0]
         for c in self._order():
-            if c is not tri and not bound > 0.0:
+            if c is not tri and (not bound > 0.0 or (only is not None and c.name not in only)):
                 continue
             skipped = None
-            lb = c.cost_lower_bound(frame, g) if best is not None else None
+            lb = c.cost_lower_bound(frame, g) if best is not None and only is None else None
             if lb is not None:
                 need = lb < best
                 skipped = ~need
@@ -417,6 +409,11 @@ class AutoSelector:
         bound = float(self.bound)
         if not (np.isfinite(bound) and bound >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
+        held = self._held()  # steady on a pure plan: only its candidate is asked (module docstring)
+        if held is not None and self.delegates.ready(held):  # or the single mode's own selector
+            dl = self.delegates.select(held, state, camera, size, statics, bound, self.candidates)
+            if dl is not None:
+                return self._delegated(dl, held, bound, t_start)
         w, h = max(1, int(size[0])), max(1, int(size[1]))
         frame = ac.Frame(state, camera, (w, h), camera.frustum_planes(w / h), viewport_scale(h, camera.fov_y), bound,
                          self.model, self.cull)
@@ -454,11 +451,14 @@ class AutoSelector:
                 continue
             rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
             g = ac.Group(ri, b, rows)
-            opts = self._options(frame, g, bound)
+            opts = self._options(frame, g, bound, None if held is None else {held})
             groups.append((g, opts, sum(x.m for x in opts)))
         plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
-
-        dec, plans, groups = self._decide(frame, plans, groups, bound, (fixed_s, fixed_used))
+        if held is not None:
+            dec = self.chooser.hold()
+            self._means = {held: (plans[held].seconds, 0.0)}
+        else:
+            dec, plans, groups = self._decide(frame, plans, groups, bound, (fixed_s, fixed_used))
         plan_name = plans[dec.plan].measured_as(dec.plan)
         old = plans[dec.fade_from] if dec.fade_from is not None else None
         gc = {} if self.explain else None
@@ -502,9 +502,34 @@ class AutoSelector:
         self._frames += 1
         self.last_select_seconds = time.perf_counter() - t_start
         a["select_ms"] = 1e3 * self.last_select_seconds
+        if held is not None and self.delegates.pending(held):  # does the single mode draw the same? (once)
+            self.delegates.verify(held, dl, state, camera, size, statics, bound, self.candidates)
+        return dl
+
+    def _delegated(self, dl, plan: str, bound: float, t_start: float):
+        """A held frame drawn by the single mode's selector (:mod:`lod.auto.delegate`): its telemetry."""
+        self.chooser.hold()
+        x = cost_model.features(dl, extended=True)
+        self._last = {"x": x, "dl": dl, "clean": True, "plans": [plan]}
+        predicted, sd = self._predicted(x, plan, True)
+        self._means = {plan: (predicted, 0.0)}
+        dl.stats["auto"] = a = delegated_stats(dl, plan, predicted, sd, bound, self)
+        if self.controller is not None and not self._uses_measured:
+            self.controller.update(predicted)
+        self._frames += 1
+        self.last_select_seconds = time.perf_counter() - t_start
+        a["select_ms"] = 1e3 * self.last_select_seconds
         return dl
 
     # ------------------------------------------------------------------------------------- plan choice
+    def _held(self):
+        """The pure plan (its candidate's name) the chooser holds this frame without pricing the others
+        (:meth:`lod.auto.control.PlanChooser.can_hold`), or None: every candidate is asked."""
+        if self.chooser is None or not self.chooser.can_hold():
+            return None
+        inc = self.chooser.incumbent
+        return inc if any(c.name == inc for c in self.candidates) else None
+
     def _exact(self, frame, groups, bound):
         """``groups`` with every instance a candidate skipped (its cost lower bound) priced exactly."""
         out = list(groups)
@@ -624,13 +649,14 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     names_c = parse_candidates(params.get("candidates", PARAMS["candidates"].default))
     tri_params = {k: params[k] for k in ("levels", "ratio") if k in params}
     tri_params["poe"] = poe
-    reps, _ = tm.build(characters, names, fps, tri_params, static_reps=static_reps, progress=progress, cache=cache)
+    reps, tsel = tm.build(characters, names, fps, tri_params, static_reps=static_reps, progress=progress, cache=cache)
+    delegates = {"triangles": tsel}
     extra = []
     if "clusters" in names_c and any(getattr(c, "kind", "") == "skinned" for c in characters):
         from lod.clusters import mode as clusters_mode
 
         cp = {"leaf_triangles": int(params.get("leaf_triangles", PARAMS["leaf_triangles"].default))}
-        creps, _ = clusters_mode.build(characters, names, fps, cp, static_reps=static_reps, progress=progress,
+        creps, delegates["clusters"] = clusters_mode.build(characters, names, fps, cp, static_reps=static_reps, progress=progress,
                                        cache=cache)
         extra.append(ac.ClustersCandidate(creps, error_scale=float(params.get(
             "cluster_error_scale", PARAMS["cluster_error_scale"].default))))
@@ -649,7 +675,10 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
                                         max_splat=int(params.get("max_splat", PARAMS["max_splat"].default)),
                                         deviation=dev, spheres=[getattr(r, "clip_sphere", None) for r in reps],
                                         instancing=psel.instancing))
+    if "points" in names_c and characters:
+        delegates["points"] = psel
     sel = AutoSelector(reps, static_reps=static_reps, poe=poe, budget_ms=budget, model=model, candidates=extra,
+                       delegates=delegates,
                        adapt=bool(params.get("adapt", PARAMS["adapt"].default)),
                        explore=bool(params.get("explore", PARAMS["explore"].default)),
                        switch_frames=int(params.get("switch_frames", PARAMS["switch_frames"].default)))

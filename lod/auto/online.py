@@ -35,7 +35,8 @@ defaults when there is none) as a Gaussian prior:
   to ``w = HUBER_K / |e|`` (Huber 1964): one frame 3x slower because another process ran does not move the
   fit far.
 - **Posterior.** ``P = Σ0⁻¹ + A / σ²``, mean ``μ = P⁻¹ (Σ0⁻¹ θ0 + b / σ²)``, projected onto ``θ >= 0`` in the
-  metric ``P`` (a small NNLS, Lawson & Hanson 1974) so that no cost is negative. A prediction for counts
+  metric ``P`` (:func:`_project`: the negative costs held at 0, the others at their conditional mean) so that
+  no cost is negative. A prediction for counts
   ``x`` is ``g s ∘ x · μ`` with the variance ``g² zᵀ P⁻¹ z`` (``z = s ∘ x``) of its mean, the frame's own
   noise ``σ²·pred²`` on top.
 
@@ -68,6 +69,24 @@ NOISE_MIN = 0.02
 NOISE_START = 0.25
 #: standardised residual beyond which a row is down-weighted (Huber)
 HUBER_K = 2.5
+
+
+def _project(P: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """The non-negative θ closest to ``mu`` in the metric ``P`` (the posterior's), by an active set that only
+    grows: the costs that come out negative are held at 0 and the others take the conditional mean
+    ``θ_F = μ_F + P_FF⁻¹ P_FA μ_A``, until none is negative (a dozen features: one or two rounds)."""
+    active = mu < 0.0
+    out = mu.copy()
+    for _ in range(mu.shape[0]):
+        free = ~active
+        out = np.zeros_like(mu)
+        if free.any():
+            out[free] = mu[free] + np.linalg.solve(P[np.ix_(free, free)], P[np.ix_(free, active)] @ mu[active])
+        neg = free & (out < 0.0)
+        if not neg.any():
+            break
+        active |= neg
+    return np.maximum(out, 0.0)
 
 
 class OnlineCostModel:
@@ -120,13 +139,13 @@ class OnlineCostModel:
             L = np.linalg.cholesky(P)
         except np.linalg.LinAlgError:  # cannot happen with a positive definite prior; keep the last fit
             return
-        mu = np.linalg.solve(P, self.h0 + self.b / s2)
-        if (mu < 0.0).any():  # the closest non-negative θ in the posterior's metric
-            from scipy.optimize import nnls
-
-            mu, _ = nnls(L.T, L.T @ mu)
+        Li = np.linalg.inv(L)  # a dozen features: the explicit inverse is cheaper than repeated solves
+        Pinv = Li.T @ Li
+        mu = Pinv @ (self.h0 + self.b / s2)
+        if (mu < 0.0).any():
+            mu = _project(P, mu)
         self.P = P
-        self._L = L
+        self._Pinv = Pinv
         self.mu = mu
 
     def row(self, counts) -> np.ndarray:
@@ -163,32 +182,37 @@ class OnlineCostModel:
         self.b = lam * self.b + w * u
         self._rows.append((z, y))
         self.frames += 1
+        if self.frames < 2 * NOISE_FRAMES or self.frames % 4 == 0:  # it changes little from frame to frame
+            self._noise()  # with the fit before this row, then one solve
         self._solve()
-        self._noise()
         # the load: the median over the last few frames of measured / fitted (one noisy frame does not move it)
-        recent = list(self._rows)[-LOAD_FRAMES:]
-        if len(recent) >= 3:
-            self.load = float(np.median([yy / max(float(zz @ self.mu), 1e-12) for zz, yy in recent]))
+        if len(self._rows) >= 3:
+            k = len(self._rows)
+            recent = [self._rows[i] for i in range(max(0, k - LOAD_FRAMES), k)]
+            ratios = sorted(yy / max(float(zz @ self.mu), 1e-12) for zz, yy in recent)
+            m = len(ratios)
+            self.load = ratios[m // 2] if m % 2 else 0.5 * (ratios[m // 2 - 1] + ratios[m // 2])
         return float(e)
 
     def _noise(self) -> None:
-        """Re-estimate the relative noise from the recent frames (module docstring), then refit with it."""
-        rows = list(self._rows)
-        if len(rows) < 4 + 3:
+        """Re-estimate the relative noise from the recent frames (module docstring)."""
+        n_rows = len(self._rows)
+        if n_rows < LOAD_FRAMES + 4:
             return
-        r = np.log(np.array([y / max(float(z @ self.mu), 1e-12) for z, y in rows]))
-        d = np.array([r[i] - np.median(r[max(0, i - LOAD_FRAMES):i]) for i in range(3, len(r))])
+        Z = np.array([z for z, _ in self._rows])
+        y = np.array([y for _, y in self._rows])
+        r = np.log(y / np.maximum(Z @ self.mu, 1e-12))
+        # each residual less the median of the LOAD_FRAMES before it (one vectorised median)
+        win = np.lib.stride_tricks.sliding_window_view(r[:-1], LOAD_FRAMES)
+        d = r[LOAD_FRAMES:] - np.median(win, axis=1)
         n = d.shape[0]
-        p_eff = float(np.trace(np.linalg.solve(self.P, self.A))) / self.noise ** 2  # parameters the data fix
+        p_eff = float(np.einsum("ij,ji->", self._Pinv, self.A)) / self.noise ** 2  # parameters the data fix
         dof = max(n - min(p_eff, n - 1.0), 1.0)
         self.noise = float(max(NOISE_MIN, 1.4826 * np.median(np.abs(d)) * math.sqrt(n / dof)))
-        self._solve()
 
     # ------------------------------------------------------------------------------------------ predictions
     def _pred_var(self, z) -> tuple[float, float]:
-        m = float(z @ self.mu)
-        v = np.linalg.solve(self._L, z)
-        return m, float(v @ v)
+        return float(z @ self.mu), float(z @ self._Pinv @ z)
 
     def predict(self, counts) -> tuple[float, float]:
         """(seconds at the current load, standard deviation of that mean) for ``counts``."""
@@ -216,7 +240,7 @@ class OnlineCostModel:
     @property
     def sd(self) -> dict:
         """name -> posterior standard deviation of each per-unit cost (seconds per unit at the current load)."""
-        d = np.sqrt(np.maximum(np.diag(np.linalg.inv(self.P)), 0.0))
+        d = np.sqrt(np.maximum(np.diag(self._Pinv), 0.0))
         return {n: float(v) for n, v in zip(self.names, self.load * self.scale * d)}
 
     def cost_model(self):

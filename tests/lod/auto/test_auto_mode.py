@@ -755,6 +755,9 @@ class Scripted(am.PlanChooser):
         super().choose(means, fit, equal)
         return self.script.pop(0)
 
+    def can_hold(self):
+        return False
+
 
 def test_plan_switch_fades_instead_of_popping(built, gl):
     """A switch from the pure triangle plan to the pure point plan over three frames: instances whose
@@ -802,3 +805,38 @@ def test_plan_switch_fades_instead_of_popping(built, gl):
         assert not _mask(img)[~_mask(A) & ~_mask(B)].any()
         share = (like_b & ~like_a)[changes].mean()
         assert share == pytest.approx(t, abs=0.12), (t, share)
+
+
+def test_held_pure_plan_is_drawn_by_the_single_modes_selector(built):
+    """A steady pure incumbent is held (only its candidate asked) between pricings; the first held frame
+    checks that the single mode's selector draws the same list, and from then on that selector draws the held
+    frames (state "delegated", the same list as auto's own path). A point candidate whose keyframe deviation
+    sends near instances to the triangle chain draws what mode points does not: never delegated."""
+    import copy
+
+    from lod.auto.delegate import signature
+    from lod.chains.mode import TrianglesSelector
+    from lod.points.mode import PointsSelector
+
+    cheap_points = cost_model.CostModel({"points": 1e-10, "point_instances": 0.0, "splat_pixels": 0.0,
+                                         "splat_area": 0.0, "instances": 1.0})  # triangle paths: dear
+    st = _crowd(30, 11, half_width=12.0, depth=150.0)
+    strict = built.sel.candidates[2]
+    loose = copy.copy(strict)
+    loose.deviation = [0.0] * len(loose.kinds)
+    for cand, agree in ((loose, True), (strict, False)):
+        dels = {"triangles": TrianglesSelector(built.tri_reps), "points": PointsSelector(cand.reps)}
+        sel = am.AutoSelector(built.tri_reps, poe=2.0, model=cheap_points, candidates=[cand], adapt=True,
+                              explore=False, delegates=dels)
+        seen, plans = {}, set()
+        for _ in range(12):
+            dl = sel.select(st, CAM, SIZE)
+            a = dl.stats["auto"]
+            seen.setdefault(a["state"], signature(dl))
+            plans.add((a["plan"], a["state"]))
+            sel.observe(cheap_points.predict(dl), select_seconds=0.0, drawlist=dl)
+        if agree:
+            assert a["plan"] == "points" and sel.delegates.verified.get("points") is True
+            assert seen["delegated"] == seen["held"] and sel.delegates.delegated >= 5
+        else:  # the held plan may be another one (the chain's, which mode triangles draws alike), never points
+            assert sel.delegates.verified.get("points") is not True and ("points", "delegated") not in plans
