@@ -119,4 +119,24 @@ def read(path) -> list:
     return out
 
 
-__all__ = ["EXPLAIN_FILE", "ExplainWriter", "format_frame", "read", "record"]
+def summarize(records: list) -> dict:
+    """A run's explanation in a few figures (the report's section on mode auto): share of frames per plan,
+    frames per chooser state, switches of the incumbent, median |predicted - measured| / measured, and the
+    last per-unit costs of the fit beside the calibration's."""
+    if not records:
+        return {}
+    n = len(records)
+    plans, states = {}, {}
+    for r in records:
+        plans[r.get("plan")] = plans.get(r.get("plan"), 0) + 1
+        states[r.get("state")] = states.get(r.get("state"), 0) + 1
+    inc = [r.get("incumbent") for r in records]
+    err = sorted(abs(r["measured_ms"] - r["predicted_ms"]) / r["measured_ms"] for r in records
+                 if r.get("measured_ms") and r.get("predicted_ms") is not None)
+    model = next((r["model"] for r in reversed(records) if r.get("model")), None)
+    return {"frames": n, "plans": {k: v / n for k, v in plans.items()}, "states": states,
+            "switches": sum(1 for a, b in zip(inc, inc[1:]) if a != b),
+            "pred_err": err[len(err) // 2] if err else None, "model": model}
+
+
+__all__ = ["EXPLAIN_FILE", "ExplainWriter", "format_frame", "read", "record", "summarize"]
