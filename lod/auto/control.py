@@ -28,9 +28,10 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the decision rests on the posterior
   and a run of several frames is measured before anything is kept (the rule of run M in
   ``scripts/bench_auto.md``, which explored and switched on single noisy frames, is what this replaces).
-- **Held frames.** While the incumbent is a steady pure plan (one representation), the plans are priced on
-  every :data:`REPRICE_FRAMES`-th frame only; in between the selector asks only that representation's
-  candidate (and the triangle chain, its fallback): its selection costs about what the single mode's does.
+- **Held frames.** While the incumbent is a steady pure plan (one representation), the plans are compared on
+  every :data:`REPRICE_FRAMES`-th frame only; in between the incumbent is drawn without a decision, by the
+  single mode's own selector once its list is verified to be the plan's (:mod:`lod.auto.delegate`): then auto's
+  selection costs what the single mode's does.
 - **No pop.** A change of the drawn plan is a transition of ``switch_frames`` frames: the instances whose
   representation differs between the two plans are drawn by both with complementary screen-door fades
   (``DrawBatch.fade``, as :mod:`lod.temporal.selection` blends two keyframe selections), the weight

@@ -342,19 +342,18 @@ class AutoSelector:
         self.fit.update(x, render)
         self.model = self.fit.cost_model()
 
-    def _options(self, frame, g, bound, only=None):
+    def _options(self, frame, g, bound):
         """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
         "Selection work": a candidate with a cost lower bound is asked only for the instances where that
-        bound is below the cheapest option within the bound found so far). ``only``: the names of the
-        candidates asked (the triangles always), each for every instance (a held pure plan)."""
+        bound is below the cheapest option within the bound found so far)."""
         opts, a = [], 0
         best = None
         tri = self.candidates[0]
         for c in self._order():
-            if c is not tri and (not bound > 0.0 or (only is not None and c.name not in only)):
+            if c is not tri and not bound > 0.0:
                 continue
             skipped = None
-            lb = c.cost_lower_bound(frame, g) if best is not None and only is None else None
+            lb = c.cost_lower_bound(frame, g) if best is not None else None
             if lb is not None:
                 need = lb < best
                 skipped = ~need
@@ -409,7 +408,7 @@ class AutoSelector:
         bound = float(self.bound)
         if not (np.isfinite(bound) and bound >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
-        held = self._held()  # steady on a pure plan: only its candidate is asked (module docstring)
+        held = self._held()  # steady on a pure plan: the others are not priced (lod.auto.control)
         if held is not None and self.delegates.ready(held):  # or the single mode's own selector
             dl = self.delegates.select(held, state, camera, size, statics, bound, self.candidates)
             if dl is not None:
@@ -451,11 +450,14 @@ class AutoSelector:
                 continue
             rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
             g = ac.Group(ri, b, rows)
-            opts = self._options(frame, g, bound, None if held is None else {held})
+            opts = self._options(frame, g, bound)
             groups.append((g, opts, sum(x.m for x in opts)))
         plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
         if held is not None:
             dec = self.chooser.hold()
+            if not plans[held].exact:
+                groups = self._exact(frame, groups, bound)
+                plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
             self._means = {held: (plans[held].seconds, 0.0)}
         else:
             dec, plans, groups = self._decide(frame, plans, groups, bound, (fixed_s, fixed_used))
