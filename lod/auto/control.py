@@ -17,12 +17,13 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   :data:`BIAS_FRAMES`, no older than :data:`BIAS_AGE`), shrunk by ``n / (n + BIAS_SHRINK)`` (what the
   linear model misses for that plan). Its counts for the covariance are those of the last frame it was
   drawn, rescaled to ``M_p``; a plan never drawn has a relative uncertainty of :data:`UNMEASURED_SD` and a
-  lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR`.
+  lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR` (:data:`UNMEASURED_FACTOR_NEUTRAL` without a
+  calibration).
 - **Exploration.** When the incumbent is steady and a plan's lower confidence bound
   ``M_p - EXPLORE_Z · sd`` undercuts the incumbent, measured on :data:`EXPLORE_AFTER` frames (the fit is unsure about a plan that could win, e.g. a
   representation not drawn for a while, whose uncertainty the forgetting lets grow back), that plan is
-  drawn for :data:`EXPLORE_RUN` frames after its fade-in, and kept only if the hysteresis rule then
-  prefers it; else auto fades back. Bounds: exploring (fades included) takes at most
+  drawn for :data:`EXPLORE_RUN` frames after its fade-in (at most :data:`EXPLORE_FADE` frames each way), and
+  kept only if the hysteresis rule then prefers it; else auto fades back. Bounds: exploring (fades included) takes at most
   ``EXPLORE_FRACTION`` of the frames (plus an allowance of :data:`EXPLORE_ALLOWANCE` for the start), never
   starts within :data:`EXPLORE_GAP` frames of the last one, and never retries a plan within
   :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the decision rests on the posterior
@@ -59,8 +60,9 @@ PERSIST = 3
 SWITCH_FRAMES = 4
 #: lower confidence bound of exploration, in standard deviations
 EXPLORE_Z = 1.0
-#: clean frames an explored plan is measured on after its fade-in
-EXPLORE_RUN = 3
+#: clean frames an explored plan is measured on after its fade-in, and the longest fade to and from it
+EXPLORE_RUN = 2
+EXPLORE_FADE = 2
 #: share of frames exploration may take (fades included), and the allowance at the start
 EXPLORE_FRACTION = 0.1
 EXPLORE_ALLOWANCE = 24
@@ -74,7 +76,9 @@ EXPLORE_COOLDOWN = 90
 #: exploration: a calibration taken under load mispriced one representation against another 2.5x,
 #: scripts/bench_auto.md runs K-M)
 UNMEASURED_SD = 0.5
-UNMEASURED_FACTOR = 2.5
+UNMEASURED_FACTOR = 2.0
+#: the same for the neutral prior (no calibration of this machine: the defaults of another one)
+UNMEASURED_FACTOR_NEUTRAL = 3.0
 #: clean frames (and their largest age) a plan's bias is the mean of, and its shrinkage
 BIAS_FRAMES = 8
 BIAS_AGE = 90
@@ -108,11 +112,14 @@ class PlanChooser:
     Parameters
     ----------
     switch_frames : frames of a transition (0: none)
+    neutral : the fit's prior is the defaults, not a calibration of this machine (explore more widely)
     explore : try uncertain plans (bounded); False: hysteresis only
     """
 
-    def __init__(self, switch_frames: int = SWITCH_FRAMES, explore: bool = True):
+    def __init__(self, switch_frames: int = SWITCH_FRAMES, explore: bool = True, neutral: bool = False):
         self.switch_frames = int(switch_frames)
+        #: how much cheaper than predicted a plan never drawn may be (lower for a calibration of this machine)
+        self.unmeasured_factor = UNMEASURED_FACTOR_NEUTRAL if neutral else UNMEASURED_FACTOR
         self.explore = bool(explore)
         self.incumbent: str | None = None
         self.frames = 0
@@ -194,7 +201,7 @@ class PlanChooser:
         self.last = {}
         for p in st:
             sd = self._sd_diff(st, p, c, fit) if p != c else 0.0
-            low = st[p][0] / UNMEASURED_FACTOR if st[p][2] is None else st[p][0] - EXPLORE_Z * sd
+            low = st[p][0] / self.unmeasured_factor if st[p][2] is None else st[p][0] - EXPLORE_Z * sd
             self.last[p] = (st[p][0], sd, low)
 
         def threshold(p, base):
@@ -207,17 +214,17 @@ class PlanChooser:
         thr = min((threshold(p, c) for p in others), default=None)
         # a transition in progress runs to its end
         if self._transition is not None:
-            a, b, r, kind = self._transition
+            a, b, r, kind, n = self._transition
             if b not in st or a not in st or same(a, b):
                 self._transition = None
             else:
                 r += 1
                 self._transition[2] = r
-                if r >= self.switch_frames:
+                if r >= n:
                     self._transition = None
                 if kind != "transition":
                     self.explored += 1
-                return Decision(b, a, r / (self.switch_frames + 1), kind, c, thr)
+                return Decision(b, a, r / (n + 1), kind, c, thr)
         if self._exploring is not None:
             e, left = self._exploring
             if e not in st:
@@ -250,7 +257,7 @@ class PlanChooser:
         self._pending = (None, 0)
         # exploration: a plan whose lower bound undercuts the incumbent, within the budget
         if self.explore and others:
-            cost = 2 * self.switch_frames + EXPLORE_RUN
+            cost = 2 * self._fade_frames("explore") + EXPLORE_RUN
             budget = EXPLORE_FRACTION * self.frames + EXPLORE_ALLOWANCE
             if (self.explored + cost <= budget and self.frames - self._last_explore >= EXPLORE_GAP
                     and st[c][1] >= EXPLORE_AFTER):  # the incumbent measured first: the comparison needs it
@@ -265,15 +272,20 @@ class PlanChooser:
                     return self._start(c, e, "explore", thr)
         return Decision(c, None, 0.0, "steady", c, thr)
 
+    def _fade_frames(self, state: str) -> int:
+        """Frames of a transition: ``switch_frames``, at most :data:`EXPLORE_FADE` to and from an exploration."""
+        n = max(0, int(self.switch_frames))
+        return min(n, EXPLORE_FADE) if state in ("explore", "return") else n
+
     def _start(self, a: str, b: str, state: str, thr) -> Decision:
         """First frame of the change from plan a to plan b (a transition when ``switch_frames`` > 0)."""
-        if self.switch_frames <= 0:
+        n = self._fade_frames(state)
+        if n <= 0:
             if state == "explore":
                 self._exploring[1] -= 1
             return Decision(b, None, 0.0, state, self.incumbent, thr)
-        self._transition = [a, b, 1, "transition" if state == "switch" else state] if self.switch_frames > 1 \
-            else None
-        return Decision(b, a, 1.0 / (self.switch_frames + 1), state, self.incumbent, thr)
+        self._transition = [a, b, 1, "transition" if state == "switch" else state, n] if n > 1 else None
+        return Decision(b, a, 1.0 / (n + 1), state, self.incumbent, thr)
 
     def can_hold(self) -> bool:
         """True when this frame may draw the incumbent without pricing the other plans: steady (no switch

@@ -244,7 +244,7 @@ class AutoSelector:
         #: the costs the options and plans are priced with: the fit's posterior mean (the prior without ``adapt``)
         self.model = self.fit.cost_model() if self.fit is not None else self.prior
         #: the plan decision (:mod:`lod.auto.control`; None without ``adapt``: the cheapest plan is drawn)
-        self.chooser = PlanChooser(switch_frames, explore) if self.adapt else None
+        self.chooser = PlanChooser(switch_frames, explore, self.prior.is_default) if self.adapt else None
         #: the single modes' selectors a held pure plan is drawn with once verified (:mod:`lod.auto.delegate`)
         self.delegates = Delegates(delegates if self.chooser is not None else {})
         #: per-group counts and the fit's state in ``stats["auto"]`` (``crowd run --explain-lod``)
@@ -491,8 +491,8 @@ class AutoSelector:
         a = {"levels": [int(v) for v in levels], "representations": per_cand, "options": tel.counts,
              "predicted_ms": 1e3 * predicted, "predicted_sd_ms": 1e3 * sd, "bound": bound,
              "budget_ms": self.budget_ms, "plan": plan_name, "state": dec.state,
-             "incumbent": dec.incumbent, "fade_from": old is not None and plans[dec.fade_from].measured_as(dec.fade_from)
-             or None, "fade_t": dec.t, "threshold": dec.threshold,
+             "incumbent": dec.incumbent, "fade_t": dec.t, "threshold": dec.threshold,
+             "fade_from": plans[dec.fade_from].measured_as(dec.fade_from) if old is not None else None,
              "plans_ms": {n: 1e3 * v[0] for n, v in self._means.items()},
              "plans_sd_ms": {n: 1e3 * v[1] for n, v in self._means.items()}}
         if gc is not None:
