@@ -138,8 +138,8 @@ class PlanChooser:
 
     # ------------------------------------------------------------------------------------------ measurements
     def observed(self, plan: str, z, u, clean: bool) -> None:
-        """A drawn frame of ``plan``: its counts row ``z`` (fit units) and load-free row ``u`` (``z`` over the
-        measured seconds, at the load of its time: :meth:`lod.auto.online.OnlineCostModel.normalized`);
+        """A drawn frame of ``plan``: its counts row ``z`` (fit units) and ``u`` = ``z`` over the measured seconds
+        (:attr:`lod.auto.online.OnlineCostModel.last_u`);
         ``clean``: the frame drew that plan alone (no transition), so it measures the plan's bias."""
         if plan is None:
             return

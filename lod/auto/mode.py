@@ -334,12 +334,9 @@ class AutoSelector:
             x = last["x"]
         else:
             return
-        if own:
-            z = self.fit.row(x)
-            u = self.fit.normalized(z, render)  # at the load before this frame, as the fit takes it
-            for n in last["plans"]:
-                self.chooser.observed(n, z, u, last["clean"])
-        self.fit.update(x, render)
+        if self.fit.update(x, render) is not None and own:
+            for n in last["plans"]:  # the row as the fit took it (load-free)
+                self.chooser.observed(n, self.fit.last_z, self.fit.last_u, last["clean"])
         self.model = self.fit.cost_model()
 
     def _options(self, frame, g, bound):

@@ -15,18 +15,21 @@ defaults when there is none) as a Gaussian prior:
   (``σ_g`` = :data:`SCALE_SD`: a calibration from a busy or another machine is off by a factor for every
   unit alike, and the load changes that factor) and per-unit departures from the calibration's ratios
   (``σ_j`` = :data:`UNIT_SD` of a real calibration, :data:`NEUTRAL_SD` of the defaults and of a count the
-  calibration does not know). Its weight is a few frames' worth. A feature that never varies, or is
+  calibration does not know, :data:`FRAME_SD` of the constant per frame, which depends on the viewport). Its weight is a few frames' worth. A feature that never varies, or is
   collinear with others, stays where the prior and the common scale put it (the posterior's ridge).
 - **Data.** ``A ← λ A + w u uᵀ``, ``b ← λ b + w u`` (target 1 per row), forgetting factor ``λ`` =
   :data:`FORGET` (about 30 frames of memory: the view and the load move). The prior is not forgotten, so a
   direction no recent frame excites returns to the prior scaled by the common factor the recent frames
   measured, and its uncertainty grows back: that is what makes auto try a representation it has not drawn
   for a while (:mod:`lod.auto.control`).
-- **Load.** What the machine's load does to every cost alike is a factor ``g`` apart from the fit: the median
-  of measured / fitted over the last :data:`LOAD_FRAMES` frames (a single noisy frame does not move it, a
-  second process starting does within a few frames). Rows enter the fit divided by the ``g`` of their time
-  (``u = z g / y``), predictions are multiplied by the current one, so the per-unit costs keep their ratios
-  through a change of load and the fit's memory does not have to forget it.
+- **Load.** A change of the machine's load (a second process starting) makes every cost alike dearer; the
+  fit follows it through its forgetting, and until it has, a factor ``g`` bridges the gap: the median of
+  measured / fitted over the last :data:`LOAD_FRAMES` frames (a single noisy frame does not move it). Predictions
+  are multiplied by it and residuals (noise, Huber weights) taken after it, so the frames after a change keep
+  their full weight; ``g`` returns to 1 as the fit catches up. A factor that stays beyond ``1 ±``
+  :data:`LOAD_SHIFT` for :data:`LOAD_FRAMES` frames is a change point: the data before it keep the weight
+  :data:`SHIFT_FORGET` only, so the fit follows the new load within a few more frames. (Dividing the rows by ``g`` instead would make
+  ``(θ c, g / c)`` indistinguishable and let ``g`` wander with the mix of the recent frames.)
 - **Noise.** The relative noise ``σ`` is the robust spread (1.4826 median absolute value) over the last
   :data:`NOISE_FRAMES` frames of each frame's log residual under the current fit less the median of the
   :data:`LOAD_FRAMES` before it (what the load factor would have predicted: a change of load is not noise),
@@ -54,12 +57,19 @@ from lod.auto import cost_model as cm
 
 #: forgetting factor of the data (per frame): ~1 / (1 - λ) = 33 frames of memory
 FORGET = 0.97
-#: prior standard deviation of the common scale of all costs (relative): nearly free
-SCALE_SD = 3.0
+#: prior standard deviation of the common scale of all costs (relative): free (every frame measures it; the
+#: defaults on a machine 70x slower under load are that far off)
+SCALE_SD = 100.0
 #: prior standard deviation of one per-unit cost relative to the calibration's ratios (a real calibration)
 UNIT_SD = 0.5
 #: the same for the defaults (no calibration of this machine) and for counts no calibration knows
 NEUTRAL_SD = 1.0
+#: a load factor beyond 1 +- this for LOAD_FRAMES frames is a change of load: the data so far are kept with
+#: weight SHIFT_FORGET only (the fit then follows the new load within a few frames)
+LOAD_SHIFT = 0.15
+SHIFT_FORGET = 0.25
+#: the same for the constant per frame
+FRAME_SD = 2.0
 #: rows whose residuals give the noise estimate (the most recent)
 NOISE_FRAMES = 32
 #: frames the load factor is the median over
@@ -116,6 +126,7 @@ class OnlineCostModel:
         self.scale = np.where(c0 > 0.0, c0, dflt)
         self.theta0 = np.where(known, c0 / self.scale, 1.0)
         sd = np.where(known & ~neutral, UNIT_SD, NEUTRAL_SD)
+        sd[0] = FRAME_SD  # the constant: clearing and resolving depend on the viewport, which the calibration fixes
         cov0 = SCALE_SD ** 2 * np.outer(self.theta0, self.theta0) + np.diag(sd ** 2)
         self.P0 = np.linalg.inv(cov0)
         self.P0 = 0.5 * (self.P0 + self.P0.T)
@@ -126,6 +137,7 @@ class OnlineCostModel:
         self.noise = NOISE_START
         #: the common factor of the current load (measured / fitted of the last :data:`LOAD_FRAMES` frames)
         self.load = 1.0
+        self._shift = 0  # consecutive frames the load factor stayed off 1 by more than LOAD_SHIFT
         self.frames = 0  # rows accepted
         self._rows: deque = deque(maxlen=NOISE_FRAMES)  # (z, seconds) of the last frames
         self._solve()
@@ -157,10 +169,6 @@ class OnlineCostModel:
         x[1:1 + c.shape[0]] = c
         return self.scale * x
 
-    def normalized(self, z, seconds: float) -> np.ndarray:
-        """A frame's row in load-free units: ``z · load / seconds`` (1 = predicted exactly at the current load)."""
-        return np.asarray(z, np.float64) * (self.load / float(seconds))
-
     def update(self, counts, seconds: float) -> float | None:
         """Add a measured frame: ``counts`` (:meth:`row`'s input), ``seconds`` of rendering.
 
@@ -170,17 +178,18 @@ class OnlineCostModel:
         z = self.row(counts)
         if not (math.isfinite(y) and y > 0.0 and np.isfinite(z).all() and (z >= 0.0).all()):
             return None
-        g = self.load
-        u = z * (g / y)  # relative to the measurement at the load so far: 1 is a perfect prediction
+        u = z / y  # relative to the measurement: 1 is a perfect prediction
         pred, var = self._pred_var(u)
         if not (math.isfinite(pred) and pred > 0.0):
             return None
-        e = (1.0 - pred) / math.sqrt(self.noise ** 2 * pred ** 2 + var + 1e-12)
+        g = self.load  # residuals after the load bridge: frames after a change of load keep their weight
+        e = (1.0 - g * pred) / math.sqrt(self.noise ** 2 * (g * pred) ** 2 + g * g * var + 1e-12)
         w = 1.0 if abs(e) <= HUBER_K else HUBER_K / abs(e)
         lam = self.forget
         self.A = lam * self.A + w * np.outer(u, u)
         self.b = lam * self.b + w * u
         self._rows.append((z, y))
+        self.last_z, self.last_u = z, u  # the row as the fit took it (lod.auto.control keeps it per plan)
         self.frames += 1
         if self.frames < 2 * NOISE_FRAMES or self.frames % 4 == 0:  # it changes little from frame to frame
             self._noise()  # with the fit before this row, then one solve
@@ -192,6 +201,13 @@ class OnlineCostModel:
             ratios = sorted(yy / max(float(zz @ self.mu), 1e-12) for zz, yy in recent)
             m = len(ratios)
             self.load = ratios[m // 2] if m % 2 else 0.5 * (ratios[m // 2 - 1] + ratios[m // 2])
+            # a load that stays off the fit: a change point, old frames measured another machine state
+            self._shift = self._shift + 1 if abs(math.log(self.load)) > math.log(1.0 + LOAD_SHIFT) else 0
+            if self._shift >= LOAD_FRAMES and self.frames > 2 * LOAD_FRAMES:
+                self.A *= SHIFT_FORGET
+                self.b *= SHIFT_FORGET
+                self._shift = 0
+                self._solve()
         return float(e)
 
     def _noise(self) -> None:
@@ -224,8 +240,8 @@ class OnlineCostModel:
         return self.load * float(np.asarray(z) @ self.mu)
 
     def relative(self, u) -> float:
-        """Predicted / measured of a load-free row (:meth:`normalized`) under the current fit."""
-        return float(np.asarray(u) @ self.mu)
+        """Predicted / measured of a frame's row over its seconds (``z / y``) under the current fit and load."""
+        return self.load * float(np.asarray(u) @ self.mu)
 
     def sd_z(self, z) -> float:
         """Standard deviation (seconds at the current load) of the predicted mean of a row ``z`` (or of a

@@ -25,10 +25,9 @@ def _run(chooser, fit, true, frames, noise=None, rng=None):
         d = chooser.choose(means, fit)
         x = PLANS[d.plan] if d.fade_from is None else PLANS[d.plan] + PLANS[d.fade_from]
         y = float(true.predict_counts(*x)) * (noise(f) if noise else 1.0)
-        z = fit.row(x)
-        if d.fade_from is None:
-            chooser.observed(d.plan, z, fit.normalized(z, y), True)
         fit.update(x, y)
+        if d.fade_from is None:
+            chooser.observed(d.plan, fit.last_z, fit.last_u, True)
         out.append(d)
     return out
 
