@@ -1,6 +1,6 @@
 """The ``crowd`` command line.
 
-    crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--video] [--quiet]
+    crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--video] [--explain-lod] [--quiet]
     crowd validate SCENE
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
@@ -85,6 +85,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write every K-th frame as PNG, 0 = none (overrides [render] png_every)")
     r.add_argument("--video", action="store_true", default=None,
                    help="also write every frame as video.mp4 (H.264, yuv420p; odd sizes padded by one pixel)")
+    r.add_argument("--explain-lod", action="store_true",
+                   help="mode auto: print per frame the plan drawn and why (each group's representations, "
+                   "predicted against measured time, the online fit's per-unit costs); also written to "
+                   "explain_lod.jsonl in the output directory")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bars or summary")
 
     v = sub.add_parser("validate", help="check a scene file in full and print a short summary")
@@ -246,7 +250,12 @@ def cmd_run(args) -> int:
         from crowd.video import ffmpeg_exe
 
         ffmpeg_exe()  # a missing encoder is a one-line error before the build
-    with Engine(scene, quiet=args.quiet) as engine:
+    if args.explain_lod and scene.lod_mode != "auto":
+        raise CrowdError(f"{scene.path}: --explain-lod explains the choices of LOD mode auto; the scene's "
+                         f"[lod] mode is {scene.lod_mode!r}")
+    with Engine(scene, quiet=args.quiet or args.explain_lod) as engine:
+        if args.explain_lod:
+            engine.explain_lod = (lambda text: None) if args.quiet else (lambda text: print(text, flush=True))
         result = engine.run()
     if not args.quiet:
         print(result.report())

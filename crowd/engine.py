@@ -209,6 +209,8 @@ class Engine:
         self.quiet = quiet
         self.renderer = None
         self.video_options: dict = {}  # crowd.video.VideoWriter keywords of run videos (crowd report: small clips)
+        #: mode auto: write explain_lod.jsonl (crowd.explain) and pass each frame's text to this callable
+        self.explain_lod = None
         self.plan = plan(scene, quiet=quiet)
         self.world = self._build_world()
         self.camera_path = self._build_camera()
@@ -342,6 +344,8 @@ class Engine:
             return selector
         from lod.temporal.selection import KEYFRAME_EXTRAPOLATION_DEFAULT, KeyframedSelector
 
+        if hasattr(selector, "switch_frames"):  # mode auto: the keyframe blend fades its plan switches
+            selector.switch_frames = 0
         common = dict(self.scene.lod_common)
         mode = common.get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
         return KeyframedSelector(selector, int(n), mode, geomorph=bool(common.get("keyframe_geomorph", True)))
@@ -536,6 +540,19 @@ class Engine:
         sc = self.scene
         return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps)
 
+    def _explain_writer(self, tmp: Path):
+        """A :class:`crowd.explain.ExplainWriter` of ``tmp/explain_lod.jsonl`` when ``explain_lod`` is set (the
+        selector then adds its per-group counts and fit to ``stats["auto"]``), else a null context."""
+        from contextlib import nullcontext
+
+        if not self.explain_lod:
+            return nullcontext(None)
+        from crowd.explain import EXPLAIN_FILE, ExplainWriter
+
+        if hasattr(self.selector, "explain"):
+            self.selector.explain = True
+        return ExplainWriter(tmp / EXPLAIN_FILE)
+
     def run(self, frames: int | None = None, out_dir: str | Path | None = None,
             png_every: int | None = None) -> RunResult:
         """Run ``frames`` frames, writing telemetry (and PNGs) atomically to ``out_dir``.
@@ -558,7 +575,7 @@ class Engine:
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
         from crowd.video import VIDEO_NAME, video_writer
 
-        with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj, \
+        with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj, self._explain_writer(tmp) as explain, \
                 video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video, **self.video_options) as video:
             if png_every:
                 (tmp / "frames").mkdir()
@@ -584,8 +601,12 @@ class Engine:
                 r = renderer.draw(dl, bg)
                 # the frame cost a budget covers: LOD selection + rendering (simulation is the scene's own cost)
                 measured = (t2 - t1) + sum(float(r.get(k) or 0.0) for k in ("upload", "draw", "finish"))
-                if hasattr(self.selector, "observe"):  # frame-budget modes adapt to the measured cost
-                    self.selector.observe(measured)
+                if hasattr(self.selector, "observe"):  # mode auto fits its costs to the frame drawn
+                    self.selector.observe(measured, select_seconds=t2 - t1, drawlist=dl)
+                if explain is not None and isinstance(dl.stats.get("auto"), dict):
+                    text = explain.frame(f, dl.stats["auto"], measured - (t2 - t1))
+                    if callable(self.explain_lod):
+                        self.explain_lod(text)
                 auto = dl.stats.get("auto")
                 if isinstance(auto, dict) and auto.get("predicted_ms") is not None:
                     metrics = {**metrics, "predicted_ms": float(auto["predicted_ms"]),

@@ -25,6 +25,38 @@ def _num(x, fmt="{:.2f}") -> str:
     return fmt.format(x)
 
 
+def _auto_section(sc: dict, autos: list) -> str:
+    """Mode auto: the plans it drew, its switches, how well it predicted, its fitted per-unit costs (crowd.explain)
+    and the plot of predicted against measured frame time."""
+    e = html.escape
+    out = ["<h3>Mode auto: what it drew and why</h3><p>Per frame auto prices a mixed plan and one plan per "
+           "representation with per-unit costs fitted online to the frames it draws (the calibration as prior), "
+           "keeps its plan until another is predicted better beyond the measured noise for several frames, and "
+           "tries a plan it is unsure about for a few frames now and then (<code>crowd run --explain-lod</code> "
+           "prints the same per frame).</p>",
+           "<table><tr><th>setting</th><th>plans drawn (share of frames)</th><th>switches</th><th>states</th>"
+           "<th>median |predicted − measured| / measured</th><th>fitted per-unit costs (calibration)</th></tr>"]
+    for s in autos:
+        a = s["auto"]
+        m = a.get("model") or {}
+        c, p = m.get("coefficients") or {}, m.get("prior") or {}
+        costs = ", ".join(f"{k} {c[k]:.3g} ({p[k]:.3g})" if p.get(k) is not None else f"{k} {c[k]:.3g}"
+                          for k in ("frame", "triangles", "points", "instances", "point_instances", "clusters")
+                          if k in c)
+        out.append(f"<tr><td>{e(s['label'])}</td><td>"
+                   + e(", ".join(f"{k} {100 * v:.0f} %" for k, v in sorted(a["plans"].items(), key=lambda kv: -kv[1])))
+                   + f"</td><td class='n'>{a['switches']}</td><td>"
+                   + e(", ".join(f"{k} {v}" for k, v in a["states"].items())) + "</td><td class='n'>"
+                   + (f"{100 * a['pred_err']:.0f} %" if a.get("pred_err") is not None else "–")
+                   + f"</td><td>{e(costs)} s per unit</td></tr>")
+    out.append("</table>")
+    for s in autos:
+        img = (sc["plots"].get("auto") or {}).get(s["slug"])
+        if img:
+            out.append(f"<img src='{e(img)}' alt='auto predicted against measured {e(s['label'])}'>")
+    return "\n".join(out)
+
+
 def render_html(data: dict) -> str:
     """The report page: only relative links to ``plots/`` and ``samples/``; no scripts, no external resources."""
     e = html.escape
@@ -96,6 +128,9 @@ def render_html(data: dict) -> str:
                    f"<img src='{e(p['pareto'])}' alt='pareto'>")
         for key, img in (p.get("sweeps") or {}).items():  # a numeric swept setting: error and time against it
             out.append(f"<h3>Accuracy and time against {e(key)}</h3><img src='{e(img)}' alt='sweep {e(key)}'>")
+        autos = [s for s in sc["settings"] if s.get("auto")]
+        if autos:
+            out.append(_auto_section(sc, autos))
         if sc.get("pedestrian"):
             from crowd.report.pedestrian import html_section
 

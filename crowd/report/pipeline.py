@@ -278,7 +278,15 @@ def _setting_entry(run: RunData, tmp: Path) -> dict:
     if (run.out_dir / "video.mp4").is_file():  # the setting's short clip (crowd.video.REPORT_CLIP)
         clip = f"samples/{run.out_dir.parent.name}_{st.slug}.mp4"
         shutil.copyfile(run.out_dir / "video.mp4", tmp / clip)
+    explain = run.out_dir / "explain_lod.jsonl"
+    if explain.is_file():  # mode auto: what it drew and why (crowd.explain)
+        from crowd.explain import read, summarize
+
+        auto = summarize(read(explain))
+    else:
+        auto = None
     return {"clip": clip, "label": st.label, "slug": st.slug, "values": st.values, "lod_mode": st.scene.lod_mode,
+            "auto": auto,
             "host": run.host,
             "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
             "run_dir": str(run.out_dir.relative_to(tmp)),

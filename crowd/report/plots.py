@@ -85,6 +85,12 @@ def _plots(tmp: Path, entry: dict, runs: list) -> None:
         ax.legend(fontsize=7)
     plots["flicker"] = _save(fig, tmp, f"plots/{slug}_flicker.png")
 
+    plots["auto"] = {}
+    for run in runs:  # mode auto: its predicted against its measured rendering time (crowd.explain)
+        c = run.columns
+        if "predicted_ms" in c and "measured_render_ms" in c and np.isfinite(c["predicted_ms"]).any():
+            plots["auto"][run.setting.slug] = _auto_plot(plt, tmp, entry, run, c)
+
     sets = entry["settings"]
     name, errs = _error_axis(sets)
     times = [s["frame_ms"]["p50"] for s in sets]
@@ -150,6 +156,30 @@ def _sweep_curves(plt, tmp: Path, entry: dict) -> dict:
         ax.legend(fontsize=7, loc="lower right")
         out[key] = _save(fig, tmp, f"plots/{entry['slug']}_sweep_{key.replace('.', '_')}.png")
     return out
+
+
+def _auto_plot(plt, tmp: Path, entry: dict, run, c: dict) -> str:
+    """Mode auto's predicted against measured rendering time: along the path, and one against the other."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.5), dpi=96, gridspec_kw={"width_ratios": [2, 1]})
+    pred, meas = c["predicted_ms"], c["measured_render_ms"]
+    a1.plot(c["frame"], meas, label="measured (upload + draw + finish)", lw=1.2)
+    a1.plot(c["frame"], pred, label="predicted by the online fit", lw=1.2, ls="--")
+    a1.set_xlabel("frame")
+    a1.set_ylabel("ms")
+    a1.grid(alpha=0.3)
+    a1.legend(fontsize=7)
+    ok = np.isfinite(pred) & np.isfinite(meas)
+    a2.scatter(meas[ok], pred[ok], s=8, c=c["frame"][ok], cmap="viridis")
+    hi = float(max(np.max(meas[ok], initial=1.0), np.max(pred[ok], initial=1.0))) * 1.05
+    a2.plot([0, hi], [0, hi], "k:", lw=1)
+    a2.set_xlim(0, hi)
+    a2.set_ylim(0, hi)
+    a2.set_xlabel("measured ms")
+    a2.set_ylabel("predicted ms")
+    a2.grid(alpha=0.3)
+    fig.suptitle(f"{entry['name']} [{run.setting.label}]: mode auto, predicted against measured frame time",
+                 fontsize=9)
+    return _save(fig, tmp, f"plots/{entry['slug']}_{run.setting.slug}_auto.png")
 
 
 def _save(fig, tmp: Path, rel: str) -> str:

@@ -128,6 +128,8 @@ def _run(scene, out_dir: Path, png_every: int, pairs: bool = False, sleep: float
             from crowd.video import REPORT_CLIP
 
             engine.video_options = dict(REPORT_CLIP)
+        if scene.lod_mode == "auto":  # explain_lod.jsonl: the report's section on mode auto (crowd.explain)
+            engine.explain_lod = True
         if sleep > 0:
             engine.selector = _SleepySelector(engine.selector, sleep)
         every = png_every

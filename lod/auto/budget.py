@@ -1,5 +1,21 @@
 """The per-instance choice at a pixel bound and the budget controller that moves
-the bound towards a frame-time budget (see :mod:`lod.auto.mode`, "Budget").
+the bound towards a frame-time budget (mode auto, :mod:`lod.auto.mode`).
+
+With ``budget_ms > 0`` (a frame-time budget) the bound adapts once per frame
+from the last frame's cost (measured, when the caller reports it through
+:meth:`lod.auto.mode.AutoSelector.observe`, else predicted) with hysteresis: it is
+multiplied by ``step`` when the cost exceeds the budget by more than
+``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
+``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
+square-rooted at every change of direction (a damped, bisection-like
+search) down to ``MIN_STEP``; a reversal from over- to under-budget at the
+smallest step holds the bound (the cost jumps across the band between two
+neighbouring bounds: the under-budget one is kept) until the cost at the
+held bound changes by more than ``HOLD_RELEASE`` (the view changed). The
+bound is clamped to ``[BOUND_MIN, BOUND_MAX]`` pixels. A cost outside the
+band moves the bound only after ``PERSIST`` consecutive frames on the same
+side (a single noisy measurement does not), or at once when it is off the
+budget by more than a factor ``URGENT``.
 """
 from __future__ import annotations
 
@@ -7,6 +23,7 @@ import math
 
 import numpy as np
 
+#: cost above budget * (1 + UP_TOLERANCE): coarsen (raise the bound)
 UP_TOLERANCE = 0.05
 #: cost below budget * (1 - DOWN_TOLERANCE): refine (lower the bound)
 DOWN_TOLERANCE = 0.15
@@ -20,19 +37,11 @@ PERSIST = 2
 URGENT = 1.5
 #: a held bound is released when the cost at it changes by more than this fraction
 HOLD_RELEASE = 0.10
-#: observed frames the online cost-model refit keeps (the most recent)
-ADAPT_FRAMES = 32
-#: observed frames per plan its correction factor is the median of (the most recent: the view moves)
-PLAN_FRAMES = 8
-
-#: an unmeasured plan predicted within this fraction of the best plan is drawn once to measure it
-#: (about the cost model's median error), during the first ``EXPLORE_FRAMES`` frames of a selector
-EXPLORE_MARGIN = 0.3
-EXPLORE_FRAMES = 3
-
 #: clamp of the adaptive bound, pixels
 BOUND_MIN = 0.25
 BOUND_MAX = 1000.0
+
+
 def choose(cost: np.ndarray, error_px: np.ndarray, bound: float) -> np.ndarray:
     """Per instance, the index of the cheapest candidate with error <= ``bound``.
 

@@ -47,7 +47,7 @@ import numpy as np
 
 from lod.atomic_io import atomic_open
 
-#: feature names, in the order of :attr:`CostModel.coefficients` (after ``frame``)
+#: feature names, in the order of :attr:`CostModel.coefficients` (after ``frame``): what ``crowd calibrate`` fits
 FEATURES = ("triangles", "points", "batches", "instances", "clusters", "splat_pixels", "splat_area",
             "point_instances", "cluster_frames")
 #: coefficient names: the constant per frame, then one per feature (seconds per unit)
@@ -65,6 +65,24 @@ DEFAULTS = {
     "point_instances": 5.0e-6,  # one instance drawn from a point hierarchy (job table, no skinning palette)
     "cluster_frames": 5.0e-3,  # the cluster drawer's per-frame work when it draws anything (pre-pass, gather)
 }
+#: further counts a frame may report in ``DrawList.stats`` (the board's agreed interface: other draw paths add
+#: theirs here). Only the online fit (:mod:`lod.auto.online`) prices them, from the frames it observes; a
+#: count that stays 0 keeps its prior. ``raster_triangles``: triangles rasterised in compute (they leave the
+#: ``triangles`` feature, which then counts the raster pipeline's only); ``poses`` and ``posed_vertices``:
+#: distinct poses skinned and vertices skinned into the pose buffer; ``placed_points``: points placed per
+#: pose; ``props``: triangles of props and obstacle solids (``crowd.world``)
+EXTRA_FEATURES = ("raster_triangles", "poses", "posed_vertices", "placed_points", "props")
+#: their priors (seconds per unit; guesses for llvmpipe at 1280x720, held with a wide uncertainty)
+EXTRA_DEFAULTS = {
+    "raster_triangles": 1.0 / 30.0e6,
+    "poses": 2.0e-5,
+    "posed_vertices": 1.0 / 50.0e6,
+    "placed_points": 1.0 / 50.0e6,
+    "props": 1.0 / 8.0e6,
+}
+#: every feature the online fit prices, in its column order (a later version may append names: the fit's
+#: state is rebuilt per run, so appending is no format break)
+ONLINE_FEATURES = FEATURES + EXTRA_FEATURES
 #: file name of the stored calibrations inside the cache folder
 FILE_NAME = "cost_model.json"
 #: bump when the stored layout changes
@@ -84,8 +102,9 @@ def machine_key(renderer: str = "") -> str:
     return f"{platform.node()}|{platform.machine()}|{renderer or 'unknown'}"
 
 
-def features(drawlist) -> np.ndarray:
-    """(9,) float64 counts of a DrawList in :data:`FEATURES` order.
+def features(drawlist, extended: bool = False) -> np.ndarray:
+    """(9,) float64 counts of a DrawList in :data:`FEATURES` order, or with
+    ``extended`` (14,) in :data:`ONLINE_FEATURES` order.
 
     Triangles and points are summed over the batches (``stats`` when the
     selector recorded them), batches count non-empty batches, instances the
@@ -97,7 +116,9 @@ def features(drawlist) -> np.ndarray:
     ``point_instances`` counts the instances of batches with point jobs
     (``point_jobs``, :class:`lod.points.rep.PointsBatch`); ``cluster_frames``
     is 1.0 when a batch carries a cluster cut (``offsets``,
-    :class:`lod.clusters.mode.ClusterDrawBatch`), else 0.
+    :class:`lod.clusters.mode.ClusterDrawBatch`), else 0. The extended
+    counts (:data:`EXTRA_FEATURES`) come from ``stats`` (0 when absent or not
+    a finite number >= 0); ``raster_triangles`` are taken out of ``triangles``.
     """
     bs = [b for b in drawlist.batches if b.n_instances]
     st = getattr(drawlist, "stats", {}) or {}
@@ -112,8 +133,20 @@ def features(drawlist) -> np.ndarray:
     pinst = float(sum(b.n_instances for b in bs if getattr(b, "point_jobs", None) is not None))
     inst = float(sum(b.n_instances for b in bs)) - pinst
     cframe = 1.0 if any(getattr(b, "offsets", None) is not None for b in bs) else 0.0
-    return np.array([float(tri), float(pts), float(len(bs)), inst, float(st.get("clusters", 0) or 0), px, area, pinst,
-                     cframe], np.float64)
+    base = [float(tri), float(pts), float(len(bs)), inst, float(st.get("clusters", 0) or 0), px, area, pinst, cframe]
+    if not extended:
+        return np.array(base, np.float64)
+    extra = [_count(st.get(k)) for k in EXTRA_FEATURES]
+    base[0] = max(0.0, base[0] - extra[0])  # compute-rasterised triangles leave the pipeline's count
+    return np.array(base + extra, np.float64)
+
+
+def _count(v) -> float:
+    try:
+        v = float(v or 0.0)
+    except (TypeError, ValueError):
+        return 0.0
+    return v if np.isfinite(v) and v > 0.0 else 0.0
 
 
 def pass_cost(model, size, splat: float) -> float:
@@ -287,19 +320,75 @@ def refine(prior: CostModel, X, y) -> CostModel:
 
 
 # ---------------------------------------------------------------------------- storage
-def _read(path: Path) -> dict:
+#: what a bad calibration file falls back to (printed in its one line)
+FALLBACK = "mode auto starts its online cost fit from the neutral prior (the defaults)"
+_warned: set = set()
+
+
+def _read_checked(path: Path) -> tuple[dict, str | None]:
+    """(data, problem): the parsed file, or ({}, a sentence saying why it cannot be used); ({}, None) when
+    there is no file."""
     try:
-        d = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-    if not isinstance(d, dict) or d.get("format") != FORMAT_VERSION or not isinstance(d.get("machines"), dict):
-        return {}
-    return d
+        text = path.read_text()
+    except FileNotFoundError:
+        return {}, None
+    except OSError as e:
+        return {}, f"cannot be read ({e.strerror or e})"
+    try:
+        d = json.loads(text)
+    except ValueError as e:
+        return {}, f"is not valid JSON ({e.msg} at line {e.lineno}); the file is corrupt"
+    if not isinstance(d, dict) or not isinstance(d.get("machines"), dict):
+        return {}, "is not a cost model file (expected an object with \"format\" and \"machines\")"
+    if d.get("format") != FORMAT_VERSION:
+        return {}, (f"has format {d.get('format')!r}, this version reads format {FORMAT_VERSION} (written by "
+                    f"another version or tool)")
+    return d, None
+
+
+def _read(path: Path) -> dict:
+    return _read_checked(path)[0]
+
+
+def warn_once(path, problem: str) -> None:
+    """One line on stderr naming ``path`` and ``problem`` and the fallback (once per process and message)."""
+    import sys
+
+    line = f"crowd: {path}: {problem}; {FALLBACK}"
+    if line not in _warned:
+        _warned.add(line)
+        print(line, file=sys.stderr, flush=True)
+
+
+def _entry_model(entry, k: str) -> tuple[CostModel, str | None]:
+    """The model of one stored entry, or (defaults, problem). Coefficient names this version does not know
+    are ignored (a later version may store more); a known one that is not a finite number >= 0 is a problem."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("coefficients", {}), dict):
+        return CostModel(), f"the calibration of {k!r} is not an object of coefficients"
+    coef = {}
+    for name, v in entry.get("coefficients", {}).items():
+        if name not in DEFAULTS:
+            continue
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            return CostModel(), f"coefficient {name!r} of {k!r} is not a number ({v!r})"
+        if not (np.isfinite(x) and x >= 0.0):
+            return CostModel(), f"coefficient {name!r} of {k!r} is {x!r}, not a finite number >= 0"
+        coef[name] = x
+    try:
+        v = entry.get("validation_rel_error")
+        e = entry.get("median_rel_error")
+        return CostModel(coef, key=k, median_rel_error=float(e) if isinstance(e, (int, float)) else None,
+                         samples=int(entry.get("samples", 0) or 0),
+                         validation_rel_error=float(v) if isinstance(v, (int, float)) else None), None
+    except (TypeError, ValueError) as err:
+        return CostModel(), f"the calibration of {k!r} is malformed ({err})"
 
 
 def save(model: CostModel, directory: Path | None = None) -> Path:
     """Store ``model`` under its key in ``cost_model.json`` (other machines'
-    entries kept); atomic write. Returns the file path."""
+    entries kept; a corrupt file is replaced); atomic write. Returns the file path."""
     if not model.key:
         raise ValueError("cost model: refusing to store a model without a machine key")
     d = Path(directory) if directory is not None else cache_dir()
@@ -312,35 +401,73 @@ def save(model: CostModel, directory: Path | None = None) -> Path:
     return path
 
 
-def load(renderer: str = "", directory: Path | None = None, key: str | None = None) -> CostModel:
-    """The stored model of this machine and GL ``renderer`` string, or the
-    defaults (``key == ""``) when none is stored or the file is unreadable."""
-    k = machine_key(renderer) if key is None else key
+def load_checked(renderer: str = "", directory: Path | None = None, key: str | None = None,
+                 path: Path | None = None) -> tuple[CostModel, str | None]:
+    """(model, problem) of this machine and GL ``renderer`` string (or ``key``; ``key=""``: the only or
+    first host entry) from ``path`` (default ``cost_model.json`` in ``directory`` or the cache folder).
+
+    The defaults (``key == ""``) and a sentence saying what is wrong when the file is corrupt, has another
+    format, holds no calibration of this machine but others', or holds non-finite or negative costs;
+    (defaults, None) when there is no file or no entry at all."""
     d = Path(directory) if directory is not None else cache_dir()
-    entry = _read(d / FILE_NAME).get("machines", {}).get(k)
-    if not isinstance(entry, dict):
-        return CostModel()
-    try:
-        v = entry.get("validation_rel_error")
-        return CostModel(entry.get("coefficients", {}), key=k, median_rel_error=entry.get("median_rel_error"),
-                         samples=int(entry.get("samples", 0)),
-                         validation_rel_error=float(v) if isinstance(v, (int, float)) else None)
-    except (TypeError, ValueError):
-        return CostModel()
+    path = Path(path) if path is not None else d / FILE_NAME
+    data, problem = _read_checked(path)
+    if problem:
+        return CostModel(), problem
+    machines = data.get("machines", {})
+    if key == "":  # the first entry of this host (any renderer), else the file's only entry
+        prefix = f"{platform.node()}|{platform.machine()}|"
+        mine = [k_ for k_ in sorted(machines) if k_.startswith(prefix)]
+        key = mine[0] if mine else None
+        if key is None:
+            if not machines:
+                return CostModel(), None
+            return CostModel(), (f"holds no calibration of this machine ({platform.node()}), only of "
+                                 f"{', '.join(sorted(map(str, machines))[:3])}")
+    k = machine_key(renderer) if key is None else key
+    entry = machines.get(k)
+    if entry is None:
+        if machines and not any(str(m).startswith(f"{platform.node()}|") for m in machines):
+            return CostModel(), (f"holds no calibration of this machine ({platform.node()}), only of "
+                                 f"{', '.join(sorted(map(str, machines))[:3])}")
+        return CostModel(), None
+    return _entry_model(entry, k)
 
 
-def load_any(directory: Path | None = None) -> CostModel:
+def load(renderer: str = "", directory: Path | None = None, key: str | None = None, warn: bool = True) -> CostModel:
+    """The stored model of this machine and GL ``renderer`` string, or the
+    defaults (``key == ""``) when none is stored or the file cannot be used
+    (then, with ``warn``, one line on stderr: :func:`load_checked`)."""
+    d = Path(directory) if directory is not None else cache_dir()
+    model, problem = load_checked(renderer, d, key)
+    if problem and warn:
+        warn_once(d / FILE_NAME, problem)
+    return model
+
+
+def load_any(directory: Path | None = None, warn: bool = True) -> CostModel:
     """A model stored for this host (any renderer; the first key in sorted
     order), else the defaults. For ``lod`` code that has no GL context to ask
-    for its renderer string."""
-    d = Path(directory) if directory is not None else cache_dir()
-    machines = _read(d / FILE_NAME).get("machines", {})
-    prefix = f"{platform.node()}|{platform.machine()}|"
-    for k in sorted(machines):
-        if k.startswith(prefix):
-            return load(directory=d, key=k)
-    return CostModel()
+    for its renderer string. A file that cannot be used gives one line on stderr (``warn``)."""
+    return load(directory=directory, key="", warn=warn)
 
 
-__all__ = ["FEATURES", "COEFFICIENTS", "DEFAULTS", "CostModel", "features", "fit", "fit_model", "relative_error",
+def load_file(path, warn: bool = True) -> CostModel:
+    """The model stored in a calibration file of one's own (``cost_model.json`` layout; this host's entry,
+    else its only entry), else the defaults with one line on stderr (``warn``)."""
+    path = Path(path)
+    model, problem = load_checked(path=path, key="")
+    if problem and "no calibration of this machine" in problem:
+        data = _read(path)
+        ms = data.get("machines", {})
+        if len(ms) == 1:  # a file of one's own: its only entry, whatever machine wrote it
+            (k, entry), = ms.items()
+            model, problem = _entry_model(entry, str(k))
+    if problem and warn:
+        warn_once(path, problem)
+    return model
+
+
+__all__ = ["FEATURES", "COEFFICIENTS", "DEFAULTS", "EXTRA_FEATURES", "EXTRA_DEFAULTS", "ONLINE_FEATURES",
+           "load_checked", "load_file", "warn_once", "CostModel", "features", "fit", "fit_model", "relative_error",
            "pass_cost", "refine", "save", "load", "load_any", "machine_key", "cache_dir"]

@@ -50,13 +50,14 @@ cost is dropped for the frame when its instances' savings do not pay for
 it) and one *pure* plan per candidate (that representation wherever it has
 an option within the bound, the triangle chain elsewhere), each priced as a
 frame: instances + batches + the per-frame passes used + the constant. With
-``adapt``, each plan's prediction is corrected by its own measured /
-predicted factor (the median over its observed frames, see
-:meth:`AutoSelector.plan_factor`; an unmeasured plan gets the median over
-all frames), and the plan with the lowest corrected prediction is drawn.
-During the first ``EXPLORE_FRAMES`` frames, a plan never measured whose
-corrected prediction is within ``EXPLORE_MARGIN`` of the best is drawn once,
-so that the correction is measured rather than assumed. A plan that draws
+``adapt`` (default) the plans are priced with the costs of the online fit
+(below) and :class:`lod.auto.control.PlanChooser` decides which is drawn:
+the incumbent plan changes only when another's predicted gain exceeds the
+measured noise for several frames (hysteresis), a plan the fit is unsure
+about and that could win is tried for a few frames (bounded exploration),
+and a change fades the instances that change representation over
+``switch_frames`` frames (screen-door, ``DrawBatch.fade``: no pop). Without
+``adapt`` the cheapest plan is drawn every frame. A plan that draws
 what an earlier plan draws (the mixed plan equal to a pure one, or pure plans
 that coincide, e.g. when every agent is in a super node) shares that plan's
 name and measurements. The plans are priced over every group of every
@@ -74,12 +75,14 @@ with such skipped instances is optimistic; when it wins, the skipped
 instances are evaluated exactly and the plans priced again, so skipping
 never changes the choice (tested against a selector without the bound).
 
-The cost model is the stored calibration of this machine; with ``adapt``
-(default) it is rescaled after every frame the engine reports through
-:meth:`AutoSelector.observe` (:func:`lod.auto.cost_model.refine`: one factor, the
-median measured / predicted ratio of the last ``ADAPT_FRAMES`` frames), so
-predictions follow the load the engine really runs under while the relative
-costs that decide the choices stay the calibration's.
+The cost model: the stored calibration of this machine (``crowd calibrate``;
+the defaults when there is none or the file cannot be used) is the prior of
+an online fit of the per-unit costs (:class:`lod.auto.online.OnlineCostModel`:
+Bayesian recursive least squares with forgetting) to every frame the engine
+reports through :meth:`AutoSelector.observe` (the counts drawn and the
+rendering time), so that a wrong, stale or missing calibration is corrected
+within a few dozen frames; options and plans are priced with its posterior
+mean. Without ``adapt`` the calibration prices everything.
 
 Far groups (issue 7; Wand & Straßer §3.6): before the per-instance
 choice, each candidate may draw whole groups of instances
@@ -96,47 +99,45 @@ drawn this way (the keyframe deviation is projected per instance only).
 Accuracy is asked for in one of two ways:
 
 - ``budget_ms = 0`` (default): a fixed bound, ``poe`` pixels.
-- ``budget_ms > 0``: a frame-time budget. The bound adapts once per frame
-  from the last frame's cost (measured, when the caller reports it through
-  :meth:`AutoSelector.observe`, else predicted) with hysteresis: it is
-  multiplied by ``step`` when the cost exceeds the budget by more than
-  ``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
-  ``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
-  square-rooted at every change of direction (a damped, bisection-like
-  search) down to ``MIN_STEP``; a reversal from over- to under-budget at the
-  smallest step holds the bound (the cost jumps across the band between two
-  neighbouring bounds: the under-budget one is kept) until the cost at the
-  held bound changes by more than ``HOLD_RELEASE`` (the view changed). The
-  bound is clamped to ``[BOUND_MIN, BOUND_MAX]`` pixels. A cost outside the
-  band moves the bound only after ``PERSIST`` consecutive frames on the same
-  side (a single noisy measurement does not), or at once when it is off the
-  budget by more than a factor ``URGENT``.
+- ``budget_ms > 0``: a frame-time budget; the bound adapts once per frame to
+  the last frame's measured (else predicted) cost with hysteresis
+  (:class:`lod.auto.budget.BudgetController`, its module docstring).
 
 Telemetry: ``DrawList.stats["auto"]`` = {"levels": instances per triangle
 chain level (full-detail fallbacks at 0), "representations": instances per
 candidate name, "options": instances per "candidate:option" label,
-"predicted_ms": predicted rendering time of the frame (the drawn plan's
-corrected prediction), "bound": pixels used this frame, "budget_ms": the
-budget or 0, "plan": the plan drawn, "plans_ms": every plan's corrected
-prediction, "select_ms": this selection's own time}.
+"predicted_ms": predicted rendering time of the frame (the fit's costs of
+the counts drawn, times the plan's measured bias), "predicted_sd_ms": its
+standard deviation (fit and frame noise), "bound": pixels used this frame,
+"budget_ms": the budget or 0, "plan": the plan drawn, "state": the
+chooser's state ("steady", "pending", "switch", "transition", "explore",
+"return"; "fixed" without ``adapt``), "incumbent", "fade_from" and
+"fade_t" (the plan faded out and the weight of a transition), "threshold":
+the relative gain another plan needs, "plans_ms": every plan's prediction,
+"plans_sd_ms": the standard deviation of its difference to the incumbent,
+"select_ms": this selection's own time; with ``explain``: "groups" (per
+master group "rep/part", instances per "candidate:option") and "model" (the
+fit's per-unit costs, their prior and standard deviation, the noise)}.
 """
 from __future__ import annotations
 
 import math
-import statistics
 import time
 
 import numpy as np
 
 from lod.auto import candidates as ac
 from lod.auto import cost_model
-from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
+from lod.auto.budget import BudgetController
+from lod.auto.control import SWITCH_FRAMES, Decision, PlanChooser
+from lod.auto.delegate import Delegates, delegated_stats
+from lod.auto.online import OnlineCostModel
 from lod.auto.plans import _Block, price_plans, price_plans_loop
 from lod.chains import chain as tm_chain
 from lod.chains import mode as tm
 from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES
 from lod.clusters.cut import viewport_scale
-from lod.drawlist import DrawList
+from lod.drawlist import FADE_IN, FADE_OUT, DrawList
 from lod.full.mode import NoLodSelector
 from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
 from sim.params import Param
@@ -162,8 +163,15 @@ PARAMS: dict = {
                                  doc="the cluster candidate cuts at poe / this: VDR-AM's per-cluster error "
                                      "under-estimates the image error about 2-3x against the triangle chains' "
                                      "(scripts/bench_auto.md); 1 keeps the paper's measure"),
-    "adapt": Param("bool", True, doc="rescale the cost model to the measured frames as they come "
-                                     "(lod.auto.cost_model.refine); false keeps the stored calibration"),
+    "adapt": Param("bool", True, doc="fit the per-unit costs online to the measured frames, the calibration as "
+                                     "prior (lod.auto.online), and choose the frame plan with hysteresis "
+                                     "(lod.auto.control); false prices with the stored calibration alone and "
+                                     "draws the cheapest plan every frame"),
+    "explore": Param("bool", True, doc="try a frame plan the online fit is unsure about and that could win, for a "
+                                       "few frames, at most a tenth of the frames (with adapt)"),
+    "switch_frames": Param("int", SWITCH_FRAMES, min=0, max=120,
+                           doc="frames over which a change of frame plan fades the instances that change "
+                               "representation (screen-door, as keyframe blends); 0 switches at once"),
     "levels": tm.PARAMS["levels"],
     "ratio": tm.PARAMS["ratio"],
     "leaf_triangles": Param("int", CLUSTERS_LEAF_TRIANGLES, min=8, max=1_000_000,
@@ -190,9 +198,6 @@ def parse_candidates(value) -> tuple:
     return tuple(c for c in CANDIDATES if c in names or c == "triangles")
 
 
-#: cost above budget * (1 + UP_TOLERANCE): coarsen (raise the bound)
-
-
 #: (k, L) pixels of error of each chain level per instance (see :func:`lod.auto.candidates.projected_errors`)
 projected_errors = ac.projected_errors
 
@@ -215,25 +220,37 @@ class AutoSelector:
     candidates : further :class:`lod.auto.candidates.Candidate` objects
         (clusters, points, ...) besides the triangle candidate, which is
         always first
-    adapt : rescale the cost model to the frames reported through
-        :meth:`observe` (the last ``ADAPT_FRAMES``; :func:`lod.auto.cost_model.refine`)
+    adapt : fit the per-unit costs online to the frames reported through
+        :meth:`observe` (:mod:`lod.auto.online`) and choose the frame plan
+        with hysteresis and exploration (:mod:`lod.auto.control`)
+    explore : try uncertain plans (with ``adapt``)
+    switch_frames : frames of a faded plan switch (with ``adapt``; 0: at once)
     """
 
     def __init__(self, reps, static_reps=(), poe: float = 1.0, budget_ms: float = 0.0, model=None,
-                 cull: bool = True, candidates=(), adapt: bool = False, explore: bool = True):
+                 cull: bool = True, candidates=(), adapt: bool = False, explore: bool = True,
+                 switch_frames: int = SWITCH_FRAMES, delegates=None):
         if not (np.isfinite(poe) and float(poe) >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {poe}")
         if not (np.isfinite(budget_ms) and float(budget_ms) >= 0.0):
             raise ValueError(f"[lod] budget_ms: expected a finite number >= 0, got {budget_ms}")
         self.poe = float(poe)
         self.budget_ms = float(budget_ms)
-        self.model = model if model is not None else cost_model.load_any()
-        #: the calibration the online refit is pulled towards
-        self.prior = self.model
+        #: the calibration (the online fit's prior)
+        self.prior = model if model is not None else cost_model.load_any()
         self.adapt = bool(adapt)
-        self._obs_x: list = []
-        self._obs_y: list = []
-        self._last_features = None
+        #: the online fit of the per-unit costs (:mod:`lod.auto.online`; None without ``adapt``)
+        self.fit = OnlineCostModel(self.prior) if self.adapt else None
+        #: the costs the options and plans are priced with: the fit's posterior mean (the prior without ``adapt``)
+        self.model = self.fit.cost_model() if self.fit is not None else self.prior
+        #: the plan decision (:mod:`lod.auto.control`; None without ``adapt``: the cheapest plan is drawn)
+        self.chooser = PlanChooser(switch_frames, explore, self.prior.is_default) if self.adapt else None
+        #: the single modes' selectors a held pure plan is drawn with once verified (:mod:`lod.auto.delegate`)
+        self.delegates = Delegates(delegates if self.chooser is not None else {})
+        #: per-group counts and the fit's state in ``stats["auto"]`` (``crowd run --explain-lod``)
+        self.explain = False
+        self._last = None
+        self._means = {}
         self.reps = list(reps)
         self.cull = bool(cull)
         self._rep_index = {r.key: i for i, r in enumerate(self.reps)}
@@ -247,10 +264,17 @@ class AutoSelector:
         self.explore = bool(explore)
         #: seconds the last :meth:`select` took (what :meth:`observe` subtracts to get the rendering time)
         self.last_select_seconds = 0.0
-        self._plan_ratio: dict = {}  # plan name -> log(measured / predicted) of its observed frames
-        self._last_plan = None
-        self._last_prior_pred = 0.0
         self._frames = 0
+
+    @property
+    def switch_frames(self) -> int:
+        """Frames of a faded plan switch (0: none; a keyframed selection blends keyframes itself)."""
+        return self.chooser.switch_frames if self.chooser is not None else 0
+
+    @switch_frames.setter
+    def switch_frames(self, n: int) -> None:
+        if self.chooser is not None:
+            self.chooser.switch_frames = max(0, int(n))
 
     def cluster_hierarchies(self) -> dict:
         """{rep key: ClusterHierarchy} of the cluster candidate's characters (for geomorphs
@@ -278,7 +302,7 @@ class AutoSelector:
         """Pixels of error the next frame is selected with."""
         return self.controller.bound if self.controller is not None else self.poe
 
-    def observe(self, seconds: float, select_seconds: float | None = None) -> None:
+    def observe(self, seconds: float, select_seconds: float | None = None, drawlist=None) -> None:
         """Report the measured cost of the last selected frame.
 
         Parameters
@@ -288,35 +312,32 @@ class AutoSelector:
         select_seconds : the selection's share of ``seconds``; default: the
             selector's own timing of its last :meth:`select`
             (``last_select_seconds``). With ``adapt`` the rest (the
-            rendering, what the cost model predicts) rescales the model
-            (:func:`lod.auto.cost_model.refine`) and corrects the prediction of
-            the frame plan drawn (module docstring, "Plans").
+            rendering, what the cost model predicts) is a row of the online
+            fit (:class:`lod.auto.online.OnlineCostModel`) and, when the frame
+            drew the plan alone, a measurement of that plan's bias
+            (:class:`lod.auto.control.PlanChooser`)
+        drawlist : the DrawList drawn (default: the last one selected); its
+            counts are the fit's row. A list other than the selector's own
+            (a keyframed selection's blend) feeds the fit, not the plans.
         """
         self._measured = float(seconds)
         self._uses_measured = True
         sel_s = self.last_select_seconds if select_seconds is None else float(select_seconds)
         render = float(seconds) - (sel_s if np.isfinite(sel_s) and sel_s > 0 else 0.0)
-        if not (self.adapt and self._last_features is not None and np.isfinite(render) and render > 0):
+        last, self._last = self._last, None
+        if not (self.fit is not None and np.isfinite(render) and render > 0):
             return
-        self._obs_x.append(self._last_features)
-        self._obs_y.append(render)
-        del self._obs_x[:-ADAPT_FRAMES], self._obs_y[:-ADAPT_FRAMES]
-        self.model = cost_model.refine(self.prior, np.asarray(self._obs_x), np.asarray(self._obs_y))
-        if self._last_plan is not None and self._last_prior_pred > 0:
-            r = self._plan_ratio.setdefault(self._last_plan, [])
-            r.append(math.log(render / self._last_prior_pred))
-            del r[:-PLAN_FRAMES]
-        self._last_features = None
-        self._last_plan = None
-
-    def plan_factor(self, name: str) -> float:
-        """Measured / predicted (stored calibration) of frame plan ``name``:
-        the median (log space) over its last ``PLAN_FRAMES`` observed frames,
-        else over those of all plans, else 1."""
-        r = self._plan_ratio.get(name)
-        if not r:
-            r = [v for x in self._plan_ratio.values() for v in x]
-        return float(math.exp(statistics.median(r))) if r else 1.0  # a few floats: no numpy call
+        own = last is not None and (drawlist is None or drawlist is last["dl"])
+        if drawlist is not None:
+            x = cost_model.features(drawlist, extended=True)  # as drawn: scenery and other counts included
+        elif last is not None:
+            x = last["x"]
+        else:
+            return
+        if self.fit.update(x, render) is not None and own:
+            for n in last["plans"]:  # the row as the fit took it (load-free)
+                self.chooser.observed(n, self.fit.last_z, self.fit.last_u, last["clean"])
+        self.model = self.fit.cost_model()
 
     def _options(self, frame, g, bound):
         """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
@@ -384,9 +405,14 @@ class AutoSelector:
         bound = float(self.bound)
         if not (np.isfinite(bound) and bound >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
+        held = self._held()  # steady on a pure plan: the others are not priced (lod.auto.control)
+        if held is not None and self.delegates.ready(held):  # or the single mode's own selector
+            dl = self.delegates.select(held, state, camera, size, statics, bound, self.candidates)
+            if dl is not None:
+                return self._delegated(dl, held, bound, t_start)
         w, h = max(1, int(size[0])), max(1, int(size[1]))
         frame = ac.Frame(state, camera, (w, h), camera.frustum_planes(w / h), viewport_scale(h, camera.fov_y), bound,
-                         self.prior, self.cull)
+                         self.model, self.cull)
         levels = np.zeros(self._n_levels, np.int64)
         per_cand = {c.name: 0 for c in self.candidates}
         tel = ac.Telemetry()
@@ -424,49 +450,28 @@ class AutoSelector:
             opts = self._options(frame, g, bound)
             groups.append((g, opts, sum(x.m for x in opts)))
         plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
-
-        factors = {}  # plan name -> its measured factor, once per selection
-
-        def corrected(name):
-            m = plans[name].measured_as(name)
-            f = factors.get(m)
-            if f is None:
-                f = factors[m] = self.plan_factor(m)
-            return plans[name].seconds * f
-
-        best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
-        if not plans[best].exact:  # priced optimistically: price every skipped instance exactly, then decide again
-            for gi, (g, opts, ncols) in enumerate(groups):
-                if any(x.skipped is not None for x in opts):
-                    full = [x if x.skipped is None else
-                            _Block.of(x.cand, x.cand.options(frame, g), x.a, None, bound, x.cand is self.candidates[0])
-                            for x in opts]
-                    groups[gi] = (g, full, ncols)
-            plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
-            best = min(plans, key=lambda n: (corrected(n), n != "mixed"))
-        if self.explore and self.controller is None and self.adapt and self._frames < EXPLORE_FRAMES:
-            # a plan never measured whose prediction is within the model's error of the best is tried once
-            cands = [n for n in plans if n != best and n not in self._plan_ratio and plans[n].alias is None
-                     and corrected(n) <= (1.0 + EXPLORE_MARGIN) * corrected(best)]
-            if cands and plans[best].measured_as(best) in self._plan_ratio:
-                best = min(cands, key=corrected)
-        plan_name = plans[best].measured_as(best)
-        for (g, opts, ncols), choice in zip(groups, plans[best].choices):
-            for x in opts:
-                c, o, a, m = x.cand, x.options, x.a, x.m
-                mine = np.flatnonzero(choice == a) if m == 1 else np.flatnonzero((choice >= a) & (choice < a + m))
-                if mine.size:
-                    local = choice[mine] - a
-                    out.extend(c.emit(frame, g, o, mine, local))
-                    per_cand[c.name] += int(mine.size)
-                    cnt = np.bincount(local, minlength=m)
-                    for j in np.flatnonzero(cnt).tolist():
-                        tel.add(c.name, o.labels[j] if j < len(o.labels) else str(j), int(cnt[j]))
-                    if c is self.candidates[0]:
-                        if g.batch.rep in self._chains:
-                            levels[:m] += cnt
-                        else:
-                            levels[0] += int(mine.size)
+        if held is not None:
+            dec = self.chooser.hold()
+            if not plans[held].exact:
+                groups = self._exact(frame, groups, bound)
+                plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
+            self._means = {held: (plans[held].seconds, 0.0)}
+        else:
+            dec, plans, groups = self._decide(frame, plans, groups, bound, (fixed_s, fixed_used))
+        plan_name = plans[dec.plan].measured_as(dec.plan)
+        old = plans[dec.fade_from] if dec.fade_from is not None else None
+        gc = {} if self.explain else None
+        for gi, (g, opts, ncols) in enumerate(groups):
+            choice = plans[dec.plan].choices[gi]
+            if old is None:
+                self._emit(frame, g, opts, choice, None, None, out, (per_cand, tel, levels, gc))
+                continue
+            prev = old.choices[gi]
+            moved = choice != prev
+            self._emit(frame, g, opts, choice, ~moved, None, out, (per_cand, tel, levels, gc))
+            if moved.any():  # both representations, complementary screen-door patterns (no pop)
+                self._emit(frame, g, opts, choice, moved, (dec.t, FADE_IN), out, (per_cand, tel, levels, gc))
+                self._emit(frame, g, opts, prev, moved, (dec.t, FADE_OUT), out, None)
         out.extend(wholes)
         out.sort(key=lambda x: (x.rep, x.part, x.level))
         dl.batches = out
@@ -476,22 +481,138 @@ class AutoSelector:
         dl.stats["triangles"] = int(sum(x.triangles for x in out))
         dl.stats["batches"] = len(out)
         dl.stats["levels"] = [int(x) for x in levels]
-        self._last_features = cost_model.features(dl)  # once: the prediction is linear in these counts
-        v = self.prior.vector
-        prior_pred = float(v[0] + v[1:] @ self._last_features)
-        predicted = prior_pred * self.plan_factor(plan_name)
-        self._last_prior_pred = prior_pred
-        self._last_plan = plan_name
-        dl.stats["auto"] = {"levels": [int(x) for x in levels], "representations": per_cand, "options": tel.counts,
-                            "predicted_ms": 1e3 * predicted, "bound": bound, "budget_ms": self.budget_ms,
-                            "plan": plan_name,
-                            "plans_ms": {n: 1e3 * corrected(n) for n in plans}}
+        x = cost_model.features(dl, extended=True)  # once: the prediction is linear in these counts
+        self._last = {"x": x, "dl": dl, "clean": old is None,
+                      "plans": [n for n in plans if plans[n].measured_as(n) == plan_name]}
+        predicted, sd = self._predicted(x, plan_name, old is None)
+        a = {"levels": [int(v) for v in levels], "representations": per_cand, "options": tel.counts,
+             "predicted_ms": 1e3 * predicted, "predicted_sd_ms": 1e3 * sd, "bound": bound,
+             "budget_ms": self.budget_ms, "plan": plan_name, "state": dec.state,
+             "incumbent": dec.incumbent, "fade_t": dec.t, "threshold": dec.threshold,
+             "fade_from": plans[dec.fade_from].measured_as(dec.fade_from) if old is not None else None,
+             "plans_ms": {n: 1e3 * v[0] for n, v in self._means.items()},
+             "plans_sd_ms": {n: 1e3 * v[1] for n, v in self._means.items()}}
+        if gc is not None:
+            a["groups"] = gc
+            a["model"] = self.fit.state() if self.fit is not None else None
+        dl.stats["auto"] = a
         if self.controller is not None and not self._uses_measured:
             self.controller.update(predicted)
         self._frames += 1
         self.last_select_seconds = time.perf_counter() - t_start
-        dl.stats["auto"]["select_ms"] = 1e3 * self.last_select_seconds
+        a["select_ms"] = 1e3 * self.last_select_seconds
+        if held is not None and self.delegates.pending(held):  # does the single mode draw the same? (once)
+            self.delegates.verify(held, dl, state, camera, size, statics, bound, self.candidates)
         return dl
+
+    def _delegated(self, dl, plan: str, bound: float, t_start: float):
+        """A held frame drawn by the single mode's selector (:mod:`lod.auto.delegate`): its telemetry."""
+        self.chooser.hold()
+        x = cost_model.features(dl, extended=True)
+        self._last = {"x": x, "dl": dl, "clean": True, "plans": [plan]}
+        predicted, sd = self._predicted(x, plan, True)
+        self._means = {plan: (predicted, 0.0)}
+        dl.stats["auto"] = a = delegated_stats(dl, plan, predicted, sd, bound, self)
+        if self.controller is not None and not self._uses_measured:
+            self.controller.update(predicted)
+        self._frames += 1
+        self.last_select_seconds = time.perf_counter() - t_start
+        a["select_ms"] = 1e3 * self.last_select_seconds
+        return dl
+
+    # ------------------------------------------------------------------------------------- plan choice
+    def _held(self):
+        """The pure plan (its candidate's name) the chooser holds this frame without pricing the others
+        (:meth:`lod.auto.control.PlanChooser.can_hold`), or None: every candidate is asked."""
+        if self.chooser is None or not self.chooser.can_hold():
+            return None
+        inc = self.chooser.incumbent
+        return inc if any(c.name == inc for c in self.candidates) else None
+
+    def _exact(self, frame, groups, bound):
+        """``groups`` with every instance a candidate skipped (its cost lower bound) priced exactly."""
+        out = list(groups)
+        for gi, (g, opts, ncols) in enumerate(groups):
+            if any(x.skipped is not None for x in opts):
+                full = [x if x.skipped is None else
+                        _Block.of(x.cand, x.cand.options(frame, g), x.a, None, bound, x.cand is self.candidates[0])
+                        for x in opts]
+                out[gi] = (g, full, ncols)
+        return out
+
+    def _decide(self, frame, plans, groups, bound, fixed):
+        """(:class:`lod.auto.control.Decision`, plans, groups) of this frame. A plan priced optimistically
+        (instances at a candidate's cost lower bound) is priced exactly before it can win or be drawn, so
+        skipping never changes the choice (module docstring, "Selection work").
+
+        With ``adapt`` the :class:`lod.auto.control.PlanChooser` decides (hysteresis, exploration, faded
+        switches) on the plans priced with the online fit's costs; without it the cheapest plan is drawn."""
+        def cheapest(ps):
+            return min(ps, key=lambda n: (ps[n].seconds, n != "mixed"))
+
+        best = cheapest(plans)
+        inc = self.chooser.incumbent if self.chooser is not None else None
+        if not plans[best].exact or (inc in plans and not plans[inc].exact):
+            groups = self._exact(frame, groups, bound)
+            plans = self._plans(frame, groups, bound, fixed)
+            best = cheapest(plans)
+        if self.chooser is None:
+            self._means = {n: (p.seconds, 0.0) for n, p in plans.items()}
+            return Decision(best, state="fixed", incumbent=best), plans, groups
+        canon = {n: p.measured_as(n) for n, p in plans.items()}
+        dec = self.chooser.choose({n: p.seconds for n, p in plans.items()}, self.fit,
+                                  equal=lambda u, v: canon[u] == canon[v])
+        self._means = {n: (m, sd) for n, (m, sd, _) in self.chooser.last.items()}
+        if any(not plans[n].exact for n in (dec.plan, dec.fade_from) if n is not None):
+            groups = self._exact(frame, groups, bound)
+            plans = self._plans(frame, groups, bound, fixed)
+        return dec, plans, groups
+
+    def _emit(self, frame, g, opts, choice, rows, fade, out, tally) -> None:
+        """The batches of group ``g`` drawing ``choice`` (option column per instance) for the instances
+        ``rows`` (bool mask; None: all), with ``DrawBatch.fade`` = ``fade``; ``tally`` = (instances per
+        candidate, option telemetry, chain levels, per-group counts or None) counts what is drawn (None:
+        nothing, the outgoing copies of a transition)."""
+        for x in opts:
+            c, o, a, m = x.cand, x.options, x.a, x.m
+            inb = (choice == a) if m == 1 else ((choice >= a) & (choice < a + m))
+            mine = np.flatnonzero(inb if rows is None else inb & rows)
+            if not mine.size:
+                continue
+            local = choice[mine] - a
+            bs = c.emit(frame, g, o, mine, local)
+            if fade is not None:
+                for b in bs:
+                    b.fade = fade
+            out.extend(bs)
+            if tally is None:
+                continue
+            per_cand, tel, levels, gc = tally
+            per_cand[c.name] += int(mine.size)
+            cnt = np.bincount(local, minlength=m)
+            for j in np.flatnonzero(cnt).tolist():
+                label = o.labels[j] if j < len(o.labels) else str(j)
+                tel.add(c.name, label, int(cnt[j]))
+                if gc is not None:
+                    key = f"{g.batch.rep}/{int(g.batch.part)}"
+                    d = gc.setdefault(key, {})
+                    d[f"{c.name}:{label}"] = d.get(f"{c.name}:{label}", 0) + int(cnt[j])
+            if c is self.candidates[0]:
+                if g.batch.rep in self._chains:
+                    levels[:m] += cnt
+                else:
+                    levels[0] += int(mine.size)
+
+    def _predicted(self, x, plan: str, clean: bool) -> tuple[float, float]:
+        """(seconds, sd) the drawn list's rendering is predicted to take: the fit's costs of its counts ``x``
+        (times the plan's measured bias on a clean frame), else the fixed model's."""
+        if self.fit is None:
+            v = self.model.vector
+            return float(v[0] + v[1:] @ x[:len(cost_model.FEATURES)]), 0.0
+        m, sd = self.fit.predict(x)
+        if clean and self.chooser is not None:
+            m *= math.exp(self.chooser.bias(plan, self.fit)[0])
+        return m, math.sqrt(sd ** 2 + (self.fit.noise * m) ** 2)
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True, model=None,
@@ -527,13 +648,14 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     names_c = parse_candidates(params.get("candidates", PARAMS["candidates"].default))
     tri_params = {k: params[k] for k in ("levels", "ratio") if k in params}
     tri_params["poe"] = poe
-    reps, _ = tm.build(characters, names, fps, tri_params, static_reps=static_reps, progress=progress, cache=cache)
+    reps, tsel = tm.build(characters, names, fps, tri_params, static_reps=static_reps, progress=progress, cache=cache)
+    delegates = {"triangles": tsel}
     extra = []
     if "clusters" in names_c and any(getattr(c, "kind", "") == "skinned" for c in characters):
         from lod.clusters import mode as clusters_mode
 
         cp = {"leaf_triangles": int(params.get("leaf_triangles", PARAMS["leaf_triangles"].default))}
-        creps, _ = clusters_mode.build(characters, names, fps, cp, static_reps=static_reps, progress=progress,
+        creps, delegates["clusters"] = clusters_mode.build(characters, names, fps, cp, static_reps=static_reps, progress=progress,
                                        cache=cache)
         extra.append(ac.ClustersCandidate(creps, error_scale=float(params.get(
             "cluster_error_scale", PARAMS["cluster_error_scale"].default))))
@@ -552,8 +674,13 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
                                         max_splat=int(params.get("max_splat", PARAMS["max_splat"].default)),
                                         deviation=dev, spheres=[getattr(r, "clip_sphere", None) for r in reps],
                                         instancing=psel.instancing))
+    if "points" in names_c and characters:
+        delegates["points"] = psel
     sel = AutoSelector(reps, static_reps=static_reps, poe=poe, budget_ms=budget, model=model, candidates=extra,
-                       adapt=bool(params.get("adapt", PARAMS["adapt"].default)))
+                       delegates=delegates,
+                       adapt=bool(params.get("adapt", PARAMS["adapt"].default)),
+                       explore=bool(params.get("explore", PARAMS["explore"].default)),
+                       switch_frames=int(params.get("switch_frames", PARAMS["switch_frames"].default)))
     return sel.candidate_reps, sel
 
 

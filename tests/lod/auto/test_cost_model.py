@@ -178,3 +178,36 @@ def test_refine_rescales_the_prior_to_observed_frames():
     bad = np.vstack([X[:2], np.full((1, len(cm.FEATURES)), np.nan)])
     m2 = cm.refine(prior, bad, np.array([y[0], y[1], 1.0]))
     assert m2.samples == 2 and np.isfinite(m2.vector).all() and (m2.vector >= 0).all()
+
+
+def test_bad_calibration_files_name_the_problem_once(tmp_path, capsys):
+    """load/load_any/load_file: a corrupt file, another format, non-finite or negative costs, another machine's
+    entries: the defaults and one line on stderr naming the file and the problem (once per process); a
+    missing file or entry is silent; unknown coefficient names are ignored (a later version may add some);
+    load_file takes a file of one's own (its only entry, whatever machine wrote it)."""
+    key = cm.machine_key("x")
+    cases = [("{not json", "not valid JSON"), ('{"format": 2, "machines": {}}', "format 2"),
+             (json.dumps({"format": 1, "machines": {key: {"coefficients": {"points": float("inf")}}}}), "inf"),
+             (json.dumps({"format": 1, "machines": {key: {"coefficients": {"frame": -1.0}}}}), "'frame'"),
+             (json.dumps({"format": 1, "machines": {"far|arm|GPU": {"coefficients": {}}}}), "no calibration")]
+    for i, (text, what) in enumerate(cases):
+        d = tmp_path / str(i)
+        d.mkdir()
+        (d / cm.FILE_NAME).write_text(text)
+        m = cm.load("x", directory=d)
+        assert m.is_default and m.coefficients == cm.DEFAULTS
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and str(d / cm.FILE_NAME) in err[0] and what in err[0], err
+        cm.load("x", directory=d)
+        assert capsys.readouterr().err == ""  # once
+    assert cm.load("x", directory=tmp_path / "none").is_default and capsys.readouterr().err == ""
+    d = tmp_path / "fwd"
+    d.mkdir()
+    (d / cm.FILE_NAME).write_text(json.dumps({"format": 1, "machines": {key: {"coefficients": {
+        "triangles": 2e-7, "warp_drive": 1.0}}}}))
+    m = cm.load("x", directory=d)
+    assert m.coefficients["triangles"] == 2e-7 and not m.is_default and capsys.readouterr().err == ""
+    other = tmp_path / "mine.json"
+    other.write_text(json.dumps({"format": 1, "machines": {"far|arm|GPU": {"coefficients": {"points": 1e-8}}}}))
+    m = cm.load_file(other)
+    assert m.coefficients["points"] == 1e-8 and m.key == "far|arm|GPU" and capsys.readouterr().err == ""

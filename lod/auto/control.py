@@ -1,0 +1,308 @@
+"""Which frame plan mode auto draws: hysteresis on the measured noise, bounded exploration, faded switches
+(issue 26, item 1).
+
+:class:`lod.auto.mode.AutoSelector` prices a few *frame plans* every frame (the mixed per-instance plan and
+one pure plan per representation, :mod:`lod.auto.plans`) with the online cost model
+(:mod:`lod.auto.online`). :class:`PlanChooser` decides which one is drawn:
+
+- **Incumbent and hysteresis.** One plan is the incumbent. Another plan ``p`` replaces it only when its
+  predicted gain ``(M_c - M_p) / M_c`` exceeds ``max(MIN_GAIN, K_SWITCH · sd / M_c)`` on
+  :data:`PERSIST` consecutive frames, where ``sd`` is the standard deviation of the predicted *difference*
+  (the fit's posterior covariance on the difference of the two plans' counts, plus the uncertainty of each
+  plan's measured bias, which scales with the measured residual noise). Noise the fit has measured widens the
+  band; alternating noisy frames therefore do not make it flap, and a load that slows every plan alike
+  cancels in the difference.
+- **Plans' counts.** A plan's predicted mean ``M_p`` is the pricing's total under the fit's current costs,
+  times the plan's measured bias: ``exp`` of the mean log residual of its last clean frames (at most
+  :data:`BIAS_FRAMES`, no older than :data:`BIAS_AGE`), shrunk by ``n / (n + BIAS_SHRINK)`` (what the
+  linear model misses for that plan). Its counts for the covariance are those of the last frame it was
+  drawn, rescaled to ``M_p``; a plan never drawn has a relative uncertainty of :data:`UNMEASURED_SD` and a
+  lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR` (:data:`UNMEASURED_FACTOR_NEUTRAL` without a
+  calibration).
+- **Exploration.** When the incumbent is steady and a plan's lower confidence bound
+  ``M_p - EXPLORE_Z · sd`` undercuts the incumbent, measured on :data:`EXPLORE_AFTER` frames (the fit is unsure about a plan that could win, e.g. a
+  representation not drawn for a while, whose uncertainty the forgetting lets grow back), that plan is
+  drawn for :data:`EXPLORE_RUN` frames after its fade-in (at most :data:`EXPLORE_FADE` frames each way), and
+  kept only if the hysteresis rule then prefers it; else auto fades back. Bounds: exploring (fades included) takes at most
+  ``EXPLORE_FRACTION`` of the frames (plus an allowance of :data:`EXPLORE_ALLOWANCE` for the start), never
+  starts within :data:`EXPLORE_GAP` frames of the last one, and never retries a plan within
+  :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the decision rests on the posterior
+  and a run of several frames is measured before anything is kept (the rule of run M in
+  ``scripts/bench_auto.md``, which explored and switched on single noisy frames, is what this replaces).
+- **Held frames.** While the incumbent is a steady pure plan (one representation), the plans are compared on
+  every :data:`REPRICE_FRAMES`-th frame only; in between the incumbent is drawn without a decision, by the
+  single mode's own selector once its list is verified to be the plan's (:mod:`lod.auto.delegate`): then auto's
+  selection costs what the single mode's does.
+- **No pop.** A change of the drawn plan is a transition of ``switch_frames`` frames: the instances whose
+  representation differs between the two plans are drawn by both with complementary screen-door fades
+  (``DrawBatch.fade``, as :mod:`lod.temporal.selection` blends two keyframe selections), the weight
+  ``t = r / (switch_frames + 1)`` rising frame by frame; 0 frames switch at once.
+
+The chooser is pure Python on a few numbers per plan; it never sees instances.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+#: a steady pure incumbent is drawn without pricing the other plans on all but every REPRICE_FRAMES-th frame
+REPRICE_FRAMES = 8
+#: smallest relative gain that moves the incumbent
+MIN_GAIN = 0.03
+#: gain needed, in standard deviations of the predicted difference
+K_SWITCH = 1.0
+#: consecutive frames the gain must hold
+PERSIST = 3
+#: frames of a transition between two plans (screen-door fade); 0 = switch at once
+SWITCH_FRAMES = 4
+#: lower confidence bound of exploration, in standard deviations
+EXPLORE_Z = 1.0
+#: clean frames an explored plan is measured on after its fade-in, and the longest fade to and from it
+EXPLORE_RUN = 2
+EXPLORE_FADE = 2
+#: share of frames exploration may take (fades included), and the allowance at the start
+EXPLORE_FRACTION = 0.1
+EXPLORE_ALLOWANCE = 24
+#: clean frames of the incumbent measured before anything is explored
+EXPLORE_AFTER = 2
+#: frames between two explorations, and before the same plan is tried again
+EXPLORE_GAP = 8
+EXPLORE_COOLDOWN = 90
+#: relative uncertainty of a plan never drawn in this run (for the hysteresis: switching to it unmeasured needs
+#: a gain of K_SWITCH times this), and the factor its cost may be below the prediction (its lower bound for
+#: exploration: a calibration taken under load mispriced one representation against another 2.5x,
+#: scripts/bench_auto.md runs K-M)
+UNMEASURED_SD = 0.5
+UNMEASURED_FACTOR = 2.0
+#: the same for the neutral prior (no calibration of this machine: the defaults of another one)
+UNMEASURED_FACTOR_NEUTRAL = 3.0
+#: clean frames (and their largest age) a plan's bias is the mean of, and its shrinkage
+BIAS_FRAMES = 8
+BIAS_AGE = 90
+BIAS_SHRINK = 2.0
+
+
+@dataclass
+class Decision:
+    """What to draw this frame.
+
+    plan : the plan drawn (its name)
+    fade_from : the plan faded out (None: no transition)
+    t : transition weight in (0, 1) of the incoming plan (0 without a transition)
+    state : "steady", "pending" (a better plan is waiting out the hysteresis), "switch" (first frame of a
+        switch), "transition", "explore" (fading in or measuring an explored plan) or "return"
+    incumbent : the incumbent plan
+    threshold : relative gain the best other plan would need (None when there is none)
+    """
+
+    plan: str
+    fade_from: str | None = None
+    t: float = 0.0
+    state: str = "steady"
+    incumbent: str | None = None
+    threshold: float | None = None
+
+
+class PlanChooser:
+    """The plan decision of one selector (module docstring).
+
+    Parameters
+    ----------
+    switch_frames : frames of a transition (0: none)
+    neutral : the fit's prior is the defaults, not a calibration of this machine (explore more widely)
+    explore : try uncertain plans (bounded); False: hysteresis only
+    """
+
+    def __init__(self, switch_frames: int = SWITCH_FRAMES, explore: bool = True, neutral: bool = False):
+        self.switch_frames = int(switch_frames)
+        #: how much cheaper than predicted a plan never drawn may be (lower for a calibration of this machine)
+        self.unmeasured_factor = UNMEASURED_FACTOR_NEUTRAL if neutral else UNMEASURED_FACTOR
+        self.explore = bool(explore)
+        self.incumbent: str | None = None
+        self.frames = 0
+        self.explored = 0
+        self.switches = 0
+        self.explorations = 0
+        self._pending = (None, 0)
+        self._since = 0  # frames since the plans were last priced
+        self._transition = None  # [from, to, r]
+        self._exploring = None  # [plan, clean frames left, incumbent to return to]
+        self._last_explore = -10 ** 9
+        self._tried: dict = {}
+        self._z: dict = {}  # plan -> counts row (fit units) of its last drawn frame
+        self._obs: dict = {}  # plan -> deque of (frame, row / seconds) of its clean frames
+        self.last = {}  # plan -> (mean, sd of the difference to the incumbent, lower bound) of the last frame
+
+    # ------------------------------------------------------------------------------------------ measurements
+    def observed(self, plan: str, z, u, clean: bool) -> None:
+        """A drawn frame of ``plan``: its counts row ``z`` (fit units) and ``u`` = ``z`` over the measured seconds
+        (:attr:`lod.auto.online.OnlineCostModel.last_u`);
+        ``clean``: the frame drew that plan alone (no transition), so it measures the plan's bias."""
+        if plan is None:
+            return
+        self._z[plan] = np.asarray(z, np.float64)
+        if clean:
+            self._obs.setdefault(plan, deque(maxlen=BIAS_FRAMES)).append((self.frames, np.asarray(u, np.float64)))
+
+    def bias(self, plan: str, fit) -> tuple[float, int]:
+        """(log factor, clean frames) of ``plan``'s measured / predicted under the current fit (shrunk)."""
+        obs = [u for f, u in self._obs.get(plan, ()) if self.frames - f <= BIAS_AGE]
+        if not obs:
+            return 0.0, 0
+        r = [-math.log(max(fit.relative(u), 1e-12)) for u in obs]
+        n = len(r)
+        return sum(r) / (n + BIAS_SHRINK), n
+
+    def _stats(self, means: dict, fit) -> dict:
+        """plan -> (corrected mean seconds, clean frames, counts row rescaled to it or None)."""
+        out = {}
+        for p, m in means.items():
+            b, n = self.bias(p, fit)
+            mc = float(m) * math.exp(b)
+            z = self._z.get(p)
+            if z is not None:
+                pz = fit.predict_z(z)
+                z = z * (mc / pz) if pz > 0 else None
+            out[p] = (mc, n, z)
+        return out
+
+    def _sd_diff(self, st: dict, p: str, c: str, fit) -> float:
+        mp, n_p, zp = st[p]
+        mc, n_c, zc = st[c]
+        if zp is None or zc is None:
+            return UNMEASURED_SD * math.hypot(mp if zp is None else 0.0, mc if zc is None else 0.0)
+        s2 = fit.sd_z(zp - zc) ** 2 + fit.noise ** 2 * (mp ** 2 / (n_p + BIAS_SHRINK) + mc ** 2 / (n_c + BIAS_SHRINK))
+        return math.sqrt(s2)
+
+    # ------------------------------------------------------------------------------------------ the decision
+    def choose(self, means: dict, fit, equal=None) -> Decision:
+        """This frame's :class:`Decision`.
+
+        Parameters
+        ----------
+        means : plan name -> predicted seconds under the fit's current costs (one entry per distinct plan)
+        fit : the :class:`lod.auto.online.OnlineCostModel`
+        equal : optional function (a, b) -> True when plans a and b draw the same this frame
+        """
+        self.frames += 1
+        self._since = 1
+        st = self._stats(means, fit)
+        best = min(st, key=lambda p: st[p][0])
+        if self.incumbent is None or self.incumbent not in st:
+            self.incumbent = best
+            self._pending = (None, 0)
+            self._transition = None
+            self._exploring = None
+        c = self.incumbent
+        same = equal or (lambda a, b: a == b)
+        self.last = {}
+        for p in st:
+            sd = self._sd_diff(st, p, c, fit) if p != c else 0.0
+            low = st[p][0] / self.unmeasured_factor if st[p][2] is None else st[p][0] - EXPLORE_Z * sd
+            self.last[p] = (st[p][0], sd, low)
+
+        def threshold(p, base):
+            return max(MIN_GAIN, K_SWITCH * self.last[p][1] / max(st[base][0], 1e-12))
+
+        def gain(p, base):
+            return (st[base][0] - st[p][0]) / max(st[base][0], 1e-12)
+
+        others = [p for p in st if p != c and not same(p, c)]
+        thr = min((threshold(p, c) for p in others), default=None)
+        # a transition in progress runs to its end
+        if self._transition is not None:
+            a, b, r, kind, n = self._transition
+            if b not in st or a not in st or same(a, b):
+                self._transition = None
+            else:
+                r += 1
+                self._transition[2] = r
+                if r >= n:
+                    self._transition = None
+                if kind != "transition":
+                    self.explored += 1
+                return Decision(b, a, r / (n + 1), kind, c, thr)
+        if self._exploring is not None:
+            e, left = self._exploring
+            if e not in st:
+                self._exploring = None
+            elif left > 0:
+                self._exploring[1] -= 1
+                self.explored += 1
+                return Decision(e, None, 0.0, "explore", c, thr)
+            else:  # measured: keep it only if the hysteresis rule prefers it now
+                self._exploring = None
+                self._last_explore = self.frames
+                if gain(e, c) > threshold(e, c):
+                    self.incumbent = e
+                    self.switches += 1
+                    return Decision(e, None, 0.0, "switch", e, None)
+                self.explored += 1
+                return self._start(e, c, "return", thr)
+        # steady: the hysteresis rule
+        cand = [p for p in others if gain(p, c) > threshold(p, c)]
+        if cand:
+            b = max(cand, key=lambda p: gain(p, c))
+            n = self._pending[1] + 1 if self._pending[0] == b else 1
+            self._pending = (b, n)
+            if n >= PERSIST:
+                self._pending = (None, 0)
+                self.incumbent = b
+                self.switches += 1
+                return self._start(c, b, "switch", thr)
+            return Decision(c, None, 0.0, "pending", c, thr)
+        self._pending = (None, 0)
+        # exploration: a plan whose lower bound undercuts the incumbent, within the budget
+        if self.explore and others:
+            cost = 2 * self._fade_frames("explore") + EXPLORE_RUN
+            budget = EXPLORE_FRACTION * self.frames + EXPLORE_ALLOWANCE
+            if (self.explored + cost <= budget and self.frames - self._last_explore >= EXPLORE_GAP
+                    and st[c][1] >= EXPLORE_AFTER):  # the incumbent measured first: the comparison needs it
+                ok = [p for p in others if self.last[p][2] < st[c][0] * (1.0 - MIN_GAIN)
+                      and self.frames - self._tried.get(p, -10 ** 9) >= EXPLORE_COOLDOWN]
+                if ok:
+                    e = min(ok, key=lambda p: self.last[p][2])
+                    self._tried[e] = self.frames
+                    self.explorations += 1
+                    self._exploring = [e, EXPLORE_RUN]
+                    self.explored += 1
+                    return self._start(c, e, "explore", thr)
+        return Decision(c, None, 0.0, "steady", c, thr)
+
+    def _fade_frames(self, state: str) -> int:
+        """Frames of a transition: ``switch_frames``, at most :data:`EXPLORE_FADE` to and from an exploration."""
+        n = max(0, int(self.switch_frames))
+        return min(n, EXPLORE_FADE) if state in ("explore", "return") else n
+
+    def _start(self, a: str, b: str, state: str, thr) -> Decision:
+        """First frame of the change from plan a to plan b (a transition when ``switch_frames`` > 0)."""
+        n = self._fade_frames(state)
+        if n <= 0:
+            if state == "explore":
+                self._exploring[1] -= 1
+            return Decision(b, None, 0.0, state, self.incumbent, thr)
+        self._transition = [a, b, 1, "transition" if state == "switch" else state, n] if n > 1 else None
+        return Decision(b, a, 1.0 / (n + 1), state, self.incumbent, thr)
+
+    def can_hold(self) -> bool:
+        """True when this frame may draw the incumbent without pricing the other plans: steady (no switch
+        pending, no transition or exploration) and priced within the last :data:`REPRICE_FRAMES` frames."""
+        return (self.incumbent is not None and self._transition is None and self._exploring is None
+                and self._pending[0] is None and 0 < self._since < REPRICE_FRAMES)
+
+    def hold(self) -> Decision:
+        """The decision of a held frame (:meth:`can_hold`): the incumbent, counted as a frame."""
+        self.frames += 1
+        self._since += 1
+        return Decision(self.incumbent, None, 0.0, "held", self.incumbent, None)
+
+    def summary(self) -> dict:
+        return {"incumbent": self.incumbent, "frames": self.frames, "switches": self.switches,
+                "explorations": self.explorations, "explored_frames": self.explored}
+
+
+__all__ = ["PlanChooser", "Decision", "MIN_GAIN", "K_SWITCH", "PERSIST", "SWITCH_FRAMES", "EXPLORE_RUN",
+           "EXPLORE_FRACTION", "EXPLORE_ALLOWANCE", "EXPLORE_GAP", "EXPLORE_COOLDOWN", "UNMEASURED_SD"]
