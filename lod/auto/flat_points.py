@@ -51,7 +51,8 @@ class Forest:
     coarse_count, coarse_spacing : (H, J, Q) the coarse prefixes (lod.points.coarse), padded with
     count 0 and spacing +inf (a padded prefix never fits a splat);
     base : character -> index of its first hierarchy (its segments in order); n_nodes : most nodes
-    of one hierarchy (scratch size).
+    of one hierarchy (scratch size); fast : (H,) bool, the root stores no triangles and has children
+    (:func:`_root_fast` may decide an instance from the root alone).
     """
 
     node0: np.ndarray
@@ -70,11 +71,12 @@ class Forest:
     coarse_spacing: np.ndarray
     base: dict
     n_nodes: int
+    fast: np.ndarray
 
     def arrays(self) -> tuple:
         return (self.node0, self.child_start, self.child_count, self.box0, self.box1, self.spacing,
                 self.point_start, self.point_count, self.tri_start, self.tri_count, self.bounds, self.intervals,
-                self.coarse_count, self.coarse_spacing)
+                self.coarse_count, self.coarse_spacing, self.fast)
 
 
 def build_forest(by_char: dict) -> Forest:
@@ -110,11 +112,16 @@ def build_forest(by_char: dict) -> Forest:
         parts = [np.asarray(getattr(h, name), dtype) for h in hs]
         return np.ascontiguousarray(np.concatenate(parts)) if parts else np.zeros(shape, dtype)
 
-    return Forest(node0, cat("child_start", np.int64, (0,)), cat("child_count", np.int64, (0,)),
-                  cat("box0", np.float64, (0, 2, 3)), cat("box1", np.float64, (0, 2, 3)),
-                  cat("spacing", np.float64, (0,)), ps, pc, cat("tri_start", np.int64, (0,)),
-                  cat("tri_count", np.int64, (0,)), bounds, intervals, cc, cs, base,
-                  int(max([h.n_nodes for h in hs] + [1])))
+    f = Forest(node0, cat("child_start", np.int64, (0,)), cat("child_count", np.int64, (0,)),
+               cat("box0", np.float64, (0, 2, 3)), cat("box1", np.float64, (0, 2, 3)),
+               cat("spacing", np.float64, (0,)), ps, pc, cat("tri_start", np.int64, (0,)),
+               cat("tri_count", np.int64, (0,)), bounds, intervals, cc, cs, base,
+               int(max([h.n_nodes for h in hs] + [1])), np.zeros(H, np.bool_))
+    for i in range(H):
+        if node0[i + 1] > node0[i]:
+            r = int(node0[i])
+            f.fast[i] = f.tri_count[r] == 0 and f.child_count[r] > 0
+    return f
 
 
 # ---------------------------------------------------------------------------- 1, 2: segments and the sort
@@ -196,9 +203,83 @@ def _bin_scatter(binof, uof, ids, data, first, cstarts, pos, pdata, pids, skinne
 
 
 # ---------------------------------------------------------------------------- 3: the traversal
+#: relative margin of :func:`_root_fast` (far above the rounding of the kernel's corner arithmetic,
+#: about 1e-15 of the magnitudes involved)
+ROOT_MARGIN = 1e-10
+
+
+@njit(cache=True, inline="always")
+def _first_fit(coarse_spacing, j, f, splat):  # pragma: no cover - compiled
+    """The first coarse prefix of interval j (``coarse_spacing`` (J, Q)) whose spacing projects within the
+    splat at ``f`` pixels per metre (as the kernel's loop), or -1."""
+    for q in range(coarse_spacing.shape[1]):
+        if coarse_spacing[j, q] * f <= splat:
+            return q
+    return -1
+
+
+@njit(cache=True, inline="always")
+def _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, a, h, u, j, planes, model, scale,
+               vscale, splat):  # pragma: no cover - compiled
+    """The traversal of one instance decided from its root alone (the common case of a far crowd: the
+    root drawn as points, :func:`lod.points.traverse._traverse_kernel` visits nothing else), or -1 when it
+    cannot be decided that way. Returns the points drawn (0: the root has none in interval j).
+
+    Exact, not approximate: the kernel takes the minimum view depth over the 8 transformed corners of the
+    root's box at u; here it is computed in closed form (the depth of the centre minus the box's
+    half-extents along the view direction) with a margin ``m`` (:data:`ROOT_MARGIN` of the magnitudes
+    involved) far above the kernel's rounding, so the kernel's value lies in [d - m, d + m]. The kernel's
+    tests (spacing within the splat; the first coarse prefix that fits) are monotone in the depth under
+    rounding (a positive numerator divided by a larger depth never rounds larger), so when both ends of
+    the interval give the same answer, so does the kernel's depth; otherwise -1. Likewise the root is not
+    culled when its centre lies inside every plane by more than the margin (some corner is then inside
+    each plane). The tree below is never needed: the root's points end the traversal."""
+    w = 1.0 - u
+    lo0 = w * box0[a, 0, 0] + u * box1[a, 0, 0]
+    lo1 = w * box0[a, 0, 1] + u * box1[a, 0, 1]
+    lo2 = w * box0[a, 0, 2] + u * box1[a, 0, 2]
+    hi0 = w * box0[a, 1, 0] + u * box1[a, 1, 0]
+    hi1 = w * box0[a, 1, 1] + u * box1[a, 1, 1]
+    hi2 = w * box0[a, 1, 2] + u * box1[a, 1, 2]
+    x0, x1, x2 = 0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2)
+    h0, h1, h2 = 0.5 * abs(hi0 - lo0), 0.5 * abs(hi1 - lo1), 0.5 * abs(hi2 - lo2)
+    c0 = model[0, 0] * x0 + model[0, 1] * x1 + model[0, 2] * x2 + model[0, 3]
+    c1 = model[1, 0] * x0 + model[1, 1] * x1 + model[1, 2] * x2 + model[1, 3]
+    c2 = model[2, 0] * x0 + model[2, 1] * x1 + model[2, 2] * x2 + model[2, 3]
+    e0, e1, e2 = abs(x0) + h0, abs(x1) + h1, abs(x2) + h2
+    mag = 0.0
+    for r in range(3):
+        mag += abs(model[r, 3]) + abs(model[r, 0]) * e0 + abs(model[r, 1]) * e1 + abs(model[r, 2]) * e2
+    m = ROOT_MARGIN * (mag + 1.0)
+    for p in range(planes.shape[0]):
+        if not (planes[p, 0] * c0 + planes[p, 1] * c1 + planes[p, 2] * c2 + planes[p, 3]
+                > m + ROOT_MARGIN * abs(planes[p, 3])):
+            return -1
+    n0, n1, n2 = planes[4, 0], planes[4, 1], planes[4, 2]
+    d = (n0 * c0 + n1 * c1 + n2 * c2 - abs(n0 * model[0, 0] + n1 * model[1, 0] + n2 * model[2, 0]) * h0
+         - abs(n0 * model[0, 1] + n1 * model[1, 1] + n2 * model[2, 1]) * h1
+         - abs(n0 * model[0, 2] + n1 * model[1, 2] + n2 * model[2, 2]) * h2)
+    dlo = d - m
+    dhi = d + m
+    if not dlo > 0.0:
+        return -1
+    if not (spacing[a] * scale / dlo * vscale <= splat):  # the far end may descend: the kernel decides
+        return -1
+    pc = point_count[a, j]
+    if pc <= 0:
+        return 0
+    qlo = _first_fit(coarse_spacing[h], j, scale / dlo * vscale, splat)
+    qhi = _first_fit(coarse_spacing[h], j, scale / dhi * vscale, splat)
+    if qlo != qhi:
+        return -1
+    if qlo >= 0:
+        pc = min(pc, coarse_count[h, j, qlo])
+    return pc
+
+
 @njit(cache=True)
 def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                    tri_count, bounds, intervals, coarse_count, coarse_spacing, n_nodes, pdata, kbin, bin_h, bin_row0,
+                    tri_count, bounds, intervals, coarse_count, coarse_spacing, fast, n_nodes, pdata, kbin, bin_h, bin_row0,
                     planes, vscale, splat, r0, r1, base, cap, pjobs, tjobs, psum, tsum, pbin,
                     tbin):  # pragma: no cover - compiled
     """Sorted instances ``r0 .. r1 - 1`` into job rows ``base .. base + cap - 1`` (as
@@ -236,10 +317,17 @@ def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_
         j = 0
         while j < intervals[h] - 1 and bounds[h, j + 1] <= u:
             j += 1
-        np_, nt = _traverse_kernel(child_start[a:e], child_count[a:e], box0[a:e], box1[a:e], spacing[a:e],
-                                   point_start[a:e], point_count[a:e], tri_start[a:e], tri_count[a:e],
-                                   coarse_count[h], coarse_spacing[h], u, j, planes, model, scale, vscale, splat,
-                                   out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
+        cnt = _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, a, h, u, j, planes, model,
+                         scale, vscale, splat) if fast[h] else -1
+        if cnt >= 0:  # decided at the root: drawn from its points (or from none), nothing else
+            np_, nt = (1 if cnt > 0 else 0), 0
+            out_p[0, 0] = point_start[a, j]
+            out_p[0, 1] = cnt
+        else:
+            np_, nt = _traverse_kernel(child_start[a:e], child_count[a:e], box0[a:e], box1[a:e], spacing[a:e],
+                                       point_start[a:e], point_count[a:e], tri_start[a:e], tri_count[a:e],
+                                       coarse_count[h], coarse_spacing[h], u, j, planes, model, scale, vscale,
+                                       splat, out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
         if npj + np_ > cap or ntj + nt > cap:
             return -1, -1
         row = r - bin_row0[b]
@@ -266,13 +354,13 @@ def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_
 
 @njit(cache=True, parallel=True)
 def _traverse_chunks(node0, child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                     tri_count, bounds, intervals, coarse_count, coarse_spacing, n_nodes, pdata, kbin, bin_h,
+                     tri_count, bounds, intervals, coarse_count, coarse_spacing, fast, n_nodes, pdata, kbin, bin_h,
                      bin_row0, planes, vscale, splat, first, cap, pjobs, tjobs, npc, ntc, psum, tsum, pbin,
                      tbin):  # pragma: no cover - compiled
     for c in prange(first.shape[0] - 1):
         npc[c], ntc[c] = _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_start,
                                          point_count, tri_start, tri_count, bounds, intervals, coarse_count,
-                                         coarse_spacing, n_nodes, pdata, kbin, bin_h, bin_row0, planes, vscale,
+                                         coarse_spacing, fast, n_nodes, pdata, kbin, bin_h, bin_row0, planes, vscale,
                                          splat, first[c], first[c + 1], c * cap, cap, pjobs, tjobs, psum, tsum,
                                          pbin[c], tbin[c])
 

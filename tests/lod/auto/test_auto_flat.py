@@ -219,3 +219,63 @@ def test_flat_locate_equals_keyframed_locate(built):
             s, v = fp._locate.py_func(x, kf.seg_start[a0:a0 + ns].astype(float), kf.seg_end[a0:a0 + ns].astype(float),
                                       float(kf.anim_t0[clip]), float(kf.anim_duration[clip]), bool(kf.anim_loop[clip]))
             assert (s + a0, v) == (seg[i], u[i])
+
+
+def test_root_fast_path_is_exact_at_the_thresholds():
+    """lod.auto.flat_points._root_fast decides an instance from its root only where the traversal kernel
+    draws exactly the root's points (count included) or nothing; instances placed within 1e-12 of the
+    kernel's thresholds (the spacing test, each coarse prefix) are left to the kernel."""
+    from lod.points.coarse import add_coarse, coarse_arrays
+    from lod.points.octree import build_hierarchy
+    from lod.points.traverse import _traverse_kernel
+
+    kf = build_keyframed_rep(pm.keyframed_character(humanoid(800, 2), 3), key="w")
+    h = build_hierarchy(*pm.segment_arrays(kf, 0), seed=0, progress=False)
+    add_coarse(h)
+    forest = fp.build_forest({0: SimpleNamespace(hierarchies=[h])})
+    assert forest.fast[0]
+    cam = Camera.look_at((0, 0.0, 0.0), (0, 0.0, -1.0))
+    planes = cam.frustum_planes(1.0)
+    vs, splat = 240.0, 2.0
+    N = h.n_nodes
+    scratch = (np.empty((N, 2), np.int64), np.empty(N, np.int32), np.empty((N, 2), np.int64), np.empty(N, np.int32),
+               np.empty(N + 8, np.int64), np.empty((8, 3)), np.empty(3), np.empty(3))
+    arr = pm._harrays(h)
+
+    def both(z, u=0.3, yaw=0.4, s=1.0):
+        m = np.array([[np.cos(yaw) * s, 0, np.sin(yaw) * s, 0.1], [0, s, 0, -0.9], [-np.sin(yaw) * s, 0, np.cos(yaw) * s, z]])
+        j = int(min(max(np.searchsorted(h.bounds[1:-1], u, side="right"), 0), h.intervals - 1))
+        fast = fp._root_fast(forest.box0, forest.box1, forest.spacing, forest.point_count, forest.coarse_count,
+                             forest.coarse_spacing, 0, 0, u, j, planes, m, s, vs, splat)
+        np_, nt = _traverse_kernel(*arr[:9], *arr[10:12], u, j, planes, m, s, vs, splat, *scratch)
+        return fast, np_, nt, scratch[0][:np_].copy(), j
+
+    def decided(z):  # the kernel's decision as a comparable value
+        _, np_, nt, p, _ = both(z)
+        return (np_, nt, tuple(map(tuple, p)))
+
+    # thresholds: depths where the kernel's decision changes, found by bisection
+    zs = -np.geomspace(0.5, 400.0, 300)
+    cuts = []
+    for a, b in zip(zs[:-1], zs[1:]):
+        if decided(a) != decided(b):
+            for _ in range(200):
+                mid = 0.5 * (a + b)
+                if mid in (a, b):
+                    break
+                a, b = (mid, b) if decided(mid) == decided(a) else (a, mid)
+            cuts.append(a)
+    assert len(cuts) >= 2
+    near = [c + dz for c in cuts for dz in (-1e-12, -1e-14, 0.0, 1e-14, 1e-12)]
+    n_fast = n_left = 0
+    for z in list(zs) + near:
+        fast, np_, nt, p, j = both(z)
+        if fast < 0:
+            n_left += 1
+            continue
+        n_fast += 1
+        assert nt == 0 and np_ == (1 if fast > 0 else 0)
+        if fast > 0:
+            assert p[0, 0] == h.point_start[0, j] and p[0, 1] == fast
+    assert n_fast > 100 and n_left >= len(cuts)
+    assert coarse_arrays(h)[0].shape[1] > 1
