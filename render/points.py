@@ -46,11 +46,12 @@ import numpy as np
 
 from lod.drawlist import fade_uniform
 from render import occlusion as occ
+from render import points_pack as pack
 from render.context import track
 from render.points_frame import instance_windows, rect_vertices, resolve_rects  # noqa: F401 (re-exported)
 from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
-from render.tint import TINT_BYTES, batch_words
+from render.tint import TINT_BYTES
 
 #: threads per work group of the splat passes (they stride over each job's points); 8 is
 #: llvmpipe's SIMD width and measured 2x faster than 64 there (mean job: 160
@@ -324,7 +325,7 @@ class Drawer:
 
     def _buffer(self, name, data: np.ndarray):
         """Per-frame storage buffer ``name`` (grown by doubling) holding ``data``."""
-        raw = np.ascontiguousarray(data).tobytes()
+        raw = memoryview(np.ascontiguousarray(data)).cast("B")  # no copy of a frame's million rows
         b = self._bufs.get(name)
         if b is None or b.size < len(raw):
             if b is not None:
@@ -443,13 +444,13 @@ class Drawer:
         for b in batches:
             offs[id(b)] = rows
             rows += b.n_instances
-        # the model matrices also dequantise their rep's positions (pack_samples)
-        inst = np.concatenate([fold_box(b.instance_data, *self._reps[b.rep].box) for b in batches])
-        if not np.isfinite(inst).all():
+        # the model matrices also dequantise their rep's positions (fold_box; packed in numba: render.points_pack)
+        inst, finite = pack.fold_rows(batches, [self._reps[b.rep].box for b in batches])
+        if not finite:
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
         inst_buf = self._buffer("instances", inst)
         # colour words per instance row (variation, debug colour: render/tint.py, shaders/tint.glsl)
-        tint_buf = self._buffer("tints", batch_words(batches, self.r.tint_table))
+        tint_buf = self._buffer("tints", pack.batch_words(batches, self.r.tint_table))
         row_bytes = inst.shape[1] * inst.itemsize
         limit = self.ssbo_limit or int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27))
         # instance rows one storage binding can hold (render/points_frame.py), a multiple of WINDOW_ROWS so
@@ -475,12 +476,12 @@ class Drawer:
         splat = int(drawlist.options.get("splat_size", first.splat))
         # 1. the traversal's jobs: triangle tables per (fade, rep), point tables per fade over every
         # rep (their samples share one buffer)
-        tris = [(f, k, g, job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
+        tris = [(f, k, g, pack.job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
                 for f in by_fade for k, g in self._reps.items()]
         tris = [t for t in tris if t[3].shape[0]]
         groups = []
         for fade, bs in by_fade.items():
-            parts = [job_table(bs, key, g.pbase, "point_jobs", offs) for key, g in self._reps.items()]
+            parts = [pack.job_table(bs, key, g.pbase, "point_jobs", offs) for key, g in self._reps.items()]
             parts = [j for j in parts if j.shape[0]]
             if parts:
                 groups.append((fade, _merge_jobs(parts)))
