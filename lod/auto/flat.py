@@ -268,9 +268,10 @@ def _points(c, frame, fl, r, bound, coef):
     K = int(bstart[-1])
     cstarts = np.ascontiguousarray(bstart[None, :-1] + np.cumsum(cc, axis=0) - cc)
     pos = np.empty(N, np.int64)
+    src = np.empty(K, np.int64)
     pdata = np.empty((K, 16), np.float32)
     pids = np.empty(K, ids.dtype)
-    fp._bin_scatter(binof, uof, ids, data, first, cstarts, pos, pdata, pids,
+    fp._bin_scatter(binof, uof, ids, data, first, cstarts, pos, src, pdata, pids,
                     np.array(bin_skinned + [False], np.bool_))
     kbin = np.repeat(np.arange(max(B, 1), dtype=np.int64), counts)
     vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
@@ -301,17 +302,10 @@ def _points(c, frame, fl, r, bound, coef):
                 used += 1
                 jobs[bin_group[q][1]] = (a - k0, e - k0, pj[pj_at[q]:pj_at[q + 1]], tj[tj_at[q]:tj_at[q + 1]])
         a_, e_ = int(gstart[gi]), int(gstart[gi + 1])
-        order = None if used == 1 else _order_of(pos, a_, e_, k0)
+        order = None if used == 1 else src[k0:k1] - a_  # the group's row of each sorted position
         plan = (c.by_char[g.char], pdata[k0:k1], pids[k0:k1], order, jobs, pts[a_:e_], tris[a_:e_], p)
         opts[gi] = LazyOptions(cost[a_:e_, None], err[a_:e_, None], plan, (f"splat{p}",))
     return opts
-
-
-def _order_of(pos, a, e, k0):
-    """The group's rows in sorted order (the per-group ``order``: row of each sorted position)."""
-    o = np.empty(e - a, np.int64)
-    o[pos[a:e] - k0] = np.arange(e - a)
-    return o
 
 
 # ---------------------------------------------------------------------------- clusters

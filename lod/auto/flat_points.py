@@ -125,34 +125,14 @@ def build_forest(by_char: dict) -> Forest:
 
 
 # ---------------------------------------------------------------------------- 1, 2: segments and the sort
-@njit(cache=True, inline="always")
-def _locate(x, starts, ends, t0, dur, loop):  # pragma: no cover - compiled
-    """Segment within the clip and u of time ``x``: :func:`lod.full.reps._locate_one` on one value."""
-    ns = starts.shape[0]
-    if not np.isfinite(x):
-        x = t0
-    if loop and dur > 0.0:
-        x = t0 + (x - t0) % dur  # Python's float modulo: the sign of dur, as np.mod
-    x = min(max(x, starts[0]), ends[ns - 1])
-    lo, hi = 0, ns  # searchsorted(starts, x, side="right") - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if starts[mid] <= x:
-            lo = mid + 1
-        else:
-            hi = mid
-    s = min(max(lo - 1, 0), ns - 1)
-    span = ends[s] - starts[s]
-    v = (x - starts[s]) / (span if span > 0.0 else 1.0)
-    return s, min(max(v, 0.0), 1.0)
-
-
 @njit(cache=True, parallel=True)
 def _locate_kernel(ids, gof, g_on, g_skinned, g_ns, g_soff, g_t0, g_dur, g_loop, g_bin0, starts, ends, anim_time,
                    binof, uof):  # pragma: no cover - compiled
     """Per instance of a group the candidate draws: its bin (the group's first bin + segment within the
-    clip) and ``u`` (skinned: located from the agent's animation time; keyframed: the group's part is
-    the segment, the master's column 12 its u); -1 elsewhere."""
+    clip) and ``u`` (skinned: located from the agent's animation time by the rule of
+    :func:`lod.full.reps._locate_one`, the clip's segments at ``starts[g_soff[g]:][:g_ns[g]]``; keyframed:
+    the group's part is the segment, the master's column 12 its u); -1 elsewhere. The body is written
+    out here: a helper taking the segment tables costs their reference counts per instance."""
     for i in prange(ids.shape[0]):
         g = gof[i]
         if not g_on[g]:
@@ -161,10 +141,25 @@ def _locate_kernel(ids, gof, g_on, g_skinned, g_ns, g_soff, g_t0, g_dur, g_loop,
         if not g_skinned[g]:
             binof[i] = g_bin0[g]
             continue
-        s0, ns = g_soff[g], g_ns[g]
-        s, u = _locate(anim_time[ids[i]], starts[s0:s0 + ns], ends[s0:s0 + ns], g_t0[g], g_dur[g], g_loop[g])
+        s0, ns, t0, dur = g_soff[g], g_ns[g], g_t0[g], g_dur[g]
+        x = anim_time[ids[i]]
+        if not np.isfinite(x):
+            x = t0
+        if g_loop[g] and dur > 0.0:
+            x = t0 + (x - t0) % dur  # Python's float modulo: the sign of dur, as np.mod
+        x = min(max(x, starts[s0]), ends[s0 + ns - 1])
+        lo, hi = 0, ns  # searchsorted(starts, x, side="right") - 1
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if starts[s0 + mid] <= x:
+                lo = mid + 1
+            else:
+                hi = mid
+        s = min(max(lo - 1, 0), ns - 1)
+        span = ends[s0 + s] - starts[s0 + s]
+        v = (x - starts[s0 + s]) / (span if span > 0.0 else 1.0)
         binof[i] = g_bin0[g] + s
-        uof[i] = u
+        uof[i] = min(max(v, 0.0), 1.0)
 
 
 @njit(cache=True, parallel=True)
@@ -181,10 +176,10 @@ def _bin_counts(binof, first, B):  # pragma: no cover - compiled
 
 
 @njit(cache=True, parallel=True)
-def _bin_scatter(binof, uof, ids, data, first, cstarts, pos, pdata, pids, skinned_bin):  # pragma: no cover
+def _bin_scatter(binof, uof, ids, data, first, cstarts, pos, src, pdata, pids, skinned_bin):  # pragma: no cover
     """The stable counting sort: chunk c writes bin b from ``cstarts[c, b]``; ``pos[i]`` is instance i's
-    sorted row (-1: none); the sorted rows get the instance data with ``u`` as float32 in column 12 (a
-    skinned group's; a keyframed group's data is copied as it is)."""
+    sorted row (-1: none), ``src[k]`` the instance of sorted row k; the sorted rows get the instance data
+    with ``u`` as float32 in column 12 (a skinned group's; a keyframed group's data is copied as it is)."""
     for c in prange(first.shape[0] - 1):
         cursor = cstarts[c].copy()
         for i in range(first[c], first[c + 1]):
@@ -195,6 +190,7 @@ def _bin_scatter(binof, uof, ids, data, first, cstarts, pos, pdata, pids, skinne
             k = cursor[b]
             cursor[b] += 1
             pos[i] = k
+            src[k] = i
             pids[k] = ids[i]
             for q in range(16):
                 pdata[k, q] = data[i, q]

@@ -209,16 +209,22 @@ def test_flat_traversal_equals_traverse_instances():
 
 
 def test_flat_locate_equals_keyframed_locate(built):
-    """The scalar segment search of the flat path is KeyframedRep.locate's, edge times included."""
+    """The flat path's segment search (lod.auto.flat_points._locate_kernel) is KeyframedRep.locate's, edge
+    times included."""
     kf = built.sel.candidates[2].by_char[0].keyframed
     t = np.concatenate([np.linspace(-3, 5, 997), [np.nan, np.inf, -np.inf, 0.0, 1e9]])
+    n = t.shape[0]
     for clip in range(kf.n_clips):
         a0, ns = int(kf.anim_first_seg[clip]), int(kf.anim_n_segs[clip])
         seg, u = kf.locate(clip, t)
-        for i, x in enumerate(t):
-            s, v = fp._locate.py_func(x, kf.seg_start[a0:a0 + ns].astype(float), kf.seg_end[a0:a0 + ns].astype(float),
-                                      float(kf.anim_t0[clip]), float(kf.anim_duration[clip]), bool(kf.anim_loop[clip]))
-            assert (s + a0, v) == (seg[i], u[i])
+        binof, uof = np.empty(n, np.int64), np.empty(n)
+        fp._locate_kernel(np.arange(n, dtype=np.int32), np.zeros(n, np.int64), np.ones(1, bool), np.ones(1, bool),
+                          np.array([ns]), np.zeros(1, np.int64), np.array([float(kf.anim_t0[clip])]),
+                          np.array([float(kf.anim_duration[clip])]), np.array([bool(kf.anim_loop[clip])]),
+                          np.array([7]), kf.seg_start[a0:a0 + ns].astype(float), kf.seg_end[a0:a0 + ns].astype(float),
+                          t, binof, uof)
+        np.testing.assert_array_equal(binof - 7 + a0, seg)
+        np.testing.assert_array_equal(uof, u)
 
 
 def test_root_fast_path_is_exact_at_the_thresholds():
