@@ -94,7 +94,9 @@ def test_covering_keeps_near_clipped_and_pixel_centre_quads():
                   [0.1, 0.0, 0.0, 0.001],    # (5.5, 5.0): on a centre column, between rows
                   [0.1, 0.0, 0.1, 0.001],    # (5.5, 5.5): on a pixel centre
                   [5.0, 0.0, 5.0, 0.5],      # outside the viewport
-                  [0.0, 0.0, 0.0, 0.3]], np.float32)  # covers several centres
-    assert rb.covering(b, vp, size, lift=0.0).tolist() == [False, False, False, True, False, True]
+                  [0.0, 0.0, 0.0, 0.3],      # covers several centres
+                  [0.19, 0.0, 0.19, 0.1]], np.float32)  # (5.95, 5.95) +- 0.5: (5.5, 5.5) in its corner, off the disc
+    assert rb.covering(b, vp, size, lift=0.0).tolist() == [False, False, False, True, False, True, False]
+    assert rb.covering(b[-1:], vp, size, lift=0.0, margin=0.2).tolist() == [True]  # within a wider margin
     vp[3] = [0.0, 0.0, 1.0, 0.0]  # w = z: a quad reaching behind the camera plane is kept
     assert rb.covering(np.array([[0.0, 0.0, 0.0, 0.5]], np.float32), vp, size, 0.0).tolist() == [True]
