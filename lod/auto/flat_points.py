@@ -204,22 +204,13 @@ def _bin_scatter(binof, uof, ids, data, first, cstarts, pos, src, pdata, pids, s
 ROOT_MARGIN = 1e-10
 
 
-@njit(cache=True, inline="always")
-def _first_fit(coarse_spacing, j, f, splat):  # pragma: no cover - compiled
-    """The first coarse prefix of interval j (``coarse_spacing`` (J, Q)) whose spacing projects within the
-    splat at ``f`` pixels per metre (as the kernel's loop), or -1."""
-    for q in range(coarse_spacing.shape[1]):
-        if coarse_spacing[j, q] * f <= splat:
-            return q
-    return -1
-
-
-@njit(cache=True, inline="always")
-def _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, a, h, u, j, planes, model, scale,
-               vscale, splat):  # pragma: no cover - compiled
-    """The traversal of one instance decided from its root alone (the common case of a far crowd: the
-    root drawn as points, :func:`lod.points.traverse._traverse_kernel` visits nothing else), or -1 when it
-    cannot be decided that way. Returns the points drawn (0: the root has none in interval j).
+@njit(cache=True)
+def _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, fast, node0, intervals, bounds,
+               pdata, kbin, bin_h, planes, vscale, splat, r0, r1, out):  # pragma: no cover - compiled
+    """For sorted instances ``r0 .. r1 - 1``: ``out[r - r0]`` = the points the traversal draws when it is
+    decided from the instance's root alone (the common case of a far crowd: the root drawn as points,
+    :func:`lod.points.traverse._traverse_kernel` visits nothing else; 0: the root has none in the
+    interval), or -1 when it cannot be decided that way (the kernel then runs).
 
     Exact, not approximate: the kernel takes the minimum view depth over the 8 transformed corners of the
     root's box at u; here it is computed in closed form (the depth of the centre minus the box's
@@ -229,48 +220,87 @@ def _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, a
     rounding (a positive numerator divided by a larger depth never rounds larger), so when both ends of
     the interval give the same answer, so does the kernel's depth; otherwise -1. Likewise the root is not
     culled when its centre lies inside every plane by more than the margin (some corner is then inside
-    each plane). The tree below is never needed: the root's points end the traversal."""
-    w = 1.0 - u
-    lo0 = w * box0[a, 0, 0] + u * box1[a, 0, 0]
-    lo1 = w * box0[a, 0, 1] + u * box1[a, 0, 1]
-    lo2 = w * box0[a, 0, 2] + u * box1[a, 0, 2]
-    hi0 = w * box0[a, 1, 0] + u * box1[a, 1, 0]
-    hi1 = w * box0[a, 1, 1] + u * box1[a, 1, 1]
-    hi2 = w * box0[a, 1, 2] + u * box1[a, 1, 2]
-    x0, x1, x2 = 0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2)
-    h0, h1, h2 = 0.5 * abs(hi0 - lo0), 0.5 * abs(hi1 - lo1), 0.5 * abs(hi2 - lo2)
-    c0 = model[0, 0] * x0 + model[0, 1] * x1 + model[0, 2] * x2 + model[0, 3]
-    c1 = model[1, 0] * x0 + model[1, 1] * x1 + model[1, 2] * x2 + model[1, 3]
-    c2 = model[2, 0] * x0 + model[2, 1] * x1 + model[2, 2] * x2 + model[2, 3]
-    e0, e1, e2 = abs(x0) + h0, abs(x1) + h1, abs(x2) + h2
-    mag = 0.0
-    for r in range(3):
-        mag += abs(model[r, 3]) + abs(model[r, 0]) * e0 + abs(model[r, 1]) * e1 + abs(model[r, 2]) * e2
-    m = ROOT_MARGIN * (mag + 1.0)
-    for p in range(planes.shape[0]):
-        if not (planes[p, 0] * c0 + planes[p, 1] * c1 + planes[p, 2] * c2 + planes[p, 3]
-                > m + ROOT_MARGIN * abs(planes[p, 3])):
-            return -1
+    each plane). The instance's scale and interval are the kernel's caller's (same expressions). One loop
+    over the instances, scalars only: a call per instance passing these arrays would cost their
+    reference counts, more than the test itself."""
     n0, n1, n2 = planes[4, 0], planes[4, 1], planes[4, 2]
-    d = (n0 * c0 + n1 * c1 + n2 * c2 - abs(n0 * model[0, 0] + n1 * model[1, 0] + n2 * model[2, 0]) * h0
-         - abs(n0 * model[0, 1] + n1 * model[1, 1] + n2 * model[2, 1]) * h1
-         - abs(n0 * model[0, 2] + n1 * model[1, 2] + n2 * model[2, 2]) * h2)
-    dlo = d - m
-    dhi = d + m
-    if not dlo > 0.0:
-        return -1
-    if not (spacing[a] * scale / dlo * vscale <= splat):  # the far end may descend: the kernel decides
-        return -1
-    pc = point_count[a, j]
-    if pc <= 0:
-        return 0
-    qlo = _first_fit(coarse_spacing[h], j, scale / dlo * vscale, splat)
-    qhi = _first_fit(coarse_spacing[h], j, scale / dhi * vscale, splat)
-    if qlo != qhi:
-        return -1
-    if qlo >= 0:
-        pc = min(pc, coarse_count[h, j, qlo])
-    return pc
+    Q = coarse_spacing.shape[2]
+    for r in range(r0, r1):
+        h = bin_h[kbin[r]]
+        out[r - r0] = -1
+        if not fast[h]:
+            continue
+        a = node0[h]
+        m00, m01, m02, m03 = (np.float64(pdata[r, 0]), np.float64(pdata[r, 1]), np.float64(pdata[r, 2]),
+                              np.float64(pdata[r, 3]))
+        m10, m11, m12, m13 = (np.float64(pdata[r, 4]), np.float64(pdata[r, 5]), np.float64(pdata[r, 6]),
+                              np.float64(pdata[r, 7]))
+        m20, m21, m22, m23 = (np.float64(pdata[r, 8]), np.float64(pdata[r, 9]), np.float64(pdata[r, 10]),
+                              np.float64(pdata[r, 11]))
+        scale = 0.0
+        for y in range(3):
+            c_ = np.sqrt(np.float64(pdata[r, y]) ** 2 + np.float64(pdata[r, 4 + y]) ** 2
+                         + np.float64(pdata[r, 8 + y]) ** 2)
+            if c_ > scale:
+                scale = c_
+        u = np.float64(pdata[r, 12])
+        if not np.isfinite(u):
+            u = 0.0
+        u = min(max(u, 0.0), 1.0)
+        j = 0
+        while j < intervals[h] - 1 and bounds[h, j + 1] <= u:
+            j += 1
+        w = 1.0 - u
+        lo0 = w * box0[a, 0, 0] + u * box1[a, 0, 0]
+        lo1 = w * box0[a, 0, 1] + u * box1[a, 0, 1]
+        lo2 = w * box0[a, 0, 2] + u * box1[a, 0, 2]
+        hi0 = w * box0[a, 1, 0] + u * box1[a, 1, 0]
+        hi1 = w * box0[a, 1, 1] + u * box1[a, 1, 1]
+        hi2 = w * box0[a, 1, 2] + u * box1[a, 1, 2]
+        x0, x1, x2 = 0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2)
+        h0, h1, h2 = 0.5 * abs(hi0 - lo0), 0.5 * abs(hi1 - lo1), 0.5 * abs(hi2 - lo2)
+        c0 = m00 * x0 + m01 * x1 + m02 * x2 + m03
+        c1 = m10 * x0 + m11 * x1 + m12 * x2 + m13
+        c2 = m20 * x0 + m21 * x1 + m22 * x2 + m23
+        e0, e1, e2 = abs(x0) + h0, abs(x1) + h1, abs(x2) + h2
+        mag = (abs(m03) + abs(m00) * e0 + abs(m01) * e1 + abs(m02) * e2 + abs(m13) + abs(m10) * e0
+               + abs(m11) * e1 + abs(m12) * e2 + abs(m23) + abs(m20) * e0 + abs(m21) * e1 + abs(m22) * e2)
+        m = ROOT_MARGIN * (mag + 1.0)
+        inside = True
+        for p in range(planes.shape[0]):
+            if not (planes[p, 0] * c0 + planes[p, 1] * c1 + planes[p, 2] * c2 + planes[p, 3]
+                    > m + ROOT_MARGIN * abs(planes[p, 3])):
+                inside = False
+                break
+        if not inside:
+            continue
+        d = (n0 * c0 + n1 * c1 + n2 * c2 - abs(n0 * m00 + n1 * m10 + n2 * m20) * h0
+             - abs(n0 * m01 + n1 * m11 + n2 * m21) * h1 - abs(n0 * m02 + n1 * m12 + n2 * m22) * h2)
+        dlo = d - m
+        dhi = d + m
+        if not dlo > 0.0:
+            continue
+        if not (spacing[a] * scale / dlo * vscale <= splat):  # the far end may descend: the kernel decides
+            continue
+        pc = point_count[a, j]
+        if pc <= 0:
+            out[r - r0] = 0
+            continue
+        flo = scale / dlo * vscale
+        fhi = scale / dhi * vscale
+        qlo = -1
+        for q in range(Q):  # the first coarse prefix within the splat, at both ends
+            if coarse_spacing[h, j, q] * flo <= splat:
+                qlo = q
+                break
+        qhi = -1
+        for q in range(Q):
+            if coarse_spacing[h, j, q] * fhi <= splat:
+                qhi = q
+                break
+        if qlo != qhi:
+            continue
+        out[r - r0] = min(pc, coarse_count[h, j, qlo]) if qlo >= 0 else pc
 
 
 @njit(cache=True)
@@ -294,10 +324,30 @@ def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_
     model = np.empty((3, 4))
     npj = 0
     ntj = 0
+    root = np.empty(r1 - r0, np.int64)
+    _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, fast, node0, intervals, bounds, pdata,
+               kbin, bin_h, planes, vscale, splat, r0, r1, root)
     for r in range(r0, r1):
         b = kbin[r]
         h = bin_h[b]
         a, e = node0[h], node0[h + 1]
+        cnt = root[r - r0]
+        if cnt >= 0:  # decided at the root: drawn from its points (or from none), nothing else
+            if cnt > 0:
+                if npj + 1 > cap:
+                    return -1, -1
+                u = min(max(np.float64(pdata[r, 12]) if np.isfinite(pdata[r, 12]) else 0.0, 0.0), 1.0)
+                j = 0
+                while j < intervals[h] - 1 and bounds[h, j + 1] <= u:
+                    j += 1
+                pjobs[base + npj, 0] = r - bin_row0[b]
+                pjobs[base + npj, 1] = point_start[a, j]
+                pjobs[base + npj, 2] = cnt
+                npj += 1
+                pbin[b] += 1
+            psum[r] = cnt
+            tsum[r] = 0
+            continue
         for x in range(3):
             for y in range(4):
                 model[x, y] = pdata[r, 4 * x + y]
@@ -313,17 +363,10 @@ def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_
         j = 0
         while j < intervals[h] - 1 and bounds[h, j + 1] <= u:
             j += 1
-        cnt = _root_fast(box0, box1, spacing, point_count, coarse_count, coarse_spacing, a, h, u, j, planes, model,
-                         scale, vscale, splat) if fast[h] else -1
-        if cnt >= 0:  # decided at the root: drawn from its points (or from none), nothing else
-            np_, nt = (1 if cnt > 0 else 0), 0
-            out_p[0, 0] = point_start[a, j]
-            out_p[0, 1] = cnt
-        else:
-            np_, nt = _traverse_kernel(child_start[a:e], child_count[a:e], box0[a:e], box1[a:e], spacing[a:e],
-                                       point_start[a:e], point_count[a:e], tri_start[a:e], tri_count[a:e],
-                                       coarse_count[h], coarse_spacing[h], u, j, planes, model, scale, vscale,
-                                       splat, out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
+        np_, nt = _traverse_kernel(child_start[a:e], child_count[a:e], box0[a:e], box1[a:e], spacing[a:e],
+                                   point_start[a:e], point_count[a:e], tri_start[a:e], tri_count[a:e],
+                                   coarse_count[h], coarse_spacing[h], u, j, planes, model, scale, vscale,
+                                   splat, out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
         if npj + np_ > cap or ntj + nt > cap:
             return -1, -1
         row = r - bin_row0[b]

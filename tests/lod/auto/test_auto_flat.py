@@ -249,12 +249,19 @@ def test_root_fast_path_is_exact_at_the_thresholds():
     arr = pm._harrays(h)
 
     def both(z, u=0.3, yaw=0.4, s=1.0):
-        m = np.array([[np.cos(yaw) * s, 0, np.sin(yaw) * s, 0.1], [0, s, 0, -0.9], [-np.sin(yaw) * s, 0, np.cos(yaw) * s, z]])
-        j = int(min(max(np.searchsorted(h.bounds[1:-1], u, side="right"), 0), h.intervals - 1))
-        fast = fp._root_fast(forest.box0, forest.box1, forest.spacing, forest.point_count, forest.coarse_count,
-                             forest.coarse_spacing, 0, 0, u, j, planes, m, s, vs, splat)
-        np_, nt = _traverse_kernel(*arr[:9], *arr[10:12], u, j, planes, m, s, vs, splat, *scratch)
-        return fast, np_, nt, scratch[0][:np_].copy(), j
+        d = np.zeros((1, 16), np.float32)
+        d[0, :12] = [np.cos(yaw) * s, 0, np.sin(yaw) * s, 0.1, 0, s, 0, -0.9, -np.sin(yaw) * s, 0, np.cos(yaw) * s, z]
+        d[0, 12] = u
+        m = d[0, :12].astype(np.float64).reshape(3, 4)
+        sc = float(np.linalg.norm(m[:, :3], axis=0).max())
+        uu = float(d[0, 12])
+        j = int(min(max(np.searchsorted(h.bounds[1:-1], uu, side="right"), 0), h.intervals - 1))
+        out = np.empty(1, np.int64)
+        fp._root_fast(forest.box0, forest.box1, forest.spacing, forest.point_count, forest.coarse_count,
+                      forest.coarse_spacing, forest.fast, forest.node0, forest.intervals, forest.bounds, d,
+                      np.zeros(1, np.int64), np.zeros(1, np.int64), planes, vs, splat, 0, 1, out)
+        np_, nt = _traverse_kernel(*arr[:9], *arr[10:12], uu, j, planes, m, sc, vs, splat, *scratch)
+        return int(out[0]), np_, nt, scratch[0][:np_].copy(), j
 
     def decided(z):  # the kernel's decision as a comparable value
         _, np_, nt, p, _ = both(z)
