@@ -8,15 +8,17 @@ that is a second and a half of numpy on million-row temporaries: the float64 mod
 the (k, levels) projected errors, the point candidate's copies and sorts, the gathers of the side-by-side
 layout.
 
-Here every step is one numba pass over the instances of all groups at once, written straight into the
+Here the work is a few numba passes over the instances of all groups at once, written straight into the
 side-by-side layout (one row per candidate, one column per instance, groups in master order; a group
-without a candidate's block has +inf there): the triangle chains' cheapest admissible level
-(:func:`_tri_kernel`, the projected error of :func:`lod.auto.candidates.projected_errors` per level), the
-point candidate's traversal and price (:mod:`lod.auto.flat_points`), the cluster candidate's cost lower
-bound (:func:`_lb_kernel`; the exact cut, per group by the candidate itself, only where the bound undercuts
-the best option so far, as the per-group path does), then the plans (:func:`price`: every pure plan and
-the mixed one in one parallel pass, :func:`_plans_chunks`). The Python work per frame is a constant per
-group (a few tables and the views handed back); the per-instance work is numba, parallel.
+without a candidate's block has +inf there): the point candidate's segments, sort and traversal
+(:mod:`lod.auto.flat_points`, with an exact decision at the root for far instances), then one pass
+(:func:`_rows_kernel`) that reads each instance's model rows once and fills every candidate's row: the
+triangle chain's cheapest admissible level (the projected error of
+:func:`lod.auto.candidates.projected_errors` per level), the point candidate's price, the cluster
+candidate's cost lower bound (the exact cut, per group by the candidate itself, only where the bound
+undercuts the best option so far, as the per-group path does); then the plans (:func:`price`: every pure
+plan and the mixed one in one parallel pass, :func:`_plans_chunks`). The Python work per frame is a
+constant per group (a few tables and the views handed back); the per-instance work is numba, parallel.
 
 What comes out is what the per-group path makes: the same ``groups`` list ((group, [_Block], columns)
 per master batch, each block's arrays views of the flat rows, the candidates' ``Options`` with the plans
@@ -116,80 +118,162 @@ def _packed(arrays):
     return np.ascontiguousarray(np.concatenate(arrays))
 
 
-# ---------------------------------------------------------------------------- triangles
+# ---------------------------------------------------------------------------- one pass over the instances
 @njit(cache=True, parallel=True)
-def _tri_kernel(data, gof, g_chain, g_cols, g_err, g_cost, g_sphere, scale_px, bound, bmin,
-                barg):  # pragma: no cover - compiled
-    """Per instance the cheapest triangle-chain level whose projected error (the rule of
-    :func:`lod.auto.candidates.projected_errors`) is within the bound, level 0 always admissible
-    (:func:`lod.auto.plans.block_min` with ``fallback``); a group without a chain: its one option."""
+def _rows_kernel(data, gof, scale_px, bound, t_chain, t_cols, t_err, t_cost, t_sphere, rp, p_on, p_a, p_dev, p_same,
+                 p_sphere, pos, psum, tsum, c_pts, c_tri, c_pinst, splat, pts, tris, pcost, perr, rc, c_on, c_a,
+                 c_base, c_root, c_r0, c_r1, spheres, planes, lb, need, bmin, barg, opt, sk):  # pragma: no cover
+    """Every candidate's row of one instance in one pass (the model rows read once; their largest axis
+    scale and the distance to the clip sphere computed once, as each reference computes them):
+
+    - row 0, the triangle chain: the cheapest level whose projected error (the rule of
+      :func:`lod.auto.candidates.projected_errors`) is within the bound, level 0 always admissible
+      (:func:`lod.auto.plans.block_min` with ``fallback``); a group without a chain, its one option;
+    - row ``rp`` (>= 0), the point candidate: points and triangles of the instance's traversal (sorted row
+      ``pos[i]``), cost ``c_pts * points + c_tri * triangles + c_pinst``, error ``splat`` plus the keyframe
+      deviation projected as :func:`lod.auto.candidates.projected_errors` does, its option or +inf;
+    - row ``rc`` (>= 0), the cluster candidate: its cost lower bound (one instance and one cluster, plus
+      the root cut where every root sphere lies inside every plane: :meth:`lod.auto.candidates.
+      ClustersCandidate.cost_lower_bound`) and whether it undercuts the cheapest option of the rows before
+      (``need``); instances not needed get the per-group path's skipped entries (error +inf, priced at
+      the bound), the needed ones are left to the exact cut (:func:`_clusters_finish`)."""
     for i in prange(gof.shape[0]):
         g = gof[i]
-        if not g_chain[g]:
-            bmin[i] = g_cost[g, 0]
-            barg[i] = 0
-            continue
         s = 0.0
         for b in range(3):
             n = np.sqrt(np.float64(data[i, b]) ** 2 + np.float64(data[i, 4 + b]) ** 2 + np.float64(data[i, 8 + b]) ** 2)
             if n > s:
                 s = n
-        d2 = 0.0
-        for a in range(3):
-            x = (np.float64(data[i, 4 * a]) * g_sphere[g, 0] + np.float64(data[i, 4 * a + 1]) * g_sphere[g, 1]
-                 + np.float64(data[i, 4 * a + 2]) * g_sphere[g, 2] + np.float64(data[i, 4 * a + 3]))
-            d2 += x * x
-        d = np.sqrt(d2) - g_sphere[g, 3] * s
-        f = 0.0
-        if d > 0.0:
-            f = s * scale_px / d
-        best = np.inf
-        arg = 0
-        for j in range(g_cols[g]):
-            e = g_err[g, j]
-            if d > 0.0:
-                err = e * f
+        # triangles
+        dt = 0.0
+        if not t_chain[g]:
+            bmin[0, i] = t_cost[g, 0]
+            barg[0, i] = 0
+        else:
+            d2 = 0.0
+            for a in range(3):
+                x = (np.float64(data[i, 4 * a]) * t_sphere[g, 0] + np.float64(data[i, 4 * a + 1]) * t_sphere[g, 1]
+                     + np.float64(data[i, 4 * a + 2]) * t_sphere[g, 2] + np.float64(data[i, 4 * a + 3]))
+                d2 += x * x
+            dt = np.sqrt(d2) - t_sphere[g, 3] * s
+            f = 0.0
+            if dt > 0.0:
+                f = s * scale_px / dt
+            best = np.inf
+            arg = 0
+            for j in range(t_cols[g]):
+                e = t_err[g, j]
+                if dt > 0.0:
+                    err = e * f
+                else:
+                    err = np.inf if e > 0.0 else 0.0
+                c = t_cost[g, j]
+                if (err <= bound or j == 0) and c < best:
+                    best = c
+                    arg = j
+            bmin[0, i] = best
+            barg[0, i] = arg
+        # points
+        if rp >= 0:
+            if not p_on[g]:
+                bmin[rp, i] = np.inf
+                barg[rp, i] = 0
             else:
-                err = np.inf if e > 0.0 else 0.0
-            c = g_cost[g, j]
-            if (err <= bound or j == 0) and c < best:
-                best = c
-                arg = j
-        bmin[i] = best
-        barg[i] = arg
+                k = pos[i]
+                pp = psum[k]
+                tt = tsum[k]
+                pts[i] = pp
+                tris[i] = tt
+                c = c_pts * np.float64(pp) + c_tri * np.float64(tt) + c_pinst
+                e = splat
+                dev = p_dev[g]
+                if dev > 0.0:
+                    if p_same[g] and t_chain[g]:
+                        d = dt
+                    else:
+                        d2 = 0.0
+                        for a in range(3):
+                            x = (np.float64(data[i, 4 * a]) * p_sphere[g, 0]
+                                 + np.float64(data[i, 4 * a + 1]) * p_sphere[g, 1]
+                                 + np.float64(data[i, 4 * a + 2]) * p_sphere[g, 2] + np.float64(data[i, 4 * a + 3]))
+                            d2 += x * x
+                        d = np.sqrt(d2) - p_sphere[g, 3] * s
+                    if d > 0.0:
+                        e = e + dev * (s * scale_px / d)
+                    else:
+                        e = e + np.inf
+                pcost[i] = c
+                perr[i] = e
+                bmin[rp, i] = c if (e <= bound and c < np.inf) else np.inf
+                barg[rp, i] = p_a[g]
+        # clusters
+        if rc >= 0:
+            if not c_on[g]:
+                need[i] = False
+                bmin[rc, i] = np.inf
+                barg[rc, i] = 0
+                sk[rc, i] = False
+                continue
+            v = c_base[g]
+            if c_r1[g] > c_r0[g]:
+                ok = True
+                for q in range(c_r0[g], c_r1[g]):
+                    rad = spheres[q, 3] * s
+                    c0 = (np.float64(data[i, 0]) * spheres[q, 0] + np.float64(data[i, 1]) * spheres[q, 1]
+                          + np.float64(data[i, 2]) * spheres[q, 2] + np.float64(data[i, 3]))
+                    c1 = (np.float64(data[i, 4]) * spheres[q, 0] + np.float64(data[i, 5]) * spheres[q, 1]
+                          + np.float64(data[i, 6]) * spheres[q, 2] + np.float64(data[i, 7]))
+                    c2 = (np.float64(data[i, 8]) * spheres[q, 0] + np.float64(data[i, 9]) * spheres[q, 1]
+                          + np.float64(data[i, 10]) * spheres[q, 2] + np.float64(data[i, 11]))
+                    for p in range(planes.shape[0]):
+                        if not (planes[p, 0] * c0 + planes[p, 1] * c1 + planes[p, 2] * c2 + planes[p, 3] >= rad):
+                            ok = False
+                if ok:
+                    v = v + c_root[g]
+            lb[i] = v
+            best = np.inf
+            for j in range(rc):
+                if bmin[j, i] < best:
+                    best = bmin[j, i]
+            need[i] = v < best
+            barg[rc, i] = c_a[g]
+            if not need[i]:
+                bmin[rc, i] = np.inf
+                opt[rc, i] = v
+                sk[rc, i] = True
+            else:
+                sk[rc, i] = False
 
 
-def _triangles(c, frame, fl, r, bound, coef):
-    """Row ``r`` of the flat layout for the triangle candidate; returns the per-group Options."""
-    G = len(fl["groups"])
+def _tri_tables(c, frame, groups, bound, coef):
+    """The triangle candidate's tables for :func:`_rows_kernel` and its per-group Options (the chain
+    rep of each group, or its one full-detail option)."""
+    G = len(groups)
     chains = c._chains
     Lmax = max([ch.n_levels for ch in chains.values()] + [1])
-    g_chain = np.zeros(G, np.bool_)
-    g_cols = np.ones(G, np.int64)
-    g_err = np.zeros((G, Lmax))
-    g_cost = np.zeros((G, Lmax))
-    g_sphere = np.zeros((G, 4))
+    t_chain = np.zeros(G, np.bool_)
+    t_cols = np.ones(G, np.int64)
+    t_err = np.zeros((G, Lmax))
+    t_cost = np.zeros((G, Lmax))
+    t_sphere = np.zeros((G, 4))
     opts = []
-    for gi, g in enumerate(fl["groups"]):
+    for gi, g in enumerate(groups):
         rep = chains.get(g.batch.rep)
         if rep is None:  # no chain: full detail only
             tri = float(g.batch.triangles) / max(g.k, 1)
-            g_cost[gi, 0] = coef["triangles"] * tri + coef["instances"]
-            opts.append(LazyOptions(np.broadcast_to(g_cost[gi, :1].copy(), (g.k, 1)),
-                                    _zeros(g.k), None, ("L0",)))
+            t_cost[gi, 0] = coef["triangles"] * tri + coef["instances"]
+            opts.append(LazyOptions(np.broadcast_to(t_cost[gi, :1].copy(), (g.k, 1)), _zeros(g.k), None, ("L0",)))
             continue
         L = rep.n_levels
         cost = coef["triangles"] * rep.level_count.astype(np.float64) + coef["instances"]
-        g_chain[gi] = True
-        g_cols[gi] = L if bound > 0.0 else 1
-        g_err[gi, :L] = rep.level_error
-        g_cost[gi, :L] = cost
-        g_sphere[gi] = rep.clip_sphere[g.batch.part]
+        t_chain[gi] = True
+        t_cols[gi] = L if bound > 0.0 else 1
+        t_err[gi, :L] = rep.level_error
+        t_cost[gi, :L] = cost
+        t_sphere[gi] = rep.clip_sphere[g.batch.part]
         opts.append(LazyOptions(np.broadcast_to(cost, (g.k, L)), _tri_errors(rep, g, frame.scale_px), rep,
                                 tuple(f"L{i}" for i in range(L))))
-    _tri_kernel(fl["data"], fl["gof"], g_chain, g_cols, g_err, g_cost, g_sphere, float(frame.scale_px),
-                float(bound), fl["bmin"][r], fl["barg"][r])
-    return opts
+    return (t_chain, t_cols, t_err, t_cost, t_sphere), opts
 
 
 def _zeros(k):
@@ -201,165 +285,153 @@ def _tri_errors(rep, g, scale_px):
 
 
 # ---------------------------------------------------------------------------- points
-def _points(c, frame, fl, r, bound, coef):
-    """Row ``r`` for the point candidate (:mod:`lod.auto.flat_points`); the per-group Options (None:
-    no block) with the plans :meth:`lod.auto.candidates.PointsCandidate.emit` reads."""
-    from lod.points.traverse import viewport_scale
+class _PointsFrame:
+    """The point candidate's frame before the pass over the instances: segments located, instances sorted
+    and traversed (:mod:`lod.auto.flat_points`); ``tables`` for :func:`_rows_kernel`; :meth:`options`
+    after it."""
 
-    groups, gof, data, ids = fl["groups"], fl["gof"], fl["data"], fl["ids"]
-    G, N = len(groups), gof.shape[0]
-    p = c.splat_size(bound)
-    forest = getattr(c, "_flat_forest", None)
-    if forest is None:
-        forest = c._flat_forest = fp.build_forest(c.by_char)
-    g_on = np.zeros(G, np.bool_)
-    g_skinned = np.zeros(G, np.bool_)
-    g_ns = np.zeros(G, np.int64)
-    g_soff = np.zeros(G, np.int64)
-    g_t0, g_dur = np.zeros(G), np.zeros(G)
-    g_loop = np.zeros(G, np.bool_)
-    g_bin0 = np.zeros(G, np.int64)
-    g_dev = np.zeros(G)
-    g_sphere = np.zeros((G, 4))
-    starts, ends, bin_h, bin_skinned, bin_group = [], [], [], [], []
-    nseg = 0
-    for gi, g in enumerate(groups):
-        rep = c.by_char.get(g.char)
-        if rep is None or p == 0 or g.k == 0:
-            continue
-        g_on[gi] = True
-        g_bin0[gi] = len(bin_h)
-        part = int(g.batch.part)
-        if c.kinds[g.char] == "keyframed":
-            bin_h.append(forest.base[g.char] + part)
-            bin_skinned.append(False)
-            bin_group.append((gi, part))
-        else:
-            kf = rep.keyframed
-            a0, ns = int(kf.anim_first_seg[part]), int(kf.anim_n_segs[part])
-            if ns == 0:
-                return None  # the per-group path raises what locate raises
-            g_skinned[gi] = True
-            g_ns[gi], g_soff[gi] = ns, nseg
-            g_t0[gi], g_dur[gi], g_loop[gi] = kf.anim_t0[part], kf.anim_duration[part], kf.anim_loop[part]
-            starts.append(np.asarray(kf.seg_start[a0:a0 + ns], np.float64))
-            ends.append(np.asarray(kf.seg_end[a0:a0 + ns], np.float64))
-            nseg += ns
-            for s in range(ns):
-                bin_h.append(forest.base[g.char] + a0 + s)
-                bin_skinned.append(True)
-                bin_group.append((gi, a0 + s))
-        dev = c.deviation[g.char] if g.char < len(c.deviation) else 0.0
-        if dev > 0.0 and c.spheres[g.char] is not None:
-            g_dev[gi] = dev
-            g_sphere[gi] = c.spheres[g.char][part]
-    B = len(bin_h)
-    binof = np.empty(N, np.int64)
-    uof = np.empty(N, np.float64)
-    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(1))
-    fp._locate_kernel(ids, gof, g_on, g_skinned, g_ns, g_soff, g_t0, g_dur, g_loop, g_bin0, cat(starts), cat(ends),
-                      np.ascontiguousarray(frame.state.anim_time, np.float64), binof, uof)
-    chunks = max(1, min(64, N // 16384))
-    first = np.linspace(0, N, chunks + 1).astype(np.int64)
-    cc = fp._bin_counts(binof, first, max(B, 1))
-    counts = cc.sum(axis=0)
-    bstart = np.zeros(max(B, 1) + 1, np.int64)
-    np.cumsum(counts, out=bstart[1:])
-    K = int(bstart[-1])
-    cstarts = np.ascontiguousarray(bstart[None, :-1] + np.cumsum(cc, axis=0) - cc)
-    pos = np.empty(N, np.int64)
-    src = np.empty(K, np.int64)
-    pdata = np.empty((K, 16), np.float32)
-    pids = np.empty(K, ids.dtype)
-    fp._bin_scatter(binof, uof, ids, data, first, cstarts, pos, src, pdata, pids,
-                    np.array(bin_skinned + [False], np.bool_))
-    kbin = np.repeat(np.arange(max(B, 1), dtype=np.int64), counts)
-    vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
-    pj, tj, psum, tsum, pj_at, tj_at = fp.traverse(forest, pdata, kbin, np.array(bin_h + [0], np.int64),
-                                                   bstart[:B + 1], frame.planes, vs, float(p))
-    pts = np.empty(N, np.int64)
-    tris = np.empty(N, np.int64)
-    cost = np.empty(N)
-    err = np.empty(N)
-    bmin = fl["bmin"][r]
-    bmin[:] = np.inf
-    fp._price_kernel(data, gof, g_on, g_dev, g_sphere, pos, psum, tsum, float(coef["points"]),
-                     float(coef["triangles"]), float(coef["point_instances"]), float(p), float(frame.scale_px),
-                     float(bound), pts, tris, cost, err, bmin)
-    opts = [None] * G
-    gstart = fl["gstart"]
-    for gi, g in enumerate(groups):
-        if not g_on[gi]:
-            continue
-        b0 = int(g_bin0[gi])
-        nb = 1 if not g_skinned[gi] else int(g_ns[gi])
-        k0, k1 = int(bstart[b0]), int(bstart[b0 + nb])
-        jobs = {}
-        used = 0
-        for q in range(b0, b0 + nb):
-            a, e = int(bstart[q]), int(bstart[q + 1])
-            if e > a:
-                used += 1
-                jobs[bin_group[q][1]] = (a - k0, e - k0, pj[pj_at[q]:pj_at[q + 1]], tj[tj_at[q]:tj_at[q + 1]])
-        a_, e_ = int(gstart[gi]), int(gstart[gi + 1])
-        order = None if used == 1 else src[k0:k1] - a_  # the group's row of each sorted position
-        plan = (c.by_char[g.char], pdata[k0:k1], pids[k0:k1], order, jobs, pts[a_:e_], tris[a_:e_], p)
-        opts[gi] = LazyOptions(cost[a_:e_, None], err[a_:e_, None], plan, (f"splat{p}",))
-    return opts
+    def __init__(self, c, frame, fl, bound, coef, g_a, t_sphere):
+        from lod.points.traverse import viewport_scale
+
+        groups, gof, data, ids = fl["groups"], fl["gof"], fl["data"], fl["ids"]
+        G, N = len(groups), gof.shape[0]
+        self.c, self.fl = c, fl
+        p = self.p = c.splat_size(bound)
+        forest = getattr(c, "_flat_forest", None)
+        if forest is None:
+            forest = c._flat_forest = fp.build_forest(c.by_char)
+        g_on = self.g_on = np.zeros(G, np.bool_)
+        g_skinned = self.g_skinned = np.zeros(G, np.bool_)
+        g_ns = self.g_ns = np.zeros(G, np.int64)
+        g_soff = np.zeros(G, np.int64)
+        g_t0, g_dur = np.zeros(G), np.zeros(G)
+        g_loop = np.zeros(G, np.bool_)
+        g_bin0 = self.g_bin0 = np.zeros(G, np.int64)
+        g_dev = np.zeros(G)
+        g_sphere = np.zeros((G, 4))
+        g_same = np.zeros(G, np.bool_)
+        starts, ends, bin_h, bin_skinned, self.bin_seg = [], [], [], [], []
+        self.ok = True
+        nseg = 0
+        for gi, g in enumerate(groups):
+            rep = c.by_char.get(g.char)
+            if rep is None or g_a[gi] < 0:
+                continue
+            g_on[gi] = True
+            g_bin0[gi] = len(bin_h)
+            part = int(g.batch.part)
+            if c.kinds[g.char] == "keyframed":
+                bin_h.append(forest.base[g.char] + part)
+                bin_skinned.append(False)
+                self.bin_seg.append(part)
+            else:
+                kf = rep.keyframed
+                a0, ns = int(kf.anim_first_seg[part]), int(kf.anim_n_segs[part])
+                if ns == 0:
+                    self.ok = False  # the per-group path raises what locate raises
+                    return
+                g_skinned[gi] = True
+                g_ns[gi], g_soff[gi] = ns, nseg
+                g_t0[gi], g_dur[gi], g_loop[gi] = kf.anim_t0[part], kf.anim_duration[part], kf.anim_loop[part]
+                starts.append(np.asarray(kf.seg_start[a0:a0 + ns], np.float64))
+                ends.append(np.asarray(kf.seg_end[a0:a0 + ns], np.float64))
+                nseg += ns
+                for s in range(ns):
+                    bin_h.append(forest.base[g.char] + a0 + s)
+                    bin_skinned.append(True)
+                    self.bin_seg.append(a0 + s)
+            dev = c.deviation[g.char] if g.char < len(c.deviation) else 0.0
+            if dev > 0.0 and c.spheres[g.char] is not None:
+                g_dev[gi] = dev
+                g_sphere[gi] = c.spheres[g.char][part]
+                g_same[gi] = bool(np.array_equal(g_sphere[gi], t_sphere[gi]))
+        B = len(bin_h)
+        binof = np.empty(N, np.int64)
+        uof = np.empty(N, np.float64)
+        cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(1))
+        fp._locate_kernel(ids, gof, g_on, g_skinned, g_ns, g_soff, g_t0, g_dur, g_loop, g_bin0, cat(starts),
+                          cat(ends), np.ascontiguousarray(frame.state.anim_time, np.float64), binof, uof)
+        chunks = max(1, min(64, N // 16384))
+        first = np.linspace(0, N, chunks + 1).astype(np.int64)
+        cc = fp._bin_counts(binof, first, max(B, 1))
+        counts = cc.sum(axis=0)
+        bstart = self.bstart = np.zeros(max(B, 1) + 1, np.int64)
+        np.cumsum(counts, out=bstart[1:])
+        K = int(bstart[-1])
+        cstarts = np.ascontiguousarray(bstart[None, :-1] + np.cumsum(cc, axis=0) - cc)
+        pos = np.empty(N, np.int64)
+        self.src = np.empty(K, np.int64)
+        self.pdata = np.empty((K, 16), np.float32)
+        self.pids = np.empty(K, ids.dtype)
+        fp._bin_scatter(binof, uof, ids, data, first, cstarts, pos, self.src, self.pdata, self.pids,
+                        np.array(bin_skinned + [False], np.bool_))
+        kbin = np.repeat(np.arange(max(B, 1), dtype=np.int64), counts)
+        vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
+        self.pj, self.tj, psum, tsum, self.pj_at, self.tj_at = fp.traverse(
+            forest, self.pdata, kbin, np.array(bin_h + [0], np.int64), bstart[:B + 1], frame.planes, vs, float(p))
+        self.pts, self.tris = np.empty(N, np.int64), np.empty(N, np.int64)
+        self.cost, self.err = np.empty(N), np.empty(N)
+        self.tables = (g_on, np.maximum(g_a, 0), g_dev, g_same, g_sphere, pos, psum, tsum, float(coef["points"]),
+                       float(coef["triangles"]), float(coef["point_instances"]), float(p), self.pts, self.tris,
+                       self.cost, self.err)
+
+    def options(self) -> list:
+        """Per group the Options with the plan :meth:`lod.auto.candidates.PointsCandidate.emit` reads (None:
+        no block): the group's sorted rows, ids, order, per-segment job tables (slices), totals."""
+        c, fl, bstart = self.c, self.fl, self.bstart
+        gstart = fl["gstart"]
+        opts = [None] * len(fl["groups"])
+        for gi, g in enumerate(fl["groups"]):
+            if not self.g_on[gi]:
+                continue
+            b0 = int(self.g_bin0[gi])
+            nb = 1 if not self.g_skinned[gi] else int(self.g_ns[gi])
+            k0, k1 = int(bstart[b0]), int(bstart[b0 + nb])
+            jobs = {}
+            for q in range(b0, b0 + nb):
+                a, e = int(bstart[q]), int(bstart[q + 1])
+                if e > a:
+                    jobs[self.bin_seg[q]] = (a - k0, e - k0, self.pj[self.pj_at[q]:self.pj_at[q + 1]],
+                                             self.tj[self.tj_at[q]:self.tj_at[q + 1]])
+            a_, e_ = int(gstart[gi]), int(gstart[gi + 1])
+            order = None if len(jobs) == 1 else self.src[k0:k1] - a_  # the group's row of each sorted position
+            plan = (c.by_char[g.char], self.pdata[k0:k1], self.pids[k0:k1], order, jobs, self.pts[a_:e_],
+                    self.tris[a_:e_], self.p)
+            opts[gi] = LazyOptions(self.cost[a_:e_, None], self.err[a_:e_, None], plan, (f"splat{self.p}",))
+        return opts
 
 
 # ---------------------------------------------------------------------------- clusters
-@njit(cache=True, parallel=True)
-def _lb_kernel(data, gof, g_on, g_a, g_base, g_root, g_r0, g_r1, spheres, planes, bmin, before, lb, need, brow,
-               arow, orow, srow):  # pragma: no cover - compiled
-    """The cluster candidate's cost lower bound per instance (:meth:`lod.auto.candidates.ClustersCandidate.
-    cost_lower_bound`: one instance and one cluster, plus the root cut where every root sphere lies inside
-    every plane, as :func:`lod.auto.candidates.spheres_inside` tests it) and whether it undercuts the
-    cheapest option of the rows ``0 .. before - 1`` (``need``). Instances not needed get the per-group
-    path's skipped entries (error +inf, priced at the bound); the needed ones are left to the exact cut."""
-    for i in prange(gof.shape[0]):
-        g = gof[i]
-        if not g_on[g]:
-            need[i] = False
-            brow[i] = np.inf
-            arow[i] = 0
-            srow[i] = False
+def _cluster_tables(c, groups, coef, g_a):
+    """The cluster candidate's lower-bound tables for :func:`_rows_kernel`: per group whether it has a
+    block, the bound's base (one instance, one cluster) and root cut, its root spheres' range."""
+    G = len(groups)
+    c_on = np.zeros(G, np.bool_)
+    c_base = np.zeros(G)
+    c_root = np.zeros(G)
+    c_r0 = np.zeros(G, np.int64)
+    c_r1 = np.zeros(G, np.int64)
+    spheres = []
+    base = coef["instances"] + coef["clusters"]
+    n0 = 0
+    for gi, g in enumerate(groups):
+        rep = c.by_char.get(g.char)
+        if rep is None or g_a[gi] < 0:
             continue
-        v = g_base[g]
-        if g_r1[g] > g_r0[g]:
-            s = 0.0
-            for b in range(3):
-                n = np.sqrt(np.float64(data[i, b]) ** 2 + np.float64(data[i, 4 + b]) ** 2
-                            + np.float64(data[i, 8 + b]) ** 2)
-                if n > s:
-                    s = n
-            ok = True
-            for q in range(g_r0[g], g_r1[g]):
-                rad = spheres[q, 3] * s
-                c0 = (np.float64(data[i, 0]) * spheres[q, 0] + np.float64(data[i, 1]) * spheres[q, 1]
-                      + np.float64(data[i, 2]) * spheres[q, 2] + np.float64(data[i, 3]))
-                c1 = (np.float64(data[i, 4]) * spheres[q, 0] + np.float64(data[i, 5]) * spheres[q, 1]
-                      + np.float64(data[i, 6]) * spheres[q, 2] + np.float64(data[i, 7]))
-                c2 = (np.float64(data[i, 8]) * spheres[q, 0] + np.float64(data[i, 9]) * spheres[q, 1]
-                      + np.float64(data[i, 10]) * spheres[q, 2] + np.float64(data[i, 11]))
-                for p in range(planes.shape[0]):
-                    if not (planes[p, 0] * c0 + planes[p, 1] * c1 + planes[p, 2] * c2 + planes[p, 3] >= rad):
-                        ok = False
-            if ok:
-                v = v + g_root[g]
-        lb[i] = v
-        best = np.inf
-        for j in range(before):
-            if bmin[j, i] < best:
-                best = bmin[j, i]
-        need[i] = v < best
-        arow[i] = g_a[g]
-        if not need[i]:
-            brow[i] = np.inf
-            orow[i] = v
-            srow[i] = True
-        else:
-            srow[i] = False
+        c_on[gi] = True
+        c_base[gi] = base
+        h = rep.hierarchy
+        roots = np.asarray(h.roots, np.int64)
+        if roots.size:
+            root_tris = h.__dict__.get("_root_triangles")
+            if root_tris is None:
+                root_tris = h.__dict__["_root_triangles"] = float(h.triangle_counts()[roots].sum())
+            c_root[gi] = coef["clusters"] * (roots.size - 1) + coef["triangles"] * root_tris
+            spheres.append(np.asarray(rep.sphere64[roots], np.float64).reshape(-1, 4))
+            c_r0[gi], c_r1[gi] = n0, n0 + roots.size
+            n0 += roots.size
+    sph = np.ascontiguousarray(np.concatenate(spheres)) if spheres else np.zeros((1, 4))
+    return c_on, np.maximum(g_a, 0), c_base, c_root, c_r0, c_r1, sph
 
 
 @njit(cache=True)
@@ -371,47 +443,19 @@ def _count_by_group(gof, mask, G):  # pragma: no cover - compiled
     return out
 
 
-def _clusters(c, frame, fl, r, bound, coef, layout):
-    """Row ``r`` for the cluster candidate: the lower bound in one pass (:func:`_lb_kernel`), then per
-    group the candidate's exact cut where the bound could win (its own ``options``, the per-group path's
-    call), reduced by :meth:`lod.auto.plans._Block.of` into the group's slice of the rows. Returns the
-    per-group Options and the groups that have skipped instances."""
+def _clusters_finish(c, frame, fl, r, bound, c_on, need, g_a):
+    """After the pass over the instances: per group the candidate's exact cut where the lower bound could
+    win (its own ``options``, the per-group path's call), reduced by :meth:`lod.auto.plans._Block.of`
+    into the group's slice of row ``r``. Returns the per-group Options and the groups with skipped
+    instances."""
     groups, gstart = fl["groups"], fl["gstart"]
-    G, N = len(groups), fl["gof"].shape[0]
-    g_on = np.zeros(G, np.bool_)
-    g_base = np.zeros(G)
-    g_root = np.zeros(G)
-    g_r0 = np.zeros(G, np.int64)
-    g_r1 = np.zeros(G, np.int64)
-    spheres = []
-    base = coef["instances"] + coef["clusters"]
-    for gi, g in enumerate(groups):
-        rep = c.by_char.get(g.char)
-        if rep is None or layout[gi] < 0:
-            continue
-        g_on[gi] = True
-        g_base[gi] = base
-        h = rep.hierarchy
-        roots = np.asarray(h.roots, np.int64)
-        if roots.size:
-            root_tris = h.__dict__.get("_root_triangles")
-            if root_tris is None:
-                root_tris = h.__dict__["_root_triangles"] = float(h.triangle_counts()[roots].sum())
-            g_root[gi] = coef["clusters"] * (roots.size - 1) + coef["triangles"] * root_tris
-            n0 = sum(len(s) for s in spheres)
-            spheres.append(np.asarray(rep.sphere64[roots], np.float64).reshape(-1, 4))
-            g_r0[gi], g_r1[gi] = n0, n0 + roots.size
-    sph = np.ascontiguousarray(np.concatenate(spheres)) if spheres else np.zeros((1, 4))
-    lb = np.empty(N)
-    need = np.empty(N, np.bool_)
+    G = len(groups)
     bmin, barg, opt, sk = fl["bmin"], fl["barg"], fl["opt"], fl["sk"]
-    _lb_kernel(fl["data"], fl["gof"], g_on, layout, g_base, g_root, g_r0, g_r1, sph,
-               np.ascontiguousarray(frame.planes, np.float64), bmin, r, lb, need, bmin[r], barg[r], opt[r], sk[r])
     nneed = _count_by_group(fl["gof"], need, G)
     opts = [None] * G
     skipped = np.zeros(G, np.bool_)
     for gi, g in enumerate(groups):
-        if not g_on[gi]:
+        if not c_on[gi]:
             continue
         a, e = int(gstart[gi]), int(gstart[gi + 1])
         if nneed[gi] == 0:  # every instance at its bound, never drawn (error +inf)
@@ -421,7 +465,7 @@ def _clusters(c, frame, fl, r, bound, coef, layout):
         nd = need[a:e]
         skip = None if nneed[gi] == g.k else ~nd
         o = c.options(frame, g) if skip is None else c.options(frame, g, nd)
-        blk = _Block.of(c, o, int(layout[gi]), skip, bound, False)
+        blk = _Block.of(c, o, int(g_a[gi]), skip, bound, False)
         bmin[r, a:e], barg[r, a:e] = blk.bmin, blk.barg
         if skip is not None:
             opt[r, a:e], sk[r, a:e] = blk.opt, skip
@@ -439,13 +483,6 @@ def _empty_cut(rep, k):
 
 
 # ---------------------------------------------------------------------------- the groups
-@njit(cache=True, parallel=True)
-def _fill_column(gof, g_a, barg):  # pragma: no cover - compiled
-    for i in prange(gof.shape[0]):
-        a = g_a[gof[i]]
-        barg[i] = a if a >= 0 else 0
-
-
 def _width(c, g, bound, tri) -> int:
     """Option columns of candidate ``c``'s block for group ``g`` (0: none), as its ``options`` decides."""
     if c is tri:
@@ -467,7 +504,9 @@ def groups(sel, frame, agents, bound: float):
     ``agents`` ([(character, DrawBatch)] in master order), computed over flat arrays (module docstring);
     a :class:`FlatGroups`. None when a candidate has no flat form (the per-group path then runs)."""
     order = sel._order()
-    if not agents or any(type(c) not in FLAT_CANDIDATES for c in order):
+    if not agents or any(type(c) not in FLAT_CANDIDATES for c in order) or \
+            sum(isinstance(c, ac.PointsCandidate) for c in order) > 1 or \
+            sum(isinstance(c, ac.ClustersCandidate) for c in order) > 1:
         return None
     tri = order[0]
     gs = [FlatGroup(ri, b) for ri, b in agents]
@@ -498,21 +537,34 @@ def groups(sel, frame, agents, bound: float):
     coef = frame.model.coefficients
     opts = [[None] * G for _ in range(nb)]
     skipped = np.zeros((nb, G), np.bool_)
-    for r, c in enumerate(order):
-        if not (g_a[r] >= 0).any():
+    ttab, opts[0] = _tri_tables(tri, frame, gs, bound, coef)
+    rp = rc = -1
+    ptab = (np.zeros(1, np.bool_), np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_), np.zeros((1, 4)),
+            np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64), 0.0, 0.0, 0.0, 0.0,
+            np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1), np.zeros(1))
+    ctab = (np.zeros(1, np.bool_), np.zeros(1, np.int64), np.zeros(1), np.zeros(1), np.zeros(1, np.int64),
+            np.zeros(1, np.int64), np.zeros((1, 4)))
+    pf = None
+    for r, c in enumerate(order[1:], 1):
+        if not (g_a[r] >= 0).any():  # no block anywhere (e.g. a zero bound)
             fl["bmin"][r] = np.inf
             fl["barg"][r] = 0
-            continue
-        if c is tri:
-            opts[r] = _triangles(c, frame, fl, r, bound, coef)
         elif isinstance(c, ac.PointsCandidate):
-            o = _points(c, frame, fl, r, bound, coef)
-            if o is None:
+            pf = _PointsFrame(c, frame, fl, bound, coef, g_a[r], ttab[4])
+            if not pf.ok:
                 return None
-            opts[r] = o
-            _fill_column(gof, g_a[r], fl["barg"][r])
+            rp, ptab = r, pf.tables
         else:
-            opts[r], skipped[r] = _clusters(c, frame, fl, r, bound, coef, g_a[r])
+            rc, ctab = r, _cluster_tables(c, gs, coef, g_a[r])
+    lb = np.empty(N if rc >= 0 else 1)
+    need = np.zeros(N if rc >= 0 else 1, np.bool_)
+    _rows_kernel(data, gof, float(frame.scale_px), float(bound), *ttab, rp, *ptab[:12], *ptab[12:], rc, *ctab[:6],
+                 ctab[6], np.ascontiguousarray(frame.planes, np.float64), lb, need, fl["bmin"], fl["barg"],
+                 fl["opt"], fl["sk"])
+    if pf is not None:
+        opts[rp] = pf.options()
+    if rc >= 0:
+        opts[rc], skipped[rc] = _clusters_finish(order[rc], frame, fl, rc, bound, ctab[0], need, g_a[rc])
     items = []
     for gi, g in enumerate(gs):
         a, e = int(gstart[gi]), int(gstart[gi + 1])
@@ -544,38 +596,53 @@ def _plans_chunks(bmin, barg, opt, sk, pure, use, gof, cbase, chunk, ch, cost, e
     within the group. A row's ``opt`` is read only where ``sk`` (skipped: priced at the bound)."""
     nb, N = bmin.shape
     n_pure = pure.shape[0]
+    cols = used.shape[2]
     for c in prange(cost.shape[0]):
         i0 = c * chunk
         i1 = min(N, i0 + chunk)
-        for q in range(n_pure + 1):
-            cost[c, q] = 0.0
-            exact[c, q] = True
+        acc = np.zeros(n_pure + 1)  # the chunk's sums and flags in locals, written back once
+        ex = np.ones(n_pure + 1, np.bool_)
+        us = np.zeros((n_pure + 1, cols), np.bool_)
         for i in range(i0, i1):
             cb = cbase[gof[i]]
+            b0 = bmin[0, i]
+            a0 = barg[0, i]
             for q in range(n_pure):
                 x = pure[q]
-                o = opt[x, i] if sk[x, i] else bmin[x, i]
-                if x > 0 and np.isfinite(o):
-                    ch[q, i] = barg[x, i]
-                    cost[c, q] += o
-                    if sk[x, i]:
-                        exact[c, q] = False
+                col = a0
+                if x > 0:
+                    s = sk[x, i]
+                    o = opt[x, i] if s else bmin[x, i]
+                    if np.isfinite(o):
+                        col = barg[x, i]
+                        acc[q] += o
+                        if s:
+                            ex[q] = False
+                    else:
+                        acc[q] += b0
                 else:
-                    ch[q, i] = barg[0, i]
-                    cost[c, q] += bmin[0, i]
-                used[c, q, cb + ch[q, i]] = True
+                    acc[q] += b0
+                ch[q, i] = col
+                us[q, cb + col] = True
             best = np.inf
             w = 0
             for j in range(nb):
                 if use[j] and bmin[j, i] < best:  # the first minimum: ties to the lower row
                     best = bmin[j, i]
                     w = j
-            ch[n_pure, i] = barg[w, i]
-            cost[c, n_pure] += bmin[w, i]
-            used[c, n_pure, cb + barg[w, i]] = True
+            col = barg[w, i]
+            bw = bmin[w, i]
+            ch[n_pure, i] = col
+            acc[n_pure] += bw
+            us[n_pure, cb + col] = True
             for j in range(nb):
-                if use[j] and sk[j, i] and opt[j, i] < bmin[w, i]:
-                    exact[c, n_pure] = False
+                if use[j] and sk[j, i] and opt[j, i] < bw:
+                    ex[n_pure] = False
+        for q in range(n_pure + 1):
+            cost[c, q] = acc[q]
+            exact[c, q] = ex[q]
+            for k in range(cols):
+                used[c, q, k] = us[q, k]
 
 
 @njit(cache=True, parallel=True)

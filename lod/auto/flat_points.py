@@ -17,8 +17,8 @@ instances of every group at once:
    :class:`Forest`), writing point and triangle jobs (instance row within its segment, first, count)
    per chunk of instances, then copied into one table in instance order (the per-segment job tables are
    its slices);
-4. :func:`_price_kernel`: per instance (group row order) its points and triangles, cost and error
-   (splat size plus the projected keyframe deviation), and the cheapest admissible option (one).
+4. the price of every instance's option (points, triangles, cost, error) is computed with the other
+   candidates' rows in one pass (:func:`lod.auto.flat._rows_kernel`).
 
 Every value is computed by the same expressions as the per-group path (the traversal is
 :func:`lod.points.traverse._traverse_kernel` itself), so the options, job tables and sorted data are
@@ -460,48 +460,6 @@ def traverse(forest: Forest, pdata, kbin, bin_h, bin_row0, planes, vscale: float
     np.cumsum(pbin.sum(axis=0)[:B], out=p_at[1:])
     np.cumsum(tbin.sum(axis=0)[:B], out=t_at[1:])
     return compact(pj, npc), compact(tj, ntc), psum, tsum, p_at, t_at
-
-
-# ---------------------------------------------------------------------------- 4: prices
-@njit(cache=True, parallel=True)
-def _price_kernel(data, gof, g_on, g_dev, g_sphere, pos, psum, tsum, c_pts, c_tri, c_pinst, splat, scale_px, bound,
-                  pts, tris, cost, err, bmin):  # pragma: no cover - compiled
-    """Per instance (group row order) of a group the candidate draws: points and triangles of its
-    traversal, cost ``c_pts * points + c_tri * triangles + c_pinst``, error ``splat`` (+ the keyframe
-    deviation projected as :func:`lod.auto.candidates.projected_errors` does) and the cheapest option
-    within the bound (its one option, or +inf)."""
-    for i in prange(gof.shape[0]):
-        g = gof[i]
-        if not g_on[g]:
-            continue
-        k = pos[i]
-        p = psum[k]
-        t = tsum[k]
-        pts[i] = p
-        tris[i] = t
-        c = c_pts * np.float64(p) + c_tri * np.float64(t) + c_pinst
-        e = splat
-        dev = g_dev[g]
-        if dev > 0.0:
-            s = 0.0
-            for b in range(3):
-                n = np.sqrt(np.float64(data[i, b]) ** 2 + np.float64(data[i, 4 + b]) ** 2
-                            + np.float64(data[i, 8 + b]) ** 2)
-                if n > s:
-                    s = n
-            d2 = 0.0
-            for a in range(3):
-                x = (np.float64(data[i, 4 * a]) * g_sphere[g, 0] + np.float64(data[i, 4 * a + 1]) * g_sphere[g, 1]
-                     + np.float64(data[i, 4 * a + 2]) * g_sphere[g, 2] + np.float64(data[i, 4 * a + 3]))
-                d2 += x * x
-            d = np.sqrt(d2) - g_sphere[g, 3] * s
-            if d > 0.0:
-                e = e + dev * (s * scale_px / d)
-            else:
-                e = e + np.inf
-        cost[i] = c
-        err[i] = e
-        bmin[i] = c if (e <= bound and c < np.inf) else np.inf
 
 
 __all__ = ["Forest", "build_forest", "traverse"]
