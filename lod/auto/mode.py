@@ -130,7 +130,7 @@ import numpy as np
 
 from lod.auto import candidates as ac
 from lod.auto import cost_model
-from lod.auto import flat
+from lod.auto import flat, flat_plans
 from lod.auto.budget import ADAPT_FRAMES, EXPLORE_FRAMES, EXPLORE_MARGIN, PLAN_FRAMES, BudgetController
 from lod.auto.plans import _Block, price_plans, price_plans_loop
 from lod.chains import chain as tm_chain
@@ -372,7 +372,7 @@ class AutoSelector:
         if not one_pass:
             return price_plans_loop(self.candidates, groups, coef, fc, fixed)
         if isinstance(groups, flat.FlatGroups) and not groups.stale:  # from the flat rows (lod.auto.flat)
-            return flat.price(self.candidates, groups, coef, fc, fixed, order=self._order())
+            return flat_plans.price(self.candidates, groups, coef, fc, fixed, order=self._order())
         return price_plans(self.candidates, groups, coef, fc, fixed, order=self._order())
 
     #: per-instance options over flat arrays of all instances (:mod:`lod.auto.flat`); False: group by group

@@ -2,7 +2,6 @@
 reference), and drawing only the quads that can cover a pixel centre leaves the image unchanged while dropping
 most of a far crowd's blobs."""
 import numpy as np
-import pytest
 
 import render.shadows as shadows
 from lod.drawlist import DrawBatch, DrawList

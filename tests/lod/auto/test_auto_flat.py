@@ -10,7 +10,7 @@ import pytest
 
 from lod.auto import candidates as ac
 from lod.auto import cost_model
-from lod.auto import flat
+from lod.auto import flat, flat_plans
 from lod.auto import flat_points as fp
 from lod.auto import mode as am
 from lod.full.reps import build_keyframed_rep
@@ -80,8 +80,8 @@ def test_flat_selection_draws_what_the_per_group_path_draws(built, monkeypatch):
     """Every combination: the flat path's groups and plans are used (no silent fallback) and the draw
     lists equal the per-group path's; the cluster cut is skipped for none, some and all of a group."""
     calls, need = [], set()
-    orig, count = flat.price, flat._count_by_group
-    monkeypatch.setattr(flat, "price", lambda *a, **k: calls.append(1) or orig(*a, **k))
+    orig, count = flat_plans.price, flat._count_by_group
+    monkeypatch.setattr(flat_plans, "price", lambda *a, **k: calls.append(1) or orig(*a, **k))
 
     def counted(gof, mask, G):
         out = count(gof, mask, G)

@@ -6,12 +6,11 @@ path it replaced (AutoSelector.flat = False); the plans, choices and draw lists 
 import dataclasses
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from crowd.engine import Engine
 from crowd.scene import load_scene
-from lod.auto import flat
+from lod.auto import flat_plans
 from lod.auto import mode as am
 from test_auto_flat import _same
 
@@ -53,8 +52,8 @@ def lean(scene):
 @pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
 def test_flat_selection_chooses_what_the_per_group_path_chose(path, monkeypatch):
     priced = []
-    orig = flat.price
-    monkeypatch.setattr(flat, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
+    orig = flat_plans.price
+    monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
     scene = lean(load_scene(path))
     eng = Engine(scene, quiet=True)
     sel = eng.selector
