@@ -14,3 +14,10 @@ The only package that imports sim, lod and render; nothing imports it. Modules i
 - ``crowd.image_metrics``: image error against the full-detail reference; ``crowd.report``: reports over scenes
   and swept settings (a package).
 """
+import os as _os
+
+# numba's parallel kernels run on an OpenMP pool whose threads, by default, spin for milliseconds after every
+# parallel region; on a 2-core machine they take the cores llvmpipe's rasteriser threads and the main thread
+# need next (a frame runs dozens of regions). Passive waiting: 25-40 % less CPU per frame at a million agents,
+# measured (scripts/bench_million.md, notes). A value the user set is kept.
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

@@ -49,9 +49,11 @@ SIM_SCRATCH_PER_AGENT = 3 * STATE_BYTES_PER_AGENT
 #: one frame's selection per agent: instance data 64 B + id 4 B, and the
 #: selector's float64/int64 scratch (group id, time, anim, visibility, order)
 SELECT_BYTES_PER_AGENT = 64 + 4 + 6 * 8
-#: mode auto prices every candidate per agent on top (copies of the instance data, per-candidate cost and
-#: error columns, plans): measured on scenes/million.toml, peak 1.36 GB against 1.00 GB in mode points for a
-#: million agents (scripts/bench_million.md), about 360 B per agent
+#: mode auto prices every candidate per agent on top: the flat rows of lod/auto/flat.py (per candidate the
+#: cheapest option, its column, the skipped flags: 3 x 17 B), the point candidate's sorted copy of the instance
+#: data with its segments, jobs and totals (~200 B), the plans' choices (4 x 8 B); measured on scenes/million.toml,
+#: peak 1.24 GB against 1.03 GB in mode points for a million agents (scripts/bench_million.md; the per-group path
+#: it replaced peaked at 1.36 GB), so 400 B per agent over-counts a little
 AUTO_SELECT_BYTES_PER_AGENT = 400
 #: GPU instance data per agent (16 float32), times 2 for capacity doubling
 GPU_INSTANCE_BYTES = 64 * 2

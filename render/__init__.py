@@ -13,13 +13,15 @@ Modules in data-flow order (representations and DrawList in, pixels and timings 
   every draw path applies through ``shaders/tint.glsl``, so LOD modes agree on colours.
 - ``render.capture``: transform-feedback capture of a representation's skinned vertices (tests).
 - ``render.light``: the scene's directional light (``u_light_dir``, ``u_light_color``, ``u_ambient``).
-- ``render.shadows``: ``Renderer.lighting``: the light's uniforms, blob-shadow decals and the shadow map.
+- ``render.shadows``: ``Renderer.lighting``: the light's uniforms, blob-shadow decals and the shadow map;
+  ``render.blobs`` the blobs' rows in numba and the test that drops quads covering no pixel centre.
 - ``render.targets``: the morph-target tables (glTF §3.7.2.2) the ``MORPH_TARGETS`` variants of the skinned
   shaders blend before skinning (``lod.full.targets``); not the geomorphs below.
 - ``render.morph``: the geomorph tables the morph shaders follow (``lod.chains``, ``lod.clusters``).
 - ``render.clusters``: the drawer of ``lod.clusters`` cuts (VDR-AM; occlusion culling §5.2).
 - ``render.points``: the drawer of ``lod.points`` hierarchies (compute-shader splats and GL_POINTS);
-  ``render.points_jobs`` its CPU job helpers; ``render.occlusion`` its occlusion culling of hierarchy nodes
+  ``render.points_jobs`` its CPU job helpers, ``render.points_pack`` its per-frame packing in numba (folded
+  instance rows, colour words, job tables); ``render.occlusion`` its occlusion culling of hierarchy nodes
   (max-depth pyramid of the likely occluders; Wand & Straßer have none).
 - ``render.timing``: which GPU timer-query readings to believe (llvmpipe).
 - ``render.image``: PNG output written atomically.

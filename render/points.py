@@ -46,6 +46,7 @@ import numpy as np
 
 from lod.drawlist import fade_uniform
 from render import occlusion as occ
+from render import points_pack as pack
 from render.context import track
 from render.points_follow import FollowFrame
 from render.points_follow import upload as upload_follow
@@ -54,7 +55,7 @@ from render.points_samples import (SAMPLE_BYTES, SAMPLE_WORDS, fold_box, oct_enc
                                 pack_samples, rgba8_words, sample_box, unpack_samples)
 from render.points_jobs import (TRI_RANGE_CACHE, expand_jobs, indexed_triangle_jobs)  # noqa: F401 (re-exported)
 from render.shaders import load_source, program_sources
-from render.tint import TINT_BYTES, batch_words
+from render.tint import TINT_BYTES
 
 #: threads per work group of the splat passes (they stride over each job's points); 8 is
 #: llvmpipe's SIMD width and measured 2x faster than 64 there (mean job: 160
@@ -222,7 +223,8 @@ class Drawer:
     def _buffer(self, name, data: np.ndarray | None, reserve: int = 0):
         """Per-frame storage buffer ``name`` (grown by doubling) holding ``data`` (None: at least ``reserve``
         bytes, contents left as they are, for a pass to write)."""
-        raw = np.ascontiguousarray(data).tobytes() if data is not None else b""
+        # a view, not a copy, of a frame's million rows
+        raw = memoryview(np.ascontiguousarray(data)).cast("B") if data is not None else b""
         need = max(len(raw), int(reserve))
         b = self._bufs.get(name)
         if b is None or b.size < need:
@@ -352,13 +354,14 @@ class Drawer:
         for b in batches:
             offs[id(b)] = rows
             rows += b.n_instances
-        # the model matrices also dequantise their rep's positions (pack_samples; the follow reps' pose box)
-        inst = np.concatenate([fold_box(b.instance_data, *self._gpu_of(b.rep).box) for b in batches])
-        if not np.isfinite(inst).all():
+        # the model matrices also dequantise their rep's positions (fold_box, the follow reps' pose box; packed in
+        # numba: render.points_pack)
+        inst, finite = pack.fold_rows(batches, [self._gpu_of(b.rep).box for b in batches])
+        if not finite:
             raise FloatingPointError("points drawer: instance data hold NaN or Inf")
         inst_buf = self._buffer("instances", inst)
         # colour words per instance row (variation, debug colour: render/tint.py, shaders/tint.glsl)
-        tint_buf = self._buffer("tints", batch_words(batches, self.r.tint_table))
+        tint_buf = self._buffer("tints", pack.batch_words(batches, self.r.tint_table))
         row_bytes = inst.shape[1] * inst.itemsize
         limit = self.ssbo_limit or int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27))
         # instance rows one storage binding can hold (render/points_frame.py), a multiple of WINDOW_ROWS so
@@ -392,12 +395,12 @@ class Drawer:
             self.last_counts.update({k: v for k, v in fol.counts.items()})
         # 1. the traversal's jobs: triangle tables per (fade, rep), point tables per fade over every
         # rep (their samples share one buffer)
-        tris = [(f, k, g, job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
+        tris = [(f, k, g, pack.job_table(by_fade[f], k, g.tbase, "tri_jobs", offs))
                 for f in by_fade for k, g in self._reps.items()]
         tris = [t for t in tris if t[3].shape[0]]
         groups = []
         for fade, bs in by_fade.items():
-            parts = [job_table(bs, key, g.pbase, "point_jobs", offs) for key, g in self._reps.items()]
+            parts = [pack.job_table(bs, key, g.pbase, "point_jobs", offs) for key, g in self._reps.items()]
             parts = [j for j in parts if j.shape[0]]
             if parts:
                 groups.append((fade, _merge_jobs(parts)))

@@ -23,7 +23,9 @@
   offset and a constant bias against acne.
 - ``draw``: blob shadows, a soft dark disc under each agent (mode "blob", and in mode "map" for the agents drawn
   as points or clusters; never under a plug-in drawer's statics that say ``blob_shadows = False``: the world's
-  props and obstacle solids). One instanced draw of a quad per agent lying at its floor point (the representation's
+  props and obstacle solids). One instanced draw of a quad per agent lying at its floor point (only the quads that
+  can cover a pixel centre: a far agent's is a fraction of a pixel, usually between centres; :mod:`render.blobs`,
+  the image unchanged) (the representation's
   lowest vertex under the centre of its footprint, through the instance matrix), radius from the footprint of the
   representation's rest pose times the instance scale; alpha-blended, depth-tested without depth writes, lifted by
   :data:`BLOB_LIFT` metres and pulled forward by polygon offset (no z-fighting with the ground). The renderer
@@ -40,6 +42,7 @@ import math
 import moderngl
 import numpy as np
 
+from render.blobs import blob_rows, covering
 from render.context import track
 from render.light import DEFAULT_SHADOWS, SHADOW_MODES, Light, apply_light  # noqa: F401  (re-exported)
 
@@ -193,8 +196,9 @@ class Lighting:
         self._casting = False
         self._blob_kinds: set = set()  # plug-in kinds whose agents get blobs in mode "map" (_plugin_casters)
         self._params = (0.0, 0.0, 0.0)
-        #: counts of the last frame: blobs drawn, casters (instances) in the map
-        self.last_counts = {"blobs": 0, "casters": 0}
+        #: counts of the last frame: agents with a blob, blobs drawn (those that can cover a pixel,
+        #: render.blobs.covering), casters (instances) in the map
+        self.last_counts = {"blobs": 0, "blobs_drawn": 0, "casters": 0}
 
     def configure(self, light: Light | None = None, mode: str | None = None, distance: float | None = None,
                   map_size: int | None = None) -> None:
@@ -373,14 +377,18 @@ class Lighting:
         characters in modes none and triangles, the terrain) and the world's ground (``order`` -10), before the
         cluster (0) and point (10) drawers, so the blobs are depth-tested against the characters already drawn
         and the later ones cover them."""
-        self.last_counts["blobs"] = 0
+        self.last_counts["blobs"] = self.last_counts["blobs_drawn"] = 0
         if self.mode == "none":
             return
         src = [b for b in drawlist.batches if self._blob_kind(b.rep)]
         if self.mode == "map":  # the agents of drawers that did not cast (points; clusters with occlusion culling)
             src = [b for b in src if self.r._plugin_reps.get(b.rep) in self._blob_kinds]
-        blobs = blob_instances(src, self.footprints)
+        blobs = blob_rows(src, self.footprints)  # blob_instances in numba (render.blobs)
+        self.last_counts["blobs"] = blobs.shape[0]
+        if not self.r.samples:  # only the quads that can cover a pixel centre (render.blobs.covering)
+            blobs = blobs[covering(blobs, view_proj, self.r.size, BLOB_LIFT)]
         n = blobs.shape[0]
+        self.last_counts["blobs_drawn"] = n
         if n == 0:
             return
         prog, vao, buf = self._blob_objects(n)
@@ -401,7 +409,6 @@ class Lighting:
             ctx.disable(moderngl.BLEND)
             fbo.depth_mask = True
             fbo.use()
-        self.last_counts["blobs"] = n
 
     def _blob_kind(self, key: str) -> bool:
         """Whether the agents of representation ``key`` may get blobs: not those of a plug-in drawer with

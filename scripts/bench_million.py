@@ -1,24 +1,32 @@
-"""Benchmark: a million independently moving agents (issue 21, ``scenes/million.toml``).
+"""Benchmark: a million independently moving agents (issues 21 and 26, ``scenes/million.toml``).
 
-Runs the scene end to end (``crowd.engine.Engine``, as ``crowd run`` does) once per LOD
-mode, each in a subprocess of its own (so its peak memory is its own); ``points-root`` is mode
-points with ``coarse = false`` (every far agent drawn from its whole hierarchy root, as before
+The scene is the bar of issue 26: a million boids humanoids (5,000 triangles) over 2 x 2 km, the camera
+above the middle of one edge at half the field's width up and 0.6 of it back (the view of
+``scripts/bench_peer.py``), 1280 x 720; mode auto at 2 pixels. Acceptance: mode auto >= 4 frames per
+second end to end, selection <= 60 ms, on this 2-core machine.
+
+Runs the scene end to end (``crowd.engine.Engine``, as ``crowd run`` does) once per LOD mode, each in
+a subprocess of its own (so its peak memory is its own); ``points-root`` is mode points with
+``coarse = false`` (every far agent drawn from its whole hierarchy root, as before
 ``lod/points/coarse.py``). Prints per mode:
 
-- scene load: seconds from the scene file to the first frame (characters, agents, LOD
-  representations, renderer), with the LOD cache warm (a first run builds it: the
-  ``cold`` column of the first mode, when ``--cold`` gives a fresh cache folder);
-- per-stage medians per frame from the telemetry (``frames.csv``: simulate, select,
-  upload, draw, finish, total) over the frames after ``--warmup``; frames per second
-  from the median total;
-- points per agent drawn, triangles, instances;
-- memory: the peak resident size of the process (``ru_maxrss``) and the memory guard's
-  estimate (``crowd.memory.estimate_scene``);
-- the load average before and after, and the busiest other processes at the start
-  (the machine is shared: the figures are only comparable within one run).
+- scene load: seconds from the scene file to the first frame with the LOD cache warm;
+- per-stage medians per frame from the telemetry (``frames.csv``: simulate, select, upload, draw,
+  finish, total) over the frames after ``--warmup``; frames per second from the median total;
+- ``cpu ms``: the process's CPU time per measured frame (all threads: numba's and llvmpipe's), the work
+  a frame costs whatever else runs on the machine;
+- points per agent drawn, triangles;
+- memory: the peak resident size of the process (``ru_maxrss``) and the memory guard's estimate
+  (``crowd.memory.estimate_scene``);
 
-Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points-root points auto]
-      [--frames 10] [--warmup 2] [--md scripts/bench_million.md]
+then, in one process, mode auto's selection of the same frame by the flat path (``lod/auto/flat.py``)
+and by the per-group path it replaced (``AutoSelector.flat = False``), interleaved (a ratio measured in
+one run survives the load); and the serial/parallel comparison of two per-agent kernels. The load
+average before and after, and the busiest other processes at the start, are printed: the machine is
+shared, absolute figures compare only within a run.
+
+Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points auto]
+      [--frames 10] [--warmup 3] [--md scripts/bench_million.md] [--no-kernels] [--no-selection]
 """
 from __future__ import annotations
 
@@ -45,12 +53,7 @@ def _fail(msg: str) -> None:
     raise SystemExit(2)
 
 
-def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
-    """One mode in this process: load, run, read the telemetry back."""
-    import csv
-
-    from crowd.engine import Engine
-    from crowd.memory import estimate_scene
+def _scene(scene_path: str, mode: str):
     from crowd.scene import load_scene
 
     scene = load_scene(scene_path)
@@ -58,26 +61,69 @@ def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
     params = dict(scene.lod_params) if scene.lod_mode == base else {}
     if mode.endswith("-root"):  # points drawn from whole roots at least (no coarser prefixes): the before
         params["coarse"] = False
-    scene = replace(scene, lod_mode=base, lod_params=tuple(params.items()))
+    return replace(scene, lod_mode=base, lod_params=tuple(params.items()))
+
+
+def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
+    """One mode in this process: load, run, read the telemetry back."""
+    import csv
+
+    from crowd.engine import Engine
+    from crowd.memory import estimate_scene
+
+    scene = _scene(scene_path, mode)
     est = estimate_scene(scene)
     t0 = time.perf_counter()
     with Engine(scene, quiet=True) as eng:
         eng._open_renderer()
         load = time.perf_counter() - t0
         with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp) / "run"
-            eng.run(frames=warmup + frames, out_dir=out)
-            with open(out / "frames.csv") as f:
+            if warmup:
+                eng.run(frames=warmup, out_dir=Path(tmp) / "warm")
+            c0 = time.process_time()
+            eng.run(frames=frames, out_dir=Path(tmp) / "run")
+            cpu = (time.process_time() - c0) / frames
+            with open(Path(tmp) / "run" / "frames.csv") as f:
                 rows = list(csv.DictReader(f))
-    rows = rows[warmup:]
     med = {s: statistics.median(float(r[s]) for r in rows) for s in STAGES}
     agents = int(scene_agents(scene))
     pts = statistics.median(float(r["points"]) for r in rows)
-    return {"mode": mode, "load_s": load, "frames": len(rows), "median_s": med,
+    return {"mode": mode, "load_s": load, "frames": len(rows), "median_s": med, "cpu_s": cpu,
             "points": pts, "points_per_agent": pts / max(1, agents),
-            "triangles": statistics.median(float(r["triangles"]) for r in rows),
-            "instances": statistics.median(float(r["instances"]) for r in rows), "agents": agents,
+            "triangles": statistics.median(float(r["triangles"]) for r in rows), "agents": agents,
             "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "estimate": est.total}
+
+
+def selection(scene_path: str, repeats: int = 3) -> dict:
+    """Mode auto's selection of one frame of the scene, flat and per-group, interleaved: median wall
+    and CPU seconds of each (numba threads as configured), and whether both drew the same."""
+    import numpy as np
+
+    from crowd.engine import Engine
+
+    scene = _scene(scene_path, "auto")
+    with Engine(scene, quiet=True) as eng:
+        eng.step()
+        sel = eng.selector
+        cam = eng.camera_at(eng.world.time)
+        size = scene.render.size
+        times = {True: [], False: []}
+        lists = {}
+        for f in (True, False):  # compile / warm
+            sel.flat = f
+            sel.select(eng.world.state, cam, size)
+        for _ in range(repeats):
+            for f in (True, False):
+                sel.flat = f
+                t, c = time.perf_counter(), time.process_time()
+                lists[f] = sel.select(eng.world.state, cam, size)
+                times[f].append((time.perf_counter() - t, time.process_time() - c))
+        a, b = lists[True], lists[False]
+        same = [(x.rep, x.part, x.level) for x in a.batches] == [(x.rep, x.part, x.level) for x in b.batches] and \
+            all(np.array_equal(x.instance_ids, y.instance_ids) for x, y in zip(a.batches, b.batches))
+    med = {f: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v)) for f, v in times.items()}
+    return {"flat": med[True], "per_group": med[False], "same": bool(same),
+            "instances": int(a.stats["instances"]), "plan": a.stats["auto"]["plan"]}
 
 
 def kernels(n: int = 1_000_000, repeats: int = 3) -> list:
@@ -151,15 +197,26 @@ def busiest(n: int = 6) -> list[str]:
     return [f"{c.split(None, 1)[1]} ({c.split(None, 1)[0]} %)" for c in out[:n] if len(c.split(None, 1)) == 2]
 
 
+def _child(a, what: str) -> dict:
+    cmd = [sys.executable, __file__, "--scene", a.scene, "--frames", str(a.frames), "--warmup", str(a.warmup),
+           "--one", what]
+    p = subprocess.run(cmd, capture_output=True, text=True, env=os.environ | {"PYTHONPATH": str(ROOT)})
+    if p.returncode:
+        last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit code {p.returncode}"
+        _fail(f"{what}: the run failed: {last}")
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scene", default=str(ROOT / "scenes" / "million.toml"))
-    ap.add_argument("--modes", nargs="+", default=["points-root", "points", "auto"])
+    ap.add_argument("--modes", nargs="+", default=["points", "auto"])
     ap.add_argument("--frames", type=int, default=10)
-    ap.add_argument("--warmup", type=int, default=2)
+    ap.add_argument("--warmup", type=int, default=3)
     ap.add_argument("--md", default=str(ROOT / "scripts" / "bench_million.md"))
-    ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mode, print JSON
+    ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mode (or "selection"), print JSON
     ap.add_argument("--no-kernels", action="store_true", help="skip the serial/parallel kernel comparison")
+    ap.add_argument("--no-selection", action="store_true", help="skip the flat/per-group selection comparison")
     a = ap.parse_args(argv)
     if a.frames < 1 or a.warmup < 0:
         _fail(f"--frames: expected >= 1 and --warmup >= 0, got {a.frames} and {a.warmup}")
@@ -170,31 +227,35 @@ def main(argv=None) -> int:
     bad = [m for m in a.modes if m not in MODES and m != "points-root"]
     if bad:
         _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}, points-root")
+    import crowd  # noqa: F401  (the app's OpenMP wait policy, as crowd run has it, for the kernels here too)
+
     if a.one:
-        print(json.dumps(run_one(a.scene, a.one, a.frames, a.warmup)))
+        print(json.dumps(selection(a.scene) if a.one == "selection" else run_one(a.scene, a.one, a.frames, a.warmup)))
         return 0
     load0, others = os.getloadavg(), busiest()
-    results = []
-    for m in a.modes:
-        cmd = [sys.executable, __file__, "--scene", a.scene, "--frames", str(a.frames), "--warmup", str(a.warmup),
-               "--one", m]
-        p = subprocess.run(cmd, capture_output=True, text=True, env=os.environ | {"PYTHONPATH": str(ROOT)})
-        if p.returncode:
-            last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit code {p.returncode}"
-            _fail(f"mode {m}: the run failed: {last}")
-        results.append(json.loads(p.stdout.strip().splitlines()[-1]))
+    results = [_child(a, m) for m in a.modes]
+    sel = None if a.no_selection else _child(a, "selection")
     kern = [] if a.no_kernels else kernels()
     load1 = os.getloadavg()
-    lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | points/agent | triangles | "
+    lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | cpu ms | points/agent | triangles | "
              "peak RSS GB | guard estimate GB |",
-             "| --- | ---: | " + " | ".join("---:" for _ in STAGES) + " | ---: | ---: | ---: | ---: | ---: |"]
+             "| --- | ---: | " + " | ".join("---:" for _ in STAGES) + " | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for r in results:
         med = r["median_s"]
         lines.append(f"| {r['mode']} | {r['load_s']:.1f} | " + " | ".join(f"{1e3 * med[s]:.0f}" for s in STAGES)
-                     + f" | {1.0 / med['total']:.2f} | {r['points_per_agent']:.2f} | {r['triangles']:,.0f} | "
-                     f"{r['peak_rss'] / 1e9:.2f} | {r['estimate'] / 1e9:.2f} |")
+                     + f" | {1.0 / med['total']:.2f} | {1e3 * r['cpu_s']:.0f} | {r['points_per_agent']:.2f} | "
+                     f"{r['triangles']:,.0f} | {r['peak_rss'] / 1e9:.2f} | {r['estimate'] / 1e9:.2f} |")
     head = (f"Scene {Path(a.scene).name}: {results[0]['agents']:,} agents; medians of {a.frames} frames after "
             f"{a.warmup} warm-up frames; load average {load0[0]:.1f} before, {load1[0]:.1f} after.")
+    slines = []
+    if sel is not None:
+        (fw, fc), (pw, pc) = sel["flat"], sel["per_group"]
+        slines = ["| mode auto's selection of one frame | wall ms | cpu ms |", "| --- | ---: | ---: |",
+                  f"| flat arrays (lod/auto/flat.py) | {1e3 * fw:.0f} | {1e3 * fc:.0f} |",
+                  f"| per group (the reference) | {1e3 * pw:.0f} | {1e3 * pc:.0f} |",
+                  f"| per group / flat | {pw / fw:.2f} | {pc / fc:.2f} |", "",
+                  f"Same draw list from both: {'yes' if sel['same'] else 'NO'} ({sel['instances']:,} instances, "
+                  f"plan {sel['plan']})."]
     klines = ["| kernel (1,000,000 agents, far view) | serial ms | parallel ms | serial / parallel |",
               "| --- | ---: | ---: | ---: |"]
     for name, s, p in kern:
@@ -204,6 +265,8 @@ def main(argv=None) -> int:
             klines.append(f"| {name} | {1e3 * s:.0f} | {1e3 * p:.0f} | {s / p:.2f} |")
     print(head)
     print("\n".join(lines))
+    if slines:
+        print("\n".join(slines))
     if kern:
         print("\n".join(klines))
     import platform
@@ -217,10 +280,11 @@ def main(argv=None) -> int:
           f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, Python "
           f"{platform.python_version()}, {gl}.", "",
           f"Command: `{' '.join(['.venv/bin/python', 'scripts/bench_million.py'] + (argv or sys.argv[1:]))}`", "",
-          head, "", *lines, "", *((klines + [""]) if kern else []),
+          head, "", *lines, "", *((slines + [""]) if slines else []), *((klines + [""]) if kern else []),
           "Busiest processes at the start (the machine is shared): " + ", ".join(others) + ".", "",
           "Stages are the engine's telemetry (`frames.csv`) per frame: simulate (boids + animation), select (LOD "
           "selection: culling, packing, traversal, auto's pricing), upload + draw + finish (the renderer). "
+          "`cpu ms` is the process's CPU time per measured frame, every thread counted. "
           "`load s` is the time from the scene file to the first frame with the LOD cache warm. "
           "Peak RSS is the benchmark process's own (one process per mode)."]
     from lod.atomic_io import atomic_open

@@ -7,6 +7,9 @@ Modules in data-flow order:
 - ``lod.auto.candidates``: one plug-in per representation family (chains, clusters, points): options, their
   projected errors and costs.
 - ``lod.auto.plans``: per instance group the cheapest option under the bound, reduced in blocks (numba).
+- ``lod.auto.flat``, ``lod.auto.flat_points``: the candidates' options and the frame plans over flat arrays of
+  all instances in a few parallel numba passes (a million agents); the per-group path of ``lod.auto.mode`` is the
+  reference they are tested equal to.
 - ``lod.auto.budget``: the per-instance choice at a bound and the controller that moves the bound towards a
   frame-time budget.
 - ``lod.auto.mode``: ``AutoSelector`` and the mode protocol.

@@ -604,14 +604,16 @@ class PointsCandidate(Candidate):
             return [out]
         r, data, ids, order, jobs, pts, tris, p = options.plan
         b = group.batch
-        take = np.zeros(group.k, bool)
-        take[rows] = True
-        if order is not None:
-            take = take[order]  # in the grouped order of data and ids
+        every = rows.shape[0] == group.k  # rows are distinct: all chose points (a far crowd), no mask needed
+        if not every:
+            take = np.zeros(group.k, bool)
+            take[rows] = True
+            if order is not None:
+                take = take[order]  # in the grouped order of data and ids
         out = []
         for s, (a, e, pj, tj) in sorted(jobs.items()):
-            sel = take[a:e]
-            if sel.all():  # every instance of the segment chose points: its rows and jobs as they are
+            sel = None if every else take[a:e]
+            if every or sel.all():  # every instance of the segment chose points: its rows and jobs as they are
                 d, i = data[a:e], ids[a:e]
             else:
                 if not sel.any():

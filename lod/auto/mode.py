@@ -128,6 +128,7 @@ import numpy as np
 
 from lod.auto import candidates as ac
 from lod.auto import cost_model
+from lod.auto import flat, flat_plans
 from lod.auto.budget import BudgetController
 from lod.auto.control import SWITCH_FRAMES, Decision, PlanChooser
 from lod.auto.delegate import Delegates, delegated_stats
@@ -391,7 +392,35 @@ class AutoSelector:
         coef = frame.model.coefficients
         if not one_pass:
             return price_plans_loop(self.candidates, groups, coef, fc, fixed)
+        if isinstance(groups, flat.FlatGroups) and not groups.stale:  # from the flat rows (lod.auto.flat)
+            return flat_plans.price(self.candidates, groups, coef, fc, fixed, order=self._order())
         return price_plans(self.candidates, groups, coef, fc, fixed, order=self._order())
+
+    #: per-instance options over flat arrays of all instances (:mod:`lod.auto.flat`); False: group by group
+    #: (:meth:`_options`, the reference the tests compare with)
+    flat = True
+
+    def _groups(self, frame, dl, bound, out) -> list:
+        """The agent batches of the master list ``dl`` as [(group, [_Block per candidate], columns)] (the
+        scenery batches go to ``out`` as they are): over flat arrays of all instances (:mod:`lod.auto.flat`)
+        when :attr:`flat` and every candidate has a flat form, else group by group (:meth:`_options`)."""
+        agents = []
+        for b in dl.batches:
+            ri = self._rep_index.get(b.rep)
+            if ri is None or b.n_instances == 0 or int(b.instance_ids[0]) < 0:  # scenery
+                out.append(b)
+            else:
+                agents.append((ri, b))
+        groups = flat.groups(self, frame, agents, bound) if self.flat else None
+        if groups is not None:
+            return groups
+        groups = []
+        for ri, b in agents:
+            rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
+            g = ac.Group(ri, b, rows)
+            opts = self._options(frame, g, bound)
+            groups.append((g, opts, sum(x.m for x in opts)))
+        return groups
 
     def select(self, state, camera, size, statics=()) -> DrawList:
         """The frame's DrawList (see :meth:`lod.full.mode.NoLodSelector.select`):
@@ -417,7 +446,6 @@ class AutoSelector:
         per_cand = {c.name: 0 for c in self.candidates}
         tel = ac.Telemetry()
         out = []
-        groups = []  # (group, [_Block per candidate], columns)
         # whole groups first (§3.6 super-hierarchies): their agents get no per-instance option
         wholes, taken, fixed_s, fixed_used, represented = [], None, 0.0, set(), 0
         if bound > 0.0:
@@ -440,15 +468,7 @@ class AutoSelector:
             dl.stats["culled"] = int(state.n - dl.stats["instances"])
         else:
             dl = self._inner.select(state, camera, size, statics)
-        for b in dl.batches:
-            ri = self._rep_index.get(b.rep)
-            if ri is None or b.n_instances == 0 or int(b.instance_ids[0]) < 0:  # scenery
-                out.append(b)
-                continue
-            rows = np.asarray(b.instance_data, np.float32)[:, :12].astype(np.float64).reshape(-1, 3, 4)
-            g = ac.Group(ri, b, rows)
-            opts = self._options(frame, g, bound)
-            groups.append((g, opts, sum(x.m for x in opts)))
+        groups = self._groups(frame, dl, bound, out)
         plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
         if held is not None:
             dec = self.chooser.hold()

@@ -6,6 +6,8 @@ into one instanced batch per (representation, part) — two numba passes
 """
 from __future__ import annotations
 
+import types
+
 import numba
 import numpy as np
 from numba import njit, prange
@@ -78,97 +80,62 @@ def instance_batches_numpy(pos, origin, heading, scale, gid, t, anim, g_sphere, 
     return order.astype(np.int32), data, counts
 
 
-@njit(cache=True, inline="always")
-def _instance_one(i, pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
-                  g_last, planes, cull, vis, cs):  # pragma: no cover - compiled
-    g = gid[i]
-    h = heading[i]
-    if not np.isfinite(h):
-        h = 0.0
-        heading[i] = 0.0
-    if g_skinned[g]:
-        ti = t[i]
-        if not np.isfinite(ti):
-            ti = 0.0
-        d = g_dur[g]
-        if d > 0.0:
-            if g_loop[g]:
-                tl = ti - np.floor(ti / d) * d
-            else:
-                tl = min(max(ti, 0.0), d)
-        else:
-            tl = 0.0
-        f = g_off[g] + tl * g_fps[g]
-        anim[i] = min(max(f, g_off[g]), g_last[g])
-    ok = True
-    c = np.cos(h)
-    s = np.sin(h)
-    cs[i, 0] = c
-    cs[i, 1] = s
-    if cull:
-        sc = scale[i]
-        sx, sy, sz, sr = g_sphere[g, 0], g_sphere[g, 1], g_sphere[g, 2], g_sphere[g, 3]
-        cx = pos[i, 0] - origin[0] + (c * sx + s * sz) * sc
-        cy = pos[i, 1] - origin[1] + sy * sc
-        cz = pos[i, 2] - origin[2] + (-s * sx + c * sz) * sc
-        r = sr * abs(sc)
-        for k in range(planes.shape[0]):
-            if planes[k, 0] * cx + planes[k, 1] * cy + planes[k, 2] * cz + planes[k, 3] < -r:
-                ok = False
-                break
-    vis[i] = ok
+def _twin(f, suffix: str):
+    """A copy of loop function ``f`` named ``f.__name__ + suffix``: numba caches compiled code per
+    function name, so one loop source compiled serially and in parallel needs two names."""
+    g = types.FunctionType(f.__code__, f.__globals__, f.__name__ + suffix, f.__defaults__, f.__closure__)
+    g.__qualname__ = f.__qualname__ + suffix
+    g.__doc__ = f.__doc__
+    return g
 
 
-@njit(cache=True)
-def _instance_pass(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
+def _instance_loop(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
                    g_last, planes, cull, vis, cs):  # pragma: no cover - compiled
-    for i in range(pos.shape[0]):
-        _instance_one(i, pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
-                      g_last, planes, cull, vis, cs)
-
-
-@njit(cache=True, parallel=True)
-def _instance_pass_parallel(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur,
-                            g_loop, g_last, planes, cull, vis, cs):  # pragma: no cover - compiled
-    for i in prange(pos.shape[0]):  # every instance writes only its own rows
-        _instance_one(i, pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
-                      g_last, planes, cull, vis, cs)
-
-
-@njit(cache=True, inline="always")
-def _write_row(k, i, pos, origin, cs, scale, anim, ids, data):  # pragma: no cover - compiled
-    ids[k] = i
-    sc = scale[i]
-    c = cs[i, 0] * sc
-    s = cs[i, 1] * sc
-    data[k, 0] = c
-    data[k, 1] = 0.0
-    data[k, 2] = s
-    data[k, 3] = pos[i, 0] - origin[0]
-    data[k, 4] = 0.0
-    data[k, 5] = sc
-    data[k, 6] = 0.0
-    data[k, 7] = pos[i, 1] - origin[1]
-    data[k, 8] = -s
-    data[k, 9] = 0.0
-    data[k, 10] = c
-    data[k, 11] = pos[i, 2] - origin[2]
-    data[k, 12] = anim[i]
-    data[k, 13] = 0.0
-    data[k, 14] = 0.0
-    data[k, 15] = 0.0
-
-
-@njit(cache=True)
-def _scatter(pos, origin, cs, scale, gid, anim, vis, starts, ids, data):  # pragma: no cover - compiled
-    cursor = starts.copy()
-    for i in range(pos.shape[0]):
-        if not vis[i]:
-            continue
+    """Per instance: the skinned frame coordinate, cos/sin of the heading, the frustum test (every
+    instance writes only its own rows). One body for the serial and the parallel kernel (``prange`` is
+    ``range`` in the serial one); no helper call per instance: a call passing these arrays costs a
+    reference-count update of each, 3x the whole loop."""
+    for i in prange(pos.shape[0]):
         g = gid[i]
-        k = cursor[g]
-        cursor[g] += 1
-        _write_row(k, i, pos, origin, cs, scale, anim, ids, data)
+        h = heading[i]
+        if not np.isfinite(h):
+            h = 0.0
+            heading[i] = 0.0
+        if g_skinned[g]:
+            ti = t[i]
+            if not np.isfinite(ti):
+                ti = 0.0
+            d = g_dur[g]
+            if d > 0.0:
+                if g_loop[g]:
+                    tl = ti - np.floor(ti / d) * d
+                else:
+                    tl = min(max(ti, 0.0), d)
+            else:
+                tl = 0.0
+            f = g_off[g] + tl * g_fps[g]
+            anim[i] = min(max(f, g_off[g]), g_last[g])
+        ok = True
+        c = np.cos(h)
+        s = np.sin(h)
+        cs[i, 0] = c
+        cs[i, 1] = s
+        if cull:
+            sc = scale[i]
+            sx, sy, sz, sr = g_sphere[g, 0], g_sphere[g, 1], g_sphere[g, 2], g_sphere[g, 3]
+            cx = pos[i, 0] - origin[0] + (c * sx + s * sz) * sc
+            cy = pos[i, 1] - origin[1] + sy * sc
+            cz = pos[i, 2] - origin[2] + (-s * sx + c * sz) * sc
+            r = sr * abs(sc)
+            for k in range(planes.shape[0]):
+                if planes[k, 0] * cx + planes[k, 1] * cy + planes[k, 2] * cz + planes[k, 3] < -r:
+                    ok = False
+                    break
+        vis[i] = ok
+
+
+_instance_pass = njit(cache=True)(_twin(_instance_loop, "_serial"))
+_instance_pass_parallel = njit(cache=True, parallel=True)(_twin(_instance_loop, "_parallel"))
 
 
 @njit(cache=True, parallel=True)
@@ -183,11 +150,11 @@ def _chunk_counts(gid, vis, first, G):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, parallel=True)
-def _scatter_parallel(pos, origin, cs, scale, gid, anim, vis, first, cstarts, ids, data):  # pragma: no cover
-    """The counting sort of :func:`_scatter` by chunks of agents in parallel: chunk c writes group g
-    from ``cstarts[c, g]`` (the group's start plus the earlier chunks' counts), so every row lands
-    where the serial pass puts it."""
+def _scatter_loop(pos, origin, cs, scale, gid, anim, vis, first, cstarts, ids, data):  # pragma: no cover
+    """The stable counting sort by chunks of agents: chunk c writes group g from ``cstarts[c, g]`` (the
+    group's start plus the earlier chunks' counts), so every row lands where a serial pass puts it: the
+    camera-relative model rows and the animation float of each visible instance, keeping agent order
+    within a group. Serial (one chunk) and parallel kernels share this body."""
     for c in prange(first.shape[0] - 1):
         cursor = cstarts[c].copy()
         for i in range(first[c], first[c + 1]):
@@ -196,7 +163,30 @@ def _scatter_parallel(pos, origin, cs, scale, gid, anim, vis, first, cstarts, id
             g = gid[i]
             k = cursor[g]
             cursor[g] += 1
-            _write_row(k, i, pos, origin, cs, scale, anim, ids, data)
+            ids[k] = i
+            sc = scale[i]
+            co = cs[i, 0] * sc
+            si = cs[i, 1] * sc
+            data[k, 0] = co
+            data[k, 1] = 0.0
+            data[k, 2] = si
+            data[k, 3] = pos[i, 0] - origin[0]
+            data[k, 4] = 0.0
+            data[k, 5] = sc
+            data[k, 6] = 0.0
+            data[k, 7] = pos[i, 1] - origin[1]
+            data[k, 8] = -si
+            data[k, 9] = 0.0
+            data[k, 10] = co
+            data[k, 11] = pos[i, 2] - origin[2]
+            data[k, 12] = anim[i]
+            data[k, 13] = 0.0
+            data[k, 14] = 0.0
+            data[k, 15] = 0.0
+
+
+_scatter = njit(cache=True)(_twin(_scatter_loop, "_serial"))
+_scatter_parallel = njit(cache=True, parallel=True)(_twin(_scatter_loop, "_parallel"))
 
 
 def instance_batches(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skinned, g_off, g_fps, g_dur, g_loop,
@@ -257,5 +247,5 @@ def instance_batches(pos, origin, heading, scale, gid, t, anim, g_sphere, g_skin
         cstarts = starts[None, :] + np.cumsum(cc, axis=0) - cc  # exclusive prefix over the chunks
         _scatter_parallel(*args, first, np.ascontiguousarray(cstarts), ids, data)
     else:
-        _scatter(*args, starts, ids, data)
+        _scatter(*args, np.array([0, n], np.int64), starts[None, :].copy(), ids, data)
     return ids, data, counts
