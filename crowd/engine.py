@@ -209,6 +209,9 @@ class Engine:
         self.video_options: dict = {}  # crowd.video.VideoWriter keywords of run videos (crowd report: small clips)
         self.plan = plan(scene, quiet=quiet)
         self.world = self._build_world()
+        from crowd.population import check_journeys
+
+        check_journeys(scene, self.world)  # agents that cannot reach a stage of their journey: refused now
         self.camera_path = self._build_camera()
         self.reps, self.statics = self._build_reps()
         self.selector = self._build_selector()
@@ -307,10 +310,13 @@ class Engine:
         ch = np.asarray(st.character, np.int64)
         cl = np.asarray(st.clip, np.int64)
         gait = getattr(self.world.resources.get("boids"), "clips", None)  # sim.boids' walk/run switch
+        from crowd.population import entering_clips
+
+        entering = entering_clips(self.world)  # clips of agents sources add (sim.journeys)
         out = []
         for ci, character in enumerate(self.plan.characters):
             names = character.clip_names()
-            played = {int(c) for c in np.unique(cl[ch == ci]) if 0 <= c < len(names)}
+            played = {int(c) for c in np.unique(cl[ch == ci]) if 0 <= c < len(names)} | entering.get(ci, set())
             if gait is not None:
                 played = gait.reachable(ci, played)
             out.append([names[i] for i in sorted(played)])
@@ -501,6 +507,10 @@ class Engine:
         """One simulation frame; raises SimulationError when the state stops being finite."""
         sc = self.scene
         self.world.step(sc.dt, sc.substeps, timings)
+        if self.world.agents_changed is not None:  # agents left or entered (sim.population)
+            from crowd.population import after_step
+
+            after_step(self)
         try:
             self.world.state.check_finite()
         except FloatingPointError as e:
@@ -517,7 +527,8 @@ class Engine:
         from crowd.trajectories import TRAJECTORY_FILE, TrajectoryWriter
 
         sc = self.scene
-        return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps)
+        return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps,
+                                changing="journeys" in self.world.resources)
 
     def run(self, frames: int | None = None, out_dir: str | Path | None = None,
             png_every: int | None = None) -> RunResult:
@@ -539,6 +550,7 @@ class Engine:
         tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
         pngs = []
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
+        from crowd.population import frame_counts, summary as population_summary
         from crowd.video import VIDEO_NAME, video_writer
 
         with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj, \
@@ -585,7 +597,7 @@ class Engine:
                     renderer.save_png(p)
                     pngs.append(out_dir / "frames" / p.name)
                 if traj is not None:  # streamed: one frame in memory (crowd.trajectories)
-                    traj.write(f, self.world.state.position)
+                    traj.write(f, self.world.state.position, self.world.state.ids)
                 if video is not None and video.accepting:  # every frame (crowd.video), timed as the png stage
                     video.write(renderer.read_pixels())
                 t_end = time.perf_counter()
@@ -595,7 +607,7 @@ class Engine:
                           "culled": dl.stats.get("culled", 0),
                           "triangles": dl.stats.get("triangles", dl.triangles),
                           "points": dl.stats.get("points", dl.points),
-                          "batches": len(dl.batches), "props": dl.stats.get("props", 0)}
+                          "batches": len(dl.batches), "props": dl.stats.get("props", 0), **frame_counts(self.world)}
                 tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
                                     total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
                                     counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))
@@ -604,7 +616,8 @@ class Engine:
                      "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
                      "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs),
                      "trajectories": traj.path.name if traj is not None else None,
-                     "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows}
+                     "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows,
+                     **population_summary(self.world)}
             from render.context import gl_info
 
             summary = tel.write(tmp, sc.name, extra, machine_info(gl_info(renderer.ctx)))

@@ -1,0 +1,108 @@
+"""Sources: agents entering at a rate through a spawn area (a polygon or a line).
+
+Arrivals: ``process = "uniform"`` puts arrival k at ``start + k / rate`` (so the count by time t is
+``floor((t - start) rate) + 1``); ``"poisson"`` draws exponential gaps of mean ``1 / rate`` from the source's
+own generator (scene seed, source index), so a run is deterministic for a seed. ``stop`` ends the arrivals,
+``total`` caps them, ``capacity`` caps the agents of the source alive at once.
+
+Placement: an arrival enters only where there is room: a point drawn uniformly in the spawn area at least
+the sum of the two body radii from every agent (and the radius from every obstacle); up to
+:data:`SPAWN_TRIES` points per arrival and step. An arrival that finds no room (or is over ``capacity``)
+waits and tries again the next step, first come first placed, so the entered count follows the rate as soon
+as there is room again (``backlog`` in the run's summary says how many waited at the end).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sim.journeys.geometry import sample_polygon
+
+#: candidate points drawn per waiting arrival and step
+SPAWN_TRIES = 24
+#: extra gap kept between a new agent and its neighbours, metres
+SPAWN_GAP = 1e-3
+#: salt of the sources' random streams (the scene seed is the root)
+SOURCE_SALT = 0x50C
+
+
+class Source:
+    """Arrival process and spawn area of one ``[[sources]]`` table (module docstring)."""
+
+    def __init__(self, cfg: dict, index: int, seed: int):
+        self.cfg = cfg
+        self.name = cfg["name"]
+        self.index = index
+        self.rng = np.random.default_rng([int(seed), SOURCE_SALT, int(index)])
+        self.rate = float(cfg["rate"])
+        self.poisson = cfg.get("process", "uniform") == "poisson"
+        self.start = float(cfg.get("start", 0.0))
+        self.stop = cfg.get("stop")
+        self.total = cfg.get("total")
+        self.capacity = cfg.get("capacity")
+        self.polygon = None if cfg.get("polygon") is None else np.asarray(cfg["polygon"], np.float64).reshape(-1, 2)
+        self.line = None if cfg.get("line") is None else np.asarray(cfg["line"], np.float64).reshape(2, 2)
+        self.arrived = 0  # arrivals so far (placed or waiting)
+        self.entered = 0  # placed
+        self.next_t = self.start + (self._gap() if self.poisson else 0.0)
+
+    def _gap(self) -> float:
+        return float(self.rng.exponential(1.0 / self.rate))
+
+    @property
+    def waiting(self) -> int:
+        """Arrivals not yet placed."""
+        return self.arrived - self.entered
+
+    def arrive(self, t: float) -> int:
+        """Count the arrivals up to time ``t``; returns how many are waiting to be placed."""
+        while self.next_t <= t + 1e-12 and (self.stop is None or self.next_t <= float(self.stop) + 1e-12) \
+                and (self.total is None or self.arrived < int(self.total)):
+            self.arrived += 1
+            k = self.arrived if not self.poisson else None
+            self.next_t = self.start + k / self.rate if k is not None else self.next_t + self._gap()
+        return self.waiting
+
+    def candidates(self, k: int) -> np.ndarray:
+        """(k, 2) points drawn uniformly in the spawn area."""
+        if self.polygon is not None:
+            return sample_polygon(self.polygon, self.rng, k)
+        a, b = self.line
+        return a + self.rng.random(k)[:, None] * (b - a)
+
+    def place(self, want: int, near_xz: np.ndarray, near_r: np.ndarray, r_new: float, clear=None) -> np.ndarray:
+        """Up to ``want`` positions (m, 2) with room: at least ``r_new + r_j`` from the agents ``near_xz``
+        (radii ``near_r``) and from the ones placed before; ``clear(xz) -> (k,) bool`` says where a body of
+        radius ``r_new`` is clear of obstacles (None: everywhere)."""
+        out = []
+        xz, rr = np.asarray(near_xz, np.float64).reshape(-1, 2), np.asarray(near_r, np.float64).reshape(-1)
+        for _ in range(want):
+            c = self.candidates(SPAWN_TRIES)
+            if c.shape[0] == 0:
+                break
+            ok = np.ones(c.shape[0], bool) if clear is None else np.asarray(clear(c), bool)
+            if xz.shape[0]:
+                d2 = (c[:, None, 0] - xz[None, :, 0]) ** 2 + (c[:, None, 1] - xz[None, :, 1]) ** 2
+                ok &= np.all(d2 >= (rr[None, :] + r_new + SPAWN_GAP) ** 2, axis=1)
+            hit = np.flatnonzero(ok)
+            if hit.size == 0:
+                break  # no room now: this arrival and the ones behind it wait for the next step
+            p = c[hit[0]]
+            out.append(p)
+            xz = np.vstack([xz, p[None]])
+            rr = np.append(rr, r_new)
+        return np.asarray(out, np.float64).reshape(-1, 2)
+
+    def bounds(self, margin: float) -> tuple:
+        """(lo (2,), hi (2,)) of the spawn area grown by ``margin``."""
+        pts = self.polygon if self.polygon is not None else self.line
+        return pts.min(0) - margin, pts.max(0) + margin
+
+    def expected(self, t: float) -> float:
+        """Arrivals the rate promises by time ``t`` (before ``total``): rate x open time (+1 for uniform)."""
+        end = t if self.stop is None else min(t, float(self.stop))
+        if end < self.start:
+            return 0.0
+        return (math.floor((end - self.start) * self.rate + 1e-9) + 1) if not self.poisson else \
+            (end - self.start) * self.rate
