@@ -553,6 +553,7 @@ class Engine:
         from crowd.population import frame_counts, summary as population_summary
         from crowd.video import VIDEO_NAME, video_writer
 
+        agents_start = self.world.state.n
         with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj, \
                 video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video, **self.video_options) as video:
             if png_every:
@@ -613,7 +614,7 @@ class Engine:
                                     counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))
             digest = self.world.state.digest()
             extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
-                     "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
+                     "agents": agents_start, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
                      "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs),
                      "trajectories": traj.path.name if traj is not None else None,
                      "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows,

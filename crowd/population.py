@@ -5,8 +5,10 @@ entered after each frame's simulation, and the counts telemetry writes.
   the agents that stayed;
 - the colour-variation words are by stable id (``render.tint.variation_table(..., ids=)``), so an agent keeps
   its colour whatever its index;
-- frames.csv counts ``agents`` (alive this frame), ``entered`` and ``exited`` (reached an exit this frame:
-  drawn and written there, removed before the next frame), summary.json the journeys' totals.
+- frames.csv counts ``agents`` (alive this frame), ``entered`` (added by a source in it), ``exited`` (reached an
+  exit in it: the frame PedPy sees them cross an exit line), ``left`` (removed at its start: they reached an exit
+  two frames before, walking on through it for one frame), so agents(f) = agents(f-1) + entered(f) - left(f);
+  summary.json the journeys' totals.
 
 A scene whose count never changes pays one attribute test per frame.
 """
@@ -55,10 +57,11 @@ def after_step(engine) -> None:
 
 
 def frame_counts(world) -> dict:
-    """{"agents", "entered", "exited"} of the frame just simulated (telemetry counts)."""
+    """{"agents", "entered", "exited", "left"} of the frame just simulated (telemetry counts)."""
     j = world.resources.get("journeys")
     c = j.take_frame_counts() if j is not None else {}
-    return {"agents": world.state.n, "entered": c.get("entered", 0), "exited": c.get("exited", 0)}
+    return {"agents": world.state.n, "entered": c.get("entered", 0), "exited": c.get("exited", 0),
+            "left": c.get("left", 0)}
 
 
 def summary(world) -> dict:

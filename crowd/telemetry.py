@@ -5,11 +5,10 @@ Files of a run (all written into the run's atomic output directory):
 ``frames.csv``
     one row per frame: ``frame, sim_time, total, simulate, select, upload,
     draw, finish, gpu, sys.<name>..., instances, culled, triangles, points,
-    batches, props, agents, entered, exited, samples_passed``; ``props`` counts the triangles of props and
-    obstacle solids (``crowd.world``), ``triangles`` those of the characters; ``agents`` the agents alive in
-    the frame, ``entered`` those a source added in it, ``exited`` those that reached an exit in it (drawn and
-    written there, gone from the next frame: agents(f) = agents(f-1) + entered(f) - exited(f-1);
-    ``crowd.population``). Times are seconds (wall clock,
+    batches, props, agents, entered, exited, left, samples_passed``; ``props`` counts the triangles of props
+    and obstacle solids (``crowd.world``), ``triangles`` those of the characters; ``agents`` the agents alive
+    in the frame, ``entered`` those a source added in it, ``exited`` those that reached an exit in it,
+    ``left`` those removed at its start (agents(f) = agents(f-1) + entered(f) - left(f); ``crowd.population``). Times are seconds (wall clock,
     ``time.perf_counter``); ``gpu`` is the GL timer-query time, blank when the
     driver has none. ``sys.<name>`` is the wall time of schedule step
     ``<name>`` summed over the frame's sub-steps.
@@ -39,7 +38,7 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "agents", "entered", "exited")
+COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "agents", "entered", "exited", "left")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 

@@ -2,8 +2,10 @@
 
 Steps of the schedule (``sim.systems``):
 
-1. ``journeys.leave`` (first, on a frame's first sub-step): agents that reached an exit in the previous
-   frame leave the simulation (``sim.population.apply``).
+1. ``journeys.leave`` (first, on a frame's first sub-step): agents that reached an exit
+   :data:`EXIT_LINGER_FRAMES` + 1 frames ago leave the simulation (``sim.population.apply``); until then they
+   walk on through the exit at their velocity (drawn and written: PedPy needs a trajectory to go on after a
+   crossing to count it).
 2. ``journeys.steer`` (with ``goals``' place: after the ``*.record`` steps, before ``obstacles.steer``,
    ``boids``, ``avoidance``): the desired velocity of every agent (``sim.journeys.steer``); without boids
    the agents move kinematically at it (avoidance then corrects the move), with boids it becomes an
@@ -47,7 +49,11 @@ _CHOICE, _WAIT_TIME = 0x0C, 0x7E
 _AGENT_ARRAYS = {"journey": (np.int32, -1), "step": (np.int32, 0), "stage": (np.int32, -1),
                  "phase": (np.int8, IDLE), "slot": (np.int32, -1), "ticket": (np.int64, -1),
                  "release": (np.float64, np.inf), "transitions": (np.int32, 0), "tshape": (np.int64, -1),
-                 "stop_at": (np.float64, -1.0), "speed": (np.float64, 0.0), "source": (np.int32, -1)}
+                 "stop_at": (np.float64, -1.0), "speed": (np.float64, 0.0), "source": (np.int32, -1),
+                 "leave_frame": (np.int64, -1)}
+#: frames an agent stays after reaching an exit (walking on through it): PedPy sees a move cross a line only
+#: when the trajectory goes on after it (its adaptive border window is 0 at a trajectory's last frame)
+EXIT_LINGER_FRAMES = 1
 
 
 class Journeys:
@@ -72,7 +78,7 @@ class Journeys:
         self._prev = np.zeros((0, 2))
         self.exited_by_stage = np.zeros(len(self.stages), np.int64)
         self.entered_by_source = np.zeros(len(self.sources), np.int64)
-        self.frame_entered = self.frame_exited = 0
+        self.frame_entered = self.frame_exited = self.frame_left = 0
         n = world.state.n
         for name, (dt, fill) in _AGENT_ARRAYS.items():
             setattr(self, name, np.full(n, fill, dt))
@@ -107,9 +113,10 @@ class Journeys:
         self._prev = np.zeros((0, 2))
 
     def take_frame_counts(self) -> dict:
-        """{"entered": agents that entered, "exited": agents that reached an exit} since the last call."""
-        out = {"entered": self.frame_entered, "exited": self.frame_exited}
-        self.frame_entered = self.frame_exited = 0
+        """{"entered": agents that entered, "exited": agents that reached an exit, "left": agents removed} since
+        the last call."""
+        out = {"entered": self.frame_entered, "exited": self.frame_exited, "left": self.frame_left}
+        self.frame_entered = self.frame_exited = self.frame_left = 0
         return out
 
     def summary(self) -> dict:
@@ -235,10 +242,11 @@ class Journeys:
         if w.frame == self._leave_frame:
             return
         self._leave_frame = w.frame
-        gone = self.phase == LEAVING
+        gone = (self.phase == LEAVING) & (self.leave_frame <= w.frame)
         if gone.any():
             from sim.population import apply
 
+            self.frame_left += int(np.count_nonzero(gone))
             apply(w, np.flatnonzero(~gone))
 
     def steer(self, w, dt) -> None:
@@ -258,6 +266,9 @@ class Journeys:
         desired_kernel(st.position, self.phase, self.tshape, self.stop_at, self.speed, rdir, kind, start, verts,
                        float(c["approach"]), float(c["slow_radius"]), vd)
         active = self.journey >= 0
+        leaving = self.phase == LEAVING
+        if leaving.any():  # on through the exit
+            vd[leaving] = st.velocity[leaving][:, [0, 2]]
         if "boids" in w.effects:
             from sim.boids import external_accel
 
@@ -272,10 +283,10 @@ class Journeys:
         st = w.state
         t = w.time + dt
         if st.n and self.journey.size == st.n:
-            self._arrivals(st, t)
+            self._arrivals(st, t, w.frame)
         self._spawn(w, t)
 
-    def _arrivals(self, st, t: float) -> None:
+    def _arrivals(self, st, t: float, frame: int) -> None:
         walk = self.phase == WALK
         kind = np.where(self.stage >= 0, self.kind[np.maximum(self.stage, 0)], -1)
         pos = st.position
@@ -295,6 +306,7 @@ class Journeys:
             gone = ex[hit]
             self.phase[gone] = LEAVING
             self.tshape[gone] = -1
+            self.leave_frame[gone] = frame + 1 + EXIT_LINGER_FRAMES
             np.add.at(self.exited_by_stage, self.stage[gone], 1)
             self.frame_exited += int(gone.size)
         # releases: waiting and service times over

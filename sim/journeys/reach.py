@@ -95,6 +95,15 @@ def _stage_points(stage) -> np.ndarray:
     return np.zeros((0, 2))
 
 
+def _which(state, rows: np.ndarray, most: int = 6) -> str:
+    """``agents 3, 4, 9 of placement[1]`` (ids, the first few, and their placement groups when known)."""
+    ids = state.ids[rows]
+    shown = ", ".join(str(int(i)) for i in ids[:most]) + (f", ... ({ids.size} in all)" if ids.size > most else "")
+    groups = getattr(state, "groups", None) or []
+    of = [f"placement[{g}]" for g, (a, n) in enumerate(groups) if np.any((rows >= a) & (rows < a + n))]
+    return f"agent{'s' if ids.size > 1 else ''} {shown}" + (f" of {', '.join(of)}" if of else "")
+
+
 def problems(journeys, world) -> list:
     """(key, message) of every journey leg some agents cannot walk (module docstring); [] when all can."""
     router = world.resources.get("routing")
@@ -130,7 +139,7 @@ def problems(journeys, world) -> list:
                     bad = agents[~ok]
                     p = xz[int(np.flatnonzero(~ok)[0])]
                     out.append((f"journeys[{j}]", f"{bad.size} of {agents.size} agents of journey {jr.name!r} cannot "
-                                f"reach stage {st[s].name!r} (e.g. agent {int(world.state.ids[bad[0]])} at "
+                                f"reach stage {st[s].name!r}: {_which(world.state, bad)} (the first at "
                                 f"({p[0]:.2f}, {p[1]:.2f}))"))
         legs = list(zip(jr.entries, jr.entries[1:])) + ([(jr.entries[-1], jr.entries[0])] if jr.loop else [])
         for a, b in legs:
