@@ -103,6 +103,7 @@ def parse_journeys(doc: dict, effects: list, placements: list, characters: list,
     obstacles = next((e for e in effects if e.name == "obstacles"), None)
     sources = [_source(t, i, chars, characters, jnames, obstacles, fail) for i, t in enumerate(tables["sources"] or [])]
     _unique([s["name"] for s in sources], "sources", fail)
+    _walkable_checks(effects, stages, sources, fail)
     import dataclasses
 
     params = {**eff.params, "stages": stages, "journeys": journeys, "sources": sources}
@@ -278,3 +279,38 @@ def _outside_check(src: dict, key: str, obstacles, fail) -> None:
         pts = a + np.linspace(0.0, 1.0, 257)[:, None] * (b - a)
     if pts.shape[0] and not np.any(obs.sdf(pts[:, 0], pts[:, 1])[0] > 0.0):
         fail(key, f"the spawn area lies outside the walkable area: inside the obstacles of effects[{obstacles.index}]")
+
+
+def _walkable_checks(effects: list, stages: list, sources: list, fail) -> None:
+    """With ``routing`` (``crowd.scene_routing``): every stage shape and spawn area must lie in the walkable area
+    (``sim.routing.geometry.shape_problem``: outside it, inside an obstacle, a door of zero width)."""
+    try:
+        from crowd.scene_routing import walkable_of
+        from sim.routing.geometry import shape_problem
+    except ImportError:  # no routing in this build: the obstacles check of the sources stands
+        return
+    area = walkable_of(effects)
+    if area is None:
+        return
+
+    def check(key, kind, geom):
+        problem = shape_problem(area, (kind, geom))
+        if problem:
+            fail(key, problem)
+
+    for i, s in enumerate(stages):
+        where = f"stages[{i}]"
+        if s["point"] is not None:
+            check(f"{where}.point", "point", tuple(s["point"]))
+        for k, p in enumerate(s["slots"] or []):
+            check(f"{where}.slots[{k}]", "point", tuple(p))
+        if s["polygon"] is not None:
+            check(f"{where}.polygon", "polygon", [tuple(p) for p in s["polygon"]])
+        if s["line"] is not None:
+            for k, (a, b) in enumerate(zip(s["line"], s["line"][1:])):
+                check(f"{where}.line", "line", (tuple(a), tuple(b)))
+    for i, s in enumerate(sources):
+        if s.get("polygon") is not None:
+            check(f"sources[{i}].polygon", "polygon", [tuple(p) for p in s["polygon"]])
+        else:
+            check(f"sources[{i}].line", "line", tuple(tuple(p) for p in s["line"]))

@@ -101,8 +101,14 @@ class Journeys:
     def use_router(self, router) -> None:
         """Steer with ``router`` (module ``sim.journeys.steer``): every stage shape becomes one of its goals."""
         self.router = router
-        self.goal_of_shape = np.array([router.goal(*self.shapes.shape(k)) for k in range(len(self.shapes))],
+        self.goal_of_shape = np.array([router.goal(self.router_shape(k)) for k in range(len(self.shapes))],
                                       np.int64)
+
+    def router_shape(self, k: int) -> tuple:
+        """Shape ``k`` as the router takes it: ("point", (x, z)), ("polygon", [(x, z), ...]), ("line", (a, b))."""
+        kind, pts = self.shapes.shape(k)
+        pts = [tuple(map(float, p)) for p in pts]
+        return (kind, pts[0]) if kind == "point" else (kind, pts)
 
     # -- population -----------------------------------------------------------------------------------------------
     def remap_agents(self, src: np.ndarray, state) -> None:
@@ -259,12 +265,13 @@ class Journeys:
         goal = np.where(self.tshape >= 0, self.goal_of_shape[np.maximum(self.tshape, 0)], -1)
         goal = np.where(self.phase <= PENDING, goal, -1)
         rdir = np.zeros((st.n, 2))
-        self.router.directions(st.position, goal, rdir)
+        rdist = np.full(st.n, np.inf)
+        self.router.directions(st.position, goal, rdir, dist=rdist)
         kind, start, verts = self.shape_arrays
         vd = np.zeros((st.n, 2))
         c = self.cfg
-        desired_kernel(st.position, self.phase, self.tshape, self.stop_at, self.speed, rdir, kind, start, verts,
-                       float(c["approach"]), float(c["slow_radius"]), vd)
+        desired_kernel(st.position, self.phase, self.tshape, self.stop_at, self.speed, rdir, rdist, kind, start,
+                       verts, float(c["approach"]), float(c["slow_radius"]), vd)
         active = self.journey >= 0
         leaving = self.phase == LEAVING
         if leaving.any():  # on through the exit
@@ -319,7 +326,12 @@ class Journeys:
         if wp.size:
             pts = np.array([self.stages[s].point for s in self.stage[wp]]).reshape(-1, 2)
             rad = np.array([self.stages[s].radius for s in self.stage[wp]])
-            reached = np.hypot(pos[wp, 0] - pts[:, 0], pos[wp, 2] - pts[:, 1]) <= rad
+            d = np.hypot(pos[wp, 0] - pts[:, 0], pos[wp, 2] - pts[:, 1])
+            if not isinstance(self.router, StraightRouter):  # the route's length: not through a thin wall
+                rd = np.full(wp.size, np.inf)
+                self.router.directions(pos[wp], self.goal_of_shape[self.tshape[wp]], np.zeros((wp.size, 2)), dist=rd)
+                d = np.maximum(d, rd)
+            reached = d <= rad
             last = reached & (self.stop_at[wp] >= 0)
             self.phase[wp[last]] = IDLE
             self.tshape[wp[last]] = -1
@@ -361,7 +373,7 @@ class Journeys:
             xz = st.position[:, [0, 2]]
             near = np.flatnonzero(np.all((xz >= lo) & (xz <= hi), axis=1))
             xy = src.place(want, xz[near], self._radius_of(w, st.character[near], st.scale[near]), r_new,
-                           self._clearance(w, r_new))
+                           self._clearance(w, r_new, int(c["journey"])))
             k = xy.shape[0]
             if k == 0:
                 continue
@@ -404,12 +416,20 @@ class Journeys:
             self._table = character_radii(w)
         return radii_of({}, self._table, np.asarray(character), np.asarray(scale))
 
-    def _clearance(self, w, r_new: float):
+    def _clearance(self, w, r_new: float, journey: int):
+        """Where a new body of radius ``r_new`` may stand: clear of the obstacles and, with routing, where the
+        route to its journey's first stage starts (inside the walkable area); None: anywhere."""
+        tests = []
         obs = w.resources.get("obstacles")
-        if obs is None or obs.count == 0:
+        if obs is not None and obs.count:
+            r = max(r_new, float(w.resources.get("obstacles.agent_radius", 0.0)))
+            tests.append(lambda c: obs.sdf(c[:, 0], c[:, 1])[0] >= r)
+        if self.router is not None and not isinstance(self.router, StraightRouter):
+            gid = int(self.goal_of_shape[self.stages[int(self.journeys[journey].entries[0][0][0])].shape])
+            tests.append(lambda c: np.asarray(self.router.reachable(gid, c), bool))
+        if not tests:
             return None
-        r = max(r_new, float(w.resources.get("obstacles.agent_radius", 0.0)))
-        return lambda c: obs.sdf(c[:, 0], c[:, 1])[0] >= r
+        return lambda c: np.logical_and.reduce([t(c) for t in tests])
 
 
 def _resolve_clip(cfg: dict, i: int, characters) -> dict:

@@ -109,7 +109,7 @@ def problems(journeys, world) -> list:
     router = world.resources.get("routing")
     shapes = journeys.shapes
     if router is not None:
-        gid = {k: router.goal(*shapes.shape(k)) for k in range(len(shapes))}
+        gid = {k: router.goal(journeys.router_shape(k)) for k in range(len(shapes))}
 
         def reach(shape, xz):
             return np.asarray(router.reachable(gid[shape], xz), bool)

@@ -3,15 +3,17 @@ straight-line router that stands in for ``sim.routing`` while no walkable area i
 
 The router interface (agreed with the routing effect, docs/scenes.md "Journeys"):
 
-    gid = router.goal(kind, points)                # before the first step; equal shapes share an id
-    router.directions(position, goal, out)         # (n, 3) float64, (n,) int64 (-1: none) -> (n, 2) unit (x, z)
+    gid = router.goal(shape)                       # ("point", (x, z)) | ("polygon", [(x, z), ...]) |
+                                                   # ("line", ((x1, z1), (x2, z2))); equal shapes share an id
+    router.directions(position, goal, out, dist)   # (n, 3) float64, (n,) int64 (-1: none) -> (n, 2) unit (x, z),
+                                                   # dist (n,) float64 the remaining route length (inf: none)
     router.reachable(gid, xz)                      # (m, 2) -> (m,) bool
 
 :class:`StraightRouter` points every agent straight at the nearest point of its goal (what ``sim.goals``
 does) and knows no walls; ``world.resources["routing"]``, when a scene routes, replaces it.
 
 Desired velocity (:func:`desired_kernel`, numpy reference :func:`desired_reference`), per agent walking to a
-target shape: far from the target (more than ``approach`` metres) along the router's direction; within it
+target shape: far from the target (a route longer than ``approach`` metres) along the router's direction; within it
 straight at the target's nearest point -- through a door line (towards a point ``approach`` metres behind
 it, on the side the agent is not on) and into an exit polygon -- at the journey's speed, slowed linearly
 within ``slow_radius`` of where it must stop (``stop_at`` metres before a waiting slot, a queue place, a
@@ -38,15 +40,17 @@ class StraightRouter:
         self.shapes = Shapes()
         self._arrays = None
 
-    def goal(self, kind: str, points) -> int:
+    def goal(self, shape) -> int:
+        kind, points = shape
         self._arrays = None
-        return self.shapes.add(kind, points)
+        return self.shapes.add(kind, [points] if kind == "point" else points)
 
-    def directions(self, position: np.ndarray, goal: np.ndarray, out: np.ndarray) -> np.ndarray:
+    def directions(self, position: np.ndarray, goal: np.ndarray, out: np.ndarray, dist=None) -> np.ndarray:
         if self._arrays is None:
             self._arrays = self.shapes.arrays()
         kind, start, verts = self._arrays
-        _straight_kernel(position, np.asarray(goal, np.int64), kind, start, verts, out)
+        d = np.empty(position.shape[0]) if dist is None else dist
+        _straight_kernel(position, np.asarray(goal, np.int64), kind, start, verts, out, d)
         return out
 
     def reachable(self, gid: int, xz: np.ndarray) -> np.ndarray:
@@ -54,23 +58,26 @@ class StraightRouter:
 
 
 @njit(cache=True, parallel=True)
-def _straight_kernel(position, goal, kind, start, verts, out):
+def _straight_kernel(position, goal, kind, start, verts, out, dist):
     for i in prange(position.shape[0]):
         out[i, 0] = 0.0
         out[i, 1] = 0.0
+        dist[i] = np.inf
         k = goal[i]
         if k < 0:
             continue
         qx, qz, inside = nearest_one(kind, start, verts, k, position[i, 0], position[i, 2])
         dx, dz = qx - position[i, 0], qz - position[i, 2]
         d = math.hypot(dx, dz)
+        dist[i] = 0.0 if inside else d
         if not inside and d > 1e-12:
             out[i, 0] = dx / d
             out[i, 1] = dz / d
 
 
 @njit(cache=True, parallel=True)
-def desired_kernel(position, phase, tshape, stop_at, speed, rdir, kind, start, verts, approach, slow_radius, out):
+def desired_kernel(position, phase, tshape, stop_at, speed, rdir, rdist, kind, start, verts, approach, slow_radius,
+                   out):
     """Desired (vx, vz) of every agent into ``out`` (n, 2) (module docstring)."""
     for i in prange(position.shape[0]):
         out[i, 0] = 0.0
@@ -85,7 +92,7 @@ def desired_kernel(position, phase, tshape, stop_at, speed, rdir, kind, start, v
         dx, dz = qx - px, qz - pz
         d = math.hypot(dx, dz)
         ux, uz = 0.0, 0.0
-        if d < approach or (rdir[i, 0] == 0.0 and rdir[i, 1] == 0.0):
+        if rdist[i] < approach or (rdir[i, 0] == 0.0 and rdir[i, 1] == 0.0):
             if kind[k] == LINE:  # through the door: at a point `approach` behind it
                 a = start[k]
                 ex, ez = verts[a + 1, 0] - verts[a, 0], verts[a + 1, 1] - verts[a, 1]
@@ -109,7 +116,7 @@ def desired_kernel(position, phase, tshape, stop_at, speed, rdir, kind, start, v
         out[i, 1] = uz * s
 
 
-def desired_reference(position, phase, tshape, stop_at, speed, rdir, shapes: Shapes, approach, slow_radius):
+def desired_reference(position, phase, tshape, stop_at, speed, rdir, rdist, shapes: Shapes, approach, slow_radius):
     """Plain Python reference of :func:`desired_kernel` ((n, 2) float64)."""
     out = np.zeros((position.shape[0], 2))
     for i in range(position.shape[0]):
@@ -123,7 +130,7 @@ def desired_reference(position, phase, tshape, stop_at, speed, rdir, shapes: Sha
             continue
         q = np.array([qx, qz])
         d = float(np.hypot(*(q - p)))
-        if d < approach or not np.any(rdir[i]):
+        if rdist[i] < approach or not np.any(rdir[i]):
             t = q
             if name == "line":
                 e = pts[1] - pts[0]

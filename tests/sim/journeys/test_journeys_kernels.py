@@ -100,7 +100,8 @@ def _agents(n, s, rng, offset=0.0):
     rdir = rng.normal(size=(n, 2))
     rdir /= np.hypot(rdir[:, :1], rdir[:, 1:])
     rdir[rng.random(n) < 0.2] = 0.0
-    return pos, phase, tshape, stop, speed, rdir
+    rdist = rng.uniform(0.0, 4.0, n)
+    return pos, phase, tshape, stop, speed, rdir, rdist
 
 
 @pytest.mark.parametrize("offset", [0.0, 1e5])
@@ -109,10 +110,10 @@ def test_desired_kernel_matches_reference(offset):
     kind, start, verts = s.arrays()
     rng = np.random.default_rng(11)
     n = 500
-    pos, phase, tshape, stop, speed, rdir = _agents(n, s, rng, offset)
+    pos, phase, tshape, stop, speed, rdir, rdist = _agents(n, s, rng, offset)
     out = np.empty((n, 2))
-    desired_kernel(pos, phase, tshape, stop, speed, rdir, kind, start, verts, 1.5, 0.8, out)
-    ref = desired_reference(pos, phase, tshape, stop, speed, rdir, s, 1.5, 0.8)
+    desired_kernel(pos, phase, tshape, stop, speed, rdir, rdist, kind, start, verts, 1.5, 0.8, out)
+    ref = desired_reference(pos, phase, tshape, stop, speed, rdir, rdist, s, 1.5, 0.8)
     assert np.allclose(out, ref, atol=1e-7)
     sp = np.hypot(out[:, 0], out[:, 1])
     assert np.all(sp <= speed + 1e-12)
@@ -126,8 +127,8 @@ def test_desired_goes_through_a_door_from_either_side():
     pos = np.array([[-0.5, 0.0, 0.2], [0.5, 0.0, -0.3], [-0.1, 0.0, 0.9]])
     out = np.empty((3, 2))
     one = np.ones(3)
-    desired_kernel(pos, np.zeros(3, np.int8), np.zeros(3, np.int64), -one, one, np.zeros((3, 2)), kind, start,
-                   verts, 1.0, 1.0, out)
+    desired_kernel(pos, np.zeros(3, np.int8), np.zeros(3, np.int64), -one, one, np.zeros((3, 2)), one * 0.5, kind,
+                   start, verts, 1.0, 1.0, out)
     assert out[0, 0] > 0.5 and out[1, 0] < -0.5 and out[2, 0] > 0.5  # towards the far side, at full speed
     assert np.allclose(np.hypot(out[:, 0], out[:, 1]), 1.0)
 
@@ -152,11 +153,13 @@ def test_move_kernel_matches_reference():
 
 def test_straight_router_points_at_the_nearest_point():
     r = StraightRouter()
-    g = [r.goal("point", [[3.0, 4.0]]), r.goal("polygon", L_SHAPE), r.goal("point", [[3.0, 4.0]])]
+    g = [r.goal(("point", (3.0, 4.0))), r.goal(("polygon", L_SHAPE)), r.goal(("point", (3.0, 4.0)))]
     assert g[0] == g[2]  # equal shapes share a goal
     pos = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 2.5], [0.5, 0.0, 0.5]])
     out = np.empty((3, 2))
-    r.directions(pos, np.array([g[0], g[1], g[1]]), out)
+    d = np.empty(3)
+    r.directions(pos, np.array([g[0], g[1], g[1]]), out, dist=d)
+    assert np.allclose(d, [5.0, 1.0, 0.0])
     assert np.allclose(out[0], [0.6, 0.8])
     assert np.allclose(out[1], [-1.0, 0.0])  # (1, 2.5) is the nearest point of the L
     assert np.allclose(out[2], 0.0)  # inside
