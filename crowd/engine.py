@@ -240,6 +240,8 @@ class Engine:
             try:
                 world.install(e.name, e.params)
             except ParamError as err:
+                if err.key.split("[", 1)[0] in ("stages", "journeys", "sources"):  # tables of the effect's own
+                    raise SceneError(sc.path, err.key, err.message) from None
                 raise SceneError(sc.path, f"effects[{e.index}]", err.message if err.key.startswith("effects")
                                  else str(err)) from None
         return world
