@@ -1,7 +1,7 @@
 """Sources: agents entering at a rate through a spawn area (a polygon or a line).
 
-Arrivals: ``process = "uniform"`` puts arrival k at ``start + k / rate`` (so the count by time t is
-``floor((t - start) rate) + 1``); ``"poisson"`` draws exponential gaps of mean ``1 / rate`` from the source's
+Arrivals: ``process = "uniform"`` puts arrival k at ``start + k / rate`` (so the count before time t is
+``ceil((t - start) rate)``); an arrival in a step's interval [t0, t0 + dt) enters at its end; ``"poisson"`` draws exponential gaps of mean ``1 / rate`` from the source's
 own generator (scene seed, source index), so a run is deterministic for a seed. ``stop`` ends the arrivals,
 ``total`` caps them, ``capacity`` caps the agents of the source alive at once.
 
@@ -56,8 +56,9 @@ class Source:
         return self.arrived - self.entered
 
     def arrive(self, t: float) -> int:
-        """Count the arrivals up to time ``t``; returns how many are waiting to be placed."""
-        while self.next_t <= t + 1e-12 and (self.stop is None or self.next_t <= float(self.stop) + 1e-12) \
+        """Count the arrivals before time ``t`` (a step from t0 to t takes those in [t0, t), placed at t: every
+        agent enters between 0 and one step late, uniformly so); returns how many are waiting to be placed."""
+        while self.next_t < t - 1e-9 and (self.stop is None or self.next_t <= float(self.stop) + 1e-12) \
                 and (self.total is None or self.arrived < int(self.total)):
             self.arrived += 1
             k = self.arrived if not self.poisson else None
@@ -100,9 +101,13 @@ class Source:
         return pts.min(0) - margin, pts.max(0) + margin
 
     def expected(self, t: float) -> float:
-        """Arrivals the rate promises by time ``t`` (before ``total``): rate x open time (+1 for uniform)."""
-        end = t if self.stop is None else min(t, float(self.stop))
-        if end < self.start:
+        """Arrivals the rate promises before time ``t`` (``total`` not applied): for uniform arrivals the count
+        of ``start + k / rate`` before ``t`` and not after ``stop``, for Poisson ones rate x open time."""
+        if t <= self.start:
             return 0.0
-        return (math.floor((end - self.start) * self.rate + 1e-9) + 1) if not self.poisson else \
-            (end - self.start) * self.rate
+        if self.poisson:
+            return ((min(t, float(self.stop)) if self.stop is not None else t) - self.start) * self.rate
+        n = math.ceil((t - self.start) * self.rate - 1e-9)
+        if self.stop is not None:
+            n = min(n, math.floor((float(self.stop) - self.start) * self.rate + 1e-9) + 1)
+        return float(n)

@@ -32,7 +32,8 @@ def test_uniform_arrivals_follow_the_rate_exactly():
     run(w, 400, 0.1, lambda w, c: (entered.append(c["entered"]), exited.append(c["exited"]), left.append(c["left"]),
                                    t.append(w.time)))
     cum = np.cumsum(entered)
-    expect = np.floor(np.asarray(t) * 2.5 + 1e-9) + 1  # arrivals at 0, 0.4, 0.8, ... s
+    expect = np.ceil(np.asarray(t) * 2.5 - 1e-9)  # arrivals at 0, 0.4, 0.8, ... s, each entering at its step's end
+    assert np.array_equal(expect, [w.resources["journeys"].sources[0].expected(x) for x in t])
     assert np.array_equal(cum, expect)
     assert abs(cum[-1] / (2.5 * 40.0) - 1.0) < 0.02
     # everyone walks 30-32 m at 1.34 m/s (22.4-23.9 s) and leaves: the exits follow the arrivals by that
@@ -81,7 +82,7 @@ def test_spawn_only_where_there_is_room_and_catch_up():
     src = w.resources["journeys"].sources[0]
     assert min(gaps) >= -1e-6  # entered agents never overlap anyone
     assert src.waiting > 0 and src.entered < src.arrived  # the line is full
-    assert src.arrived == math.floor(5.0 * 4.0 + 1e-9) + 1
+    assert src.arrived == 20  # arrivals at 0, 0.25, ..., 4.75 s
 
 
 def test_total_capacity_and_stop():
