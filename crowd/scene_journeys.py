@@ -314,3 +314,19 @@ def _walkable_checks(effects: list, stages: list, sources: list, fail) -> None:
             check(f"sources[{i}].polygon", "polygon", [tuple(p) for p in s["polygon"]])
         else:
             check(f"sources[{i}].line", "line", tuple(tuple(p) for p in s["line"]))
+
+
+def entering_agents(scene) -> list:
+    """[(character index, agents)] the scene's sources can add during its run at most (the memory guard's
+    count: exits ignored; Poisson arrivals counted up to 5 standard deviations above their mean)."""
+    eff = next((e for e in scene.effects if e.name == "journeys"), None)
+    out = []
+    for s in (eff.params.get("sources", []) if eff is not None else []):
+        end = scene.frames * scene.dt if s.get("stop") is None else min(scene.frames * scene.dt, s["stop"])
+        mean = max(0.0, end - s.get("start", 0.0)) * s["rate"]
+        k = math.ceil(mean) + 1 if s.get("process", "uniform") == "uniform" else math.ceil(mean + 5 * math.sqrt(mean))
+        for cap in ("total", "capacity"):
+            if s.get(cap) is not None:
+                k = min(k, int(s[cap]))
+        out.append((int(s["character"]), int(k)))
+    return out

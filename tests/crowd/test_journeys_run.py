@@ -195,3 +195,12 @@ def test_lod_modes_follow_the_changing_count(tmp_path, mode, lod):
         assert int(r["instances"]) + int(r["culled"]) == int(r["agents"])
     data = json.loads((res.out_dir / "summary.json").read_text())
     assert data["journeys"]["entered"] == 8
+
+
+def test_memory_guard_counts_the_agents_sources_add(tmp_path):
+    from crowd.memory import estimate_scene
+
+    quiet = estimate_scene(_scene(tmp_path, rate=3.0, stop=4.0, name="a.toml"))
+    busy = estimate_scene(_scene(tmp_path, rate=300.0, stop=4.0, name="b.toml"))
+    assert quiet.agents == 6 + 13 and busy.agents == 6 + 1201  # 13 / 1201 arrivals before 4 s (+1: the one at 4 s)
+    assert busy.parts["state"] > quiet.parts["state"]
