@@ -56,12 +56,13 @@ def resize(state, keep: np.ndarray | None = None, new=None) -> np.ndarray:
             raise ValueError(f"keep: expected increasing indices in 0 ..< {n}")
     m = 0 if new is None else new.n
     next_id = state.next_id
+    k = keep.shape[0]
     for name, a in state.arrays().items():
-        parts = [a[keep]]
+        out = np.empty((k + m,) + a.shape[1:], a.dtype)  # one allocation, each byte written once
+        np.take(a, keep, axis=0, out=out[:k])
         if m:
-            b = getattr(new, name)
-            parts.append(np.asarray(b, a.dtype).reshape((m,) + a.shape[1:]))
-        setattr(state, name, np.concatenate(parts, axis=0) if m else parts[0])
+            out[k:] = np.asarray(getattr(new, name), a.dtype).reshape((m,) + a.shape[1:])
+        setattr(state, name, out)
     state._ids = np.concatenate([ids[keep], np.arange(next_id, next_id + m, dtype=np.int64)])
     state._next_id = next_id + m
     for attr in _RANGE_ATTRIBUTES:

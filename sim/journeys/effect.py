@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.config import GOALS_TAU
-from sim.journeys.geometry import POLYGON, Shapes, crossed_one
+from sim.journeys.geometry import Shapes, reached_exit
 from sim.journeys.sources import Source
 from sim.journeys.stages import (EXIT, QUEUE, WAIT, WAYPOINT, build_journeys, build_stages, choose, sample_time,
                                  uniforms)
@@ -73,6 +73,13 @@ class Journeys:
         self.shape_arrays = self.shapes.arrays()
         self.router = None  # the routing effect's router, or the straight one (resolved at the first step)
         self.kind = np.array([s.kind for s in self.stages], np.int64)
+        self.point = np.array([s.point if s.point is not None else (np.nan, np.nan) for s in self.stages],
+                              np.float64).reshape(-1, 2)
+        self.radius = np.array([s.radius for s in self.stages], np.float64)
+        self.exit_polygon = np.array([s.shape if s.kind == EXIT and s.polygon is not None else -1
+                                      for s in self.stages], np.int64)
+        self.exit_line = np.array([s.line.ravel() if s.kind == EXIT and s.line is not None else (np.nan,) * 4
+                                   for s in self.stages], np.float64).reshape(-1, 4)
         self.next_ticket = 0
         self._leave_frame = -1
         self._prev = np.zeros((0, 2))
@@ -300,16 +307,10 @@ class Journeys:
         # exits: inside the polygon, or the move crossed the door
         ex = np.flatnonzero(walk & (kind == EXIT))
         if ex.size:
-            hit = np.zeros(ex.size, bool)
+            hit = np.zeros(ex.size, np.bool_)
             prev = self._prev if self._prev.shape[0] == st.n else pos[:, [0, 2]]
-            shp_kind, start, verts = self.shape_arrays
-            for j, i in enumerate(ex):
-                stg = self.stages[self.stage[i]]
-                if stg.polygon is not None:
-                    hit[j] = _inside(shp_kind, start, verts, stg.shape, pos[i, 0], pos[i, 2])
-                else:
-                    (ax, az), (bx, bz) = stg.line
-                    hit[j] = crossed_one(prev[i, 0], prev[i, 1], pos[i, 0], pos[i, 2], ax, az, bx, bz)
+            reached_exit(ex, self.stage, self.exit_polygon, self.exit_line, *self.shape_arrays,
+                         np.ascontiguousarray(prev), pos, hit)
             gone = ex[hit]
             self.phase[gone] = LEAVING
             self.tshape[gone] = -1
@@ -324,8 +325,8 @@ class Journeys:
         kind = np.where(self.stage >= 0, self.kind[np.maximum(self.stage, 0)], -1)
         wp = np.flatnonzero((self.phase == WALK) & (kind == WAYPOINT))
         if wp.size:
-            pts = np.array([self.stages[s].point for s in self.stage[wp]]).reshape(-1, 2)
-            rad = np.array([self.stages[s].radius for s in self.stage[wp]])
+            pts = self.point[self.stage[wp]]
+            rad = self.radius[self.stage[wp]]
             d = np.hypot(pos[wp, 0] - pts[:, 0], pos[wp, 2] - pts[:, 1])
             if not isinstance(self.router, StraightRouter):  # the route's length: not through a thin wall
                 rd = np.full(wp.size, np.inf)
@@ -447,12 +448,6 @@ def _resolve_clip(cfg: dict, i: int, characters) -> dict:
                          f"accepted: {', '.join(map(repr, names))}")
     k = names.index(clip) if clip is not None else 0
     return {**cfg, "clip_index": k, "clip_duration": float(ch.clip(k).duration)}
-
-
-def _inside(kind, start, verts, k, x, z) -> bool:
-    from sim.journeys.geometry import nearest_one
-
-    return bool(nearest_one(kind, start, verts, k, x, z)[2]) if kind[k] == POLYGON else False
 
 
 def install(world, cfg: dict) -> None:

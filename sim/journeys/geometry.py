@@ -128,6 +128,21 @@ def crossed_one(p0x, p0z, p1x, p1z, ax, az, bx, bz):
     return not ((t0 > 0.0 and t1 > 0.0) or (t0 < 0.0 and t1 < 0.0))
 
 
+@njit(cache=True)
+def reached_exit(idx, stage, polygon, line, kind, start, verts, prev, pos, hit):
+    """Agents ``idx`` at exit stages: ``hit[j]`` when agent ``idx[j]`` is inside its stage's exit polygon
+    (``polygon[s]`` a shape id, -1 for a door) or its move ``prev -> pos`` crossed the door ``line[s]``
+    ((x1, z1, x2, z2)); ``prev`` (n, 2) floor, ``pos`` (n, 3)."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        s = stage[i]
+        if polygon[s] >= 0:
+            hit[j] = nearest_one(kind, start, verts, polygon[s], pos[i, 0], pos[i, 2])[2]
+        else:
+            hit[j] = crossed_one(prev[i, 0], prev[i, 1], pos[i, 0], pos[i, 2], line[s, 0], line[s, 1], line[s, 2],
+                                 line[s, 3])
+
+
 # ------------------------------------------------------------------------------------------- references
 def nearest_reference(points: np.ndarray, kind: str, p) -> tuple:
     """Plain Python reference of :func:`nearest_one` for one shape ``points`` (m, 2) and point p."""
@@ -163,17 +178,18 @@ def sample_polygon(points: np.ndarray, rng: np.random.Generator, k: int) -> np.n
     lo, hi = points.min(0), points.max(0)
     kind = np.array([POLYGON])
     start = np.array([0, points.shape[0]])
-    out = []
+    out, have = [], 0
     for _ in range(1000):
-        if len(out) >= k:
+        if have >= k:
             break
         c = lo + (hi - lo) * rng.random((max(4 * k, 16), 2))
-        for x, z in c:
-            if nearest_one(kind, start, points, 0, x, z)[2]:
-                out.append((x, z))
-                if len(out) >= k:
-                    break
-    return np.asarray(out, np.float64).reshape(-1, 2)
+        m = c.shape[0]
+        qx, qz, inside = np.empty(m), np.empty(m), np.empty(m, np.bool_)
+        nearest(kind, start, points, np.zeros(m, np.int64), np.ascontiguousarray(c[:, 0]),
+                np.ascontiguousarray(c[:, 1]), qx, qz, inside)
+        out.append(c[inside][:k - have])
+        have += out[-1].shape[0]
+    return np.concatenate(out, 0) if out else np.zeros((0, 2))
 
 
 def grid_in_polygon(points: np.ndarray, spacing: float) -> np.ndarray:

@@ -75,24 +75,31 @@ class Source:
     def place(self, want: int, near_xz: np.ndarray, near_r: np.ndarray, r_new: float, clear=None) -> np.ndarray:
         """Up to ``want`` positions (m, 2) with room: at least ``r_new + r_j`` from the agents ``near_xz``
         (radii ``near_r``) and from the ones placed before; ``clear(xz) -> (k,) bool`` says where a body of
-        radius ``r_new`` is clear of obstacles (None: everywhere)."""
-        out = []
+        radius ``r_new`` is clear of obstacles (None: everywhere). The agents are looked up in a k-d tree
+        (``scipy.spatial.cKDTree``), so a crowded spawn area costs O(log n) per candidate."""
+        from scipy.spatial import cKDTree
+
         xz, rr = np.asarray(near_xz, np.float64).reshape(-1, 2), np.asarray(near_r, np.float64).reshape(-1)
+        tree = cKDTree(xz) if xz.shape[0] else None
+        reach = r_new + (float(rr.max()) if rr.size else 0.0) + SPAWN_GAP
+        out = []
         for _ in range(want):
             c = self.candidates(SPAWN_TRIES)
             if c.shape[0] == 0:
                 break
             ok = np.ones(c.shape[0], bool) if clear is None else np.asarray(clear(c), bool)
-            if xz.shape[0]:
-                d2 = (c[:, None, 0] - xz[None, :, 0]) ** 2 + (c[:, None, 1] - xz[None, :, 1]) ** 2
-                ok &= np.all(d2 >= (rr[None, :] + r_new + SPAWN_GAP) ** 2, axis=1)
+            if tree is not None:
+                for t, hits in enumerate(tree.query_ball_point(c, reach)):
+                    if ok[t] and hits:
+                        h = np.asarray(hits)
+                        d2 = (xz[h, 0] - c[t, 0]) ** 2 + (xz[h, 1] - c[t, 1]) ** 2
+                        ok[t] = bool(np.all(d2 >= (rr[h] + r_new + SPAWN_GAP) ** 2))
+            for p in out:  # the ones placed in this call
+                ok &= (c[:, 0] - p[0]) ** 2 + (c[:, 1] - p[1]) ** 2 >= (2.0 * r_new + SPAWN_GAP) ** 2
             hit = np.flatnonzero(ok)
             if hit.size == 0:
                 break  # no room now: this arrival and the ones behind it wait for the next step
-            p = c[hit[0]]
-            out.append(p)
-            xz = np.vstack([xz, p[None]])
-            rr = np.append(rr, r_new)
+            out.append(c[hit[0]])
         return np.asarray(out, np.float64).reshape(-1, 2)
 
     def bounds(self, margin: float) -> tuple:
