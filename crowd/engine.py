@@ -431,12 +431,13 @@ class Engine:
     @property
     def tint_table(self):
         """(n agents,) uint32 colour-variation words (``render.tint.variation_table``: from the scene
-        seed and each agent's index and character), or None when no character varies."""
+        seed and each agent's stable id and character), or None when no character varies."""
         if not hasattr(self, "_tint_table"):
             from render.tint import variation_table
 
             vs = [dict(c.variation) if c.variation else None for c in self.scene.characters]
-            self._tint_table = variation_table(self.scene.seed, self.world.state.character, vs) if any(vs) else None
+            st = self.world.state
+            self._tint_table = variation_table(self.scene.seed, st.character, vs, ids=st.ids) if any(vs) else None
         return self._tint_table
 
     @property
