@@ -72,6 +72,8 @@ class Journeys:
                         for i, s in enumerate(cfg.get("sources", []))]
         self.shape_arrays = self.shapes.arrays()
         self.router = None  # the routing effect's router, or the straight one (resolved at the first step)
+        if world.resources.get("routing") is not None:  # installed first: its goals (fields) are built now
+            self.use_router(world.resources["routing"])
         self.kind = np.array([s.kind for s in self.stages], np.int64)
         self.point = np.array([s.point if s.point is not None else (np.nan, np.nan) for s in self.stages],
                               np.float64).reshape(-1, 2)
@@ -180,8 +182,8 @@ class Journeys:
             self.next_ticket += idx.size
             self._claim_slots(st, s)
         elif stg.kind == QUEUE:
-            self.ticket[idx] = self.next_ticket + np.arange(idx.size)
-            self.next_ticket += idx.size
+            self.ticket[idx] = -1  # joins at the end of the line (_queue)
+            self._queue(st, s, t)
 
     def _advance(self, st, idx: np.ndarray, t: float) -> None:
         """Agents ``idx`` are done with their stage: on to the next entry, round again (loop), or idle."""
@@ -222,14 +224,36 @@ class Journeys:
             self.stop_at[i] = 0.0
 
     def _queue(self, st, s: int, t: float) -> None:
-        """Queue ``s``: ranks by arrival, places, the head's service."""
+        """Queue ``s``: agents walk to the end of the line and join it there (their ticket: the order they
+        reached the end, nearest first within a step), so the line fills from the head without anyone walking
+        through it; rank r stands at place r (past the last place, ``spacing`` apart short of it); the head is
+        served once it stands at place 0."""
         stg = self.stages[s]
-        mem = np.flatnonzero((self.stage == s) & ((self.phase == WALK) | (self.phase == HOLD)))
-        if mem.size == 0:
-            return
-        mem = mem[np.argsort(self.ticket[mem], kind="stable")]
         m = stg.slots.shape[0]
-        rank = np.arange(mem.size)
+        at = self.stage == s
+        joined = np.flatnonzero(at & (self.ticket >= 0) & ((self.phase == WALK) | (self.phase == HOLD)))
+        k = joined.size
+        appr = np.flatnonzero(at & (self.ticket < 0) & (self.phase == WALK))
+        if appr.size:  # who reached the end joins
+            end = stg.slots[min(k, m - 1)]
+            d = np.hypot(st.position[appr, 0] - end[0], st.position[appr, 2] - end[1]) - max(0, k - (m - 1)) * stg.spacing
+            reach = max(float(self.cfg["slot_radius"]), 0.5 * stg.spacing)
+            near = np.flatnonzero(d <= reach)
+            if near.size:
+                new = appr[near[np.argsort(d[near], kind="stable")]]
+                self.ticket[new] = self.next_ticket + np.arange(new.size)
+                self.next_ticket += new.size
+                joined = np.flatnonzero(at & (self.ticket >= 0) & ((self.phase == WALK) | (self.phase == HOLD)))
+                k = joined.size
+                appr = np.setdiff1d(appr, new)
+        if appr.size:  # the others walk to the end of the line
+            self.slot[appr] = -1
+            self.tshape[appr] = stg.slot_shapes[min(k, m - 1)]
+            self.stop_at[appr] = max(0, k - (m - 1)) * stg.spacing
+        if k == 0:
+            return
+        mem = joined[np.argsort(self.ticket[joined], kind="stable")]
+        rank = np.arange(k)
         place = np.minimum(rank, m - 1)
         self.slot[mem] = place
         self.tshape[mem] = stg.slot_shapes[place]

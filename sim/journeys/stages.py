@@ -9,9 +9,11 @@ Stage kinds (JuPedSim's journeys and stages, Kemloh Wagoum et al.; names follow 
   claims a free slot when the stage begins (the nearest one), walks there and waits a time drawn from the
   stage's distribution, then -- when the stage has ``release_at`` times -- until the next release; a full
   area makes agents hold outside it in arrival order until a slot frees.
-- ``queue`` : slots every ``spacing`` metres along a polyline from its head; agents line up in arrival
-  order (rank r takes slot r; beyond the last slot they stand ``spacing`` apart behind it), the agent at the
-  head is served for a time drawn from the distribution and leaves, and everyone moves up one slot.
+- ``queue`` : slots every ``spacing`` metres along a polyline from its head; an agent walks to the end of the
+  line (the next free slot; past the last slot, ``spacing`` apart short of it) and joins there, so the line
+  fills from the head and nobody walks through it (joining where one stands would let late agents block early
+  ones); rank r takes slot r, the agent at the head is served for a time drawn from the distribution and
+  leaves, and everyone moves up one slot.
 
 A journey is a sequence of entries; an entry is one stage or a weighted choice between stages (drawn when
 the agent reaches it, seeded by the scene seed, the agent's id and how many stages it went through, so a

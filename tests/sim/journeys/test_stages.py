@@ -120,11 +120,21 @@ def test_queue_serves_first_come_first_served():
             + placement(rows=2, cols=4, origin=(-6.0, -8.0), spacing=1.0))
     sc, w = world_from_text(text)
     j = w.resources["journeys"]
-    ticket = {int(w.state.ids[i]): int(j.ticket[i]) for i in range(w.state.n)}
-    served, gaps = [], []
+    assert np.all(j.ticket == -1)  # nobody is in line before reaching its end
+    joined, served, gaps = [], [], []
 
     def each(w, c):
         gaps.append(min_gap(w))
+        q = j.stages[0]
+        k = int(np.sum((j.stage == 0) & (j.ticket >= 0))) - sum(  # in line before this step
+            1 for i in np.flatnonzero((j.stage == 0) & (j.ticket >= 0)) if int(w.state.ids[i]) not in joined)
+        end = q.slots[min(k, len(q.slots) - 1)]
+        new = [i for i in np.flatnonzero((j.stage == 0) & (j.ticket >= 0)) if int(w.state.ids[i]) not in joined]
+        for i in sorted(new, key=lambda i: j.ticket[i]):
+            joined.append(int(w.state.ids[i]))
+            # joined the line at its end: the next free place, or short of the last one
+            d = np.hypot(*(w.state.position[i, [0, 2]] - end)) - max(0, k - (len(q.slots) - 1)) * q.spacing
+            assert d <= max(0.25, q.spacing / 2) + 1e-9
         for i in np.flatnonzero((j.stage == 1) & (j.phase == WALK)):
             a = int(w.state.ids[i])
             if a not in [s for s, _ in served]:
@@ -132,7 +142,7 @@ def test_queue_serves_first_come_first_served():
     run(w, 400, 0.1, each)
     assert len(served) == 8
     order = [a for a, _ in served]
-    assert order == sorted(order, key=lambda a: ticket[a])  # served in arrival order
+    assert order == joined  # served in the order they joined the line
     times = np.diff([t for _, t in served])
     assert np.all(times >= 2.0 - 1e-9)  # one at a time, each for the service time
     assert min(gaps) > -0.02 * 0.5  # no two bodies overlap (avoidance's tolerance)
