@@ -108,10 +108,20 @@ class Journeys:
         return float(table.max()) if table.size else 0.25
 
     def use_router(self, router) -> None:
-        """Steer with ``router`` (module ``sim.journeys.steer``): every stage shape becomes one of its goals."""
+        """Steer with ``router`` (module ``sim.journeys.steer``): the stages' shapes become its goals (one per
+        stage; an agent bound for a slot is routed to its stage's ``slot_routes`` shape)."""
         self.router = router
-        self.goal_of_shape = np.array([router.goal(self.router_shape(k)) for k in range(len(self.shapes))],
-                                      np.int64)
+        self.route_of = np.arange(len(self.shapes), dtype=np.int64)  # target shape -> the shape routed to
+        if not isinstance(router, StraightRouter):  # straight lines cost nothing per goal: straight at the slot
+            for stg in self.stages:
+                self.route_of[stg.slot_shapes] = stg.slot_routes
+        self.goal_of_shape = np.full(len(self.shapes), -1, np.int64)
+        for k in np.unique(self.route_of):
+            self.goal_of_shape[k] = router.goal(self.router_shape(int(k)))
+
+    def goals_of(self, tshape: np.ndarray) -> np.ndarray:
+        """The router's goal of every agent's target shape (-1: none)."""
+        return np.where(tshape >= 0, self.goal_of_shape[self.route_of[np.maximum(tshape, 0)]], -1)
 
     def router_shape(self, k: int) -> tuple:
         """Shape ``k`` as the router takes it: ("point", (x, z)), ("polygon", [(x, z), ...]), ("line", (a, b))."""
@@ -293,8 +303,7 @@ class Journeys:
         self._prev = st.position[:, [0, 2]].copy()
         if self.router is None:
             self.use_router(w.resources.get("routing") or StraightRouter())
-        goal = np.where(self.tshape >= 0, self.goal_of_shape[np.maximum(self.tshape, 0)], -1)
-        goal = np.where(self.phase <= PENDING, goal, -1)
+        goal = np.where(self.phase <= PENDING, self.goals_of(self.tshape), -1)
         rdir = np.zeros((st.n, 2))
         rdist = np.full(st.n, np.inf)
         self.router.directions(st.position, goal, rdir, dist=rdist)
@@ -354,7 +363,7 @@ class Journeys:
             d = np.hypot(pos[wp, 0] - pts[:, 0], pos[wp, 2] - pts[:, 1])
             if not isinstance(self.router, StraightRouter):  # the route's length: not through a thin wall
                 rd = np.full(wp.size, np.inf)
-                self.router.directions(pos[wp], self.goal_of_shape[self.tshape[wp]], np.zeros((wp.size, 2)), dist=rd)
+                self.router.directions(pos[wp], self.goals_of(self.tshape[wp]), np.zeros((wp.size, 2)), dist=rd)
                 d = np.maximum(d, rd)
             reached = d <= rad
             last = reached & (self.stop_at[wp] >= 0)
@@ -450,7 +459,8 @@ class Journeys:
             r = max(r_new, float(w.resources.get("obstacles.agent_radius", 0.0)))
             tests.append(lambda c: obs.sdf(c[:, 0], c[:, 1])[0] >= r)
         if self.router is not None and not isinstance(self.router, StraightRouter):
-            gid = int(self.goal_of_shape[self.stages[int(self.journeys[journey].entries[0][0][0])].shape])
+            first = self.stages[int(self.journeys[journey].entries[0][0][0])]
+            gid = int(self.goals_of(np.array([first.shape]))[0])
             tests.append(lambda c: np.asarray(self.router.reachable(gid, c), bool))
         if not tests:
             return None

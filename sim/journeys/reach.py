@@ -109,10 +109,11 @@ def problems(journeys, world) -> list:
     router = world.resources.get("routing")
     shapes = journeys.shapes
     if router is not None:
-        gid = {k: router.goal(journeys.router_shape(k)) for k in range(len(shapes))}
+        if journeys.router is not router:
+            journeys.use_router(router)
 
         def reach(shape, xz):
-            return np.asarray(router.reachable(gid[shape], xz), bool)
+            return np.asarray(router.reachable(int(journeys.goals_of(np.array([shape]))[0]), xz), bool)
     else:
         obs = world.resources.get("obstacles")
         if obs is None or obs.count == 0:

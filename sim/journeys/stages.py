@@ -37,7 +37,9 @@ DISTRIBUTIONS = ("fixed", "uniform", "exponential", "normal")
 @dataclass
 class Stage:
     """One stage. ``shape``: id in the shapes table the agents steer to (for exits the door shrunk by a body
-    radius at each end); ``slots``: (m, 2) slot positions (wait, queue) with their point shape ids."""
+    radius at each end); ``slots``: (m, 2) slot positions (wait, queue) with their point shape ids and the shape
+    the router routes an agent bound for a slot to (``slot_routes``: the waiting area, the queue's last place):
+    one routing goal per stage, not per slot (each is a distance field); near them agents walk straight."""
 
     name: str
     kind: int
@@ -48,6 +50,7 @@ class Stage:
     line: np.ndarray | None = None
     slots: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     slot_shapes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    slot_routes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # the router's goal per slot
     spacing: float = 0.0
     time: dict = field(default_factory=lambda: {"kind": "fixed", "value": 0.0})
     release_at: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -108,10 +111,12 @@ def build_stages(cfg_stages: list, shapes: Shapes, body_radius: float) -> list:
                     c = slots.mean(0)
                     st.shape = shapes.add("point", [c])
                     st.hold_distance = float(np.hypot(*(slots - c).T).max()) + max(st.spacing, 2.0 * body_radius)
+                st.slot_routes = np.full(slots.shape[0], st.shape, np.int64)
             else:
                 st.shape = int(st.slot_shapes[0])
                 if st.spacing <= 0.0:
                     st.spacing = float(np.hypot(*(slots[1] - slots[0]))) if len(slots) > 1 else 2.0 * body_radius
+                st.slot_routes = np.full(slots.shape[0], st.slot_shapes[-1], np.int64)  # the end of the line
         out.append(st)
     return out
 

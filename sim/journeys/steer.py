@@ -13,7 +13,8 @@ The router interface (agreed with the routing effect, docs/scenes.md "Journeys")
 does) and knows no walls; ``world.resources["routing"]``, when a scene routes, replaces it.
 
 Desired velocity (:func:`desired_kernel`, numpy reference :func:`desired_reference`), per agent walking to a
-target shape: far from the target (a route longer than ``approach`` metres) along the router's direction; within it
+target shape: far from the target (the route to its goal and the straight line to the target both longer than
+``approach`` metres) along the router's direction; within it
 straight at the target's nearest point -- through a door line (towards a point ``approach`` metres behind
 it, on the side the agent is not on) and into an exit polygon -- at the journey's speed, slowed linearly
 within ``slow_radius`` of where it must stop (``stop_at`` metres before a waiting slot, a queue place, a
@@ -92,7 +93,7 @@ def desired_kernel(position, phase, tshape, stop_at, speed, rdir, rdist, kind, s
         dx, dz = qx - px, qz - pz
         d = math.hypot(dx, dz)
         ux, uz = 0.0, 0.0
-        if rdist[i] < approach or (rdir[i, 0] == 0.0 and rdir[i, 1] == 0.0):
+        if rdist[i] < approach or d < approach or (rdir[i, 0] == 0.0 and rdir[i, 1] == 0.0):
             if kind[k] == LINE:  # through the door: at a point `approach` behind it
                 a = start[k]
                 ex, ez = verts[a + 1, 0] - verts[a, 0], verts[a + 1, 1] - verts[a, 1]
@@ -130,7 +131,7 @@ def desired_reference(position, phase, tshape, stop_at, speed, rdir, rdist, shap
             continue
         q = np.array([qx, qz])
         d = float(np.hypot(*(q - p)))
-        if rdist[i] < approach or not np.any(rdir[i]):
+        if rdist[i] < approach or d < approach or not np.any(rdir[i]):
             t = q
             if name == "line":
                 e = pts[1] - pts[0]
