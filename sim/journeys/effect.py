@@ -50,7 +50,7 @@ _AGENT_ARRAYS = {"journey": (np.int32, -1), "step": (np.int32, 0), "stage": (np.
                  "phase": (np.int8, IDLE), "slot": (np.int32, -1), "ticket": (np.int64, -1),
                  "release": (np.float64, np.inf), "transitions": (np.int32, 0), "tshape": (np.int64, -1),
                  "stop_at": (np.float64, -1.0), "speed": (np.float64, 0.0), "source": (np.int32, -1),
-                 "leave_frame": (np.int64, -1)}
+                 "leave_frame": (np.int64, -1), "goal": (np.int64, -1), "near": (np.int8, 0)}
 #: frames an agent stays after reaching an exit (walking on through it): PedPy sees a move cross a line only
 #: when the trajectory goes on after it (its adaptive border window is 0 at a trajectory's last frame)
 EXIT_LINGER_FRAMES = 1
@@ -304,14 +304,16 @@ class Journeys:
         if self.router is None:
             self.use_router(w.resources.get("routing") or StraightRouter())
         goal = np.where(self.phase <= PENDING, self.goals_of(self.tshape), -1)
+        self.near[goal != self.goal] = 0  # a new goal: routed until near it
+        self.goal = goal
         rdir = np.zeros((st.n, 2))
         rdist = np.full(st.n, np.inf)
         self.router.directions(st.position, goal, rdir, dist=rdist)
         kind, start, verts = self.shape_arrays
         vd = np.zeros((st.n, 2))
         c = self.cfg
-        desired_kernel(st.position, self.phase, self.tshape, self.stop_at, self.speed, rdir, rdist, kind, start,
-                       verts, float(c["approach"]), float(c["slow_radius"]), vd)
+        desired_kernel(st.position, self.phase, self.tshape, self.stop_at, self.speed, rdir, rdist, self.near, kind,
+                       start, verts, float(c["approach"]), float(c["slow_radius"]), vd)
         active = self.journey >= 0
         leaving = self.phase == LEAVING
         if leaving.any():  # on through the exit

@@ -14,7 +14,8 @@ does) and knows no walls; ``world.resources["routing"]``, when a scene routes, r
 
 Desired velocity (:func:`desired_kernel`, numpy reference :func:`desired_reference`), per agent walking to a
 target shape: far from the target (the route to its goal and the straight line to the target both longer than
-``approach`` metres) along the router's direction; within it
+``approach`` metres, and never nearer since the goal was set: a slot's goal is its stage's, e.g. a queue's
+last place, from where the agent walks along the line to its place) along the router's direction; within it
 straight at the target's nearest point -- through a door line (towards a point ``approach`` metres behind
 it, on the side the agent is not on) and into an exit polygon -- at the journey's speed, slowed linearly
 within ``slow_radius`` of where it must stop (``stop_at`` metres before a waiting slot, a queue place, a
@@ -77,9 +78,10 @@ def _straight_kernel(position, goal, kind, start, verts, out, dist):
 
 
 @njit(cache=True, parallel=True)
-def desired_kernel(position, phase, tshape, stop_at, speed, rdir, rdist, kind, start, verts, approach, slow_radius,
-                   out):
-    """Desired (vx, vz) of every agent into ``out`` (n, 2) (module docstring)."""
+def desired_kernel(position, phase, tshape, stop_at, speed, rdir, rdist, near, kind, start, verts, approach,
+                   slow_radius, out):
+    """Desired (vx, vz) of every agent into ``out`` (n, 2) (module docstring); ``near`` (n,) int8 in/out: the
+    agent came within ``approach`` of its router goal, and walks straight from then on (until its goal changes)."""
     for i in prange(position.shape[0]):
         out[i, 0] = 0.0
         out[i, 1] = 0.0
@@ -93,7 +95,9 @@ def desired_kernel(position, phase, tshape, stop_at, speed, rdir, rdist, kind, s
         dx, dz = qx - px, qz - pz
         d = math.hypot(dx, dz)
         ux, uz = 0.0, 0.0
-        if rdist[i] < approach or d < approach or (rdir[i, 0] == 0.0 and rdir[i, 1] == 0.0):
+        if rdist[i] < approach:
+            near[i] = 1
+        if near[i] or d < approach or (rdir[i, 0] == 0.0 and rdir[i, 1] == 0.0):
             if kind[k] == LINE:  # through the door: at a point `approach` behind it
                 a = start[k]
                 ex, ez = verts[a + 1, 0] - verts[a, 0], verts[a + 1, 1] - verts[a, 1]
@@ -117,8 +121,9 @@ def desired_kernel(position, phase, tshape, stop_at, speed, rdir, rdist, kind, s
         out[i, 1] = uz * s
 
 
-def desired_reference(position, phase, tshape, stop_at, speed, rdir, rdist, shapes: Shapes, approach, slow_radius):
-    """Plain Python reference of :func:`desired_kernel` ((n, 2) float64)."""
+def desired_reference(position, phase, tshape, stop_at, speed, rdir, rdist, near, shapes: Shapes, approach,
+                      slow_radius):
+    """Plain Python reference of :func:`desired_kernel` ((n, 2) float64; ``near`` updated in place)."""
     out = np.zeros((position.shape[0], 2))
     for i in range(position.shape[0]):
         k = int(tshape[i])
@@ -131,7 +136,9 @@ def desired_reference(position, phase, tshape, stop_at, speed, rdir, rdist, shap
             continue
         q = np.array([qx, qz])
         d = float(np.hypot(*(q - p)))
-        if rdist[i] < approach or d < approach or not np.any(rdir[i]):
+        if rdist[i] < approach:
+            near[i] = 1
+        if near[i] or d < approach or not np.any(rdir[i]):
             t = q
             if name == "line":
                 e = pts[1] - pts[0]

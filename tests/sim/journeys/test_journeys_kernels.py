@@ -112,9 +112,12 @@ def test_desired_kernel_matches_reference(offset):
     n = 500
     pos, phase, tshape, stop, speed, rdir, rdist = _agents(n, s, rng, offset)
     out = np.empty((n, 2))
-    desired_kernel(pos, phase, tshape, stop, speed, rdir, rdist, kind, start, verts, 1.5, 0.8, out)
-    ref = desired_reference(pos, phase, tshape, stop, speed, rdir, rdist, s, 1.5, 0.8)
+    near = (rng.random(n) < 0.3).astype(np.int8)
+    near_ref = near.copy()
+    desired_kernel(pos, phase, tshape, stop, speed, rdir, rdist, near, kind, start, verts, 1.5, 0.8, out)
+    ref = desired_reference(pos, phase, tshape, stop, speed, rdir, rdist, near_ref, s, 1.5, 0.8)
     assert np.allclose(out, ref, atol=1e-7)
+    assert np.array_equal(near, near_ref) and near.sum() > 0.3 * n
     sp = np.hypot(out[:, 0], out[:, 1])
     assert np.all(sp <= speed + 1e-12)
     assert np.all(sp[(phase > PENDING) | (tshape < 0)] == 0)
@@ -127,8 +130,8 @@ def test_desired_goes_through_a_door_from_either_side():
     pos = np.array([[-0.5, 0.0, 0.2], [0.5, 0.0, -0.3], [-0.1, 0.0, 0.9]])
     out = np.empty((3, 2))
     one = np.ones(3)
-    desired_kernel(pos, np.zeros(3, np.int8), np.zeros(3, np.int64), -one, one, np.zeros((3, 2)), one * 0.5, kind,
-                   start, verts, 1.0, 1.0, out)
+    desired_kernel(pos, np.zeros(3, np.int8), np.zeros(3, np.int64), -one, one, np.zeros((3, 2)), one * 0.5,
+                   np.zeros(3, np.int8), kind, start, verts, 1.0, 1.0, out)
     assert out[0, 0] > 0.5 and out[1, 0] < -0.5 and out[2, 0] > 0.5  # towards the far side, at full speed
     assert np.allclose(np.hypot(out[:, 0], out[:, 1]), 1.0)
 
