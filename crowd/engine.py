@@ -213,6 +213,9 @@ class Engine:
         self.explain_lod = None
         self.plan = plan(scene, quiet=quiet)
         self.world = self._build_world()
+        from crowd.population import check_journeys
+
+        check_journeys(scene, self.world)  # agents that cannot reach a stage of their journey: refused now
         self.camera_path = self._build_camera()
         self.reps, self.statics = self._build_reps()
         self.selector = self._build_selector()
@@ -241,6 +244,8 @@ class Engine:
             try:
                 world.install(e.name, e.params)
             except ParamError as err:
+                if err.key.split("[", 1)[0] in ("stages", "journeys", "sources"):  # tables of the effect's own
+                    raise SceneError(sc.path, err.key, err.message) from None
                 raise SceneError(sc.path, f"effects[{e.index}]", err.message if err.key.startswith("effects")
                                  else str(err)) from None
         return world
@@ -312,10 +317,13 @@ class Engine:
         ch = np.asarray(st.character, np.int64)
         cl = np.asarray(st.clip, np.int64)
         gait = getattr(self.world.resources.get("boids"), "clips", None)  # sim.boids' walk/run switch
+        from crowd.population import entering_clips
+
+        entering = entering_clips(self.world)  # clips of agents sources add (sim.journeys)
         out = []
         for ci, character in enumerate(self.plan.characters):
             names = character.clip_names()
-            played = {int(c) for c in np.unique(cl[ch == ci]) if 0 <= c < len(names)}
+            played = {int(c) for c in np.unique(cl[ch == ci]) if 0 <= c < len(names)} | entering.get(ci, set())
             if gait is not None:
                 played = gait.reachable(ci, played)
             out.append([names[i] for i in sorted(played)])
@@ -443,12 +451,13 @@ class Engine:
     @property
     def tint_table(self):
         """(n agents,) uint32 colour-variation words (``render.tint.variation_table``: from the scene
-        seed and each agent's index and character), or None when no character varies."""
+        seed and each agent's stable id and character), or None when no character varies."""
         if not hasattr(self, "_tint_table"):
             from render.tint import variation_table
 
             vs = [dict(c.variation) if c.variation else None for c in self.scene.characters]
-            self._tint_table = variation_table(self.scene.seed, self.world.state.character, vs) if any(vs) else None
+            st = self.world.state
+            self._tint_table = variation_table(self.scene.seed, st.character, vs, ids=st.ids) if any(vs) else None
         return self._tint_table
 
     @property
@@ -522,6 +531,10 @@ class Engine:
         """One simulation frame; raises SimulationError when the state stops being finite."""
         sc = self.scene
         self.world.step(sc.dt, sc.substeps, timings)
+        if self.world.agents_changed is not None:  # agents left or entered (sim.population)
+            from crowd.population import after_step
+
+            after_step(self)
         try:
             self.world.state.check_finite()
         except FloatingPointError as e:
@@ -538,7 +551,8 @@ class Engine:
         from crowd.trajectories import TRAJECTORY_FILE, TrajectoryWriter
 
         sc = self.scene
-        return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps)
+        return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps,
+                                changing="journeys" in self.world.resources)
 
     def _explain_writer(self, tmp: Path):
         """A :class:`crowd.explain.ExplainWriter` of ``tmp/explain_lod.jsonl`` when ``explain_lod`` is set (the
@@ -573,8 +587,10 @@ class Engine:
         tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
         pngs = []
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
+        from crowd.population import frame_counts, summary as population_summary
         from crowd.video import VIDEO_NAME, video_writer
 
+        agents_start = self.world.state.n
         with atomic_dir(out_dir) as tmp, self._trajectory_writer(tmp) as traj, self._explain_writer(tmp) as explain, \
                 video_writer(tmp / VIDEO_NAME, size, 1.0 / sc.dt, sc.video, **self.video_options) as video:
             if png_every:
@@ -628,7 +644,7 @@ class Engine:
                     renderer.save_png(p)
                     pngs.append(out_dir / "frames" / p.name)
                 if traj is not None:  # streamed: one frame in memory (crowd.trajectories)
-                    traj.write(f, self.world.state.position)
+                    traj.write(f, self.world.state.position, self.world.state.ids)
                 if video is not None and video.accepting:  # every frame (crowd.video), timed as the png stage
                     video.write(renderer.read_pixels())
                 t_end = time.perf_counter()
@@ -639,16 +655,17 @@ class Engine:
                           "triangles": dl.stats.get("triangles", dl.triangles),
                           "points": dl.stats.get("points", dl.points),
                           "batches": len(dl.batches), "props": dl.stats.get("props", 0),
-                          "raster_triangles": dl.stats.get("raster_triangles", 0)}
+                          "raster_triangles": dl.stats.get("raster_triangles", 0), **frame_counts(self.world)}
                 tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
                                     total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
                                     counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))
             digest = self.world.state.digest()
             extra = {"size": list(size), "dt": sc.dt, "substeps": sc.substeps, "seed": sc.seed,
-                     "agents": self.world.state.n, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
+                     "agents": agents_start, "effects": sc.effect_names, "lod_mode": sc.lod_mode,
                      "scene_file": str(sc.path), "state_digest": digest, "pngs": len(pngs),
                      "trajectories": traj.path.name if traj is not None else None,
-                     "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows}
+                     "video": VIDEO_NAME if video is not None else None, "shadows": sc.render.shadows,
+                     **population_summary(self.world)}
             from render.context import gl_info
 
             summary = tel.write(tmp, sc.name, extra, machine_info(gl_info(renderer.ctx)))

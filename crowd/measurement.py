@@ -110,6 +110,42 @@ def simple_polygon_problem(pts) -> str | None:
     return None
 
 
+def parse_polygon(key: str, value, fail) -> tuple:
+    """A validated floor polygon ``[[x, z], ...]`` (>= 3 finite points, simple, non-zero area; a repeated closing
+    point is dropped) as a tuple of (x, z), else ``fail(key, message)``."""
+    try:
+        pts = _points(key, value)
+    except ParamError as e:
+        fail(e.key, e.message)
+    if len(pts) >= 4 and pts[0] == pts[-1]:
+        pts = pts[:-1]  # a closed ring written out
+    if len(pts) < 3:
+        fail(key, f"expected at least 3 [x, z] points, got {len(pts)}")
+    if collinear(pts):
+        fail(key, "expected a polygon of non-zero area, got collinear points")
+    problem = simple_polygon_problem(pts)
+    if problem is not None:
+        fail(key, f"expected a simple polygon (edges meet only at shared corners): {problem}")
+    area = polygon_area(pts)
+    if not (abs(area) > 0.0) or not math.isfinite(area):
+        fail(key, "expected a polygon of non-zero area, got collinear points")
+    return tuple(pts)
+
+
+def parse_line(key: str, value, fail, what: str = "expected two distinct points") -> tuple:
+    """A validated floor segment ``[[x1, z1], [x2, z2]]`` (two distinct finite points), else ``fail(key, ...)``;
+    ``what`` words the complaint about coincident points."""
+    try:
+        pts = _points(key, value)
+    except ParamError as e:
+        fail(e.key, e.message)
+    if len(pts) != 2:
+        fail(key, f"expected two [x, z] points, got {len(pts)}")
+    if pts[0] == pts[1]:
+        fail(key, f"{what}, got {list(pts[0])} twice")
+    return tuple(pts)
+
+
 def parse_measurements(doc_value, fail) -> tuple:
     """Validate the ``measurement`` array of tables of a scene document.
 
@@ -138,28 +174,7 @@ def parse_measurements(doc_value, fail) -> tuple:
         names[name] = i
         if m["polygon"] is None and m["line"] is None:
             fail(where, "expected `polygon` (a measurement area [[x, z], ...]) and/or `line` ([[x1, z1], [x2, z2]])")
-        polygon = line = None
-        if m["polygon"] is not None:
-            pts = _points(f"{where}.polygon", m["polygon"])
-            if len(pts) >= 4 and pts[0] == pts[-1]:
-                pts = pts[:-1]  # a closed ring written out
-            if len(pts) < 3:
-                fail(f"{where}.polygon", f"expected at least 3 [x, z] points, got {len(pts)}")
-            if collinear(pts):
-                fail(f"{where}.polygon", "expected a polygon of non-zero area, got collinear points")
-            problem = simple_polygon_problem(pts)
-            if problem is not None:
-                fail(f"{where}.polygon", f"expected a simple polygon (edges meet only at shared corners): {problem}")
-            area = polygon_area(pts)
-            if not (abs(area) > 0.0) or not math.isfinite(area):
-                fail(f"{where}.polygon", "expected a polygon of non-zero area, got collinear points")
-            polygon = tuple(pts)
-        if m["line"] is not None:
-            pts = _points(f"{where}.line", m["line"])
-            if len(pts) != 2:
-                fail(f"{where}.line", f"expected two [x, z] points, got {len(pts)}")
-            if pts[0] == pts[1]:
-                fail(f"{where}.line", f"expected two distinct points, got {list(pts[0])} twice")
-            line = tuple(pts)
+        polygon = parse_polygon(f"{where}.polygon", m["polygon"], fail) if m["polygon"] is not None else None
+        line = parse_line(f"{where}.line", m["line"], fail) if m["line"] is not None else None
         out.append(MeasurementSpec(name=name, polygon=polygon, line=line, index=i))
     return tuple(out)

@@ -1,7 +1,8 @@
 """Memory estimate of a scene and the guard that refuses scenes too big for the machine.
 
 The estimate is made *before* the big allocations: agent counts come from the
-validated placement parameters (never from building them), characters from
+validated placement parameters (never from building them) plus what the
+``[[sources]]`` can add during the run (``crowd.scene_journeys.entering_agents``), characters from
 their specs (generator triangle counts, glTF file sizes) or, when they are
 already built, from their meshes and clips. It adds up
 
@@ -211,7 +212,10 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     -------
     MemoryEstimate
     """
-    n = sum(placement_agents(p.kind, p.params) for p in scene.placements)
+    from crowd.scene_journeys import entering_agents
+
+    entering = entering_agents(scene)  # agents [[sources]] add during the run (exits ignored: an upper bound)
+    n = sum(placement_agents(p.kind, p.params) for p in scene.placements) + sum(k for _, k in entering)
     parts = {"runtime": RUNTIME_BYTES,
              "state": n * (STATE_BYTES_PER_AGENT + SIM_SCRATCH_PER_AGENT),
              "selection": n * (SELECT_BYTES_PER_AGENT + (AUTO_SELECT_BYTES_PER_AGENT if scene.lod_mode == "auto"
@@ -235,7 +239,7 @@ def estimate_scene(scene, characters=None) -> MemoryEstimate:
     parts["gpu"] = n * GPU_INSTANCE_BYTES + gpu + palette + w * h * 8 + w * h * 3
     chars = characters if characters is not None else [None] * len(scene.characters)
     tris = sum(placement_agents(p.kind, p.params) * _triangles(scene.characters[p.character], chars[p.character])
-               for p in scene.placements)
+               for p in scene.placements) + sum(k * _triangles(scene.characters[c], chars[c]) for c, k in entering)
     parts["driver"] = min(tris * BINNED_BYTES_PER_TRIANGLE, DRIVER_SCENES * DRIVER_SCENE_BYTES)
     if getattr(scene, "props", ()):
         from crowd.world import props_bytes

@@ -42,7 +42,8 @@ LOD_MODES = _mode_names()
 PLACEMENT_COMMON = ("kind", "character", "clip")
 #: keys accepted at the top level of a scene document
 TOP_LEVEL_KEYS = ("name", "seed", "dt", "substeps", "frames", "effects", "characters", "placement",
-                  "props", "terrain", "camera", "render", "lod", "output", "measurement")
+                  "props", "terrain", "camera", "render", "lod", "output", "measurement", "stages", "journeys",
+                  "sources")
 
 TOP_SCHEMA = {
     "name": Param("str", None, doc="scene name; default: file stem"),
@@ -344,6 +345,9 @@ class _Parser:
         placements = self.placements(characters)
         effects = self.effects()
         props = parse_props(self.array_of_tables("props", False), effects, self.base, self.fail)
+        from crowd.scene_journeys import parse_journeys
+
+        effects = parse_journeys(doc, effects, placements, characters, self.fail)  # [[stages]], [[journeys]], ...
         terrain = self.terrain()
         self.effect_requirements(effects, placements, terrain)
         camera = self.camera()

@@ -5,8 +5,10 @@ Files of a run (all written into the run's atomic output directory):
 ``frames.csv``
     one row per frame: ``frame, sim_time, total, simulate, select, upload,
     draw, finish, gpu, sys.<name>..., instances, culled, triangles, points,
-    batches, props, samples_passed``; ``props`` counts the triangles of props and
-    obstacle solids (``crowd.world``), ``triangles`` those of the characters. Times are seconds (wall clock,
+    batches, props, agents, entered, exited, left, samples_passed``; ``props`` counts the triangles of props
+    and obstacle solids (``crowd.world``), ``triangles`` those of the characters; ``agents`` the agents alive
+    in the frame, ``entered`` those a source added in it, ``exited`` those that reached an exit in it,
+    ``left`` those removed at its start (agents(f) = agents(f-1) + entered(f) - left(f); ``crowd.population``). Times are seconds (wall clock,
     ``time.perf_counter``); ``gpu`` is the GL timer-query time, blank when the
     driver has none. ``sys.<name>`` is the wall time of schedule step
     ``<name>`` summed over the frame's sub-steps.
@@ -36,7 +38,8 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "raster_triangles")
+COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "raster_triangles", "agents", "entered",
+          "exited", "left")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 
@@ -164,7 +167,7 @@ class Telemetry:
                 draw_off = r.stages.get("draw", (0.0, 0.0))[0]
                 ev.append({"name": "gpu", "cat": "gpu", "ph": "X", "pid": _PID, "tid": _TID_GPU,
                            "ts": t0 + draw_off * us, "dur": r.gpu * us, "args": {"frame": r.frame}})
-            for c in ("triangles", "instances", "points", "props"):
+            for c in ("triangles", "instances", "points", "props", "agents"):
                 ev.append({"name": c, "cat": "count", "ph": "C", "pid": _PID, "ts": t0,
                            "args": {c: int(r.counts.get(c, 0))}})
         return {"traceEvents": ev, "displayTimeUnit": "ms"}

@@ -11,7 +11,8 @@ into place with the run's other outputs, :func:`crowd.output.atomic_dir`)::
     0 0 1.2500 -3.0000 0.0000
     ...
 
-One line per agent and frame: agent id (its index in ``CrowdState``), frame (0 = the state after the first
+One line per agent alive and frame: agent id (``CrowdState.ids``: its index at the start; agents that enter
+during the run -- sources -- get fresh ids, agents that left -- exits -- have no more lines), frame (0 = the state after the first
 frame's step; one line per agent per *frame*, not per sub-step), then the position in metres. The sandbox is Y-up
 with the floor in (x, z); PedPy works in the (x, y) plane, so the columns are written in PedPy's order: sandbox
 x, sandbox z, sandbox y. ``framerate`` is 1 / dt (frames per simulated second). Positions are written with 4
@@ -31,10 +32,12 @@ TRAJECTORY_FILE = "trajectories.txt"
 TRAJECTORY_DECIMALS = 4
 
 
-def header(scene_name: str, n: int, dt: float, substeps: int) -> str:
-    """The comment header (PedPy reads ``framerate`` and the unit from ``x/m``)."""
+def header(scene_name: str, n: int, dt: float, substeps: int, changing: bool = False) -> str:
+    """The comment header (PedPy reads ``framerate`` and the unit from ``x/m``); ``changing``: agents leave and
+    enter (the count is the one at the start)."""
     name = "".join(c if c.isprintable() else "?" for c in str(scene_name))
-    return (f"# crowd-sandbox trajectories: scene {name}, {n} agents, dt {dt:g} s x {substeps} substep(s)\n"
+    count = f"{n} agents at the start (agents leave and enter)" if changing else f"{n} agents"
+    return (f"# crowd-sandbox trajectories: scene {name}, {count}, dt {dt:g} s x {substeps} substep(s)\n"
             f"# framerate: {1.0 / dt!r}\n"
             "# axes: PedPy x = sandbox x, PedPy y = sandbox z (floor), PedPy z = sandbox y (height); Y-up sandbox\n"
             "# id frame x/m y/m z/m\n")
@@ -70,14 +73,17 @@ class TrajectoryWriter:
     Use as a context manager; :meth:`write` after every frame's step.
     """
 
-    def __init__(self, path: str | Path, scene_name: str, n: int, dt: float, substeps: int = 1):
+    def __init__(self, path: str | Path, scene_name: str, n: int, dt: float, substeps: int = 1,
+                 changing: bool = False):
         self.path = Path(path)
         self._f = open(self.path, "w", encoding="utf-8", newline="\n")
-        self._f.write(header(scene_name, n, dt, substeps))
+        self._f.write(header(scene_name, n, dt, substeps, changing))
         self.frames = 0
 
-    def write(self, frame: int, position: np.ndarray) -> None:
-        self._f.write(format_frame(frame, position))
+    def write(self, frame: int, position: np.ndarray, ids: np.ndarray | None = None) -> None:
+        """Lines of one frame: ``position`` (n, 3) of the agents alive, ``ids`` their stable ids (default
+        0 .. n-1)."""
+        self._f.write(format_frame(frame, position, ids))
         self.frames += 1
 
     def close(self) -> None:

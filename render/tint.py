@@ -106,18 +106,22 @@ def variation_words(seed: int, ids, hue: float = 0.0, saturation: float = 0.0, v
     return pack_hsv(hue * u[0], 1.0 + saturation * u[1], 1.0 + value * u[2])
 
 
-def variation_table(seed: int, character, settings) -> np.ndarray:
+def variation_table(seed: int, character, settings, ids=None) -> np.ndarray:
     """(n,) uint32 variation word of every agent: ``character`` (n,) the agents'
     character indices, ``settings[c]`` a dict (``hue``, ``saturation``,
-    ``value``, ``palette``) or None (no variation) per character."""
+    ``value``, ``palette``) or None (no variation) per character; ``ids`` (n,)
+    the agents' stable ids (default their indices: a crowd whose count never
+    changed), so an agent keeps its colour while others leave and enter."""
     character = np.asarray(character, np.int64)
+    ids = np.arange(character.shape[0]) if ids is None else np.asarray(ids, np.int64)
     out = np.zeros(character.shape[0], np.uint32)
     for c, s in enumerate(settings):
         if not s:
             continue
-        ids = np.flatnonzero(character == c)
-        out[ids] = variation_words(seed, ids, hue=float(s.get("hue", 0.0)), saturation=float(s.get("saturation", 0.0)),
-                                   value=float(s.get("value", 0.0)), palette=s.get("palette"))
+        rows = np.flatnonzero(character == c)
+        out[rows] = variation_words(seed, ids[rows], hue=float(s.get("hue", 0.0)),
+                                    saturation=float(s.get("saturation", 0.0)), value=float(s.get("value", 0.0)),
+                                    palette=s.get("palette"))
     return out
 
 

@@ -18,6 +18,10 @@ class CrowdState:
     clip : (n,) int16, clip index within that character
     anim_time : (n,) float64, seconds into the clip (wrapped by the animation system)
     anim_rate : (n,) float32, playback rate multiplier (1 = authored speed)
+
+    Agents that leave and enter (``sim.population``): the arrays hold only the agents alive, so ``n`` may
+    change between steps, and :attr:`ids` names each agent for good (its index at the start; entered agents
+    get fresh ids, never reused). A state whose count never changed stores no ids (they are ``arange(n)``).
     """
 
     position: np.ndarray
@@ -28,6 +32,20 @@ class CrowdState:
     clip: np.ndarray
     anim_time: np.ndarray
     anim_rate: np.ndarray
+
+    def __post_init__(self):
+        self._ids = None  # (n,) int64 stable agent ids once the count changed (sim.population), else None
+        self._next_id = None  # the next entered agent's id once the count changed, else None (= n)
+
+    @property
+    def ids(self) -> np.ndarray:
+        """(n,) int64 stable agent ids: 0 .. n-1 until agents leave or enter (``sim.population``)."""
+        return np.arange(self.n, dtype=np.int64) if self._ids is None else self._ids
+
+    @property
+    def next_id(self) -> int:
+        """The id the next entered agent gets (one more than the largest id ever given)."""
+        return self.n if self._next_id is None else int(self._next_id)
 
     @classmethod
     def empty(cls, n: int) -> "CrowdState":
@@ -60,6 +78,9 @@ class CrowdState:
         for name, a in self.arrays().items():
             h.update(name.encode())
             h.update(np.ascontiguousarray(a).tobytes())
+        if self._ids is not None:  # agents left or entered: who is where is part of the state
+            h.update(b"ids")
+            h.update(np.ascontiguousarray(self._ids).tobytes())
         return h.hexdigest()
 
     def check_finite(self) -> None:

@@ -22,6 +22,8 @@ class World:
     rng : numpy Generator seeded from the scene seed
     time : float, simulated seconds
     effects : list of installed effect names
+    agents_changed : (n,) int64 or None: agents left or entered since the engine last looked
+        (``sim.population``: each agent's index before, -1 = entered); None = no change
     """
 
     state: CrowdState
@@ -33,6 +35,7 @@ class World:
     frame: int = 0
     effects: list = field(default_factory=list)
     rng: np.random.Generator | None = None
+    agents_changed: np.ndarray | None = None
 
     def __post_init__(self):
         if self.rng is None:

@@ -135,6 +135,10 @@ def render_html(data: dict) -> str:
             from crowd.report.pedestrian import html_section
 
             out.append(html_section(sc))
+        if sc.get("population"):
+            from crowd.report.population import html_section as population_section
+
+            out.append(population_section(sc))
         clips = [s for s in sc["settings"] if s.get("clip")]
         if clips:  # a short clip per setting (crowd.video.REPORT_CLIP), beside its sample frames
             out.append("<h3>Clips</h3><table class='samples'><tr><th>setting</th><th>clip</th></tr>")

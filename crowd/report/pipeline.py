@@ -15,7 +15,8 @@ The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
     index.html         self-contained page (relative links only; crowd.report.page)
     report.json        every number of the page (non-finite values as null)
     plots/*.png        matplotlib (Agg) figures (crowd.report.plots; crowd.report.pedestrian for scenes with
-                       [[measurement]] areas or lines: PedPy density, speed, flow, fundamental diagram)
+                       [[measurement]] areas or lines: PedPy density, speed, flow, fundamental diagram;
+                       crowd.report.population for scenes whose agents leave and enter)
     samples/*.png      sampled frames, references and error maps
     runs/<scene>/<setting>/   the runs' own outputs (frames.csv, summary.json, ...)
 """
@@ -38,6 +39,7 @@ from crowd.report.metrics import aggregate, metrics_task
 from crowd.report.page import render_html
 from crowd.report.pedestrian import scene_measures
 from crowd.report.plots import _plots
+from crowd.report.population import scene_population
 from crowd.report.runs import (
     STAGE_COLUMNS,
     RunData,
@@ -233,6 +235,9 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
             ped = scene_measures(tmp, slug, names[si], runs_of[si][0], settings[0].scene.measurements)
             if ped is not None:
                 scene_entry["pedestrian"] = ped
+            pop = scene_population(tmp, slug, names[si], runs_of[si][0], settings[0].scene)
+            if pop is not None:  # agents left and entered (crowd.report.population)
+                scene_entry["population"] = pop
             data["scenes"].append(scene_entry)
         if baseline is not None:
             rows = compare_reports(data, baseline)

@@ -404,6 +404,17 @@ class KeyframedSelector:
                 self.base = base_selector_of(self.inner)
             self.reset()
 
+    def remap_agents(self, src: np.ndarray, state=None) -> None:
+        """Agents left or entered since the last frame (``sim.population``: ``src`` (n,) each agent's index
+        before, -1 = entered): the keyframes keep the selections of the agents that stayed, under their new
+        indices; an entered agent has none, so it is selected on the spot until the next keyframe."""
+        from sim.population import remap_rows
+
+        fills = {"batch": -1, "row": -1, "group": -1, "sig": 0, "tri": 0.0, "pts": 0.0}
+        for key in self.keys.values():
+            for name, fill in fills.items():
+                setattr(key, name, remap_rows(getattr(key, name), src, fill))
+
     # -- attribute forwarding ------------------------------------------------------------------------------------------
     def __getattr__(self, name):
         if name.startswith("__") or name in KeyframedSelector._OWN:

@@ -78,15 +78,20 @@ def character_radii(world) -> np.ndarray:
 def body_radii(world, cfg: dict, table: np.ndarray | None = None) -> np.ndarray:
     """(n,) float64 body radius of every agent (module docstring)."""
     st = world.state
+    table = character_radii(world) if table is None and not float(cfg.get("radius", 0.0)) > 0 else table
+    return radii_of(cfg, table, st.character, st.scale)
+
+
+def radii_of(cfg: dict, table: np.ndarray | None, character: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(k,) float64 body radii of agents with these ``character`` indices and ``scale``s (:func:`body_radii`)."""
     r = float(cfg.get("radius", 0.0))
     if r > 0:
-        return np.full(st.n, r, np.float64)
-    table = character_radii(world) if table is None else table
-    ch = st.character.astype(np.int64)
+        return np.full(character.shape[0], r, np.float64)
+    ch = np.asarray(character).astype(np.int64)
     ok = (ch >= 0) & (ch < table.shape[0])
     base = np.where(ok, table[np.where(ok, ch, 0)] if table.size else AVOIDANCE_DEFAULT_RADIUS,
                     AVOIDANCE_DEFAULT_RADIUS)
-    return base * st.scale.astype(np.float64)
+    return base * np.asarray(scale).astype(np.float64)
 
 
 @njit(cache=True, parallel=True)
@@ -167,6 +172,26 @@ class Avoidance:
             self.vstart = np.empty((st.n, 2), np.float64)
             self.base_rate = None
             self.grid = self.scratch = None
+
+    def remap_agents(self, src: np.ndarray, state) -> None:
+        """Agents left or entered (``sim.population``): keep the survivors' radii and animation base rates;
+        entered agents get theirs (radius from character and scale, base rate = their current rate)."""
+        from sim.population import remap_rows
+
+        new = np.asarray(src) < 0
+        if self.radius is not None:
+            r = remap_rows(self.radius, src)
+            r[new] = radii_of(self.cfg, self.table, state.character[new], state.scale[new])
+            self.radius = r
+        if self.base_rate is not None:
+            b = remap_rows(self.base_rate, src)
+            b[new] = state.anim_rate[new]
+            self.base_rate = b
+        self.prev = remap_rows(self.prev, src)
+        self.vstart = remap_rows(self.vstart, src)
+        self.n = state.n if self.radius is not None else -1
+        self.near = None
+        self.grid = self.scratch = None
 
     def record(self, world, dt) -> None:
         st = world.state

@@ -82,9 +82,10 @@ def test_unlisted_effect_is_never_imported_or_scheduled(tmp_path, write_scene):
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout.strip().splitlines()[-1])
     assert res["effects"] == ["animation"]
-    for name in ("boids", "obstacles", "goals", "terrain_follow"):
+    for name in ("boids", "obstacles", "goals", "terrain_follow", "journeys"):
         assert f"sim.{name}" not in res["modules"]
         assert not any(name in s for s in res["steps"])
+    assert "sim.population" not in res["modules"]  # a count that never changes: no compaction code loaded
     assert "sim.animation" in res["modules"]
 
 
