@@ -237,6 +237,8 @@ class Engine:
             try:
                 world.install(e.name, e.params)
             except ParamError as err:
+                if err.key.startswith("placement["):  # an agent the effect cannot take (routing: outside the area)
+                    raise SceneError(sc.path, err.key, err.message) from None
                 raise SceneError(sc.path, f"effects[{e.index}]", err.message if err.key.startswith("effects")
                                  else str(err)) from None
         return world

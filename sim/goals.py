@@ -20,6 +20,11 @@ speed, acceleration and turn limits.
 Without the boids effect, the goals step moves agents kinematically: velocity
 ``v_desired`` (attractors ignored), position += v dt, heading = direction of v.
 
+With the ``routing`` effect (:mod:`sim.routing`), every waypoint is a routing goal: ``v_desired`` points along
+the shortest route through the walkable area to it (``Router.directions``) instead of straight at it, a waypoint
+counts as reached within ``arrive_radius`` of route length (not through a wall), and the arrival slow-down at
+the end of an open path uses the remaining route length.
+
 All geometry uses float64 differences (robust far from the origin); the step
 is vectorised numpy (O(n) per step, per-agent independent), except the
 kinematic step (no boids), a numba kernel (:func:`_kinematic_kernel`) whose
@@ -95,7 +100,34 @@ class Goals:
             self.pstart[1:] = np.cumsum([len(p) for p in paths])
         self.att = np.array([[a["center"][0], a["center"][1], a["radius"], a["strength"]]
                              for a in cfg.get("attractors", [])], np.float64).reshape(-1, 4)
+        self.router = None
         self._assign(state)
+
+    def bind_router(self, router) -> None:
+        """Route to the waypoints through the walkable area (effect ``routing``): one goal per waypoint."""
+        self.router = router
+        self.wgoal = np.array([router.goal(("point", (float(x), float(z))), key=f"goals.paths: waypoint {k}")
+                               for k, (x, z) in enumerate(self.waypoints)], np.int64)
+
+    def _routed(self, st, has, ar):
+        """(dirs (n, 2), dist (n,)) of the routed agents towards their current waypoints (advancing reached
+        ones); agents without a path get 0 and inf."""
+        n = st.n
+        dirs, dist = np.empty((n, 2)), np.empty(n)
+        gid = np.where(has, self.wgoal[self.target], -1)
+        self.router.directions(st.position, gid, dirs, dist)
+        reached = has & (dist < ar)
+        if reached.any():
+            idx = np.nonzero(reached)[0]
+            t = self.target[idx] + 1
+            end = self.pstart[self.path[idx] + 1]
+            first = self.pstart[self.path[idx]]
+            t = np.where(t >= end, first if self.cfg.get("loop", True) else end - 1, t)
+            self.target[idx] = t
+            d2, s2 = np.empty((idx.size, 2)), np.empty(idx.size)
+            self.router.directions(st.position[idx], self.wgoal[t], d2, s2)
+            dirs[idx], dist[idx] = d2, s2
+        return dirs, dist
 
     def _assign(self, st):
         n, npaths = st.n, self.pstart.shape[0] - 1
@@ -133,6 +165,15 @@ class Goals:
             return out
         cfg = self.cfg
         ar, speed, loop = float(cfg.get("arrive_radius", 2.0)), float(cfg.get("speed", 1.4)), cfg.get("loop", True)
+        if self.router is not None:
+            dirs, dist = self._routed(st, has, ar)
+            s = np.where(has, speed, 0.0)
+            if not loop:  # arrive: slow down along the last metres of the route to the last waypoint
+                last = has & (self.target == self.pstart[np.maximum(self.path, 0) + 1] - 1)
+                s = np.where(last, speed * np.minimum(1.0, np.where(np.isfinite(dist), dist, ar) / ar), s)
+            out[:, 0] = dirs[:, 0] * s
+            out[:, 1] = dirs[:, 1] * s
+            return out
         idx = np.nonzero(has)[0]
         t = self.target[idx]
         end = self.pstart[self.path[idx] + 1]
@@ -223,6 +264,9 @@ def kinematic_step(goals: Goals, st, dt: float) -> None:
         goals._assign(st)
     if goals.pstart.shape[0] < 2:
         return
+    if goals.router is not None:
+        kinematic_numpy(goals, st, dt)
+        return
     c = goals.cfg
     _kinematic_kernel(st.position, st.velocity, st.heading, goals.path, goals.target, goals.pstart, goals.waypoints,
                       float(c.get("arrive_radius", 2.0)), float(c.get("speed", 1.4)), bool(c.get("loop", True)),
@@ -233,6 +277,10 @@ def install(world, cfg: dict) -> None:
     """Effect ``goals``: ``world.resources["goals"]`` and step ``goals`` (before boids)."""
     goals = Goals(cfg, world.state)
     world.resources["goals"] = goals
+    if "routing" in world.resources:  # effect routing: route to the waypoints (installed first in scenes)
+        goals.bind_router(world.resources["routing"])
+    else:
+        world.resources.setdefault("routing.clients", []).append(goals.bind_router)
     weight = float(cfg.get("weight", 1.0))
 
     def step(w, dt):

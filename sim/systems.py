@@ -24,6 +24,7 @@ EFFECTS: dict[str, str] = {
     "terrain_follow": "sim.terrain_follow",
     "instancing": "sim.instancing",
     "avoidance": "sim.avoidance.effect",
+    "routing": "sim.routing.effect",
 }
 
 

@@ -1,0 +1,307 @@
+"""Distance fields of goals on a grid, and the per-agent descent direction read from them.
+
+Treuille, Cooper & Popović, *Continuum crowds* (SIGGRAPH 2006), §4: agents heading to one goal share one
+potential field, solved once by fast marching (:mod:`sim.routing.fmm`), and each moves against its gradient; here
+the field is the geodesic distance through the walkable area kept ``clearance`` away from its walls (the
+potential of a unit, density-free cost; the density term of §4.2 is not built). The path of steepest descent of
+the exact distance is the shortest path (the taut string around the corners, offset by the clearance); the grid's
+is within the measured error of it (``tests/sim/routing``, ``scripts/bench_routing.md``).
+
+Build (:func:`build_field`), per goal, on the router's grid:
+
+1. free nodes: inside the walkable area and at least ``clearance`` from its boundary (:func:`sim.routing.geometry.
+   raster`); the goal's seeds: free nodes within :data:`SEED_CELLS` cells of the goal shape get their exact
+   Euclidean distance to it (0 inside a polygon goal); a goal closer to a wall than the clearance is seeded at the
+   free nodes nearest to it instead;
+2. march the free nodes (second order): ``T`` = distance to the goal; free nodes the front never reaches (another
+   component of the free space) are unreachable;
+3. march on into the clearance band and the wall rims with slowness :data:`BAND_SLOWNESS`: an agent whose centre
+   is closer to a wall than the clearance (spawned there, pushed there) descends out of the band to the nearest
+   free space first, then on along the route; the band also pushes the bilinear gradient of the cells along the
+   free boundary off the walls;
+4. store ``float32`` (:data:`UNREACHABLE` where the front never came).
+
+Steering (:func:`directions_kernel`, numpy reference :func:`directions_numpy`): the bilinear interpolant of the
+four nodes around the agent; its gradient, normalised and negated, is the desired direction, its value the
+remaining route length. Where the gradient vanishes (a ridge between two equally long routes, the goal point
+itself) the agent heads to the lowest of the four nodes. O(1) per agent: four reads of one goal's field.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from sim.routing.corners import VIA_GOAL, VIA_NONE
+from sim.routing.fmm import BLOCKED, FAR, KNOWN, march
+
+#: seeds: free nodes within this many cells of the goal shape take their exact distance to it
+SEED_CELLS = 3.0
+#: slowness of the march into the clearance band and the wall rims (step 3 of the build)
+BAND_SLOWNESS = 3.0
+#: wall rim: nodes outside the area within this many cells of its boundary get band values (bilinear cells that
+#: straddle the boundary read them)
+RIM_CELLS = 2.0
+#: stored where the front never came; any value above UNREACHABLE / 2 reads as "no route"
+UNREACHABLE = np.float32(1e30)
+#: gradients shorter than this (per cell, relative to the unit slope of a distance) fall back to the lowest node
+FLAT_GRADIENT = 1e-3
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Nodes ``(x0 + i h, z0 + j h)``, ``i < nx``, ``j < nz``; arrays are indexed ``[j, i]``."""
+
+    x0: float
+    z0: float
+    h: float
+    nx: int
+    nz: int
+
+    @classmethod
+    def covering(cls, bounds: tuple, h: float) -> "Grid":
+        """The grid of spacing ``h`` covering ``bounds`` (x0, z0, x1, z1) with a margin of two cells."""
+        x0, z0, x1, z1 = bounds
+        x0, z0 = x0 - 2.0 * h, z0 - 2.0 * h
+        nx = int(math.ceil((x1 + 2.0 * h - x0) / h)) + 1
+        nz = int(math.ceil((z1 + 2.0 * h - z0) / h)) + 1
+        return cls(float(x0), float(z0), float(h), nx, nz)
+
+    @property
+    def nodes(self) -> int:
+        return self.nx * self.nz
+
+    def node_xz(self) -> tuple:
+        """(X, Z) (nz, nx) float64 node coordinates."""
+        return np.meshgrid(self.x0 + np.arange(self.nx) * self.h, self.z0 + np.arange(self.nz) * self.h)
+
+
+def shape_geometry(shape):
+    """A goal shape (``sim.routing.geometry.shape_problem``) as a shapely geometry."""
+    import shapely
+
+    kind, g = shape
+    if kind == "point":
+        return shapely.Point(float(g[0]), float(g[1]))
+    if kind == "line":
+        return shapely.LineString([tuple(map(float, g[0])), tuple(map(float, g[1]))])
+    return shapely.Polygon([tuple(map(float, p)) for p in g])
+
+
+def seed_values(grid: Grid, free: np.ndarray, shape, clearance: float) -> tuple:
+    """(flat node indices, exact distances) of the goal's seeds (module docstring, step 1); empty when no free
+    node lies within the clearance and a few cells of the goal."""
+    import shapely
+
+    geom = shape_geometry(shape)
+    gx0, gz0, gx1, gz1 = geom.bounds
+    for reach in (SEED_CELLS * grid.h, clearance + (SEED_CELLS + 1.0) * grid.h):
+        i0 = max(int(math.floor((gx0 - reach - grid.x0) / grid.h)), 0)
+        i1 = min(int(math.ceil((gx1 + reach - grid.x0) / grid.h)), grid.nx - 1)
+        j0 = max(int(math.floor((gz0 - reach - grid.z0) / grid.h)), 0)
+        j1 = min(int(math.ceil((gz1 + reach - grid.z0) / grid.h)), grid.nz - 1)
+        if i1 < i0 or j1 < j0:
+            continue
+        jj, ii = np.meshgrid(np.arange(j0, j1 + 1), np.arange(i0, i1 + 1), indexing="ij")
+        jj, ii = jj.ravel(), ii.ravel()
+        ok = free[jj, ii]
+        jj, ii = jj[ok], ii[ok]
+        d = shapely.distance(geom, shapely.points(grid.x0 + ii * grid.h, grid.z0 + jj * grid.h))
+        near = d <= reach
+        if near.any():
+            return (jj[near] * grid.nx + ii[near]).astype(np.int64), d[near].astype(np.float64)
+    return np.zeros(0, np.int64), np.zeros(0)
+
+
+def band_sources(free: np.ndarray, rim: np.ndarray) -> tuple:
+    """(band (m,) flat indices of the rim nodes that are not free, src (m,) flat index of each one's nearest free
+    node, d (m,) its distance in cells): Euclidean distance transform with indices; the same for every goal."""
+    from scipy.ndimage import distance_transform_edt
+
+    band = np.nonzero((rim & ~free).ravel())[0]
+    if band.size == 0 or not free.any():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    d, (jj, ii) = distance_transform_edt(~free, return_indices=True)
+    nx = free.shape[1]
+    src = (jj.ravel()[band] * nx + ii.ravel()[band]).astype(np.int64)
+    return band.astype(np.int64), src, d.ravel()[band]
+
+
+def extend_band(T: np.ndarray, band: tuple, h: float) -> None:
+    """Step 3 of the build, in place on the flat T: every rim node that is not free takes the value of its
+    nearest free node q plus BAND_SLOWNESS times the distance to q (``band`` = :func:`band_sources`). The nearest
+    free node, not the cheapest: a node in the band of a thin wall must descend to its own side of the wall, never
+    through the wall to a side that is closer to the goal."""
+    nodes, src, d = band
+    T[nodes] = T[src] + BAND_SLOWNESS * h * d
+
+
+def march_goal(grid: Grid, free: np.ndarray, band: tuple, shape, clearance: float, order: int = 2):
+    """Steps 1-3 of the build (module docstring): (T (nz * nx,) float64 with inf where unreached, seeds (flat
+    node indices)), or (None, seeds) when the goal has no free space around it.
+
+    free : (nz, nx) bool free nodes; band : :func:`band_sources` (step 3)."""
+    seeds, d = seed_values(grid, free, shape, clearance)
+    if seeds.size == 0:
+        return None, seeds
+    n = grid.nodes
+    T = np.full(n, np.inf)
+    flag = np.where(free.ravel(), FAR, BLOCKED).astype(np.int8)
+    T[seeds] = d
+    flag[seeds] = KNOWN
+    march(T, flag, grid.nx, grid.nz, grid.h, 1.0, order)
+    extend_band(T, band, grid.h)
+    return T, seeds
+
+
+def store(T: np.ndarray, grid: Grid) -> np.ndarray:
+    """Step 4: (nz, nx) float32 with UNREACHABLE where T is inf."""
+    return np.where(np.isfinite(T), T, UNREACHABLE).astype(np.float32).reshape(grid.nz, grid.nx)
+
+
+# ------------------------------------------------------------------------------------------------------ steering
+@njit(cache=True, inline="always")
+def _sample(F, g, px, pz, x0, z0, h, nx, nz):
+    """(dir_x, dir_z, value) at (px, pz) of field g (module docstring)."""
+    fx = (px - x0) / h
+    fz = (pz - z0) / h
+    i = min(max(int(math.floor(fx)), 0), nx - 2)
+    j = min(max(int(math.floor(fz)), 0), nz - 2)
+    tx = min(max(fx - i, 0.0), 1.0)
+    tz = min(max(fz - j, 0.0), 1.0)
+    d00 = np.float64(F[g, j, i])
+    d10 = np.float64(F[g, j, i + 1])
+    d01 = np.float64(F[g, j + 1, i])
+    d11 = np.float64(F[g, j + 1, i + 1])
+    gx = (d10 - d00) * (1.0 - tz) + (d11 - d01) * tz
+    gz = (d01 - d00) * (1.0 - tx) + (d11 - d10) * tx
+    v = (d00 * (1.0 - tx) + d10 * tx) * (1.0 - tz) + (d01 * (1.0 - tx) + d11 * tx) * tz
+    ll = math.sqrt(gx * gx + gz * gz)
+    if ll > FLAT_GRADIENT * h:
+        return -gx / ll, -gz / ll, v
+    # flat: towards the lowest of the four nodes (none lower than the others: stay)
+    best, bx, bz = d00, float(i), float(j)
+    if d10 < best:
+        best, bx, bz = d10, float(i + 1), float(j)
+    if d01 < best:
+        best, bx, bz = d01, float(i), float(j + 1)
+    if d11 < best:
+        best, bx, bz = d11, float(i + 1), float(j + 1)
+    dx = x0 + bx * h - px
+    dz = z0 + bz * h - pz
+    ll = math.sqrt(dx * dx + dz * dz)
+    if best < max(d00, d10, d01, d11) and ll > 1e-12:
+        return dx / ll, dz / ll, v
+    return 0.0, 0.0, v
+
+
+@njit(cache=True, inline="always")
+def _consider(c, g, px, pz, corners, D, nxt, eps, best, bval):
+    """Corner c as a candidate of the agent at (px, pz): value D + distance; a corner the agent stands on (closer
+    than eps) hands over to its next corner. Returns (best, bval, goal_next) - goal_next: the corner's next is
+    the goal."""
+    for _ in range(4):
+        d = math.sqrt((corners[c, 0] - px) ** 2 + (corners[c, 1] - pz) ** 2)
+        if d >= eps:
+            v = D[g, c] + d
+            if v < bval:
+                return c, v, False
+            return best, bval, False
+        c2 = nxt[g, c]
+        if c2 == VIA_GOAL:
+            return best, bval, True
+        if c2 < 0:
+            return best, bval, False
+        c = c2
+    return best, bval, False
+
+
+@njit(cache=True)
+def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, eps, use_via):
+    """(dir_x, dir_z, route length) of an agent at (px, pz) heading to goal g (module docstring of
+    :mod:`sim.routing.corners` for the vias)."""
+    ux, uz, v = _sample(F, g, px, pz, x0, z0, h, nx, nz)
+    if not use_via:
+        return ux, uz, v
+    fx = (px - x0) / h
+    fz = (pz - z0) / h
+    i = min(max(int(math.floor(fx)), 0), nx - 2)
+    j = min(max(int(math.floor(fz)), 0), nz - 2)
+    best, bval = VIA_NONE, np.inf
+    goal = False
+    for q in range(4):
+        c = V[g, j + (q >> 1), i + (q & 1)]
+        if c == VIA_GOAL:
+            goal = True
+        elif c >= 0:
+            best, bval, gn = _consider(c, g, px, pz, corners, D, nxt, eps, best, bval)
+            goal = goal or gn
+    if goal:
+        if gkind[g] == 0:
+            d = math.sqrt((gpt[g, 0] - px) ** 2 + (gpt[g, 1] - pz) ** 2)
+            if d <= bval:
+                if d > 1e-9:
+                    return (gpt[g, 0] - px) / d, (gpt[g, 1] - pz) / d, d
+                return 0.0, 0.0, 0.0
+        elif v <= bval:
+            return ux, uz, v
+    if best >= 0:
+        d = math.sqrt((corners[best, 0] - px) ** 2 + (corners[best, 1] - pz) ** 2)
+        return (corners[best, 0] - px) / d, (corners[best, 1] - pz) / d, bval
+    return ux, uz, v
+
+
+@njit(cache=True, parallel=True)
+def directions_kernel(pos, goal, F, V, corners, D, nxt, gkind, gpt, x0, z0, h, nx, nz, eps, use_via, out, dist):
+    """Per agent a: out[a] = unit desired direction (x, z) towards goal goal[a] from pos[a] (x, z = columns 0, 2),
+    dist[a] = remaining route length (inf: unreachable); goal[a] < 0: out 0, dist inf. ``use_via``: steer at the
+    nodes' vias (:func:`steer_one`), else down the gradient only."""
+    big = np.float64(UNREACHABLE) * 0.5
+    for a in prange(pos.shape[0]):
+        g = goal[a]
+        if g < 0:
+            out[a, 0] = 0.0
+            out[a, 1] = 0.0
+            dist[a] = np.inf
+            continue
+        ux, uz, v = steer_one(F, V, g, pos[a, 0], pos[a, 2], x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, eps,
+                              use_via)
+        out[a, 0] = ux
+        out[a, 1] = uz
+        dist[a] = v if v < big else np.inf
+
+
+def directions_numpy(pos, goal, F, grid: Grid):
+    """Plain numpy reference of :func:`directions_kernel` with ``use_via`` false (the gradient): returns
+    (out (n, 2), dist (n,))."""
+    n = pos.shape[0]
+    out, dist = np.zeros((n, 2)), np.full(n, np.inf)
+    has = goal >= 0
+    g = goal[has]
+    h = grid.h
+    fx = (pos[has, 0] - grid.x0) / h
+    fz = (pos[has, 2] - grid.z0) / h
+    i = np.clip(np.floor(fx).astype(np.int64), 0, grid.nx - 2)
+    j = np.clip(np.floor(fz).astype(np.int64), 0, grid.nz - 2)
+    tx, tz = np.clip(fx - i, 0.0, 1.0), np.clip(fz - j, 0.0, 1.0)
+    d = [F[g, j + b, i + a].astype(np.float64) for a, b in ((0, 0), (1, 0), (0, 1), (1, 1))]
+    gx = (d[1] - d[0]) * (1 - tz) + (d[3] - d[2]) * tz
+    gz = (d[2] - d[0]) * (1 - tx) + (d[3] - d[1]) * tx
+    v = (d[0] * (1 - tx) + d[1] * tx) * (1 - tz) + (d[2] * (1 - tx) + d[3] * tx) * tz
+    ll = np.hypot(gx, gz)
+    steep = ll > FLAT_GRADIENT * h
+    ux = np.where(steep, -gx / np.where(steep, ll, 1.0), 0.0)
+    uz = np.where(steep, -gz / np.where(steep, ll, 1.0), 0.0)
+    D = np.stack(d, 1)
+    k = np.argmin(D, 1)  # first minimum: the kernel's order (00, 10, 01, 11)
+    bx, bz = i + np.array([0, 1, 0, 1])[k], j + np.array([0, 0, 1, 1])[k]
+    dx, dz = grid.x0 + bx * h - pos[has, 0], grid.z0 + bz * h - pos[has, 2]
+    lb = np.hypot(dx, dz)
+    go = ~steep & (D.min(1) < D.max(1)) & (lb > 1e-12)
+    ux = np.where(go, dx / np.where(go, lb, 1.0), ux)
+    uz = np.where(go, dz / np.where(go, lb, 1.0), uz)
+    out[has, 0], out[has, 1] = ux, uz
+    dist[has] = np.where(v < float(UNREACHABLE) * 0.5, v, np.inf)
+    return out, dist
