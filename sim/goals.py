@@ -103,11 +103,45 @@ class Goals:
         self.router = None
         self._assign(state)
 
-    def bind_router(self, router) -> None:
-        """Route to the waypoints through the walkable area (effect ``routing``): one goal per waypoint."""
+    def bind_router(self, router, state=None) -> None:
+        """Route to the waypoints through the walkable area (effect ``routing``): one goal per waypoint. With the
+        ``state``, every agent must have a route to its first waypoint (:meth:`_check_routes`)."""
         self.router = router
         self.wgoal = np.array([router.goal(("point", (float(x), float(z))), key=f"goals.paths: waypoint {k}")
                                for k, (x, z) in enumerate(self.waypoints)], np.int64)
+        self._check_routes(state)
+
+    def _check_routes(self, state) -> None:
+        """ParamError naming the path and waypoint when a waypoint cannot be reached from the one before it, or
+        naming the agent when its first waypoint cannot be reached from where it stands: before the run."""
+        from sim.params import ParamError
+
+        r = self.router
+        for p in range(self.pstart.shape[0] - 1):
+            w = self.waypoints[self.pstart[p]:self.pstart[p + 1]]
+            loop = bool(self.cfg.get("loop", True)) and w.shape[0] > 1
+            for k in range(1, w.shape[0] + (1 if loop else 0)):
+                a, b = w[k - 1], w[k % w.shape[0]]
+                if not r.reachable(int(self.wgoal[self.pstart[p] + k % w.shape[0]]), [a])[0]:
+                    raise ParamError(f"paths[{p}][{k % w.shape[0]}]", f"waypoint ({b[0]:g}, {b[1]:g}) cannot be "
+                                     f"reached from the waypoint before it ({a[0]:g}, {a[1]:g}): no route through "
+                                     "the walkable area")
+        if state is None or state.n != self.n:
+            return
+        st_pos = state.position[:, [0, 2]]
+        has = np.nonzero(self.path >= 0)[0]
+        for gid in np.unique(self.wgoal[self.target[has]]):
+            sel = has[self.wgoal[self.target[has]] == gid]
+            ok = r.reachable(int(gid), st_pos[sel])
+            if not ok.all():
+                i = int(sel[np.argmin(ok)])
+                x, z = self.waypoints[self.target[i]]
+                groups = getattr(state, "groups", None) or []
+                group = next((g for g, (first, count) in enumerate(groups) if first <= i < first + count), 0)
+                raise ParamError(f"placement[{group}]", f"agent {i} at ({st_pos[i, 0]:.6g}, {st_pos[i, 1]:.6g}) "
+                                 f"cannot reach its waypoint ({x:g}, {z:g}) (goals path {int(self.path[i])}): no "
+                                 f"route through the walkable area" + (f" (and {int((~ok).sum()) - 1} more)"
+                                                                        if (~ok).sum() > 1 else ""))
 
     def _routed(self, st, has, ar):
         """(dirs (n, 2), dist (n,)) of the routed agents towards their current waypoints (advancing reached
@@ -132,6 +166,7 @@ class Goals:
     def _assign(self, st):
         n, npaths = st.n, self.pstart.shape[0] - 1
         self.n = n
+
         if npaths == 0:
             self.path = -np.ones(n, np.int64)
             self.target = np.zeros(n, np.int64)
@@ -278,9 +313,9 @@ def install(world, cfg: dict) -> None:
     goals = Goals(cfg, world.state)
     world.resources["goals"] = goals
     if "routing" in world.resources:  # effect routing: route to the waypoints (installed first in scenes)
-        goals.bind_router(world.resources["routing"])
+        goals.bind_router(world.resources["routing"], world.state)
     else:
-        world.resources.setdefault("routing.clients", []).append(goals.bind_router)
+        world.resources.setdefault("routing.clients", []).append(lambda r: goals.bind_router(r, world.state))
     weight = float(cfg.get("weight", 1.0))
 
     def step(w, dt):

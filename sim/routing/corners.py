@@ -271,17 +271,68 @@ def _push(cand, nc, v):
     return nc
 
 
+def goal_segments(shape) -> tuple:
+    """(segments (S, 4) float64 rows (ax, az, bx, bz), area bool) of a goal shape: a point is one segment of
+    length 0, a line one segment, a polygon its edges (area: its inside is the goal too)."""
+    kind, g = shape
+    if kind == "point":
+        return np.array([[g[0], g[1], g[0], g[1]]], np.float64), False
+    if kind == "line":
+        return np.array([[g[0][0], g[0][1], g[1][0], g[1][1]]], np.float64), False
+    p = np.asarray(g, np.float64)
+    return np.concatenate([p, np.roll(p, -1, 0)], 1), True
+
+
 @njit(cache=True)
-def via_kernel(order, T, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_start, seed_items, goal_kind,
-               gx, gz, ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start, items, via):
-    """The via of every node in ``order`` (free nodes by increasing T; module docstring), in place on ``via``
-    (all VIA_NONE on entry). goal_kind 0: a point goal at (gx, gz) (value: its distance, when visible); 1: a line
-    or polygon goal (value: T, at nodes next to one whose via is the goal, or seeded).
+def goal_nearest(px, pz, gseg, s0, s1, area):
+    """(distance, qx, qz): the point q of the goal (segments s0..s1 of ``gseg``; ``area``: the polygon they
+    bound belongs to it) nearest to p; 0 and p itself inside an area."""
+    best, qx, qz = np.inf, px, pz
+    inside = False
+    for s in range(s0, s1):
+        ax, az, bx, bz = gseg[s, 0], gseg[s, 1], gseg[s, 2], gseg[s, 3]
+        ux, uz = bx - ax, bz - az
+        ll = ux * ux + uz * uz
+        t = ((px - ax) * ux + (pz - az) * uz) / ll if ll > 0.0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        cx, cz = ax + t * ux, az + t * uz
+        d2 = (px - cx) ** 2 + (pz - cz) ** 2
+        if d2 < best:
+            best, qx, qz = d2, cx, cz
+        if area and ((az > pz) != (bz > pz)) and px < ax + (pz - az) / (bz - az) * ux:
+            inside = not inside
+    if inside:
+        return 0.0, px, pz
+    return math.sqrt(best), qx, qz
+
+
+def goal_nearest_numpy(p, seg, area) -> tuple:
+    """Plain reference of :func:`goal_nearest` (shapely)."""
+    import shapely
+
+    p = shapely.Point(float(p[0]), float(p[1]))
+    if area:
+        g = shapely.Polygon(np.asarray(seg)[:, :2])
+        if g.covers(p):
+            return 0.0, p.x, p.y
+    else:
+        a, b = np.asarray(seg)[0, :2], np.asarray(seg)[0, 2:]
+        g = shapely.LineString([a, b]) if np.any(a != b) else shapely.Point(*a)
+    q = shapely.shortest_line(g, p).coords[0]
+    return float(np.hypot(q[0] - p.x, q[1] - p.y)), float(q[0]), float(q[1])
+
+
+@njit(cache=True)
+def via_kernel(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_start, seed_items, gseg, area,
+               ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start, items, via):
+    """The via of every node in ``order`` (free nodes by increasing field value; module docstring), in place on
+    ``via`` (all VIA_NONE on entry). The goal (segments ``gseg``, ``area``: :func:`goal_nearest`) is a candidate
+    when the segment to its nearest point is visible, valued by that distance.
 
     Candidates: the neighbours' vias and the seeded corners; when a candidate is hidden from the node (it lies in
     the shadow of a corner on the way), the corners whose next it is are tried in its place (the corner casting
     the shadow is one of them), down to three levels."""
-    nz = T.shape[0] // nx
+    nz = via.shape[0] // nx
     C = corners.shape[0]
     cand = np.empty(256, np.int64)
     for q in range(order.shape[0]):
@@ -303,20 +354,14 @@ def via_kernel(order, T, nx, x0, z0, h, corners, wedges, D, kid_start, kids, see
                 elif v >= 0:
                     nc = _push(cand, nc, v)
         for s in range(seed_start[k], seed_start[k + 1]):
-            v = seed_items[s]
-            if v == VIA_GOAL:
-                goal_cand = True
-            else:
-                nc = _push(cand, nc, v)
+            nc = _push(cand, nc, seed_items[s])
         best, bval = VIA_NONE, np.inf
-        if goal_kind == 0:
-            if visible(px, pz, gx, gz, ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start, items):
-                best, bval = VIA_GOAL, math.sqrt((gx - px) ** 2 + (gz - pz) ** 2)
-            elif goal_cand:  # the goal is hidden: the corners that see it
-                for s in range(kid_start[C], kid_start[C + 1]):
-                    nc = _push(cand, nc, kids[s])
-        elif goal_cand:
-            best, bval = VIA_GOAL, T[k]
+        gd, gx, gz = goal_nearest(px, pz, gseg, 0, gseg.shape[0], area)
+        if gd == 0.0 or visible(px, pz, gx, gz, ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start, items):
+            best, bval = VIA_GOAL, gd
+        elif goal_cand:  # the goal is hidden: the corners that see it
+            for s in range(kid_start[C], kid_start[C + 1]):
+                nc = _push(cand, nc, kids[s])
         t = 0
         level_end = nc
         level = 0
@@ -339,11 +384,11 @@ def via_kernel(order, T, nx, x0, z0, h, corners, wedges, D, kid_start, kids, see
         via[k] = best
 
 
-def node_seeds(grid, free: np.ndarray, corners: np.ndarray, goal_nodes: np.ndarray) -> tuple:
-    """CSR (start (N + 1,), items) of the candidates seeded at each node: the corners within two cells of it
-    (free nodes only) and VIA_GOAL at ``goal_nodes`` (flat indices)."""
+def node_seeds(grid, free: np.ndarray, corners: np.ndarray) -> tuple:
+    """CSR (start (N + 1,), items) of the corners seeded at each node: those within two cells of it (free nodes
+    only); the same for every goal."""
     h = grid.h
-    pairs_n, pairs_c = [goal_nodes.astype(np.int64)], [np.full(goal_nodes.shape[0], VIA_GOAL, np.int64)]
+    pairs_n, pairs_c = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     if corners.shape[0]:
         ci = np.round((corners[:, 0] - grid.x0) / h).astype(np.int64)
         cj = np.round((corners[:, 1] - grid.z0) / h).astype(np.int64)
@@ -363,3 +408,57 @@ def node_seeds(grid, free: np.ndarray, corners: np.ndarray, goal_nodes: np.ndarr
     start = np.zeros(grid.nodes + 1, np.int64)
     np.add.at(start, nodes + 1, 1)
     return np.cumsum(start), items
+
+
+def via_numpy(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_start, seed_items, gseg, area,
+              rings, n_nodes):
+    """Plain Python reference of :func:`via_kernel` (every edge tested by :func:`visible_numpy`, the wedge test
+    written out, the goal's nearest point by shapely): returns via (n_nodes,) int32."""
+    nz = n_nodes // nx
+    via = np.full(n_nodes, VIA_NONE, np.int32)
+
+    def sees(px, pz, c):
+        ux, uz, wx, wz = wedges[c]
+        dx, dz = px - corners[c, 0], pz - corners[c, 1]
+        s = ux * wz - uz * wx
+        inside = (ux * dz - uz * dx) * s > 0 and (dx * wz - dz * wx) * s > 0
+        return not inside and visible_numpy((px, pz), tuple(corners[c]), rings)
+
+    for k in order:
+        i, j = int(k) % nx, int(k) // nx
+        px, pz = x0 + i * h, z0 + j * h
+        cand, goal_cand = [], False
+        for dj in (-1, 0, 1):
+            for di in (-1, 0, 1):
+                ii, jj = i + di, j + dj
+                if (di or dj) and 0 <= ii < nx and 0 <= jj < nz:
+                    v = int(via[jj * nx + ii])
+                    if v == VIA_GOAL:
+                        goal_cand = True
+                    elif v >= 0 and v not in cand:
+                        cand.append(v)
+        cand += [int(v) for v in seed_items[seed_start[k]:seed_start[k + 1]] if int(v) not in cand]
+        best, bval = VIA_NONE, math.inf
+        gd, gx, gz = goal_nearest_numpy((px, pz), gseg, area)
+        if gd == 0.0 or visible_numpy((px, pz), (gx, gz), rings):
+            best, bval = VIA_GOAL, gd
+        elif goal_cand:
+            cand += [int(c) for c in kids[kid_start[len(corners)]:kid_start[len(corners) + 1]] if c not in cand]
+        level_start = 0
+        for level in range(4):
+            level_end = len(cand)
+            for t in range(level_start, level_end):
+                c = cand[t]
+                if not np.isfinite(D[c]):
+                    continue
+                if sees(px, pz, c):
+                    v = D[c] + math.hypot(corners[c, 0] - px, corners[c, 1] - pz)
+                    if v < bval:
+                        best, bval = c, v
+                elif level < 3:
+                    cand += [int(m) for m in kids[kid_start[c]:kid_start[c + 1]] if m not in cand]
+            level_start = level_end
+            if level_start == len(cand):
+                break
+        via[k] = best
+    return via

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from sim.routing.corners import VIA_GOAL, VIA_NONE
+from sim.routing.corners import VIA_GOAL, VIA_NONE, goal_nearest
 from sim.routing.fmm import BLOCKED, FAR, KNOWN, march
 
 #: seeds: free nodes within this many cells of the goal shape take their exact distance to it
@@ -198,18 +198,23 @@ def _sample(F, g, px, pz, x0, z0, h, nx, nz):
 
 
 @njit(cache=True, inline="always")
-def _consider(c, g, px, pz, corners, D, nxt, eps, best, bval):
-    """Corner c as a candidate of the agent at (px, pz): value D + distance; a corner the agent stands on (closer
-    than eps) hands over to its next corner. Returns (best, bval, goal_next) - goal_next: the corner's next is
-    the goal."""
-    for _ in range(4):
-        d = math.sqrt((corners[c, 0] - px) ** 2 + (corners[c, 1] - pz) ** 2)
-        if d >= eps:
+def _consider(c, g, px, pz, corners, D, nxt, gseg, s0, s1, area, eps, best, bval):
+    """Corner c as a candidate of the agent at (px, pz): value D + distance. A corner the agent has passed (it
+    stands on it, or beyond the line through it across the way to its next) hands over to its next. Returns
+    (best, bval, goal_next): goal_next: the corner handed over to the goal."""
+    for _ in range(8):
+        cx, cz = corners[c, 0], corners[c, 1]
+        d = math.sqrt((cx - px) ** 2 + (cz - pz) ** 2)
+        c2 = nxt[g, c]
+        if c2 >= 0:
+            nx_, nz_ = corners[c2, 0], corners[c2, 1]
+        else:
+            _, nx_, nz_ = goal_nearest(cx, cz, gseg, s0, s1, area)
+        if d >= eps and (px - cx) * (nx_ - cx) + (pz - cz) * (nz_ - cz) <= 0.0:
             v = D[g, c] + d
             if v < bval:
                 return c, v, False
             return best, bval, False
-        c2 = nxt[g, c]
         if c2 == VIA_GOAL:
             return best, bval, True
         if c2 < 0:
@@ -219,9 +224,10 @@ def _consider(c, g, px, pz, corners, D, nxt, eps, best, bval):
 
 
 @njit(cache=True)
-def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, eps, use_via):
-    """(dir_x, dir_z, route length) of an agent at (px, pz) heading to goal g (module docstring of
-    :mod:`sim.routing.corners` for the vias)."""
+def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gseg, gstart, garea, eps, use_via):
+    """(dir_x, dir_z, route length) of an agent at (px, pz) heading to goal g: the least of the vias of the four
+    nodes around it (module docstring of :mod:`sim.routing.corners`), by exact route length: straight at a
+    corner, or at the goal's nearest point; the field's gradient where no node has a via (walls)."""
     ux, uz, v = _sample(F, g, px, pz, x0, z0, h, nx, nz)
     if not use_via:
         return ux, uz, v
@@ -229,6 +235,7 @@ def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, e
     fz = (pz - z0) / h
     i = min(max(int(math.floor(fx)), 0), nx - 2)
     j = min(max(int(math.floor(fz)), 0), nz - 2)
+    s0, s1, area = gstart[g], gstart[g + 1], garea[g]
     best, bval = VIA_NONE, np.inf
     goal = False
     for q in range(4):
@@ -236,17 +243,14 @@ def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, e
         if c == VIA_GOAL:
             goal = True
         elif c >= 0:
-            best, bval, gn = _consider(c, g, px, pz, corners, D, nxt, eps, best, bval)
+            best, bval, gn = _consider(c, g, px, pz, corners, D, nxt, gseg, s0, s1, area, eps, best, bval)
             goal = goal or gn
     if goal:
-        if gkind[g] == 0:
-            d = math.sqrt((gpt[g, 0] - px) ** 2 + (gpt[g, 1] - pz) ** 2)
-            if d <= bval:
-                if d > 1e-9:
-                    return (gpt[g, 0] - px) / d, (gpt[g, 1] - pz) / d, d
-                return 0.0, 0.0, 0.0
-        elif v <= bval:
-            return ux, uz, v
+        d, qx, qz = goal_nearest(px, pz, gseg, s0, s1, area)
+        if d <= bval:
+            if d > 1e-9:
+                return (qx - px) / d, (qz - pz) / d, d
+            return 0.0, 0.0, 0.0
     if best >= 0:
         d = math.sqrt((corners[best, 0] - px) ** 2 + (corners[best, 1] - pz) ** 2)
         return (corners[best, 0] - px) / d, (corners[best, 1] - pz) / d, bval
@@ -254,10 +258,12 @@ def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, e
 
 
 @njit(cache=True, parallel=True)
-def directions_kernel(pos, goal, F, V, corners, D, nxt, gkind, gpt, x0, z0, h, nx, nz, eps, use_via, out, dist):
+def directions_kernel(pos, goal, F, V, corners, D, nxt, gseg, gstart, garea, x0, z0, h, nx, nz, eps, use_via, out,
+                      dist):
     """Per agent a: out[a] = unit desired direction (x, z) towards goal goal[a] from pos[a] (x, z = columns 0, 2),
     dist[a] = remaining route length (inf: unreachable); goal[a] < 0: out 0, dist inf. ``use_via``: steer at the
-    nodes' vias (:func:`steer_one`), else down the gradient only."""
+    nodes' vias (:func:`steer_one`), else down the gradient only. Goal g's shape: segments
+    ``gseg[gstart[g]:gstart[g + 1]]``, an area when ``garea[g]`` (:func:`sim.routing.corners.goal_nearest`)."""
     big = np.float64(UNREACHABLE) * 0.5
     for a in prange(pos.shape[0]):
         g = goal[a]
@@ -266,8 +272,8 @@ def directions_kernel(pos, goal, F, V, corners, D, nxt, gkind, gpt, x0, z0, h, n
             out[a, 1] = 0.0
             dist[a] = np.inf
             continue
-        ux, uz, v = steer_one(F, V, g, pos[a, 0], pos[a, 2], x0, z0, h, nx, nz, corners, D, nxt, gkind, gpt, eps,
-                              use_via)
+        ux, uz, v = steer_one(F, V, g, pos[a, 0], pos[a, 2], x0, z0, h, nx, nz, corners, D, nxt, gseg, gstart, garea,
+                              eps, use_via)
         out[a, 0] = ux
         out[a, 1] = uz
         dist[a] = v if v < big else np.inf
@@ -304,4 +310,51 @@ def directions_numpy(pos, goal, F, grid: Grid):
     uz = np.where(go, dz / np.where(go, lb, 1.0), uz)
     out[has, 0], out[has, 1] = ux, uz
     dist[has] = np.where(v < float(UNREACHABLE) * 0.5, v, np.inf)
+    return out, dist
+
+
+def steer_numpy(pos, goal, F, V, corners, D, nxt, gseg, gstart, garea, grid: Grid, eps: float):
+    """Plain Python reference of :func:`directions_kernel` with ``use_via`` true (one agent at a time, the
+    gradient part from :func:`directions_numpy`, the goal's nearest point by shapely): returns (out (n, 2),
+    dist (n,))."""
+    from sim.routing.corners import goal_nearest_numpy
+
+    n = pos.shape[0]
+    out, dist = directions_numpy(pos, goal, F, grid)
+    for a in range(n):
+        g = int(goal[a])
+        if g < 0:
+            continue
+        px, pz = float(pos[a, 0]), float(pos[a, 2])
+        seg, area = gseg[gstart[g]:gstart[g + 1]], bool(garea[g])
+        i = min(max(int(math.floor((px - grid.x0) / grid.h)), 0), grid.nx - 2)
+        j = min(max(int(math.floor((pz - grid.z0) / grid.h)), 0), grid.nz - 2)
+        cands, goal_seen = [], False
+        for jj, ii in ((j, i), (j, i + 1), (j + 1, i), (j + 1, i + 1)):
+            c = int(V[g, jj, ii])
+            if c == VIA_GOAL:
+                goal_seen = True
+            for _ in range(8):  # hand passed corners over to their next
+                if c < 0:
+                    break
+                c2 = int(nxt[g, c])
+                ahead = corners[c2] if c2 >= 0 else np.array(goal_nearest_numpy(corners[c], seg, area)[1:])
+                d = math.hypot(corners[c, 0] - px, corners[c, 1] - pz)
+                if d >= eps and np.dot((px, pz) - corners[c], ahead - corners[c]) <= 0.0:
+                    cands.append((D[g, c] + d, c))
+                    break
+                goal_seen |= c2 == VIA_GOAL
+                c = c2
+        best = min(cands, key=lambda t: t[0]) if cands else (math.inf, VIA_NONE)
+        res = None
+        if goal_seen:
+            d, qx, qz = goal_nearest_numpy((px, pz), seg, area)
+            if d <= best[0]:
+                res = ((qx - px) / d, (qz - pz) / d, d) if d > 1e-9 else (0.0, 0.0, 0.0)
+        if res is None and best[1] >= 0:
+            c = best[1]
+            d = math.hypot(corners[c, 0] - px, corners[c, 1] - pz)
+            res = ((corners[c, 0] - px) / d, (corners[c, 1] - pz) / d, best[0])
+        if res is not None:
+            out[a], dist[a] = res[:2], res[2]
     return out, dist

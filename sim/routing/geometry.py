@@ -44,6 +44,8 @@ def polygon_problem(points, holes=()) -> str | None:
     ring = np.asarray(points, np.float64)
     if ring.shape[0] < 3:
         return "has fewer than 3 points"
+    if shapely.MultiPoint(ring).convex_hull.area <= 1e-12:  # all on one line (GEOS would call it self-crossing)
+        return "has zero area"
     poly = shapely.Polygon(ring, [np.asarray(h, np.float64) for h in holes])
     why = explain_validity(poly)
     if why != "Valid Geometry":
@@ -112,6 +114,8 @@ class Walkable:
             outer = shapely.box(x0, z0, x1, z1)
         obs = obstacle_geometry(obstacles)
         area = outer.difference(obs) if not obs.is_empty else outer
+        for g in (outer, area):
+            shapely.prepare(g)  # point queries (agents, goals) in O(log edges)
         return cls(outer=outer, obstacles=obs, area=area)
 
     @property

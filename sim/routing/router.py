@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from sim.routing import corners as cn
-from sim.routing.field import Grid, band_sources, directions_kernel, march_goal, shape_geometry, store
+from sim.routing.field import Grid, band_sources, directions_kernel, march_goal, store
 from sim.routing.geometry import Walkable, raster, shape_problem
 
 #: default grid spacing: this fraction of the clearance (accurate around door jambs), ...
@@ -73,6 +73,7 @@ class Router:
         corners, wedges = cn.reflex_corners(rings)
         self.corners, self.wedges = np.ascontiguousarray(corners), np.ascontiguousarray(wedges)
         self.buckets = cn.EdgeBuckets(rings, walkable.bounds, 4.0 * g.h)
+        self._seeds = None  # corners seeded at the nodes (the same for every goal)
         self.shapes: list = []
         self._index: dict = {}
         self._fields: list = []
@@ -121,31 +122,26 @@ class Router:
     def _vias_of(self, k, T, seeds) -> tuple:
         """The goal's vias (module docstring of :mod:`sim.routing.corners`): (via (nz, nx) int32, D (C,), next
         (C,) int64)."""
-        import shapely
-
         g, C = self.grid, self.corners
         ba = self.buckets.args()
-        geom = shape_geometry(k)
+        gseg, area = cn.goal_segments(k)
         gd = np.full(C.shape[0], np.inf)
-        if C.shape[0]:
-            near = shapely.shortest_line(geom, shapely.points(C[:, 0], C[:, 1]))
-            for c in range(C.shape[0]):
-                (ax, az), (bx, bz) = near[c].coords
-                if cn.wedge_ok(self.wedges, c, ax - C[c, 0], az - C[c, 1]) and cn.visible(C[c, 0], C[c, 1], ax, az,
-                                                                                           *ba):
-                    gd[c] = math.hypot(ax - bx, az - bz)
+        for c in range(C.shape[0]):
+            d, qx, qz = cn.goal_nearest(C[c, 0], C[c, 1], gseg, 0, gseg.shape[0], area)
+            if d == 0.0 or (cn.wedge_ok(self.wedges, c, qx - C[c, 0], qz - C[c, 1])
+                            and cn.visible(C[c, 0], C[c, 1], qx, qz, *ba)):
+                gd[c] = d
         D, nxt = cn.corner_distances(C, self.wedges, gd, self.buckets)
         via = np.full(g.nodes, cn.VIA_NONE, np.int32)
         if self.steering == "corners":
             ok = np.nonzero(self.free.ravel() & np.isfinite(T))[0]
             order = ok[np.argsort(T[ok], kind="stable")]
-            point = k[0] == "point"
-            start, items = cn.node_seeds(g, self.free, C, np.zeros(0, np.int64) if point else seeds)
-            gx, gz = (k[1] if point else (0.0, 0.0))
+            if self._seeds is None:
+                self._seeds = cn.node_seeds(g, self.free, C)
             kid_start, kids = cn.children_of(nxt)
-            cn.via_kernel(order, T, g.nx, g.x0, g.z0, g.h, C if C.shape[0] else np.zeros((1, 2)),
-                          self.wedges if C.shape[0] else np.zeros((1, 4)), D, kid_start, kids, start, items,
-                          0 if point else 1, float(gx), float(gz), *ba, via)
+            cn.via_kernel(order, g.nx, g.x0, g.z0, g.h, C if C.shape[0] else np.zeros((1, 2)),
+                          self.wedges if C.shape[0] else np.zeros((1, 4)), D, kid_start, kids, *self._seeds, gseg,
+                          area, *ba, via)
             nodes, src, _ = self.band
             via[nodes] = via[src]  # the band steers as its nearest free node
         return via.reshape(g.nz, g.nx), D, nxt
@@ -167,8 +163,10 @@ class Router:
         self._Dstack = np.stack([np.resize(d, c) if d.size else np.full(c, np.inf) for d in self._D], 0)
         self._nstack = np.stack([np.resize(n, c) if n.size else np.full(c, cn.VIA_NONE, np.int64)
                                  for n in self._next], 0)
-        self._gkind = np.array([0 if s[0] == "point" else 1 for s in self.shapes], np.int64)
-        self._gpt = np.array([s[1] if s[0] == "point" else (0.0, 0.0) for s in self.shapes], np.float64)
+        segs = [cn.goal_segments(s) for s in self.shapes]
+        self._gseg = np.concatenate([sg for sg, _ in segs], 0)
+        self._gstart = np.concatenate([[0], np.cumsum([sg.shape[0] for sg, _ in segs])]).astype(np.int64)
+        self._garea = np.array([a for _, a in segs], np.bool_)
         self._corners = self.corners if self.corners.shape[0] else np.zeros((1, 2))
 
     # -- per step ---------------------------------------------------------------------------------------------------
@@ -188,7 +186,7 @@ class Router:
             return out
         g = self.grid
         directions_kernel(position, np.ascontiguousarray(goal, np.int64), F, self._vstack, self._corners,
-                          self._Dstack, self._nstack, self._gkind, self._gpt, g.x0, g.z0, g.h, g.nx, g.nz,
+                          self._Dstack, self._nstack, self._gseg, self._gstart, self._garea, g.x0, g.z0, g.h, g.nx, g.nz,
                           CORNER_EPS * g.h, self.steering == "corners", out, dist)
         return out
 
