@@ -225,7 +225,7 @@ def wall_polygons(walkable: Walkable, thickness: float) -> list:
     _split_holes(shapely.make_valid(frame.difference(walkable.outer)), pieces)
     out = []
     for p in pieces:
-        p = shapely.set_precision(p, 0.0)
+        p = p.simplify(0.0)  # drop collinear vertices left by the cuts
         ring = np.asarray(p.exterior.coords, np.float64)[:-1]
         if ring.shape[0] >= 3 and p.area > 1e-9:
             out.append(ring.tolist())
