@@ -218,16 +218,53 @@ def _visibility_matrix(P, W, ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start
     return vis
 
 
-def corner_distances(corners: np.ndarray, wedges: np.ndarray, goal_dist: np.ndarray, buckets: EdgeBuckets) -> tuple:
+def visibility_matrix(corners: np.ndarray, wedges: np.ndarray, buckets: EdgeBuckets) -> np.ndarray:
+    """(C, C) bool: which corners see each other (the edges of the visibility graph; the same for every goal)."""
+    if corners.shape[0] == 0:
+        return np.zeros((0, 0), np.bool_)
+    return _visibility_matrix(np.ascontiguousarray(corners), np.ascontiguousarray(wedges), *buckets.args())
+
+
+@njit(cache=True)
+def _dijkstra_dense(P, vis, D, nxt):
+    """Dijkstra on the dense visibility graph (O(C^2), no heap: every corner is a neighbour candidate)."""
+    c = P.shape[0]
+    done = np.zeros(c, np.bool_)
+    for _ in range(c):
+        k, best = -1, np.inf
+        for m in range(c):
+            if not done[m] and D[m] < best:
+                k, best = m, D[m]
+        if k < 0:
+            break
+        done[k] = True
+        for m in range(c):
+            if vis[k, m] and not done[m]:
+                v = best + math.sqrt((P[m, 0] - P[k, 0]) ** 2 + (P[m, 1] - P[k, 1]) ** 2)
+                if v < D[m]:
+                    D[m] = v
+                    nxt[m] = k
+
+
+def corner_distances(corners: np.ndarray, vis: np.ndarray, goal_dist: np.ndarray) -> tuple:
     """(D (C,), next (C,) int64): the route length from each corner to the goal and its next corner
-    (VIA_GOAL: the goal directly). ``goal_dist`` (C,) float64: each corner's straight distance to the goal where
-    it sees it, inf elsewhere. Dijkstra over the visibility graph of the corners."""
+    (VIA_GOAL: the goal directly). ``vis``: :func:`visibility_matrix`; ``goal_dist`` (C,) float64: each corner's
+    straight distance to the goal where it sees it, inf elsewhere. Dijkstra over the visibility graph (numba;
+    :func:`corner_distances_numpy` is the heap reference)."""
+    D = goal_dist.astype(np.float64).copy()
+    nxt = np.where(np.isfinite(D), VIA_GOAL, VIA_NONE).astype(np.int64)
+    if corners.shape[0]:
+        _dijkstra_dense(np.ascontiguousarray(corners, np.float64), vis, D, nxt)
+    return D, nxt
+
+
+def corner_distances_numpy(corners: np.ndarray, vis: np.ndarray, goal_dist: np.ndarray) -> tuple:
+    """Plain reference of :func:`corner_distances` (``heapq``)."""
     c = corners.shape[0]
     D = goal_dist.astype(np.float64).copy()
     nxt = np.where(np.isfinite(D), VIA_GOAL, VIA_NONE).astype(np.int64)
     if c == 0:
         return D, nxt
-    vis = _visibility_matrix(np.ascontiguousarray(corners), np.ascontiguousarray(wedges), *buckets.args())
     heap = [(float(D[k]), k) for k in range(c) if np.isfinite(D[k])]
     heapq.heapify(heap)
     done = np.zeros(c, bool)
@@ -327,7 +364,8 @@ def via_kernel(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_s
                ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start, items, via):
     """The via of every node in ``order`` (free nodes by increasing field value; module docstring), in place on
     ``via`` (all VIA_NONE on entry). The goal (segments ``gseg``, ``area``: :func:`goal_nearest`) is a candidate
-    when the segment to its nearest point is visible, valued by that distance.
+    when the segment to its nearest point is visible, valued by that distance; it is tested at nodes next to one
+    that sees it or within two cells of it (the nodes that see a goal are connected to it, as those of a corner).
 
     Candidates: the neighbours' vias and the seeded corners; when a candidate is hidden from the node (it lies in
     the shadow of a corner on the way), the corners whose next it is are tried in its place (the corner casting
@@ -357,7 +395,8 @@ def via_kernel(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_s
             nc = _push(cand, nc, seed_items[s])
         best, bval = VIA_NONE, np.inf
         gd, gx, gz = goal_nearest(px, pz, gseg, 0, gseg.shape[0], area)
-        if gd == 0.0 or visible(px, pz, gx, gz, ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start, items):
+        if gd == 0.0 or ((goal_cand or gd <= 2.0 * h) and visible(px, pz, gx, gz, ex0, ez0, ex1, ez1, bx0, bz0,
+                                                                   size, nbx, nbz, start, items)):
             best, bval = VIA_GOAL, gd
         elif goal_cand:  # the goal is hidden: the corners that see it
             for s in range(kid_start[C], kid_start[C + 1]):
@@ -368,13 +407,14 @@ def via_kernel(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_s
         while t < nc:
             c = cand[t]
             t += 1
-            if np.isfinite(D[c]):
-                d = math.sqrt((corners[c, 0] - px) ** 2 + (corners[c, 1] - pz) ** 2)
+            d = math.sqrt((corners[c, 0] - px) ** 2 + (corners[c, 1] - pz) ** 2)
+            # a candidate no better than the best so far is not tested (nor are the corners whose next it is: by
+            # the triangle inequality they are no better either)
+            if D[c] + d < bval:
                 if wedge_ok(wedges, c, px - corners[c, 0], pz - corners[c, 1]) and visible(
                         px, pz, corners[c, 0], corners[c, 1], ex0, ez0, ex1, ez1, bx0, bz0, size, nbx, nbz, start,
                         items):
-                    if D[c] + d < bval:
-                        best, bval = c, D[c] + d
+                    best, bval = c, D[c] + d
                 elif level < 3:
                     for s in range(kid_start[c], kid_start[c + 1]):
                         nc = _push(cand, nc, kids[s])
@@ -440,7 +480,7 @@ def via_numpy(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_st
         cand += [int(v) for v in seed_items[seed_start[k]:seed_start[k + 1]] if int(v) not in cand]
         best, bval = VIA_NONE, math.inf
         gd, gx, gz = goal_nearest_numpy((px, pz), gseg, area)
-        if gd == 0.0 or visible_numpy((px, pz), (gx, gz), rings):
+        if gd == 0.0 or ((goal_cand or gd <= 2.0 * h) and visible_numpy((px, pz), (gx, gz), rings)):
             best, bval = VIA_GOAL, gd
         elif goal_cand:
             cand += [int(c) for c in kids[kid_start[len(corners)]:kid_start[len(corners) + 1]] if c not in cand]
@@ -449,12 +489,11 @@ def via_numpy(order, nx, x0, z0, h, corners, wedges, D, kid_start, kids, seed_st
             level_end = len(cand)
             for t in range(level_start, level_end):
                 c = cand[t]
-                if not np.isfinite(D[c]):
+                v = D[c] + math.hypot(corners[c, 0] - px, corners[c, 1] - pz)
+                if not v < bval:
                     continue
                 if sees(px, pz, c):
-                    v = D[c] + math.hypot(corners[c, 0] - px, corners[c, 1] - pz)
-                    if v < bval:
-                        best, bval = c, v
+                    best, bval = c, v
                 elif level < 3:
                     cand += [int(m) for m in kids[kid_start[c]:kid_start[c + 1]] if m not in cand]
             level_start = level_end

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from sim.routing import cache
 from sim.routing import corners as cn
 from sim.routing.field import Grid, band_sources, directions_kernel, march_goal, store
 from sim.routing.geometry import Walkable, raster, shape_problem
@@ -51,11 +52,12 @@ class Router:
 
     walkable : sim.routing.geometry.Walkable; clearance : metres kept from walls; cell : grid spacing (0: auto)
     grid : sim.routing.field.Grid; free : (nz, nx) bool free nodes; fields : (G, nz, nx) float32
-    build_seconds : list of float, wall time of each goal's field
+    build_seconds : list of float, wall time of each goal's field (built, or loaded from the disk cache:
+    :mod:`sim.routing.cache`, ``use_cache``); cache_hits : int, goals loaded
     """
 
     def __init__(self, walkable: Walkable, clearance: float, cell: float = 0.0, order: int = 2,
-                 steering: str = "corners"):
+                 steering: str = "corners", use_cache: bool = True):
         self.walkable = walkable
         self.clearance = float(clearance)
         h = float(cell) if cell > 0 else auto_cell(walkable, self.clearance)
@@ -68,12 +70,15 @@ class Router:
 
         self.band = band_sources(self.free, inside | (wall <= RIM_CELLS * g.h))
         self.steering = steering
+        self.use_cache = bool(use_cache)
+        self.cache_hits = 0
         self.free_space = cn.free_space(walkable.area, self.clearance)
         rings = cn.rings_of(self.free_space)
         corners, wedges = cn.reflex_corners(rings)
         self.corners, self.wedges = np.ascontiguousarray(corners), np.ascontiguousarray(wedges)
         self.buckets = cn.EdgeBuckets(rings, walkable.bounds, 4.0 * g.h)
         self._seeds = None  # corners seeded at the nodes (the same for every goal)
+        self._vis = None  # the corners' visibility graph (the same for every goal)
         self.shapes: list = []
         self._index: dict = {}
         self._fields: list = []
@@ -105,18 +110,27 @@ class Router:
         if why:
             raise RoutingError(key, f"goal {_show(k)} {why}")
         t0 = time.perf_counter()
-        T, seeds = march_goal(self.grid, self.free, self.band, k, self.clearance, self.order)
-        if T is None:
-            raise RoutingError(key, f"goal {_show(k)} has no walkable space {self.clearance:g} m (the clearance) "
-                                    "from the walls around it")
-        via, D, nxt = self._vias_of(k, T, seeds)
+        g, c = self.grid, self.corners.shape[0]
+        ck = cache.field_key(self, k) if self.use_cache else None
+        got = cache.load(ck, {"field": (g.nz, g.nx), "via": (g.nz, g.nx), "D": (c,), "next": (c,)}) if ck else None
+        if got is None:
+            T, seeds = march_goal(self.grid, self.free, self.band, k, self.clearance, self.order)
+            if T is None:
+                raise RoutingError(key, f"goal {_show(k)} has no walkable space {self.clearance:g} m (the "
+                                        "clearance) from the walls around it")
+            via, D, nxt = self._vias_of(k, T, seeds)
+            got = {"field": store(T, self.grid), "via": via, "D": D, "next": nxt}
+            if ck:
+                cache.save(ck, got)
+        else:
+            self.cache_hits += 1
         self.build_seconds.append(time.perf_counter() - t0)
         self._index[k] = len(self.shapes)
         self.shapes.append(k)
-        self._fields.append(store(T, self.grid))
-        self._vias.append(via)
-        self._D.append(D)
-        self._next.append(nxt)
+        self._fields.append(got["field"])
+        self._vias.append(got["via"])
+        self._D.append(got["D"])
+        self._next.append(got["next"])
         return self._index[k]
 
     def _vias_of(self, k, T, seeds) -> tuple:
@@ -131,7 +145,9 @@ class Router:
             if d == 0.0 or (cn.wedge_ok(self.wedges, c, qx - C[c, 0], qz - C[c, 1])
                             and cn.visible(C[c, 0], C[c, 1], qx, qz, *ba)):
                 gd[c] = d
-        D, nxt = cn.corner_distances(C, self.wedges, gd, self.buckets)
+        if self._vis is None:
+            self._vis = cn.visibility_matrix(C, self.wedges, self.buckets)
+        D, nxt = cn.corner_distances(C, self._vis, gd)
         via = np.full(g.nodes, cn.VIA_NONE, np.int32)
         if self.steering == "corners":
             ok = np.nonzero(self.free.ravel() & np.isfinite(T))[0]

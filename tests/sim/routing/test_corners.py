@@ -81,3 +81,14 @@ def test_goal_nearest_equals_shapely(shape):
         got = cn.goal_nearest(p[0], p[1], seg, 0, seg.shape[0], area)
         ref = cn.goal_nearest_numpy(p, seg, area)
         assert np.allclose(got, ref, atol=1e-12), (p, got, ref)
+
+
+def test_dense_dijkstra_equals_heap_reference(utrap):
+    _, r = utrap
+    vis = cn.visibility_matrix(r.corners, r.wedges, r.buckets)
+    rng = np.random.default_rng(3)
+    gd = np.where(rng.random(r.corners.shape[0]) < 0.3, rng.uniform(1, 20, r.corners.shape[0]), np.inf)
+    D, nxt = cn.corner_distances(r.corners, vis, gd)
+    D2, nxt2 = cn.corner_distances_numpy(r.corners, vis, gd)
+    np.testing.assert_allclose(D, D2, rtol=1e-12)
+    assert np.array_equal(nxt, nxt2)

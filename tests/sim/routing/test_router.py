@@ -183,3 +183,25 @@ def test_unreachable_places_and_bad_goals():
     assert r.distance(near, [(3.0, 3.0)])[0] == pytest.approx(math.dist((3, 3), (4.95, 4.95)), abs=0.3)
     assert r.goal(("point", (3.0, 1.0))) == gid  # equal shapes share a field
     assert r.fields.shape[0] == 2 and float(r.fields.max()) == float(UNREACHABLE)
+
+
+def test_fields_are_cached_by_content(tmp_path, monkeypatch):
+    import sim.routing.cache as cache
+
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path))
+    w, r = utrap()
+    gid = r.goal(("point", U_GOAL))
+    assert r.cache_hits == 0 and len(list((tmp_path / "routing").glob("*.npz"))) == 1
+    _, r2 = utrap()
+    assert r2.goal(("point", U_GOAL)) == 0 and r2.cache_hits == 1
+    for a, b in ((r.fields, r2.fields), (r._vstack, r2._vstack), (r._Dstack, r2._Dstack)):
+        assert np.array_equal(a, b)
+    _, r3 = utrap(cell=0.2)  # another grid: another key
+    r3.goal(("point", U_GOAL))
+    assert r3.cache_hits == 0 and len(list((tmp_path / "routing").glob("*.npz"))) == 2
+    f = next((tmp_path / "routing").glob("*.npz"))
+    f.write_bytes(b"not a zip")  # a broken entry is rebuilt, never trusted
+    _, r4 = utrap(cell=0.2) if cache.field_key(r3, r3.shapes[0]) == f.stem else utrap()
+    r4.goal(("point", U_GOAL))
+    assert r4.cache_hits == 0
+    assert not list((tmp_path / "routing").glob(".*.tmp"))
