@@ -101,6 +101,7 @@ class Goals:
         self.att = np.array([[a["center"][0], a["center"][1], a["radius"], a["strength"]]
                              for a in cfg.get("attractors", [])], np.float64).reshape(-1, 4)
         self.router = None
+        self._vd = None
         self._assign(state)
 
     def bind_router(self, router, state=None) -> None:
@@ -145,7 +146,7 @@ class Goals:
 
     def _routed(self, st, has, ar):
         """(dirs (n, 2), dist (n,)) of the routed agents towards their current waypoints (advancing reached
-        ones); agents without a path get 0 and inf."""
+        ones); agents without a path get 0 and inf (numpy: the reference of the routed step)."""
         n = st.n
         dirs, dist = np.empty((n, 2)), np.empty(n)
         gid = np.where(has, self.wgoal[self.target], -1)
@@ -162,6 +163,35 @@ class Goals:
             self.router.directions(st.position[idx], self.wgoal[t], d2, s2)
             dirs[idx], dist[idx] = d2, s2
         return dirs, dist
+
+    def routed_velocity_numpy(self, st) -> np.ndarray:
+        """Plain numpy reference of the routed desired velocity (``sim.routing.follow.follow_kernel``)."""
+        cfg = self.cfg
+        ar, speed, loop = float(cfg.get("arrive_radius", 2.0)), float(cfg.get("speed", 1.4)), cfg.get("loop", True)
+        out = np.zeros((st.n, 2))
+        has = self.path >= 0
+        if not has.any():
+            return out
+        dirs, dist = self._routed(st, has, ar)
+        s = np.where(has, speed, 0.0)
+        if not loop:  # arrive: slow down along the last metres of the route to the last waypoint
+            last = has & (self.target == self.pstart[np.maximum(self.path, 0) + 1] - 1)
+            s = np.where(last, speed * np.minimum(1.0, np.where(np.isfinite(dist), dist, ar) / ar), s)
+        out[:, 0] = dirs[:, 0] * s
+        out[:, 1] = dirs[:, 1] * s
+        return out
+
+    def routed_step(self, st, integrate: bool, dt: float) -> np.ndarray:
+        """The routed desired velocities (numba, one pass; :meth:`routed_velocity_numpy` is the reference);
+        ``integrate``: also the kinematic move (the goals step without boids)."""
+        if st.n != self.n:
+            self._assign(st)
+        c = self.cfg
+        if self._vd is None or self._vd.shape[0] != st.n:
+            self._vd = np.empty((st.n, 2))
+        return self.router.follow(st, self.path, self.target, self.pstart, self.wgoal, bool(c.get("loop", True)),
+                                  float(c.get("arrive_radius", 2.0)), float(c.get("speed", 1.4)), integrate, dt,
+                                  self._vd)
 
     def _assign(self, st):
         n, npaths = st.n, self.pstart.shape[0] - 1
@@ -201,14 +231,7 @@ class Goals:
         cfg = self.cfg
         ar, speed, loop = float(cfg.get("arrive_radius", 2.0)), float(cfg.get("speed", 1.4)), cfg.get("loop", True)
         if self.router is not None:
-            dirs, dist = self._routed(st, has, ar)
-            s = np.where(has, speed, 0.0)
-            if not loop:  # arrive: slow down along the last metres of the route to the last waypoint
-                last = has & (self.target == self.pstart[np.maximum(self.path, 0) + 1] - 1)
-                s = np.where(last, speed * np.minimum(1.0, np.where(np.isfinite(dist), dist, ar) / ar), s)
-            out[:, 0] = dirs[:, 0] * s
-            out[:, 1] = dirs[:, 1] * s
-            return out
+            return self.routed_step(st, False, 0.0).copy()
         idx = np.nonzero(has)[0]
         t = self.target[idx]
         end = self.pstart[self.path[idx] + 1]
@@ -281,8 +304,11 @@ def _kinematic_kernel(position, velocity, heading, path, target, pstart, waypoin
 
 
 def kinematic_numpy(goals: Goals, st, dt: float) -> None:
-    """Plain numpy reference of :func:`_kinematic_kernel` (the goals step without boids)."""
-    vd = goals.desired_velocity(st)
+    """Plain numpy reference of :func:`_kinematic_kernel` (the goals step without boids), and with a router of
+    ``sim.routing.follow.follow_kernel``."""
+    if st.n != goals.n:
+        goals._assign(st)
+    vd = goals.routed_velocity_numpy(st) if goals.router is not None else goals.desired_velocity(st)
     has = goals.path >= 0
     st.velocity[has, 0] = vd[has, 0]
     st.velocity[has, 1] = 0.0
@@ -300,7 +326,7 @@ def kinematic_step(goals: Goals, st, dt: float) -> None:
     if goals.pstart.shape[0] < 2:
         return
     if goals.router is not None:
-        kinematic_numpy(goals, st, dt)
+        goals.routed_step(st, True, dt)
         return
     c = goals.cfg
     _kinematic_kernel(st.position, st.velocity, st.heading, goals.path, goals.target, goals.pstart, goals.waypoints,

@@ -320,7 +320,7 @@ def goal_segments(shape) -> tuple:
     return np.concatenate([p, np.roll(p, -1, 0)], 1), True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def goal_nearest(px, pz, gseg, s0, s1, area):
     """(distance, qx, qz): the point q of the goal (segments s0..s1 of ``gseg``; ``area``: the polygon they
     bound belongs to it) nearest to p; 0 and p itself inside an area."""

@@ -164,17 +164,17 @@ def store(T: np.ndarray, grid: Grid) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------------ steering
 @njit(cache=True, inline="always")
 def _sample(F, g, px, pz, x0, z0, h, nx, nz):
-    """(dir_x, dir_z, value) at (px, pz) of field g (module docstring)."""
+    """(dir_x, dir_z, value) at (px, pz) of field g of F (nz, nx, G) (module docstring)."""
     fx = (px - x0) / h
     fz = (pz - z0) / h
     i = min(max(int(math.floor(fx)), 0), nx - 2)
     j = min(max(int(math.floor(fz)), 0), nz - 2)
     tx = min(max(fx - i, 0.0), 1.0)
     tz = min(max(fz - j, 0.0), 1.0)
-    d00 = np.float64(F[g, j, i])
-    d10 = np.float64(F[g, j, i + 1])
-    d01 = np.float64(F[g, j + 1, i])
-    d11 = np.float64(F[g, j + 1, i + 1])
+    d00 = np.float64(F[j, i, g])
+    d10 = np.float64(F[j, i + 1, g])
+    d01 = np.float64(F[j + 1, i, g])
+    d11 = np.float64(F[j + 1, i + 1, g])
     gx = (d10 - d00) * (1.0 - tz) + (d11 - d01) * tz
     gz = (d01 - d00) * (1.0 - tx) + (d11 - d10) * tx
     v = (d00 * (1.0 - tx) + d10 * tx) * (1.0 - tz) + (d01 * (1.0 - tx) + d11 * tx) * tz
@@ -198,23 +198,20 @@ def _sample(F, g, px, pz, x0, z0, h, nx, nz):
 
 
 @njit(cache=True, inline="always")
-def _consider(c, g, px, pz, corners, D, nxt, gseg, s0, s1, area, eps, best, bval):
+def _consider(c, g, px, pz, corners, D, nxt, ahead, eps, best, bval):
     """Corner c as a candidate of the agent at (px, pz): value D + distance. A corner the agent has passed (it
-    stands on it, or beyond the line through it across the way to its next) hands over to its next. Returns
-    (best, bval, goal_next): goal_next: the corner handed over to the goal."""
+    stands on it, or beyond the line through it across the way to its next: ``ahead[g, c]``, the next corner or
+    the goal's point nearest to it) hands over to its next. Returns (best, bval, goal_next): goal_next: the corner
+    handed over to the goal."""
     for _ in range(8):
         cx, cz = corners[c, 0], corners[c, 1]
         d = math.sqrt((cx - px) ** 2 + (cz - pz) ** 2)
-        c2 = nxt[g, c]
-        if c2 >= 0:
-            nx_, nz_ = corners[c2, 0], corners[c2, 1]
-        else:
-            _, nx_, nz_ = goal_nearest(cx, cz, gseg, s0, s1, area)
-        if d >= eps and (px - cx) * (nx_ - cx) + (pz - cz) * (nz_ - cz) <= 0.0:
+        if d >= eps and (px - cx) * (ahead[g, c, 0] - cx) + (pz - cz) * (ahead[g, c, 1] - cz) <= 0.0:
             v = D[g, c] + d
             if v < bval:
                 return c, v, False
             return best, bval, False
+        c2 = nxt[g, c]
         if c2 == VIA_GOAL:
             return best, bval, True
         if c2 < 0:
@@ -223,30 +220,30 @@ def _consider(c, g, px, pz, corners, D, nxt, gseg, s0, s1, area, eps, best, bval
     return best, bval, False
 
 
-@njit(cache=True)
-def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gseg, gstart, garea, eps, use_via):
+@njit(cache=True, inline="always")
+def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, ahead, gseg, gstart, garea, eps, use_via):
     """(dir_x, dir_z, route length) of an agent at (px, pz) heading to goal g: the least of the vias of the four
     nodes around it (module docstring of :mod:`sim.routing.corners`), by exact route length: straight at a
     corner, or at the goal's nearest point; the field's gradient where no node has a via (walls)."""
-    ux, uz, v = _sample(F, g, px, pz, x0, z0, h, nx, nz)
     if not use_via:
-        return ux, uz, v
+        return _sample(F, g, px, pz, x0, z0, h, nx, nz)
     fx = (px - x0) / h
     fz = (pz - z0) / h
     i = min(max(int(math.floor(fx)), 0), nx - 2)
     j = min(max(int(math.floor(fz)), 0), nz - 2)
-    s0, s1, area = gstart[g], gstart[g + 1], garea[g]
     best, bval = VIA_NONE, np.inf
     goal = False
+    last = VIA_NONE
     for q in range(4):
-        c = V[g, j + (q >> 1), i + (q & 1)]
+        c = np.int64(V[j + (q >> 1), i + (q & 1), g])
         if c == VIA_GOAL:
             goal = True
-        elif c >= 0:
-            best, bval, gn = _consider(c, g, px, pz, corners, D, nxt, gseg, s0, s1, area, eps, best, bval)
+        elif c >= 0 and c != last:  # neighbouring nodes mostly share their via: evaluate it once
+            last = c
+            best, bval, gn = _consider(c, g, px, pz, corners, D, nxt, ahead, eps, best, bval)
             goal = goal or gn
     if goal:
-        d, qx, qz = goal_nearest(px, pz, gseg, s0, s1, area)
+        d, qx, qz = goal_nearest(px, pz, gseg, gstart[g], gstart[g + 1], garea[g])
         if d <= bval:
             if d > 1e-9:
                 return (qx - px) / d, (qz - pz) / d, d
@@ -254,16 +251,19 @@ def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, gseg, gstart,
     if best >= 0:
         d = math.sqrt((corners[best, 0] - px) ** 2 + (corners[best, 1] - pz) ** 2)
         return (corners[best, 0] - px) / d, (corners[best, 1] - pz) / d, bval
-    return ux, uz, v
+    return _sample(F, g, px, pz, x0, z0, h, nx, nz)
 
 
 @njit(cache=True, parallel=True)
-def directions_kernel(pos, goal, F, V, corners, D, nxt, gseg, gstart, garea, x0, z0, h, nx, nz, eps, use_via, out,
-                      dist):
+def directions_kernel(pos, goal, F, V, corners, D, nxt, ahead, gseg, gstart, garea, x0, z0, h, nx, nz, eps, use_via,
+                      out, dist):
     """Per agent a: out[a] = unit desired direction (x, z) towards goal goal[a] from pos[a] (x, z = columns 0, 2),
+    reading the fields F (nz, nx, G) float32 and vias V (nz, nx, G) int16/int32 (goals interleaved per node: the
+    agents at one place share cache lines whatever their goals),
     dist[a] = remaining route length (inf: unreachable); goal[a] < 0: out 0, dist inf. ``use_via``: steer at the
     nodes' vias (:func:`steer_one`), else down the gradient only. Goal g's shape: segments
-    ``gseg[gstart[g]:gstart[g + 1]]``, an area when ``garea[g]`` (:func:`sim.routing.corners.goal_nearest`)."""
+    ``gseg[gstart[g]:gstart[g + 1]]``, an area when ``garea[g]`` (:func:`sim.routing.corners.goal_nearest`);
+    ``ahead`` (G, C, 2): each corner's next corner or nearest goal point (:func:`ahead_points`)."""
     big = np.float64(UNREACHABLE) * 0.5
     for a in prange(pos.shape[0]):
         g = goal[a]
@@ -272,11 +272,22 @@ def directions_kernel(pos, goal, F, V, corners, D, nxt, gseg, gstart, garea, x0,
             out[a, 1] = 0.0
             dist[a] = np.inf
             continue
-        ux, uz, v = steer_one(F, V, g, pos[a, 0], pos[a, 2], x0, z0, h, nx, nz, corners, D, nxt, gseg, gstart, garea,
-                              eps, use_via)
+        ux, uz, v = steer_one(F, V, g, pos[a, 0], pos[a, 2], x0, z0, h, nx, nz, corners, D, nxt, ahead, gseg, gstart,
+                              garea, eps, use_via)
         out[a, 0] = ux
         out[a, 1] = uz
         dist[a] = v if v < big else np.inf
+
+
+def ahead_points(corners: np.ndarray, nxt: np.ndarray, gseg: np.ndarray, area: bool) -> np.ndarray:
+    """(C, 2) float64: where each corner's route goes next: its next corner, or the goal's point nearest to it."""
+    out = np.empty((corners.shape[0], 2))
+    for c in range(corners.shape[0]):
+        if nxt[c] >= 0:
+            out[c] = corners[nxt[c]]
+        else:
+            out[c] = goal_nearest(corners[c, 0], corners[c, 1], gseg, 0, gseg.shape[0], area)[1:]
+    return out
 
 
 def directions_numpy(pos, goal, F, grid: Grid):
@@ -292,7 +303,7 @@ def directions_numpy(pos, goal, F, grid: Grid):
     i = np.clip(np.floor(fx).astype(np.int64), 0, grid.nx - 2)
     j = np.clip(np.floor(fz).astype(np.int64), 0, grid.nz - 2)
     tx, tz = np.clip(fx - i, 0.0, 1.0), np.clip(fz - j, 0.0, 1.0)
-    d = [F[g, j + b, i + a].astype(np.float64) for a, b in ((0, 0), (1, 0), (0, 1), (1, 1))]
+    d = [F[j + b, i + a, g].astype(np.float64) for a, b in ((0, 0), (1, 0), (0, 1), (1, 1))]
     gx = (d[1] - d[0]) * (1 - tz) + (d[3] - d[2]) * tz
     gz = (d[2] - d[0]) * (1 - tx) + (d[3] - d[1]) * tx
     v = (d[0] * (1 - tx) + d[1] * tx) * (1 - tz) + (d[2] * (1 - tx) + d[3] * tx) * tz
@@ -331,7 +342,7 @@ def steer_numpy(pos, goal, F, V, corners, D, nxt, gseg, gstart, garea, grid: Gri
         j = min(max(int(math.floor((pz - grid.z0) / grid.h)), 0), grid.nz - 2)
         cands, goal_seen = [], False
         for jj, ii in ((j, i), (j, i + 1), (j + 1, i), (j + 1, i + 1)):
-            c = int(V[g, jj, ii])
+            c = int(V[jj, ii, g])
             if c == VIA_GOAL:
                 goal_seen = True
             for _ in range(8):  # hand passed corners over to their next

@@ -17,7 +17,7 @@ import numpy as np
 
 from sim.routing import cache
 from sim.routing import corners as cn
-from sim.routing.field import Grid, band_sources, directions_kernel, march_goal, store
+from sim.routing.field import Grid, ahead_points, band_sources, directions_kernel, march_goal, store
 from sim.routing.geometry import Walkable, raster, shape_problem
 
 #: default grid spacing: this fraction of the clearance (accurate around door jambs), ...
@@ -51,7 +51,7 @@ class Router:
     """Distance fields of goals over one walkable area (module docstring).
 
     walkable : sim.routing.geometry.Walkable; clearance : metres kept from walls; cell : grid spacing (0: auto)
-    grid : sim.routing.field.Grid; free : (nz, nx) bool free nodes; fields : (G, nz, nx) float32
+    grid : sim.routing.field.Grid; free : (nz, nx) bool free nodes; fields : (nz, nx, G) float32
     build_seconds : list of float, wall time of each goal's field (built, or loaded from the disk cache:
     :mod:`sim.routing.cache`, ``use_cache``); cache_hits : int, goals loaded
     """
@@ -85,8 +85,8 @@ class Router:
         self._vias: list = []
         self._D: list = []
         self._next: list = []
-        self._stack = np.zeros((0, g.nz, g.nx), np.float32)
-        self._vstack = np.zeros((0, g.nz, g.nx), np.int32)
+        self._stack = np.zeros((g.nz, g.nx, 0), np.float32)
+        self._vstack = np.zeros((g.nz, g.nx, 0), np.int16)
         self.build_seconds: list = []
 
     # -- goals ------------------------------------------------------------------------------------------------------
@@ -164,17 +164,17 @@ class Router:
 
     @property
     def fields(self) -> np.ndarray:
-        """(G, nz, nx) float32, the fields stacked (the kernel reads one array)."""
+        """(nz, nx, G) float32, the fields interleaved per node (the kernel reads one array; agents at one place
+        share its cache lines whatever their goals)."""
         self._restack()
         return self._stack
 
     def _restack(self) -> None:
-        if self._stack.shape[0] == len(self._fields):
+        if self._stack.shape[2] == len(self._fields):
             return
-        self._stack = np.stack(self._fields, 0)
-        self._vstack = np.stack(self._vias, 0)
-        self._fields = [self._stack[i] for i in range(self._stack.shape[0])]
-        self._vias = [self._vstack[i] for i in range(self._vstack.shape[0])]
+        self._stack = np.ascontiguousarray(np.stack(self._fields, 2))
+        vtype = np.int16 if self.corners.shape[0] < np.iinfo(np.int16).max else np.int32
+        self._vstack = np.ascontiguousarray(np.stack(self._vias, 2).astype(vtype))
         c = max(self.corners.shape[0], 1)
         self._Dstack = np.stack([np.resize(d, c) if d.size else np.full(c, np.inf) for d in self._D], 0)
         self._nstack = np.stack([np.resize(n, c) if n.size else np.full(c, cn.VIA_NONE, np.int64)
@@ -183,6 +183,8 @@ class Router:
         self._gseg = np.concatenate([sg for sg, _ in segs], 0)
         self._gstart = np.concatenate([[0], np.cumsum([sg.shape[0] for sg, _ in segs])]).astype(np.int64)
         self._garea = np.array([a for _, a in segs], np.bool_)
+        self._ahead = np.stack([ahead_points(self.corners, self._next[k], segs[k][0], segs[k][1])
+                                if self.corners.shape[0] else np.zeros((1, 2)) for k in range(len(segs))], 0)
         self._corners = self.corners if self.corners.shape[0] else np.zeros((1, 2))
 
     # -- per step ---------------------------------------------------------------------------------------------------
@@ -196,15 +198,30 @@ class Router:
         if n == 0:
             return out
         F = self.fields
-        if F.shape[0] == 0:
+        if F.shape[2] == 0:
             out[:] = 0.0
             dist[:] = np.inf
             return out
         g = self.grid
         directions_kernel(position, np.ascontiguousarray(goal, np.int64), F, self._vstack, self._corners,
-                          self._Dstack, self._nstack, self._gseg, self._gstart, self._garea, g.x0, g.z0, g.h, g.nx, g.nz,
+                          self._Dstack, self._nstack, self._ahead, self._gseg, self._gstart, self._garea, g.x0, g.z0,
+                          g.h, g.nx, g.nz,
                           CORNER_EPS * g.h, self.steering == "corners", out, dist)
         return out
+
+    def follow(self, state, path, target, pstart, wgoal, loop: bool, arrive: float, speed: float,
+               integrate: bool, dt: float, vd: np.ndarray) -> np.ndarray:
+        """The ``goals`` effect's routed step (:func:`sim.routing.follow.follow_kernel`): desired velocities in
+        ``vd`` (n, 2), reached waypoints advanced in ``target``, and the kinematic move when ``integrate``."""
+        from sim.routing.follow import follow_kernel
+
+        F = self.fields
+        g = self.grid
+        follow_kernel(state.position, state.velocity, state.heading, path, target, pstart, wgoal, bool(loop),
+                      float(arrive), float(speed), bool(integrate), float(dt), F, self._vstack, self._corners,
+                      self._Dstack, self._nstack, self._ahead, self._gseg, self._gstart, self._garea, g.x0, g.z0,
+                      g.h, g.nx, g.nz, CORNER_EPS * g.h, self.steering == "corners", vd)
+        return vd
 
     def distance(self, gid: int, xz) -> np.ndarray:
         """(m,) float64 route length from each point (m, 2) to goal ``gid`` (inf: unreachable)."""
@@ -222,8 +239,9 @@ class Router:
     # -- figures ----------------------------------------------------------------------------------------------------
     @property
     def bytes_per_goal(self) -> int:
-        """Field (float32) and vias (int32) of one goal, plus its corner distances."""
-        return 8 * self.grid.nodes + 16 * self.corners.shape[0]
+        """Field (float32) and vias (int16; int32 past 32,766 corners) of one goal, plus its corner arrays."""
+        via = 2 if self.corners.shape[0] < np.iinfo(np.int16).max else 4
+        return (4 + via) * self.grid.nodes + 32 * self.corners.shape[0]
 
     def describe(self) -> str:
         g = self.grid

@@ -182,7 +182,7 @@ def test_unreachable_places_and_bad_goals():
     near = r.goal(("point", (4.95, 4.95)))  # in a corner, within the clearance of two walls: still a goal
     assert r.distance(near, [(3.0, 3.0)])[0] == pytest.approx(math.dist((3, 3), (4.95, 4.95)), abs=0.3)
     assert r.goal(("point", (3.0, 1.0))) == gid  # equal shapes share a field
-    assert r.fields.shape[0] == 2 and float(r.fields.max()) == float(UNREACHABLE)
+    assert r.fields.shape[2] == 2 and float(r.fields.max()) == float(UNREACHABLE)
 
 
 def test_fields_are_cached_by_content(tmp_path, monkeypatch):
