@@ -1,13 +1,13 @@
-"""Distance fields of goals on a grid, and the per-agent descent direction read from them.
+"""Distance fields of goals on a grid, and the per-agent steering read from them.
 
 Treuille, Cooper & Popović, *Continuum crowds* (SIGGRAPH 2006), §4: agents heading to one goal share one
-potential field, solved once by fast marching (:mod:`sim.routing.fmm`), and each moves against its gradient; here
-the field is the geodesic distance through the walkable area kept ``clearance`` away from its walls (the
-potential of a unit, density-free cost; the density term of §4.2 is not built). The path of steepest descent of
-the exact distance is the shortest path (the taut string around the corners, offset by the clearance); the grid's
-is within the measured error of it (``tests/sim/routing``, ``scripts/bench_routing.md``).
+potential field, solved once by fast marching (:mod:`sim.routing.fmm`); here the field is the geodesic distance
+through the walkable area kept ``clearance`` away from its walls (the potential of a unit, density-free cost; the
+density term of §4.2 is not built). Its gradient alone rounds corners wide (2-9 % longer routes round a U-shaped
+wall, docs/routing.md), so agents steer at the next corner of their shortest path (:mod:`sim.routing.corners`,
+:func:`steer_one`) and the field serves for the visiting order of those vias, reachability and the clearance band.
 
-Build (:func:`build_field`), per goal, on the router's grid:
+Build, per goal, on the router's grid (:func:`march_goal`):
 
 1. free nodes: inside the walkable area and at least ``clearance`` from its boundary (:func:`sim.routing.geometry.
    raster`); the goal's seeds: free nodes within :data:`SEED_CELLS` cells of the goal shape get their exact
@@ -15,16 +15,15 @@ Build (:func:`build_field`), per goal, on the router's grid:
    free nodes nearest to it instead;
 2. march the free nodes (second order): ``T`` = distance to the goal; free nodes the front never reaches (another
    component of the free space) are unreachable;
-3. march on into the clearance band and the wall rims with slowness :data:`BAND_SLOWNESS`: an agent whose centre
-   is closer to a wall than the clearance (spawned there, pushed there) descends out of the band to the nearest
-   free space first, then on along the route; the band also pushes the bilinear gradient of the cells along the
-   free boundary off the walls;
+3. the clearance band and the wall rims (:func:`extend_band`): each node the value of its nearest free node plus
+   :data:`BAND_SLOWNESS` times the distance to it: an agent whose centre is closer to a wall than the clearance
+   (spawned there, pushed there) descends out of the band on its own side of the wall first;
 4. store ``float32`` (:data:`UNREACHABLE` where the front never came).
 
-Steering (:func:`directions_kernel`, numpy reference :func:`directions_numpy`): the bilinear interpolant of the
-four nodes around the agent; its gradient, normalised and negated, is the desired direction, its value the
-remaining route length. Where the gradient vanishes (a ridge between two equally long routes, the goal point
-itself) the agent heads to the lowest of the four nodes. O(1) per agent: four reads of one goal's field.
+Steering (:func:`directions_kernel`; references :func:`directions_numpy` (gradient) and :func:`steer_numpy`
+(vias)): the vias of the four nodes around the agent by exact route length, else the bilinear interpolant's
+gradient (normalised, negated); where the gradient vanishes (a ridge between two equally long routes) the agent
+heads to the lowest of the four nodes. O(1) per agent.
 """
 from __future__ import annotations
 
