@@ -223,13 +223,27 @@ def _consider(c, g, px, pz, corners, D, nxt, ahead, eps, best, bval):
 def steer_one(F, V, g, px, pz, x0, z0, h, nx, nz, corners, D, nxt, ahead, gseg, gstart, garea, eps, use_via):
     """(dir_x, dir_z, route length) of an agent at (px, pz) heading to goal g: the least of the vias of the four
     nodes around it (module docstring of :mod:`sim.routing.corners`), by exact route length: straight at a
-    corner, or at the goal's nearest point; the field's gradient where no node has a via (walls)."""
+    corner, or at the goal's nearest point; the field's gradient where no node has a via (walls). The common case
+    in the open (every node round the agent sees its point goal) is tested first; the rest is :func:`_steer_vias`."""
     if not use_via:
         return _sample(F, g, px, pz, x0, z0, h, nx, nz)
-    fx = (px - x0) / h
-    fz = (pz - z0) / h
-    i = min(max(int(math.floor(fx)), 0), nx - 2)
-    j = min(max(int(math.floor(fz)), 0), nz - 2)
+    i = min(max(int(math.floor((px - x0) / h)), 0), nx - 2)
+    j = min(max(int(math.floor((pz - z0) / h)), 0), nz - 2)
+    s0 = gstart[g]
+    if (V[j, i, g] == VIA_GOAL and V[j, i + 1, g] == VIA_GOAL and V[j + 1, i, g] == VIA_GOAL
+            and V[j + 1, i + 1, g] == VIA_GOAL and not garea[g] and gstart[g + 1] - s0 == 1
+            and gseg[s0, 0] == gseg[s0, 2] and gseg[s0, 1] == gseg[s0, 3]):
+        dx, dz = gseg[s0, 0] - px, gseg[s0, 1] - pz
+        d = math.sqrt(dx * dx + dz * dz)
+        if d > 1e-9:
+            return dx / d, dz / d, d
+        return 0.0, 0.0, 0.0
+    return _steer_vias(F, V, g, px, pz, i, j, x0, z0, h, nx, nz, corners, D, nxt, ahead, gseg, gstart, garea, eps)
+
+
+@njit(cache=True, inline="always")
+def _steer_vias(F, V, g, px, pz, i, j, x0, z0, h, nx, nz, corners, D, nxt, ahead, gseg, gstart, garea, eps):
+    """:func:`steer_one` at an agent in cell (i, j) whose nodes do not all see a point goal."""
     best, bval = VIA_NONE, np.inf
     goal = False
     last = VIA_NONE
