@@ -60,7 +60,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(ROOT / "tests" / "sim" / "routing"))  # the exact shortest paths of the tests
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see scripts/bench_avoidance.py
 
-from bench_avoidance import (  # noqa: E402
+from bench_avoidance import (
     BenchError,
     bottleneck_ours,
     door_flow,
@@ -349,10 +349,10 @@ def scale(n: int, steps: int) -> dict:
 
 def goals_step(router, pos, steps: int) -> dict:
     """ms per ``goals`` step (kinematic: no boids) of the same agents, routed and straight, interleaved."""
+    import sim.goals as goals_mod
     from sim.params import validate
     from sim.state import CrowdState
     from sim.world import World
-    import sim.goals as goals_mod
 
     n = pos.shape[0]
     paths = [[list(g)] for g in SCALE_GOALS]
@@ -430,7 +430,7 @@ def _main(a) -> int:
 
     lines = ["# Routing benchmark (`scripts/bench_routing.py`)", "", f"Machine: {_machine()}.", "",
              f"Command: `python scripts/bench_routing.py {' '.join(sys.argv[1:])}`".rstrip(), ""]
-    out = lambda s="": (print(s, flush=True), lines.append(s))  # noqa: E731
+    out = lambda s="": (print(s, flush=True), lines.append(s))
 
     threads = numba.get_num_threads()
     numba.set_num_threads(1)  # behaviour runs: one thread (bit-identical; cheaper on a shared 2-core machine)

@@ -1,7 +1,6 @@
 """The ``routing`` effect in scene files: bad walkable geometry, goals and agents are one line naming the file and
 the key, exit 2, nothing written; a good one runs and draws its walls; a scene without it never imports it."""
 import pytest
-
 from crowd_testutil import run_cli, run_python, tiny_scene
 
 # the tiny scene's four agents stand at x, z in {0, 1.5}

@@ -2,9 +2,9 @@
 independent visibility graph, and the node vias against their plain reference."""
 import numpy as np
 import pytest
+from routing_testutil import U_BOUNDS, U_BOXES, U_GOAL, ExactPaths
 
 import sim.routing.corners as cn
-from routing_testutil import U_BOUNDS, U_BOXES, U_GOAL, ExactPaths
 from sim.routing.geometry import Walkable
 from sim.routing.router import Router
 

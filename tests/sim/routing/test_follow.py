@@ -1,7 +1,6 @@
 """sim.routing.follow: the routed goals step (numba, one pass) against its numpy reference."""
 import numpy as np
 import pytest
-
 from routing_testutil import U_BOUNDS, U_BOXES
 
 

@@ -5,8 +5,15 @@ import numpy as np
 import pytest
 import shapely
 
-from sim.routing.geometry import (Walkable, circle_polygon, polygon_problem, raster, raster_numpy, shape_problem,
-                                  wall_polygons)
+from sim.routing.geometry import (
+    Walkable,
+    circle_polygon,
+    polygon_problem,
+    raster,
+    raster_numpy,
+    shape_problem,
+    wall_polygons,
+)
 
 ROOM = {"walkable": [{"points": [[0.0, 0.0], [10.0, 0.0], [10.0, 6.0], [0.0, 6.0]],
                       "holes": [[[2.0, 2.0], [3.0, 2.0], [3.0, 3.0], [2.0, 3.0]]]}]}

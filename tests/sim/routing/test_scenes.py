@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from routing_testutil import ExactPaths
 
 REPO = Path(__file__).resolve().parents[3]
@@ -76,15 +75,15 @@ U_TRAP = REPO / "scenes" / "u_trap.toml"
 def test_u_trap_every_agent_reaches_the_goal_and_no_body_enters_a_wall(model):
     sc, w = build(U_TRAP, model)
     radius = w.resources["obstacles.agent_radius"]
-    L, reached, closest = run_to_goal(sc, w)
+    _, reached, closest = run_to_goal(sc, w)
     assert reached.all(), f"{(~reached).sum()} of {reached.size} agents never reached the goal"
     assert closest >= radius - 1e-6, closest  # the body (radius 0.25) never overlaps a wall
 
 
 @pytest.fixture(scope="module")
 def exact_u_trap():
-    from crowd.scene import load_scene
     from crowd.engine import plan
+    from crowd.scene import load_scene
     from sim.routing.effect import walkable_of
 
     sc = load_scene(U_TRAP)
