@@ -244,7 +244,8 @@ class Engine:
             try:
                 world.install(e.name, e.params)
             except ParamError as err:
-                if err.key.split("[", 1)[0] in ("stages", "journeys", "sources"):  # tables of the effect's own
+                # tables of the effect's own (journeys), or an agent the effect cannot take (routing: outside the area)
+                if err.key.split("[", 1)[0] in ("stages", "journeys", "sources", "placement"):
                     raise SceneError(sc.path, err.key, err.message) from None
                 raise SceneError(sc.path, f"effects[{e.index}]", err.message if err.key.startswith("effects")
                                  else str(err)) from None

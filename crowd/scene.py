@@ -345,6 +345,10 @@ class _Parser:
         placements = self.placements(characters)
         effects = self.effects()
         props = parse_props(self.array_of_tables("props", False), effects, self.base, self.fail)
+        if any(e.name == "routing" for e in effects):  # walkable area, walls, waypoints; routing installed first
+            from crowd.scene_routing import apply_routing
+
+            apply_routing(effects, characters, self.fail)
         from crowd.scene_journeys import parse_journeys
 
         effects = parse_journeys(doc, effects, placements, characters, self.fail)  # [[stages]], [[journeys]], ...

@@ -240,10 +240,11 @@ def bottleneck_boxes() -> list:
             {"center": [(x0 + w0) / 2, z0 - t / 2], "size": [w0 - x0 + t, t]}]
 
 
-def load_bottleneck(path) -> dict:
+def load_bottleneck(path, seed: int | None = None) -> dict:
     """The bottleneck scene (``scenes/bottleneck.toml``) as both sides need it: the validated scene, its agents'
-    start positions (n, 2) (the scene's placement and seed, ``crowd.engine.plan``), the goals, avoidance and
-    obstacles tables, and the obstacles as polygons and circles (``sim.obstacles.ObstacleSet``, boxes made polygons).
+    start positions (n, 2) (the scene's placement and seed, or ``seed`` instead, ``crowd.engine.plan``), the goals,
+    avoidance and obstacles tables, and the obstacles as polygons and circles (``sim.obstacles.ObstacleSet``, boxes
+    made polygons).
 
     Raises BenchError when the scene lacks one of those effects or is invalid."""
     from crowd.engine import plan
@@ -259,6 +260,10 @@ def load_bottleneck(path) -> dict:
     missing = [k for k in ("goals", "avoidance", "obstacles") if k not in eff]
     if missing or eff["avoidance"]["model"] != "cfsm":
         raise BenchError(f"{path}: the bottleneck scene needs the effects goals, avoidance (model cfsm) and obstacles")
+    if seed is not None:
+        import dataclasses
+
+        scene = dataclasses.replace(scene, seed=int(seed))
     pl = plan(scene)
     obs = ObstacleSet(eff["obstacles"].get("circles", ()), eff["obstacles"].get("boxes", ()),
                       eff["obstacles"].get("polygons", ()))

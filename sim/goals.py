@@ -20,6 +20,11 @@ speed, acceleration and turn limits.
 Without the boids effect, the goals step moves agents kinematically: velocity
 ``v_desired`` (attractors ignored), position += v dt, heading = direction of v.
 
+With the ``routing`` effect (:mod:`sim.routing`), every waypoint is a routing goal: ``v_desired`` points along
+the shortest route through the walkable area to it (``Router.directions``) instead of straight at it, a waypoint
+counts as reached within ``arrive_radius`` of route length (not through a wall), and the arrival slow-down at
+the end of an open path uses the remaining route length.
+
 All geometry uses float64 differences (robust far from the origin); the step
 is vectorised numpy (O(n) per step, per-agent independent), except the
 kinematic step (no boids), a numba kernel (:func:`_kinematic_kernel`) whose
@@ -95,11 +100,103 @@ class Goals:
             self.pstart[1:] = np.cumsum([len(p) for p in paths])
         self.att = np.array([[a["center"][0], a["center"][1], a["radius"], a["strength"]]
                              for a in cfg.get("attractors", [])], np.float64).reshape(-1, 4)
+        self.router = None
+        self._vd = None
         self._assign(state)
+
+    def bind_router(self, router, state=None) -> None:
+        """Route to the waypoints through the walkable area (effect ``routing``): one goal per waypoint. With the
+        ``state``, every agent must have a route to its first waypoint (:meth:`_check_routes`)."""
+        self.router = router
+        self.wgoal = np.array([router.goal(("point", (float(x), float(z))), key=f"goals.paths: waypoint {k}")
+                               for k, (x, z) in enumerate(self.waypoints)], np.int64)
+        self._check_routes(state)
+
+    def _check_routes(self, state) -> None:
+        """ParamError naming the path and waypoint when a waypoint cannot be reached from the one before it, or
+        naming the agent when its first waypoint cannot be reached from where it stands: before the run."""
+        from sim.params import ParamError
+
+        r = self.router
+        for p in range(self.pstart.shape[0] - 1):
+            w = self.waypoints[self.pstart[p]:self.pstart[p + 1]]
+            loop = bool(self.cfg.get("loop", True)) and w.shape[0] > 1
+            for k in range(1, w.shape[0] + (1 if loop else 0)):
+                a, b = w[k - 1], w[k % w.shape[0]]
+                if not r.reachable(int(self.wgoal[self.pstart[p] + k % w.shape[0]]), [a])[0]:
+                    raise ParamError(f"paths[{p}][{k % w.shape[0]}]", f"waypoint ({b[0]:g}, {b[1]:g}) cannot be "
+                                     f"reached from the waypoint before it ({a[0]:g}, {a[1]:g}): no route through "
+                                     "the walkable area")
+        if state is None or state.n != self.n:
+            return
+        st_pos = state.position[:, [0, 2]]
+        has = np.nonzero(self.path >= 0)[0]
+        for gid in np.unique(self.wgoal[self.target[has]]):
+            sel = has[self.wgoal[self.target[has]] == gid]
+            ok = r.reachable(int(gid), st_pos[sel])
+            if not ok.all():
+                i = int(sel[np.argmin(ok)])
+                x, z = self.waypoints[self.target[i]]
+                groups = getattr(state, "groups", None) or []
+                group = next((g for g, (first, count) in enumerate(groups) if first <= i < first + count), 0)
+                raise ParamError(f"placement[{group}]", f"agent {i} at ({st_pos[i, 0]:.6g}, {st_pos[i, 1]:.6g}) "
+                                 f"cannot reach its waypoint ({x:g}, {z:g}) (goals path {int(self.path[i])}): no "
+                                 f"route through the walkable area" + (f" (and {int((~ok).sum()) - 1} more)"
+                                                                        if (~ok).sum() > 1 else ""))
+
+    def _routed(self, st, has, ar):
+        """(dirs (n, 2), dist (n,)) of the routed agents towards their current waypoints (advancing reached
+        ones); agents without a path get 0 and inf (numpy: the reference of the routed step)."""
+        n = st.n
+        dirs, dist = np.empty((n, 2)), np.empty(n)
+        gid = np.where(has, self.wgoal[self.target], -1)
+        self.router.directions(st.position, gid, dirs, dist)
+        reached = has & (dist < ar)
+        if reached.any():
+            idx = np.nonzero(reached)[0]
+            t = self.target[idx] + 1
+            end = self.pstart[self.path[idx] + 1]
+            first = self.pstart[self.path[idx]]
+            t = np.where(t >= end, first if self.cfg.get("loop", True) else end - 1, t)
+            self.target[idx] = t
+            d2, s2 = np.empty((idx.size, 2)), np.empty(idx.size)
+            self.router.directions(st.position[idx], self.wgoal[t], d2, s2)
+            dirs[idx], dist[idx] = d2, s2
+        return dirs, dist
+
+    def routed_velocity_numpy(self, st) -> np.ndarray:
+        """Plain numpy reference of the routed desired velocity (``sim.routing.follow.follow_kernel``)."""
+        cfg = self.cfg
+        ar, speed, loop = float(cfg.get("arrive_radius", 2.0)), float(cfg.get("speed", 1.4)), cfg.get("loop", True)
+        out = np.zeros((st.n, 2))
+        has = self.path >= 0
+        if not has.any():
+            return out
+        dirs, dist = self._routed(st, has, ar)
+        s = np.where(has, speed, 0.0)
+        if not loop:  # arrive: slow down along the last metres of the route to the last waypoint
+            last = has & (self.target == self.pstart[np.maximum(self.path, 0) + 1] - 1)
+            s = np.where(last, speed * np.minimum(1.0, np.where(np.isfinite(dist), dist, ar) / ar), s)
+        out[:, 0] = dirs[:, 0] * s
+        out[:, 1] = dirs[:, 1] * s
+        return out
+
+    def routed_step(self, st, integrate: bool, dt: float) -> np.ndarray:
+        """The routed desired velocities (numba, one pass; :meth:`routed_velocity_numpy` is the reference);
+        ``integrate``: also the kinematic move (the goals step without boids)."""
+        if st.n != self.n:
+            self._assign(st)
+        c = self.cfg
+        if self._vd is None or self._vd.shape[0] != st.n:
+            self._vd = np.empty((st.n, 2))
+        return self.router.follow(st, self.path, self.target, self.pstart, self.wgoal, bool(c.get("loop", True)),
+                                  float(c.get("arrive_radius", 2.0)), float(c.get("speed", 1.4)), integrate, dt,
+                                  self._vd)
 
     def _assign(self, st):
         n, npaths = st.n, self.pstart.shape[0] - 1
         self.n = n
+
         if npaths == 0:
             self.path = -np.ones(n, np.int64)
             self.target = np.zeros(n, np.int64)
@@ -133,6 +230,8 @@ class Goals:
             return out
         cfg = self.cfg
         ar, speed, loop = float(cfg.get("arrive_radius", 2.0)), float(cfg.get("speed", 1.4)), cfg.get("loop", True)
+        if self.router is not None:
+            return self.routed_step(st, False, 0.0).copy()
         idx = np.nonzero(has)[0]
         t = self.target[idx]
         end = self.pstart[self.path[idx] + 1]
@@ -205,8 +304,11 @@ def _kinematic_kernel(position, velocity, heading, path, target, pstart, waypoin
 
 
 def kinematic_numpy(goals: Goals, st, dt: float) -> None:
-    """Plain numpy reference of :func:`_kinematic_kernel` (the goals step without boids)."""
-    vd = goals.desired_velocity(st)
+    """Plain numpy reference of :func:`_kinematic_kernel` (the goals step without boids), and with a router of
+    ``sim.routing.follow.follow_kernel``."""
+    if st.n != goals.n:
+        goals._assign(st)
+    vd = goals.routed_velocity_numpy(st) if goals.router is not None else goals.desired_velocity(st)
     has = goals.path >= 0
     st.velocity[has, 0] = vd[has, 0]
     st.velocity[has, 1] = 0.0
@@ -223,6 +325,9 @@ def kinematic_step(goals: Goals, st, dt: float) -> None:
         goals._assign(st)
     if goals.pstart.shape[0] < 2:
         return
+    if goals.router is not None:
+        goals.routed_step(st, True, dt)
+        return
     c = goals.cfg
     _kinematic_kernel(st.position, st.velocity, st.heading, goals.path, goals.target, goals.pstart, goals.waypoints,
                       float(c.get("arrive_radius", 2.0)), float(c.get("speed", 1.4)), bool(c.get("loop", True)),
@@ -233,6 +338,10 @@ def install(world, cfg: dict) -> None:
     """Effect ``goals``: ``world.resources["goals"]`` and step ``goals`` (before boids)."""
     goals = Goals(cfg, world.state)
     world.resources["goals"] = goals
+    if "routing" in world.resources:  # effect routing: route to the waypoints (installed first in scenes)
+        goals.bind_router(world.resources["routing"], world.state)
+    else:
+        world.resources.setdefault("routing.clients", []).append(lambda r: goals.bind_router(r, world.state))
     weight = float(cfg.get("weight", 1.0))
 
     def step(w, dt):

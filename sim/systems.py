@@ -25,6 +25,7 @@ EFFECTS: dict[str, str] = {
     "instancing": "sim.instancing",
     "avoidance": "sim.avoidance.effect",
     "journeys": "sim.journeys.effect",
+    "routing": "sim.routing.effect",
 }
 
 

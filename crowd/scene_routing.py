@@ -1,0 +1,100 @@
+"""The ``routing`` effect's scene checks (``sim/routing``), run by :mod:`crowd.scene` once the effects and props
+are parsed: everything is checked before anything is built, every problem one line naming the key.
+
+With ``routing`` listed:
+
+- exactly one of ``walkable`` (polygons with holes) and ``bounds``; the area minus the obstacles (and the
+  footprints of ``obstacle = true`` props, already added to ``obstacles``) must not be empty;
+- ``clearance = 0`` becomes the largest body radius the scene states (the ``avoidance`` radius, else the largest
+  ``[[characters]] radius`` times its scale, else 0.25 m, the generated humanoid's footprint), and at least the
+  ``obstacles`` effect's ``agent_radius`` (its hard projection keeps agents that far from walls: a route through a
+  gap it blocks would be no route); a ``clearance`` below ``agent_radius`` is an error;
+- the walls of the walkable polygons (or bounds) join the ``obstacles`` effect (listed for them with
+  ``agent_radius`` = the clearance when the scene has none), so they are drawn and hard for every model;
+- every ``goals`` waypoint must lie in the walkable area (not outside it, not inside an obstacle);
+- the effects are reordered: ``obstacles``, ``routing``, then the others in their listed order (the routing's
+  movers find the router at their install). Agents are checked at install (their positions exist then).
+
+:func:`walkable_of` gives other parsers (journeys' stages) the area to check their shapes against with
+``sim.routing.geometry.shape_problem``.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+from sim.config import AVOIDANCE_DEFAULT_RADIUS
+
+
+def _find(effects: list, name: str):
+    return next((k for k, e in enumerate(effects) if e.name == name), None)
+
+
+def body_radius(effects: list, characters: list) -> float:
+    """The largest body radius the scene states (module docstring)."""
+    av = _find(effects, "avoidance")
+    if av is not None and effects[av].params.get("radius", 0.0) > 0:
+        return float(effects[av].params["radius"])
+    given = [c.radius * c.scale for c in characters if c.radius is not None]
+    return float(max(given)) if given else AVOIDANCE_DEFAULT_RADIUS
+
+
+def walkable_of(effects: list):
+    """The scene's walkable area (``sim.routing.geometry.Walkable``, obstacles subtracted) or None without
+    ``routing``. Call after :func:`apply_routing`."""
+    at = _find(effects, "routing")
+    if at is None:
+        return None
+    from sim.routing.effect import walkable_of as _walkable
+
+    ob = _find(effects, "obstacles")
+    return _walkable(effects[at].params, effects[ob].params if ob is not None else None)
+
+
+def apply_routing(effects: list, characters: list, fail) -> None:
+    """The checks and changes of the module docstring, in place on ``effects`` (a list of ``EffectSpec``);
+    problems go to ``fail(key, message)``."""
+    at = _find(effects, "routing")
+    if at is None:
+        return
+    from crowd.scene import EffectSpec
+    from sim.obstacles import PARAMS as OBSTACLE_PARAMS
+    from sim.params import validate
+    from sim.routing.effect import walkable_of as _walkable
+    from sim.routing.effect import with_walls
+    from sim.routing.geometry import shape_problem
+
+    r = effects[at]
+    where = f"effects[{r.index}]"
+    cfg = dict(r.params)
+    if (cfg.get("walkable") is None) == (cfg.get("bounds") is None):
+        fail(where, "expected exactly one of `walkable` (polygons with holes) or `bounds` ([x0, z0, x1, z1])")
+    ob = _find(effects, "obstacles")
+    body = body_radius(effects, characters)
+    if ob is None:
+        clearance = cfg["clearance"] or body
+        obstacles = validate(OBSTACLE_PARAMS, {"agent_radius": clearance}, "obstacles")
+    else:
+        obstacles = effects[ob].params
+        ar = float(obstacles.get("agent_radius", OBSTACLE_PARAMS["agent_radius"].default))
+        if cfg["clearance"] and cfg["clearance"] < ar:
+            fail(f"{where}.clearance", f"expected >= the obstacles' agent_radius {ar:g} m (walls keep agents that "
+                                       f"far), got {cfg['clearance']:g}")
+        clearance = cfg["clearance"] or max(ar, body)
+    cfg["clearance"] = float(clearance)
+    walkable = _walkable(cfg, obstacles)
+    if walkable.area.is_empty or walkable.area.area <= 1e-9:
+        fail(where, "the walkable area is empty: the obstacles cover all of it")
+    obstacles = with_walls(cfg, obstacles)
+    g = _find(effects, "goals")
+    if g is not None:
+        for p, path in enumerate(effects[g].params.get("paths", [])):
+            for k, (x, z) in enumerate(path):
+                why = shape_problem(walkable, ("point", (x, z)))
+                if why:
+                    fail(f"effects[{effects[g].index}].paths[{p}][{k}]", f"waypoint ({x:g}, {z:g}) {why}")
+    if ob is None:
+        obs_spec = EffectSpec("obstacles", obstacles, len(effects))
+    else:
+        obs_spec = dataclasses.replace(effects[ob], params=obstacles)
+    rest = [e for k, e in enumerate(effects) if k not in (at, ob)]
+    effects[:] = [obs_spec, dataclasses.replace(r, params=cfg), *rest]
