@@ -497,12 +497,17 @@ FLAT_CANDIDATES = (ac.TrianglesCandidate, ac.ClustersCandidate, ac.PointsCandida
 def groups(sel, frame, agents, bound: float):
     """The selector's ``groups`` ([(group, [_Block], columns)] per master batch) of the agent batches
     ``agents`` ([(character, DrawBatch)] in master order), computed over flat arrays (module docstring);
-    a :class:`FlatGroups`. None when a candidate has no flat form (the per-group path then runs)."""
+    a :class:`FlatGroups`. None when a candidate has no flat form (the per-group path then runs): the flat point
+    forest holds the per-keyframe-pair octrees (``animation = "baked"``), not yet the hierarchies that follow the
+    animation."""
     order = sel._order()
     if not agents or any(type(c) not in FLAT_CANDIDATES for c in order) or \
             sum(isinstance(c, ac.PointsCandidate) for c in order) > 1 or \
             sum(isinstance(c, ac.ClustersCandidate) for c in order) > 1:
         return None
+    if any(isinstance(c, ac.PointsCandidate) and any(getattr(r, "follow", False) for r in c.by_char.values())
+           for c in order):
+        return None  # samples that follow the animation (lod.points.follow): priced group by group for now
     tri = order[0]
     gs = [FlatGroup(ri, b) for ri, b in agents]
     ids = _packed([np.asarray(b.instance_ids) for _, b in agents])

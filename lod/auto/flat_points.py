@@ -317,7 +317,9 @@ def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_
     out_t = np.empty((n_nodes, 2), np.int64)
     out_tn = np.empty(n_nodes, np.int32)
     stack = np.empty(n_nodes + 8, np.int64)
-    cs = np.empty((8, 3))
+    cs = np.empty((16, 3))
+    ref0 = np.zeros(0, np.int32)  # lod.points.traverse.NO_JOINTS: the forest holds per-keyframe-pair octrees only
+    jt0 = np.zeros((1, 1, 3, 4), np.float32)
     lo = np.empty(3)
     hi = np.empty(3)
     model = np.empty((3, 4))
@@ -364,7 +366,8 @@ def _traverse_range(node0, child_start, child_count, box0, box1, spacing, point_
             j += 1
         np_, nt = _traverse_kernel(child_start[a:e], child_count[a:e], box0[a:e], box1[a:e], spacing[a:e],
                                    point_start[a:e], point_count[a:e], tri_start[a:e], tri_count[a:e],
-                                   coarse_count[h], coarse_spacing[h], u, j, planes, model, scale, vscale,
+                                   coarse_count[h], coarse_spacing[h], ref0, jt0, 0, 0, 0.0, u, j, planes, model,
+                                   scale, vscale,
                                    splat, out_p, out_pn, out_t, out_tn, stack, cs, lo, hi)
         if npj + np_ > cap or ntj + nt > cap:
             return -1, -1

@@ -31,8 +31,10 @@ VIEWS = [Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0)), Camera.look_at((0, 40.0
 @pytest.fixture(scope="module")
 def built():
     char = humanoid(1200, 5)
+    # the per-keyframe-pair octrees: the flat point forest's (hierarchies that follow the animation are priced
+    # group by group: test_follow_points_run_the_per_group_path)
     reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
-                         progress=False)
+                         progress=False, points_params={"animation": "baked"})
     return SimpleNamespace(char=char, reps=reps, tri_reps=[reps[0]], sel=sel)
 
 
@@ -233,7 +235,7 @@ def test_root_fast_path_is_exact_at_the_thresholds():
     kernel's thresholds (the spacing test, each coarse prefix) are left to the kernel."""
     from lod.points.coarse import add_coarse, coarse_arrays
     from lod.points.octree import build_hierarchy
-    from lod.points.traverse import _traverse_kernel
+    from lod.points.traverse import NO_JOINTS, _traverse_kernel
 
     kf = build_keyframed_rep(pm.keyframed_character(humanoid(800, 2), 3), key="w")
     h = build_hierarchy(*pm.segment_arrays(kf, 0), seed=0, progress=False)
@@ -245,7 +247,7 @@ def test_root_fast_path_is_exact_at_the_thresholds():
     vs, splat = 240.0, 2.0
     N = h.n_nodes
     scratch = (np.empty((N, 2), np.int64), np.empty(N, np.int32), np.empty((N, 2), np.int64), np.empty(N, np.int32),
-               np.empty(N + 8, np.int64), np.empty((8, 3)), np.empty(3), np.empty(3))
+               np.empty(N + 8, np.int64), np.empty((16, 3)), np.empty(3), np.empty(3))
     arr = pm._harrays(h)
 
     def both(z, u=0.3, yaw=0.4, s=1.0):
@@ -260,7 +262,8 @@ def test_root_fast_path_is_exact_at_the_thresholds():
         fp._root_fast(forest.box0, forest.box1, forest.spacing, forest.point_count, forest.coarse_count,
                       forest.coarse_spacing, forest.fast, forest.node0, forest.intervals, forest.bounds, d,
                       np.zeros(1, np.int64), np.zeros(1, np.int64), planes, vs, splat, 0, 1, out)
-        np_, nt = _traverse_kernel(*arr[:9], *arr[10:12], uu, j, planes, m, sc, vs, splat, *scratch)
+        np_, nt = _traverse_kernel(*arr[:9], *arr[10:12], *NO_JOINTS, 0, 0, 0.0, uu, j, planes, m, sc, vs, splat,
+                                   *scratch)
         return int(out[0]), np_, nt, scratch[0][:np_].copy(), j
 
     def decided(z):  # the kernel's decision as a comparable value
@@ -292,3 +295,23 @@ def test_root_fast_path_is_exact_at_the_thresholds():
             assert p[0, 0] == h.point_start[0, j] and p[0, 1] == fast
     assert n_fast > 100 and n_left >= len(cuts)
     assert coarse_arrays(h)[0].shape[1] > 1
+
+
+def test_follow_points_run_the_per_group_path(monkeypatch):
+    """A point candidate whose hierarchies follow the animation (lod.points.follow) has no flat form yet: the
+    flat path declines and the selection is the per-group path's."""
+    char = humanoid(600, 3)
+    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
+                         progress=False, points_params={"animation": "follow"})
+    pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    assert all(getattr(r, "follow", False) for r in pc.by_char.values())
+    seen = []
+    orig = flat.groups
+    monkeypatch.setattr(flat, "groups", lambda *a, **k: seen.append(orig(*a, **k)) or seen[-1])
+    state = _crowd(200, 3, clips=1)
+    a, b = (am.AutoSelector(reps[:1], poe=2.0, model=CHEAP_POINTS, candidates=[pc]) for _ in range(2))
+    b.flat = False
+    da = a.select(state, VIEWS[1], SIZE)
+    assert seen == [None]
+    _same(da, b.select(state, VIEWS[1], SIZE))
+    assert da.stats["auto"]["representations"].get("points", 0) > 0

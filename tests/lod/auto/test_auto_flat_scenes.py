@@ -12,6 +12,7 @@ from crowd.engine import Engine
 from crowd.scene import load_scene
 from lod.auto import flat_plans
 from lod.auto import mode as am
+from lod.points import mode as pm
 from test_auto_flat import _same
 
 SCENES = sorted((Path(__file__).resolve().parents[3] / "scenes").glob("*.toml"))
@@ -54,6 +55,9 @@ def test_flat_selection_chooses_what_the_per_group_path_chose(path, monkeypatch)
     priced = []
     orig = flat_plans.price
     monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
+    # per-keyframe-pair point octrees (the flat point forest's; follow hierarchies are priced group by group:
+    # test_auto_flat.py::test_follow_points_run_the_per_group_path)
+    monkeypatch.setattr(pm, "animation_path", lambda ch, p: ("baked", "the flat path's octrees"))
     scene = lean(load_scene(path))
     eng = Engine(scene, quiet=True)
     sel = eng.selector
