@@ -74,8 +74,9 @@ RECEIVE_ONLY = ("static:terrain", "static:ground")
 def footprint(rep) -> tuple | None:
     """(centre x, floor y, centre z, blob radius, bounding radius) of a representation's rest pose, in model
     units, or None when it has no vertex positions (``positions``, ``positions0``, ``skinned.positions`` or
-    ``keyframed.positions0``)."""
-    for path in (("positions",), ("positions0",), ("skinned", "positions"), ("keyframed", "positions0")):
+    ``keyframed.positions0``, or those of ``base``: points that follow the animation, ``lod.points.follow``)."""
+    for path in (("positions",), ("positions0",), ("skinned", "positions"), ("keyframed", "positions0"),
+                 ("base", "positions"), ("base", "positions0")):
         obj = rep
         for name in path:
             obj = getattr(obj, name, None)

@@ -133,6 +133,8 @@ def check_model(model: Path, size: tuple, modes: tuple, keep: str | None = None)
                 poses = next((x for x in poses if x), None)
                 if poses:
                     row["poses"] = ", ".join(f"{n} {len(cp.times)}" for n, cp in poses.items())
+                elif any(getattr(r, "follow", False) for r in reps):  # lod.points.follow: one hierarchy, no poses
+                    row["poses"] = "follow"
                 scene_path = d / f"{mode}.toml"
                 scene_path.write_text(_scene_text(model, ext, center, size, mode, clip))
                 scene = load_scene(scene_path).with_overrides(out=d / f"out-{mode}")

@@ -82,7 +82,7 @@ def test_characters_cast_into_the_shadow_map(write_scene, mode):
 
 def test_point_representations_fall_back_to_blobs_in_map_mode(write_scene):
     _, _, _, counts = _frame(write_scene, "points", "map", "c.toml")
-    assert counts == {"blobs": 4, "casters": 0}
+    assert counts == {"blobs": 4, "blobs_drawn": 4, "casters": 0}
 
 
 def test_map_mode_with_mixed_triangle_and_cluster_batches_keeps_every_silhouette(write_scene):

