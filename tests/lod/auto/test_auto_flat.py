@@ -31,8 +31,8 @@ VIEWS = [Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0)), Camera.look_at((0, 40.0
 @pytest.fixture(scope="module")
 def built():
     char = humanoid(1200, 5)
-    # the per-keyframe-pair octrees: the flat point forest's (hierarchies that follow the animation are priced
-    # group by group: test_follow_points_run_the_per_group_path)
+    # the per-keyframe-pair octrees: the flat point forest's (hierarchies that follow the animation:
+    # test_follow_points_run_the_flat_path)
     reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
                          progress=False, points_params={"animation": "baked"})
     return SimpleNamespace(char=char, reps=reps, tri_reps=[reps[0]], sel=sel)
@@ -297,21 +297,34 @@ def test_root_fast_path_is_exact_at_the_thresholds():
     assert coarse_arrays(h)[0].shape[1] > 1
 
 
-def test_follow_points_run_the_per_group_path(monkeypatch):
-    """A point candidate whose hierarchies follow the animation (lod.points.follow) has no flat form yet: the
-    flat path declines and the selection is the per-group path's."""
+def test_follow_points_run_the_flat_path(monkeypatch):
+    """A point candidate whose hierarchies follow the animation (lod.points.follow) is priced by the flat path
+    (each group's options from one follow_batch, the other candidates and the plans flat) and draws what the
+    per-group path draws: several views, bounds, cost models and candidate sets, with clips of both kinds of
+    group (several clips per character)."""
     char = humanoid(600, 3)
     reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
                          progress=False, points_params={"animation": "follow"})
     pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    cl = [c for c in sel.candidates if isinstance(c, ac.ClustersCandidate)][0]
     assert all(getattr(r, "follow", False) for r in pc.by_char.values())
-    seen = []
-    orig = flat.groups
-    monkeypatch.setattr(flat, "groups", lambda *a, **k: seen.append(orig(*a, **k)) or seen[-1])
-    state = _crowd(200, 3, clips=1)
-    a, b = (am.AutoSelector(reps[:1], poe=2.0, model=CHEAP_POINTS, candidates=[pc]) for _ in range(2))
-    b.flat = False
-    da = a.select(state, VIEWS[1], SIZE)
-    assert seen == [None]
-    _same(da, b.select(state, VIEWS[1], SIZE))
-    assert da.stats["auto"]["representations"].get("points", 0) > 0
+    priced, seen = [], []
+    orig, groups = flat_plans.price, flat.groups
+    monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
+    monkeypatch.setattr(flat, "groups", lambda *a, **k: seen.append(groups(*a, **k)) or seen[-1])
+    state = _crowd(300, 3)
+    plans, n = set(), 0
+    for model in (MODEL, FREE_PASSES, CHEAP_POINTS):
+        for cands in ([cl, pc], [pc]):
+            for poe in (0.0, 1.0, 3.0):
+                a, b = (am.AutoSelector(reps[:1], poe=poe, model=model, candidates=cands) for _ in range(2))
+                b.flat = False
+                for cam in VIEWS:
+                    da = a.select(state, cam, SIZE)
+                    _same(da, b.select(state, cam, SIZE))
+                    plans.add(da.stats["auto"]["plan"])
+                    n += da.stats["auto"]["representations"].get("points", 0)
+    assert len(priced) == len(seen) == 3 * 2 * 3 * len(VIEWS)
+    assert all(isinstance(g, flat.FlatGroups) for g in seen)
+    assert {"triangles", "points", "mixed"} <= plans, plans
+    assert n > 0
