@@ -297,14 +297,56 @@ def test_root_fast_path_is_exact_at_the_thresholds():
     assert coarse_arrays(h)[0].shape[1] > 1
 
 
-def test_follow_points_run_the_flat_path(monkeypatch):
+@pytest.fixture(scope="module")
+def follow_built():
+    char = humanoid(600, 3)
+    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
+                         progress=False, points_params={"animation": "follow"})
+    return SimpleNamespace(reps=reps, sel=sel)
+
+
+def test_follow_traverse_equals_traverse_instances(follow_built):
+    """The flat path's traversal of a follow hierarchy (the root decided in line) gives traverse_instances'
+    jobs, totals and deepest nodes exactly: near and far views, whole and fractional baked rows, non-finite
+    and out-of-range frame coordinates, splats 1-3, serial and chunked (parallel) runs."""
+    from lod.points.traverse import viewport_scale
+
+    pc = [c for c in follow_built.sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    rep = next(iter(pc.by_char.values()))
+    vs = viewport_scale(SIZE[1], VIEWS[0].fov_y)
+    rng = np.random.default_rng(5)
+    n_root = n_deep = 0
+    for part in range(rep.n_parts):
+        h = rep.view(part)
+        F = h.joint_table.shape[0]
+        for k, cam in ((600, VIEWS[0]), (600, VIEWS[1]), (600, VIEWS[2]), (30_000, VIEWS[3])):
+            pos = np.column_stack([rng.uniform(-60, 60, k), np.zeros(k), rng.uniform(-400, 10, k)])
+            th, s = rng.uniform(0, 6.3, k), rng.uniform(0.8, 1.3, k)
+            d = np.zeros((k, 16), np.float32)
+            d[:, 0], d[:, 2], d[:, 5] = s * np.cos(th), s * np.sin(th), s
+            d[:, 8], d[:, 10] = -s * np.sin(th), s * np.cos(th)
+            d[:, [3, 7, 11]] = pos - np.asarray(cam.position)
+            f = rng.uniform(0, F - 1, k)
+            f[::2] = np.round(f[::2])  # whole rows (pose_rate "key") and fractional ones
+            f[:6] = [np.nan, -3.0, 1e6, np.inf, 0.0, F - 1]
+            d[:, 12] = f
+            planes = cam.frustum_planes(SIZE[0] / SIZE[1])
+            for p in (1, 2, 3):
+                want = pm.traverse_instances(h, d, planes, vs, p, totals=True, deepest=True)
+                got = fp.follow_traverse(h, d, planes, vs, p)
+                for x, y in zip(got, want):
+                    np.testing.assert_array_equal(x, y)
+                n_root += int((want[4] <= 0).sum())
+                n_deep += int((want[4] > 0).sum())
+    assert n_root > 1000 and n_deep > 100, (n_root, n_deep)
+
+
+def test_follow_points_run_the_flat_path(follow_built, monkeypatch):
     """A point candidate whose hierarchies follow the animation (lod.points.follow) is priced by the flat path
     (each group's options from one follow_batch, the other candidates and the plans flat) and draws what the
     per-group path draws: several views, bounds, cost models and candidate sets, with clips of both kinds of
     group (several clips per character)."""
-    char = humanoid(600, 3)
-    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
-                         progress=False, points_params={"animation": "follow"})
+    reps, sel = follow_built.reps, follow_built.sel
     pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
     cl = [c for c in sel.candidates if isinstance(c, ac.ClustersCandidate)][0]
     assert all(getattr(r, "follow", False) for r in pc.by_char.values())
