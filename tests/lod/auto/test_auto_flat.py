@@ -370,3 +370,41 @@ def test_follow_points_run_the_flat_path(follow_built, monkeypatch):
     assert all(isinstance(g, flat.FlatGroups) for g in seen)
     assert {"triangles", "points", "mixed"} <= plans, plans
     assert n > 0
+
+
+@pytest.mark.parametrize("keyframed", ["baked", "follow"])
+def test_follow_and_other_points_in_one_flat_selection(keyframed, monkeypatch):
+    """A skinned character that follows the animation beside a keyframed one whose points are the baked
+    per-keyframe-pair octrees (the default for a short keyframe animation) or follow too (keyframed follow:
+    node boxes at the segment's ends, u in column 12): one flat selection prices both kinds of group and draws
+    what the per-group path draws."""
+    if keyframed == "follow":
+        monkeypatch.setattr(pm, "animation_path", lambda ch, p: ("follow", "test"))
+    chars = [humanoid(600, 3), pm.keyframed_character(humanoid(500, 2), 3)]
+    reps, sel = am.build(chars, ["h", "k"], [30, 30], {"poe": 0.0, "keyframes": 2}, cache=False,
+                         model=CHEAP_POINTS, progress=False)
+    pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    cl = [c for c in sel.candidates if isinstance(c, ac.ClustersCandidate)][0]
+    assert getattr(pc.by_char[0], "follow", False)
+    assert getattr(pc.by_char[1], "follow", False) == (keyframed == "follow")
+    priced = []
+    orig = flat_plans.price
+    monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
+    state = _crowd(400, 7)
+    state.character = np.random.default_rng(2).integers(0, 2, state.n)
+    state.clip = np.where(state.character == 0, state.clip, 0)
+    n, calls = {0: 0, 1: 0}, 0
+    for model in (MODEL, CHEAP_POINTS):
+        for cands in ([cl, pc], [pc]):
+            for poe in (1.0, 3.0):
+                a, b = (am.AutoSelector(reps[:2], poe=poe, model=model, candidates=cands) for _ in range(2))
+                b.flat = False
+                for cam in VIEWS:
+                    da = a.select(state, cam, SIZE)
+                    _same(da, b.select(state, cam, SIZE))
+                    calls += 1
+                    for x in da.batches:
+                        if str(x.rep).startswith("points:"):
+                            n[0 if x.rep == pc.by_char[0].key else 1] += x.n_instances
+    assert len(priced) == calls
+    assert n[0] > 0 and n[1] > 0, n
