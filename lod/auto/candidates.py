@@ -568,9 +568,10 @@ class PointsCandidate(Candidate):
                                          frame.scale_px)[:, 0]
         return Options(cost[:, None], err[:, None], (r, data, ids, order, jobs, pts, tris, p), (f"splat{p}",))
 
-    def _follow_options(self, frame, group, r, p: int):
+    def _follow_options(self, frame, group, r, p: int, traverse=None):
         """Options of a character whose samples follow the animation: its hierarchy at each copy's own pose
-        (no keyframe deviation: the samples follow the skinned animation exactly)."""
+        (no keyframe deviation: the samples follow the skinned animation exactly). ``traverse``: the
+        traversal :func:`lod.points.follow_select.follow_batch` runs (default its own)."""
         from dataclasses import replace
 
         from lod.points.follow_select import follow_batch
@@ -582,7 +583,7 @@ class PointsCandidate(Candidate):
             t = np.asarray(frame.state.anim_time, np.float64)[np.asarray(b.instance_ids, np.int64)]
             data[:, 12] = r.base.frame_coordinate(np.full(group.k, int(b.part)), t)
         vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
-        fb = follow_batch(r, replace(b, rep=r.key, instance_data=data), frame.planes, vs, p)
+        fb = follow_batch(r, replace(b, rep=r.key, instance_data=data), frame.planes, vs, p, traverse=traverse)
         c = frame.model.coefficients
         cost = c["points"] * fb.inst_points + c["triangles"] * fb.inst_triangles + c["point_instances"]
         err = np.full(group.k, float(p))

@@ -11,7 +11,11 @@ layout.
 Here the work is a few numba passes over the instances of all groups at once, written straight into the
 side-by-side layout (one row per candidate, one column per instance, groups in master order; a group
 without a candidate's block has +inf there): the point candidate's segments, sort and traversal
-(:mod:`lod.auto.flat_points`, with an exact decision at the root for far instances), then one pass
+(:mod:`lod.auto.flat_points`, with an exact decision at the root for far instances; a character whose
+samples follow the animation, :mod:`lod.points.follow`, has one hierarchy traversed at each copy's pose:
+its groups get the candidate's own options, one :func:`lod.points.follow_select.follow_batch` per group
+traversed by :func:`lod.auto.flat_points.follow_traverse` (the same results, the root decided in line),
+whose per-instance totals the pass below prices), then one pass
 (:func:`_rows_kernel`) that reads each instance's model rows once and fills every candidate's row: the
 triangle chain's cheapest admissible level (the projected error of
 :func:`lod.auto.candidates.projected_errors` per level), the point candidate's price, the cluster
@@ -283,7 +287,13 @@ def _tri_errors(rep, g, scale_px):
 class _PointsFrame:
     """The point candidate's frame before the pass over the instances: segments located, instances sorted
     and traversed (:mod:`lod.auto.flat_points`); ``tables`` for :func:`_rows_kernel`; :meth:`options`
-    after it."""
+    after it. A group whose rep follows the animation (``follow``) is not sorted into the forest's bins:
+    its Options are the candidate's (:meth:`lod.auto.candidates.PointsCandidate._follow_options`, one
+    follow batch traversed by :func:`lod.auto.flat_points.follow_traverse`: the plan
+    ``("follow", rep, batch, splat)`` its emission reads), and its instances' rows
+    of the traversal totals (``pos``) point at the batch's per-instance totals, appended after the sorted
+    rows', so the pass prices them by the same expression (no keyframe deviation: the samples follow the
+    skinned animation exactly)."""
 
     def __init__(self, c, frame, fl, bound, coef, g_a, t_sphere):
         from lod.points.traverse import viewport_scale
@@ -293,9 +303,12 @@ class _PointsFrame:
         self.c, self.fl = c, fl
         p = self.p = c.splat_size(bound)
         forest = getattr(c, "_flat_forest", None)
-        if forest is None:
-            forest = c._flat_forest = fp.build_forest(c.by_char)
+        if forest is None:  # the per-keyframe-pair octrees (reps that follow the animation have none)
+            forest = c._flat_forest = fp.build_forest({ch: r for ch, r in c.by_char.items()
+                                                        if not getattr(r, "follow", False)})
         g_on = self.g_on = np.zeros(G, np.bool_)
+        g_bins = np.zeros(G, np.bool_)  # the group's instances are sorted into the forest's bins
+        self.follow = {}  # group -> its Options from the follow hierarchy (lod.points.follow_select)
         g_skinned = self.g_skinned = np.zeros(G, np.bool_)
         g_ns = self.g_ns = np.zeros(G, np.int64)
         g_soff = np.zeros(G, np.int64)
@@ -313,6 +326,10 @@ class _PointsFrame:
             if rep is None or g_a[gi] < 0:
                 continue
             g_on[gi] = True
+            if getattr(rep, "follow", False):  # the candidate's own per-group options: one follow_batch
+                self.follow[gi] = c._follow_options(frame, g, rep, p, traverse=fp.follow_traverse)
+                continue
+            g_bins[gi] = True
             g_bin0[gi] = len(bin_h)
             part = int(g.batch.part)
             if c.kinds[g.char] == "keyframed":
@@ -344,7 +361,7 @@ class _PointsFrame:
         binof = np.empty(N, np.int64)
         uof = np.empty(N, np.float64)
         cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(1))
-        fp._locate_kernel(ids, gof, g_on, g_skinned, g_ns, g_soff, g_t0, g_dur, g_loop, g_bin0, cat(starts),
+        fp._locate_kernel(ids, gof, g_bins, g_skinned, g_ns, g_soff, g_t0, g_dur, g_loop, g_bin0, cat(starts),
                           cat(ends), np.ascontiguousarray(frame.state.anim_time, np.float64), binof, uof)
         chunks = max(1, min(64, N // 16384))
         first = np.linspace(0, N, chunks + 1).astype(np.int64)
@@ -364,6 +381,17 @@ class _PointsFrame:
         vs = viewport_scale(max(1, int(frame.size[1])), frame.camera.fov_y)
         self.pj, self.tj, psum, tsum, self.pj_at, self.tj_at = fp.traverse(
             forest, self.pdata, kbin, np.array(bin_h + [0], np.int64), bstart[:B + 1], frame.planes, vs, float(p))
+        if self.follow:  # the follow groups' totals after the sorted rows' (pos points there)
+            gstart, fpts, ftris = fl["gstart"], [psum], [tsum]
+            at = psum.shape[0]
+            for gi, o in self.follow.items():
+                fb = o.plan[2]
+                a, e = int(gstart[gi]), int(gstart[gi + 1])
+                pos[a:e] = np.arange(at, at + (e - a))
+                fpts.append(np.asarray(fb.inst_points, np.int64))
+                ftris.append(np.asarray(fb.inst_triangles, np.int64))
+                at += e - a
+            psum, tsum = np.concatenate(fpts), np.concatenate(ftris)
         self.pts, self.tris = np.empty(N, np.int64), np.empty(N, np.int64)
         self.cost, self.err = np.empty(N), np.empty(N)
         self.tables = (g_on, np.maximum(g_a, 0), g_dev, g_same, g_sphere, pos, psum, tsum, float(coef["points"]),
@@ -378,6 +406,9 @@ class _PointsFrame:
         opts = [None] * len(fl["groups"])
         for gi, g in enumerate(fl["groups"]):
             if not self.g_on[gi]:
+                continue
+            if gi in self.follow:
+                opts[gi] = self.follow[gi]
                 continue
             b0 = int(self.g_bin0[gi])
             nb = 1 if not self.g_skinned[gi] else int(self.g_ns[gi])
@@ -497,17 +528,14 @@ FLAT_CANDIDATES = (ac.TrianglesCandidate, ac.ClustersCandidate, ac.PointsCandida
 def groups(sel, frame, agents, bound: float):
     """The selector's ``groups`` ([(group, [_Block], columns)] per master batch) of the agent batches
     ``agents`` ([(character, DrawBatch)] in master order), computed over flat arrays (module docstring);
-    a :class:`FlatGroups`. None when a candidate has no flat form (the per-group path then runs): the flat point
-    forest holds the per-keyframe-pair octrees (``animation = "baked"``), not yet the hierarchies that follow the
-    animation."""
+    a :class:`FlatGroups`. None when a candidate has no flat form (the per-group path then runs). The flat point
+    forest holds the per-keyframe-pair octrees (``animation = "baked"``); a group of a rep that follows the
+    animation is priced from its own follow batch (:class:`_PointsFrame`)."""
     order = sel._order()
     if not agents or any(type(c) not in FLAT_CANDIDATES for c in order) or \
             sum(isinstance(c, ac.PointsCandidate) for c in order) > 1 or \
             sum(isinstance(c, ac.ClustersCandidate) for c in order) > 1:
         return None
-    if any(isinstance(c, ac.PointsCandidate) and any(getattr(r, "follow", False) for r in c.by_char.values())
-           for c in order):
-        return None  # samples that follow the animation (lod.points.follow): priced group by group for now
     tri = order[0]
     gs = [FlatGroup(ri, b) for ri, b in agents]
     ids = _packed([np.asarray(b.instance_ids) for _, b in agents])

@@ -69,13 +69,17 @@ def _prefixes(rep, slot, n_poses: int, deep) -> tuple[np.ndarray, np.ndarray]:
             np.where(have, t.vprefix[np.maximum(d, 0)], 0).astype(np.int64))
 
 
-def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE) -> FollowBatch:
+def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE, traverse=None) -> FollowBatch:
     """The :class:`lod.points.rep.FollowBatch` of one culled and located batch of ``rep`` (instances of one
     clip, or one segment): poses quantised (module docstring), the hierarchy traversed at each instance's pose
     (``lod.points.mode.traverse_instances``), the prefixes of every distinct pose. The batch also keeps each
     instance's point and triangle totals and deepest node (``inst_points``, ``inst_triangles``, ``deep``) for
-    :func:`subset` (mode auto's choice among candidates)."""
+    :func:`subset` (mode auto's choice among candidates). ``traverse``: a function with
+    ``traverse_instances``' signature and results (mode auto's flat path passes
+    ``lod.auto.flat_points.follow_traverse``); default ``traverse_instances``."""
     from lod.points.mode import traverse_instances
+
+    traverse = traverse_instances if traverse is None else traverse
 
     data = np.array(batch.instance_data, np.float32)
     col = data[:, 12].astype(np.float64)
@@ -85,7 +89,7 @@ def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE)
         q = quantise_u(rep.base, int(batch.part), col, rate)
     data[:, 12] = q
     pose, slot = np.unique(data[:, 12].astype(np.float64), return_inverse=True)
-    pj, tj, psum, tsum, deep = traverse_instances(rep.view(batch.part), data, planes, vscale, splat, totals=True,
+    pj, tj, psum, tsum, deep = traverse(rep.view(batch.part), data, planes, vscale, splat, totals=True,
                                                   deepest=True)
     pts, vts = _prefixes(rep, slot, pose.shape[0], deep)
     fb = FollowBatch(batch.rep, int(batch.part), batch.instance_ids, data, triangles=int(tsum.sum()),

@@ -31,8 +31,8 @@ VIEWS = [Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0)), Camera.look_at((0, 40.0
 @pytest.fixture(scope="module")
 def built():
     char = humanoid(1200, 5)
-    # the per-keyframe-pair octrees: the flat point forest's (hierarchies that follow the animation are priced
-    # group by group: test_follow_points_run_the_per_group_path)
+    # the per-keyframe-pair octrees: the flat point forest's (hierarchies that follow the animation:
+    # test_follow_points_run_the_flat_path)
     reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
                          progress=False, points_params={"animation": "baked"})
     return SimpleNamespace(char=char, reps=reps, tri_reps=[reps[0]], sel=sel)
@@ -297,21 +297,114 @@ def test_root_fast_path_is_exact_at_the_thresholds():
     assert coarse_arrays(h)[0].shape[1] > 1
 
 
-def test_follow_points_run_the_per_group_path(monkeypatch):
-    """A point candidate whose hierarchies follow the animation (lod.points.follow) has no flat form yet: the
-    flat path declines and the selection is the per-group path's."""
+@pytest.fixture(scope="module")
+def follow_built():
     char = humanoid(600, 3)
     reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
                          progress=False, points_params={"animation": "follow"})
+    return SimpleNamespace(reps=reps, sel=sel)
+
+
+def test_follow_traverse_equals_traverse_instances(follow_built):
+    """The flat path's traversal of a follow hierarchy (the root decided in line) gives traverse_instances'
+    jobs, totals and deepest nodes exactly: near and far views, whole and fractional baked rows, non-finite
+    and out-of-range frame coordinates, splats 1-3, serial and chunked (parallel) runs."""
+    from lod.points.traverse import viewport_scale
+
+    pc = [c for c in follow_built.sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    rep = next(iter(pc.by_char.values()))
+    vs = viewport_scale(SIZE[1], VIEWS[0].fov_y)
+    rng = np.random.default_rng(5)
+    n_root = n_deep = 0
+    for part in range(rep.n_parts):
+        h = rep.view(part)
+        F = h.joint_table.shape[0]
+        for k, cam in ((600, VIEWS[0]), (600, VIEWS[1]), (600, VIEWS[2]), (30_000, VIEWS[3])):
+            pos = np.column_stack([rng.uniform(-60, 60, k), np.zeros(k), rng.uniform(-400, 10, k)])
+            th, s = rng.uniform(0, 6.3, k), rng.uniform(0.8, 1.3, k)
+            d = np.zeros((k, 16), np.float32)
+            d[:, 0], d[:, 2], d[:, 5] = s * np.cos(th), s * np.sin(th), s
+            d[:, 8], d[:, 10] = -s * np.sin(th), s * np.cos(th)
+            d[:, [3, 7, 11]] = pos - np.asarray(cam.position)
+            f = rng.uniform(0, F - 1, k)
+            f[::2] = np.round(f[::2])  # whole rows (pose_rate "key") and fractional ones
+            f[:6] = [np.nan, -3.0, 1e6, np.inf, 0.0, F - 1]
+            d[:, 12] = f
+            planes = cam.frustum_planes(SIZE[0] / SIZE[1])
+            for p in (1, 2, 3):
+                want = pm.traverse_instances(h, d, planes, vs, p, totals=True, deepest=True)
+                got = fp.follow_traverse(h, d, planes, vs, p)
+                for x, y in zip(got, want):
+                    np.testing.assert_array_equal(x, y)
+                n_root += int((want[4] <= 0).sum())
+                n_deep += int((want[4] > 0).sum())
+    assert n_root > 1000 and n_deep > 100, (n_root, n_deep)
+
+
+def test_follow_points_run_the_flat_path(follow_built, monkeypatch):
+    """A point candidate whose hierarchies follow the animation (lod.points.follow) is priced by the flat path
+    (each group's options from one follow_batch, the other candidates and the plans flat) and draws what the
+    per-group path draws: several views, bounds, cost models and candidate sets, with clips of both kinds of
+    group (several clips per character)."""
+    reps, sel = follow_built.reps, follow_built.sel
     pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    cl = [c for c in sel.candidates if isinstance(c, ac.ClustersCandidate)][0]
     assert all(getattr(r, "follow", False) for r in pc.by_char.values())
-    seen = []
-    orig = flat.groups
-    monkeypatch.setattr(flat, "groups", lambda *a, **k: seen.append(orig(*a, **k)) or seen[-1])
-    state = _crowd(200, 3, clips=1)
-    a, b = (am.AutoSelector(reps[:1], poe=2.0, model=CHEAP_POINTS, candidates=[pc]) for _ in range(2))
-    b.flat = False
-    da = a.select(state, VIEWS[1], SIZE)
-    assert seen == [None]
-    _same(da, b.select(state, VIEWS[1], SIZE))
-    assert da.stats["auto"]["representations"].get("points", 0) > 0
+    priced, seen = [], []
+    orig, groups = flat_plans.price, flat.groups
+    monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
+    monkeypatch.setattr(flat, "groups", lambda *a, **k: seen.append(groups(*a, **k)) or seen[-1])
+    state = _crowd(300, 3)
+    plans, n = set(), 0
+    for model in (MODEL, FREE_PASSES, CHEAP_POINTS):
+        for cands in ([cl, pc], [pc]):
+            for poe in (0.0, 1.0, 3.0):
+                a, b = (am.AutoSelector(reps[:1], poe=poe, model=model, candidates=cands) for _ in range(2))
+                b.flat = False
+                for cam in VIEWS:
+                    da = a.select(state, cam, SIZE)
+                    _same(da, b.select(state, cam, SIZE))
+                    plans.add(da.stats["auto"]["plan"])
+                    n += da.stats["auto"]["representations"].get("points", 0)
+    assert len(priced) == len(seen) == 3 * 2 * 3 * len(VIEWS)
+    assert all(isinstance(g, flat.FlatGroups) for g in seen)
+    assert {"triangles", "points", "mixed"} <= plans, plans
+    assert n > 0
+
+
+@pytest.mark.parametrize("keyframed", ["baked", "follow"])
+def test_follow_and_other_points_in_one_flat_selection(keyframed, monkeypatch):
+    """A skinned character that follows the animation beside a keyframed one whose points are the baked
+    per-keyframe-pair octrees (the default for a short keyframe animation) or follow too (keyframed follow:
+    node boxes at the segment's ends, u in column 12): one flat selection prices both kinds of group and draws
+    what the per-group path draws."""
+    if keyframed == "follow":
+        monkeypatch.setattr(pm, "animation_path", lambda ch, p: ("follow", "test"))
+    chars = [humanoid(600, 3), pm.keyframed_character(humanoid(500, 2), 3)]
+    reps, sel = am.build(chars, ["h", "k"], [30, 30], {"poe": 0.0, "keyframes": 2}, cache=False,
+                         model=CHEAP_POINTS, progress=False)
+    pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
+    cl = [c for c in sel.candidates if isinstance(c, ac.ClustersCandidate)][0]
+    assert getattr(pc.by_char[0], "follow", False)
+    assert getattr(pc.by_char[1], "follow", False) == (keyframed == "follow")
+    priced = []
+    orig = flat_plans.price
+    monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
+    state = _crowd(400, 7)
+    state.character = np.random.default_rng(2).integers(0, 2, state.n)
+    state.clip = np.where(state.character == 0, state.clip, 0)
+    n, calls = {0: 0, 1: 0}, 0
+    for model in (MODEL, CHEAP_POINTS):
+        for cands in ([cl, pc], [pc]):
+            for poe in (1.0, 3.0):
+                a, b = (am.AutoSelector(reps[:2], poe=poe, model=model, candidates=cands) for _ in range(2))
+                b.flat = False
+                for cam in VIEWS:
+                    da = a.select(state, cam, SIZE)
+                    _same(da, b.select(state, cam, SIZE))
+                    calls += 1
+                    for x in da.batches:
+                        if str(x.rep).startswith("points:"):
+                            n[0 if x.rep == pc.by_char[0].key else 1] += x.n_instances
+    assert len(priced) == calls
+    assert n[0] > 0 and n[1] > 0, n

@@ -10,7 +10,7 @@ import pytest
 
 from crowd.engine import Engine
 from crowd.scene import load_scene
-from lod.auto import flat_plans
+from lod.auto import flat, flat_plans
 from lod.auto import mode as am
 from lod.points import mode as pm
 from test_auto_flat import _same
@@ -50,18 +50,35 @@ def lean(scene):
     return s.with_overrides(size=SIZE)
 
 
+FOLLOWED = []  # scenes whose point candidate has a hierarchy that follows the animation, priced flat
+RAN = []  # scenes whose follow run passed
+
+
+@pytest.mark.parametrize("animation", ["baked", "follow"])
 @pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
-def test_flat_selection_chooses_what_the_per_group_path_chose(path, monkeypatch):
-    priced = []
-    orig = flat_plans.price
+def test_flat_selection_chooses_what_the_per_group_path_chose(path, animation, monkeypatch):
+    """``baked``: every character's point hierarchies are the per-keyframe-pair octrees (the flat point
+    forest's); ``follow``: each character's own default (skinned ones follow the animation, lod.points.follow:
+    their groups priced by one follow_batch each inside the flat path)."""
+    priced, calls = [], []
+    orig, groups = flat_plans.price, flat.groups
     monkeypatch.setattr(flat_plans, "price", lambda *a, **k: priced.append(1) or orig(*a, **k))
-    # per-keyframe-pair point octrees (the flat point forest's; follow hierarchies are priced group by group:
-    # test_auto_flat.py::test_follow_points_run_the_per_group_path)
-    monkeypatch.setattr(pm, "animation_path", lambda ch, p: ("baked", "the flat path's octrees"))
+
+    def grouped(sel, frame, agents, bound):
+        out = groups(sel, frame, agents, bound)
+        if agents:  # none (every agent drawn whole from a super node): nothing to price
+            calls.append(out)
+        return out
+
+    monkeypatch.setattr(flat, "groups", grouped)
+    if animation == "baked":
+        monkeypatch.setattr(pm, "animation_path", lambda ch, p: ("baked", "the flat path's octrees"))
     scene = lean(load_scene(path))
     eng = Engine(scene, quiet=True)
     sel = eng.selector
     assert isinstance(sel, am.AutoSelector)
+    follow = any(getattr(r, "follow", False) for c in sel.candidates for r in getattr(c, "by_char", {}).values())
+    assert not (follow and animation == "baked")
     ref = am.AutoSelector(sel.reps, poe=sel.poe, budget_ms=sel.budget_ms, model=sel.prior, cull=sel.cull,
                           candidates=sel.candidates[1:], adapt=sel.adapt)
     ref.flat = False
@@ -74,5 +91,18 @@ def test_flat_selection_chooses_what_the_per_group_path_chose(path, monkeypatch)
         _same(a, b)
         n_inst += a.stats["instances"]
     assert n_inst > 0, f"{path.name}: nothing in view"
-    assert len(priced) == 2, "the flat path was not taken"
+    assert all(isinstance(g, flat.FlatGroups) for g in calls), "the flat path was not taken"
+    assert len(priced) == len(calls) == (2 if animation == "baked" else len(calls))
     assert eng.world.state.n <= 2000
+    if animation == "follow":
+        RAN.append(path.stem)
+        if follow and priced:
+            FOLLOWED.append(path.stem)
+
+
+def test_some_scenes_ran_follow_points_flat():
+    """The follow runs above met hierarchies that follow the animation, in several scenes (runs after them, in
+    file order; only when every follow run ran and passed)."""
+    if len(RAN) < len(SCENES):
+        pytest.skip("not every follow run ran in this session")
+    assert len(FOLLOWED) >= 3, FOLLOWED
