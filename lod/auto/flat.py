@@ -14,7 +14,7 @@ without a candidate's block has +inf there): the point candidate's segments, sor
 (:mod:`lod.auto.flat_points`, with an exact decision at the root for far instances; a character whose
 samples follow the animation, :mod:`lod.points.follow`, has one hierarchy traversed at each copy's pose:
 its groups get the candidate's own options, one :func:`lod.points.follow_select.follow_batch` per group
-traversed by :func:`lod.auto.flat_points.follow_traverse` (the same results, the root decided in line),
+traversed by :func:`lod.points.follow_traverse.follow_traverse` (the same results, the root decided in line),
 whose per-instance totals the pass below prices), then one pass
 (:func:`_rows_kernel`) that reads each instance's model rows once and fills every candidate's row: the
 triangle chain's cheapest admissible level (the projected error of
@@ -40,6 +40,7 @@ from numba import njit, prange
 
 from lod.auto import candidates as ac
 from lod.auto import flat_points as fp
+from lod.points.follow_traverse import follow_traverse
 from lod.auto.plans import _Block
 
 class FlatGroup:
@@ -289,7 +290,7 @@ class _PointsFrame:
     and traversed (:mod:`lod.auto.flat_points`); ``tables`` for :func:`_rows_kernel`; :meth:`options`
     after it. A group whose rep follows the animation (``follow``) is not sorted into the forest's bins:
     its Options are the candidate's (:meth:`lod.auto.candidates.PointsCandidate._follow_options`, one
-    follow batch traversed by :func:`lod.auto.flat_points.follow_traverse`: the plan
+    follow batch traversed by :func:`lod.points.follow_traverse.follow_traverse`: the plan
     ``("follow", rep, batch, splat)`` its emission reads), and its instances' rows
     of the traversal totals (``pos``) point at the batch's per-instance totals, appended after the sorted
     rows', so the pass prices them by the same expression (no keyframe deviation: the samples follow the
@@ -327,7 +328,7 @@ class _PointsFrame:
                 continue
             g_on[gi] = True
             if getattr(rep, "follow", False):  # the candidate's own per-group options: one follow_batch
-                self.follow[gi] = c._follow_options(frame, g, rep, p, traverse=fp.follow_traverse)
+                self.follow[gi] = c._follow_options(frame, g, rep, p, traverse=follow_traverse)
                 continue
             g_bins[gi] = True
             g_bin0[gi] = len(bin_h)

@@ -18,6 +18,7 @@ Modules in data-flow order:
 - ``lod.points.follow``: one hierarchy of rest-pose samples per character that follows the animation
   (``FollowHierarchy``, ``FollowRep``, build and cache; memory independent of the clips' length).
 - ``lod.points.follow_select``: per frame, the copies' shared poses, the traversal at them and each pose's prefixes.
+- ``lod.points.follow_traverse``: that traversal for many instances at once, each root decided in line.
 - ``lod.points.paths``: which path a character takes ([lod] animation: follow or baked) and why.
 - ``lod.points.mode``: the builder and ``PointsSelector`` (many instances traversed at once); the mode protocol.
 

@@ -75,11 +75,11 @@ def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE,
     (``lod.points.mode.traverse_instances``), the prefixes of every distinct pose. The batch also keeps each
     instance's point and triangle totals and deepest node (``inst_points``, ``inst_triangles``, ``deep``) for
     :func:`subset` (mode auto's choice among candidates). ``traverse``: a function with
-    ``traverse_instances``' signature and results (mode auto's flat path passes
-    ``lod.auto.flat_points.follow_traverse``); default ``traverse_instances``."""
-    from lod.points.mode import traverse_instances
+    ``traverse_instances``' signature and results; default :func:`lod.points.follow_traverse.follow_traverse`
+    (the same results, each instance's root decided in line: far crowds stop there)."""
+    from lod.points.follow_traverse import follow_traverse
 
-    traverse = traverse_instances if traverse is None else traverse
+    traverse = follow_traverse if traverse is None else traverse
 
     data = np.array(batch.instance_data, np.float32)
     col = data[:, 12].astype(np.float64)

@@ -12,6 +12,7 @@ from lod.auto import candidates as ac
 from lod.auto import cost_model
 from lod.auto import flat, flat_plans
 from lod.auto import flat_points as fp
+from lod.points.follow_traverse import follow_traverse
 from lod.auto import mode as am
 from lod.full.reps import build_keyframed_rep
 from lod.points import mode as pm
@@ -333,7 +334,7 @@ def test_follow_traverse_equals_traverse_instances(follow_built):
             planes = cam.frustum_planes(SIZE[0] / SIZE[1])
             for p in (1, 2, 3):
                 want = pm.traverse_instances(h, d, planes, vs, p, totals=True, deepest=True)
-                got = fp.follow_traverse(h, d, planes, vs, p)
+                got = follow_traverse(h, d, planes, vs, p)
                 for x, y in zip(got, want):
                     np.testing.assert_array_equal(x, y)
                 n_root += int((want[4] <= 0).sum())
