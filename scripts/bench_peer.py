@@ -89,7 +89,10 @@ def scenario(extent: float, n: int) -> dict:
             "near": 0.01 * width, "far": 10.0 * width, "width": width, "spacing": s}
 
 
-def scene_text(model: Path, clip: str, sc: dict, size, phase: str = "zero") -> str:
+def scene_text(model: Path, clip: str, sc: dict, size, phase: str = "zero", bare: bool = False) -> str:
+    """The generated scene of our side; ``bare``: no ground plane and no shadows (what the peer draws: the actors
+    on the background), else the scene defaults (a ground plane and blob shadows)."""
+    extra = '\nground = false\nshadows = "none"' if bare else ""
     pos = ", ".join(f"[{x:.6g}, {y:.6g}, {z:.6g}]" for x, y, z in sc["positions"])
     return f"""name = "bench_peer"
 seed = 0
@@ -116,7 +119,7 @@ position = [{sc['eye'][0]:.6g}, {sc['eye'][1]:.6g}, {sc['eye'][2]:.6g}]
 target = [0.0, 0.0, 0.0]
 
 [render]
-size = [{size[0]}, {size[1]}]
+size = [{size[0]}, {size[1]}]{extra}
 
 [lod]
 mode = "none"
@@ -192,6 +195,8 @@ def main(argv=None) -> int:
     ap.add_argument("--phase", choices=("zero", "random"), default="zero",
                     help="every copy from time 0 (default: one shared pose), or each at a random time of its clip "
                          "(the same times on both sides)")
+    ap.add_argument("--bare", action="store_true",
+                    help="our side without the ground plane and blob shadows (the peer draws neither)")
     ap.add_argument("--models-dir", type=Path, default=ROOT / "out" / "bench_peer" / "models")
     ap.add_argument("--png", type=Path, help="write the last frame of each side here")
     ap.add_argument("--out", type=Path, default=ROOT / "scripts" / "bench_peer.md")
@@ -233,7 +238,7 @@ def main(argv=None) -> int:
             sc = scenario(extent, n)
             with tempfile.TemporaryDirectory() as td:
                 scene_path = Path(td) / "bench_peer.toml"
-                scene_path.write_text(scene_text(path.resolve(), clip, sc, size, args.phase))
+                scene_path.write_text(scene_text(path.resolve(), clip, sc, size, args.phase, args.bare))
                 eng = Engine(load_scene(scene_path), quiet=True)
                 phases = eng.world.state.anim_time.copy() if args.phase == "random" else None
                 try:
