@@ -22,8 +22,8 @@ instances of every group at once:
 
 A character whose samples follow the animation (:mod:`lod.points.follow`: one hierarchy, node boxes in
 joint frames, each copy at its own baked row) is not in the forest: its groups are traversed one call each
-by :func:`lod.points.follow_traverse.follow_traverse`, :func:`lod.points.mode.traverse_instances` with the root decided in line
-(the far crowd's common case) by the kernel's own arithmetic.
+by :func:`lod.points.follow_traverse.follow_traverse`, :func:`lod.points.mode.traverse_instances` with the
+root decided in line (the far crowd's common case) by the kernel's own arithmetic.
 
 Every value is computed by the same expressions as the per-group path (the traversal is
 :func:`lod.points.traverse._traverse_kernel` itself), so the options, job tables and sorted data are
