@@ -12,5 +12,5 @@ Modules in data-flow order:
   reference they are tested equal to.
 - ``lod.auto.budget``: the per-instance choice at a bound and the controller that moves the bound towards a
   frame-time budget.
-- ``lod.auto.mode``: ``AutoSelector`` and the mode protocol.
+- ``lod.auto.mode``: ``AutoSelector`` and the mode protocol; ``lod.auto.build``: the mode's build and memory estimate.
 """
