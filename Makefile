@@ -1,7 +1,7 @@
 # Crowd sandbox: set-up, demo, tests, benchmarks.
 #   make demo    set up, then render scenes/quickstart.toml headless into out/quickstart/ (frames + video.mp4)
-#   make test    set up (and xvfb, chromium for the window and browser tests), then run the test suite
-#                (fails when no test is collected)
+#   make test    set up (and xvfb, chromium for the window and browser tests), then run the test suite on
+#                every core (pytest-xdist; PYTEST_WORKERS=0 for one process; fails when no test is collected)
 #   make bench   set up, then run the benchmark scenes (short default runs)
 #   make setup   .venv + the package with test extras + the system GL libraries (idempotent)
 #   make corpus  set up, then every glTF model in ../shared/assets (CORPUS_DIRS) and the generated corpus through
@@ -27,6 +27,8 @@ BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.t
 BENCH_FRAMES ?= 3
 BENCH_SIZE   ?= 1280x720
 PYTEST_ARGS  ?=
+# pytest-xdist workers of `make test`: every core by default (0: one process, no workers)
+PYTEST_WORKERS ?= auto
 # benchmark-only peers (make bench-peers): their own virtual environment and packages
 PEERS_VENV     ?= .venv-peers
 PEERS_PACKAGES ?= panda3d panda3d-gltf jupedsim pedpy
@@ -78,7 +80,7 @@ demo: setup
 # pytest exit code 5 (no tests collected) is a failure here.
 test: setup
 	@$(MAKE) --no-print-directory test-packages
-	@$(VPY) -m pytest $(PYTEST_ARGS); rc=$$?; \
+	@$(VPY) -m pytest -n $(PYTEST_WORKERS) $(PYTEST_ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "error: pytest collected no tests" >&2; exit 1; fi; exit $$rc
 
 bench: setup

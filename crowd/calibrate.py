@@ -145,7 +145,7 @@ def hierarchy_selectors(quiet: bool = True):
     ("auto": all candidates, the default cost model)
     """
     from lod.auto import cost_model as cm
-    from lod.auto import mode as auto_mode
+    from lod.auto import build as auto_mode
     from lod.chains import mode as triangles_mode
     from lod.clusters import mode as clusters_mode
     from lod.points import mode as points_mode

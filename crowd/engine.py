@@ -504,13 +504,13 @@ class Engine:
     def apply_occlusion(self, on: bool) -> None:
         """Occlusion culling (VDR-AM §5.2) of the cluster representations on or off:
         sets ``occlusion`` on the LOD reps and on the open renderer's per-rep state;
-        and of the point-hierarchy nodes (``render.occlusion``) on the points drawer."""
+        and of the point-hierarchy nodes (``render.points.occlusion``) on the points drawer."""
         for reps, _ in self._modes.values():
             for rep in reps:
                 if hasattr(rep, "occlusion") and getattr(rep, "kind", "") == "clusters":
                     rep.occlusion = bool(on)
         d = self.renderer.uploaded_drawer("clusters") if self.renderer is not None else None
-        if d is not None:  # render.clusters keeps its own state per uploaded rep
+        if d is not None:  # render.clusters.draw keeps its own state per uploaded rep
             d.set_occlusion(bool(on))
         d = self.renderer.uploaded_drawer("points") if self.renderer is not None else None
         if d is not None:
@@ -630,7 +630,7 @@ class Engine:
                                "measured_ms": 1e3 * measured, "lod_bound": float(auto.get("bound") or 0.0),
                                # predicted_ms prices the rendering: compare it with this, not with measured_ms
                                "measured_render_ms": 1e3 * (measured - (t2 - t1))}
-                if dl.poses is not None:  # pose sharing (lod.poses, render.pose_cache): what it skinned, and in what time
+                if dl.poses is not None:  # pose sharing (lod.poses, render.poses.cache): what it skinned, and in what time
                     metrics = {**metrics, "poses": float(dl.stats.get("poses", 0)),
                                "posed_vertices": float(dl.stats.get("posed_vertices", 0)),
                                "pose_ms": 1e3 * float(r.get("poses") or 0.0)}
@@ -656,7 +656,8 @@ class Engine:
                           "triangles": dl.stats.get("triangles", dl.triangles),
                           "points": dl.stats.get("points", dl.points),
                           "batches": len(dl.batches), "props": dl.stats.get("props", 0),
-                          "raster_triangles": dl.stats.get("raster_triangles", 0), **frame_counts(self.world)}
+                          "raster_triangles": dl.stats.get("raster_triangles", 0),
+                          "pose_passes": dl.stats.get("pose_passes", 0), **frame_counts(self.world)}
                 tel.add(FrameRecord(frame=f, sim_time=self.world.time, start=t_frame - run_start,
                                     total=t_end - t_frame, stages=stages, gpu=r.get("gpu"), systems=systems,
                                     counts=counts, samples_passed=r.get("samples_passed"), metrics=metrics))

@@ -210,8 +210,9 @@ def render(data: dict, png: str | os.PathLike | None = None, size=DEFAULT_SIZE, 
             os.unlink(tmp)
 
 
-def load(asset: str, clustering: str = "error-aware", quiet: bool = False):
-    """(character, hierarchy) of an asset spec (``crowd info`` syntax); CrowdError when it has no skin."""
+def load(asset: str, clustering: str = "error-aware", quiet: bool = False, clip: str | None = None):
+    """(character, hierarchy) of an asset spec (``crowd info`` syntax); CrowdError when it has no skin or no
+    clip named ``clip`` (checked before the hierarchy is built: a typo costs no build)."""
     from crowd.characters import build_character, parse_asset
     from lod.clusters.mode import cached_hierarchy
     from lod.full.reps import build_skinned_rep
@@ -238,7 +239,7 @@ def main(args) -> int:
         raise CrowdError("crowd inspect: no display to open a window on (DISPLAY is not set); "
                          "write an image instead with --png FILE")
     size = tuple(args.size) if args.size else DEFAULT_SIZE
-    ch, h = load(args.asset, args.clustering)
+    ch, h = load(args.asset, args.clustering, clip=args.clip)
     data = inspect_data(ch, h, clip=args.clip, time=args.time, pose=args.pose, poe=args.poe, camera=args.camera,
                         size=size)
     render(data, args.png, size=size, title=f"{args.asset}: {h.n_clusters} clusters, {h.n_triangles:,} triangles")

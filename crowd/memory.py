@@ -64,7 +64,7 @@ VERTEX_BYTES = 12 + 12 + 16 + 8 + 16
 #: bytes per triangle (3 uint32 indices)
 TRIANGLE_BYTES = 12
 #: skinning palette cap (texels): the palette is built and drawn in chunks of at most this many texels,
-#: as render.palette.PALETTE_CHUNK_TEXELS (so its memory does not grow with the crowd)
+#: as render.poses.palette.PALETTE_CHUNK_TEXELS (so its memory does not grow with the crowd)
 PALETTE_MAX_TEXELS = 1 << 22
 #: a glTF file's bytes are multiplied by this to estimate the loaded character
 #: (float64 working copies while importing)

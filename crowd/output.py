@@ -17,7 +17,7 @@ import shutil
 from contextlib import contextmanager
 from pathlib import Path
 
-from lod.atomic_io import write_atomic as _write_atomic
+from sim.atomic_io import write_atomic as _write_atomic
 
 
 def temp_sibling(final: Path) -> Path:
@@ -126,7 +126,7 @@ def atomic_dir(final: str | os.PathLike):
 
 def write_atomic(path: str | os.PathLike, data: bytes | str) -> None:
     """Write ``data`` to ``path`` via a temporary file in the same folder + ``os.replace``
-    (:func:`lod.atomic_io.write_atomic`)."""
+    (:func:`sim.atomic_io.write_atomic`)."""
     _write_atomic(path, data)
 
 

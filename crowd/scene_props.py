@@ -9,6 +9,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+from crowd.scene_types import EffectSpec
 from sim.params import validate
 
 
@@ -57,7 +58,6 @@ def parse_props(tables: list, effects: list, base: Path, fail) -> list:
         out.append(PropSpec(name=cfg["name"] or f"props[{i}]", file=file, params=cfg,
                             triangles=mesh.n_triangles, instances=len(pos), index=i))
     if any(extra.values()):
-        from crowd.scene import EffectSpec
         from sim.obstacles import PARAMS as OBSTACLE_PARAMS
 
         at = next((k for k, e in enumerate(effects) if e.name == "obstacles"), None)

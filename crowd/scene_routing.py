@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from crowd.scene_types import EffectSpec
 from sim.config import AVOIDANCE_DEFAULT_RADIUS
 
 
@@ -56,7 +57,6 @@ def apply_routing(effects: list, characters: list, fail) -> None:
     at = _find(effects, "routing")
     if at is None:
         return
-    from crowd.scene import EffectSpec
     from sim.obstacles import PARAMS as OBSTACLE_PARAMS
     from sim.params import validate
     from sim.routing.effect import walkable_of as _walkable

@@ -38,8 +38,9 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "raster_triangles", "agents", "entered",
-          "exited", "left")
+#: (``pose_passes``: poses evaluated by the renderer, render.renderer.Renderer.pose_evaluations)
+COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "raster_triangles", "pose_passes", "agents",
+          "entered", "exited", "left")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 
 
 class CameraPathError(ValueError):

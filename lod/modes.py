@@ -36,7 +36,7 @@ MODES: dict[str, str] = {
     "points": "lod.points.mode",
     "clusters": "lod.clusters.mode",
     "triangles": "lod.chains.mode",
-    "auto": "lod.auto.mode",
+    "auto": "lod.auto.build",
 }
 
 

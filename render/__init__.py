@@ -1,29 +1,29 @@
 """Rendering layer: GL context, GPU resources, shaders, draws, timing, images. Imports ``lod`` types only.
 
-Modules in data-flow order (representations and DrawList in, pixels and timings out):
+The core modules at the top, in data-flow order (representations and DrawList in, pixels and timings out):
 
 - ``render.context``: the OpenGL context (headless EGL by default).
-- ``render.shaders``: GLSL sources under ``render/shaders/`` by name.
-- ``render.renderer``: uploads representations, draws a DrawList's triangle batches (GPU skinning, the
-  full-detail and chain levels of ``lod.full`` and ``lod.chains``), hands the other kinds to their drawers.
-- ``render.pose_cache``: ``Renderer.poses``: per frame the joint palette of each distinct pose (``lod.poses``)
-  and, on request, each distinct pose's posed vertices (compute pass ``shaders/pose_skin.comp`` or numba,
-  ``render.pose_skin``), in windowed ``[slot][vertex]`` textures; ``render.posed_draw`` draws copies from them.
+- ``render.shaders``: GLSL sources by name, in one folder per family under ``render/shaders/`` (``core``,
+  ``poses``, ``points``, ``raster``, ``clusters``, ``world``); ``prog_name``, the program of a representation kind.
+- ``render.vertex_format``: the vertex attributes of the triangle representations, packed.
 - ``render.tint``: per-instance colour words (an agent's colour variation, the debug colour of its batch) that
-  every draw path applies through ``shaders/tint.glsl``, so LOD modes agree on colours.
-- ``render.capture``: transform-feedback capture of a representation's skinned vertices (tests).
-- ``render.light``: the scene's directional light (``u_light_dir``, ``u_light_color``, ``u_ambient``).
-- ``render.shadows``: ``Renderer.lighting``: the light's uniforms, blob-shadow decals and the shadow map;
-  ``render.blobs`` the blobs' rows in numba and the test that drops quads covering no pixel centre.
-- ``render.targets``: the morph-target tables (glTF §3.7.2.2) the ``MORPH_TARGETS`` variants of the skinned
-  shaders blend before skinning (``lod.full.targets``); not the geomorphs below.
-- ``render.morph``: the geomorph tables the morph shaders follow (``lod.chains``, ``lod.clusters``).
-- ``render.clusters``: the drawer of ``lod.clusters`` cuts (VDR-AM; occlusion culling §5.2).
-- ``render.points``: the drawer of ``lod.points`` hierarchies (compute-shader splats and GL_POINTS);
-  ``render.points_jobs`` its CPU job helpers, ``render.points_pack`` its per-frame packing in numba (folded
-  instance rows, colour words, job tables); ``render.occlusion`` its occlusion culling of hierarchy nodes
-  (max-depth pyramid of the likely occluders; Wand & Straßer have none).
+  every draw path applies through ``shaders/core/tint.glsl``, so LOD modes agree on colours.
+- ``render.screen``: screen-space helpers of the compute passes (pixel rays, resolve rectangles).
+- ``render.renderer``: uploads representations, draws a DrawList's triangle batches (full detail and the chain
+  levels of ``lod.full`` and ``lod.chains``), hands the other kinds to their families' drawers.
 - ``render.timing``: which GPU timer-query readings to believe (llvmpipe).
 - ``render.image``: PNG output written atomically.
 - ``render.window``: the glfw window of the fly-through.
+
+The families, each a package whose ``__init__`` lists its modules in data-flow order:
+
+- ``render.poses``: the one place animation is evaluated per frame: the pose cache (per distinct pose its joint
+  palette and, on request, its posed vertices), its skinning pass, the morph-target tables, the per-frame palette
+  pre-pass, the posed draws, and the transform-feedback capture of tests.
+- ``render.points``: the drawer of ``lod.points`` hierarchies (compute-shader splats and GL_POINTS) with its
+  samples, occlusion culling, jobs, packing and the placement of samples that follow the animation.
+- ``render.raster``: the compute rasteriser of small triangles and the split of instances between it and the
+  hardware path.
+- ``render.clusters``: the drawer of ``lod.clusters`` cuts (VDR-AM) and the geomorph tables.
+- ``render.world``: the ground, obstacle solids and props; the light, blob shadows and the shadow map.
 """

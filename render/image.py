@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 
 
 def write_png(path, pixels: np.ndarray) -> Path:

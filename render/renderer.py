@@ -9,7 +9,7 @@ Draw paths (one program each, shaders in ``render/shaders/``):
   (``palette.vert``, one point per matrix row and instance) blends every drawn
   instance's matrices between the two baked frames around its fractional
   frame coordinate and the result is copied (GPU-side) into a palette
-  texture (``render/palette.py``; a frame whose palette would not fit the
+  texture (``render/poses/palette.py``; a frame whose palette would not fit the
   texture is drawn in chunks, each pre-pass followed by its draws); the
   vertex shader then reads 3 texels per influence. The "direct"
   path (``skinned_direct.vert``) blends both frames per vertex (6 texels per
@@ -19,7 +19,7 @@ Draw paths (one program each, shaders in ``render/shaders/``):
   (Wand & Straßer 2002, §3).
 - static: the same instancing path without animation.
 - morph targets (``SkinnedRep.targets``): the skinned programs compiled with ``MORPH_TARGETS``
-  morph every vertex before skinning (``render/targets.py``); reps without them use the plain ones.
+  morph every vertex before skinning (``render/poses/targets.py``); reps without them use the plain ones.
 
 Instance data: every frame, the instance data of all batches are written into one per-frame buffer (orphaned
 first, so a draw still reading last frame's data never stalls the write); each batch then re-binds the four
@@ -32,7 +32,7 @@ also the layout a real GPU prefers).
 Colour words: beside the instance data, a per-frame stream of two uint32 per
 instance (the agent's colour variation, the batch's debug colour;
 ``render/tint.py``) bound as ``i_tint``; every vertex shader applies them with
-``tint_color`` (``shaders/tint.glsl``), as the other drawers do.
+``tint_color`` (``shaders/core/tint.glsl``), as the other drawers do.
 
 Bounded driver memory: Mesa llvmpipe (22.3, ``lp_setup.c``) bins triangles
 into "scenes" of at most 36 MB that its rasterizer threads consume; when the
@@ -61,15 +61,15 @@ import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context, track
-from render.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
-from render.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
+from render.clusters.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
+from render.poses.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
                             plan_chunks)
-from render.shaders import program_sources
-from render.shadows import Lighting
-from render.targets import TARGETS_DEFINE, target_textures, use_targets
-from render import posed_draw
-from render.pixel_ray import write_pixel_ray
-from render.pose_cache import PoseCache
+from render.shaders import prog_name, program_sources
+from render.world.shadows import Lighting
+from render.poses.targets import TARGETS_DEFINE, target_textures, use_targets
+from render.poses import draw as posed_draw
+from render.screen import write_pixel_ray
+from render.poses.cache import PoseCache
 from render.raster.hook import hardware_pieces
 from render.raster.hook import split as raster_split
 from lod.raster_route import DEFAULT_THRESHOLD
@@ -95,13 +95,6 @@ _INSTANCE_ATTRS = ("i_m0", "i_m1", "i_m2", "i_anim")
 _DRAW_ATTRS = (*_INSTANCE_ATTRS, "i_tint")  # + the colour words (render/tint.py)
 
 
-def prog_name(kind: str, skinning: str = "palette") -> str:
-    """Shader program drawing a representation kind."""
-    if kind == "skinned" and skinning == "direct":
-        return "skinned_direct"
-    return kind
-
-
 #: Representation kinds drawn by plug-in drawers: kind -> module exposing ``Drawer``.
 #: A ``Drawer(renderer)`` has ``upload(rep)``, ``draw(batches, drawlist, view_proj) -> None``
 #: (called after the built-in triangle batches, inside the frame's queries -- or, for a
@@ -111,9 +104,9 @@ def prog_name(kind: str, skinning: str = "palette") -> str:
 #: (lower draws first; opaque triangle kinds before point splats, which depth-test
 #: against them). Modules are imported only when a rep of their kind is uploaded.
 PLUGIN_KINDS: dict[str, str] = {
-    "clusters": "render.clusters",
-    "points": "render.points",
-    "world": "render.world",  # ground, obstacle solids, props (lod.props)
+    "clusters": "render.clusters.draw",
+    "points": "render.points.draw",
+    "world": "render.world.draw",  # ground, obstacle solids, props (lod.props)
 }
 
 
@@ -136,8 +129,8 @@ class _GpuRep:
     # collapses (kept for the tables, made on first use), then (vertex array, instance locations, tables)
     morph_source: object = None
     morph: dict = field(default_factory=dict)  # extra defines -> (vertex array, instance locations, tables)
-    pose_vaos: dict = field(default_factory=dict)  # pose-sharing programs (render/pose_cache.py) -> (vao, locations)
-    targets: tuple | None = None  # morph-target textures (render.targets), None for a rep without targets
+    pose_vaos: dict = field(default_factory=dict)  # pose-sharing programs (render/poses/cache.py) -> (vao, locations)
+    targets: tuple | None = None  # morph-target textures (render.poses.targets), None for a rep without targets
     defines: tuple = ()  # preprocessor names of the rep's programs ((TARGETS_DEFINE,) with targets)
     cull: bool = False  # back faces culled (a single-sided skinned or static rep)
 
@@ -157,7 +150,7 @@ class Renderer:
         instance's joint matrices between the two baked frames once per frame
         into a palette texture, and the vertex shader reads 3 texels per
         influence; "direct": every vertex blends both frames itself (6 texels
-        per influence). Both share ``shaders/skinning.glsl``; the palette path
+        per influence). Both share ``shaders/poses/skinning.glsl``; the palette path
         is the faster one on llvmpipe (see scripts/bench_baseline.md).
     """
 
@@ -195,12 +188,16 @@ class Renderer:
         #: (n agents,) uint32 variation words (render.tint.variation_table) or None; the app sets it
         self.tint_table = None
         self._tint = self._track(TintStream(ctx), "crowd.instance_tints")
-        self._palette = Palette(ctx, self._track, self._objects.remove)  # render/palette.py
-        #: pose sharing (render/pose_cache.py): copies in one pose drawn from posed vertices skinned once
+        self._palette = Palette(ctx, self._track, self._objects.remove)  # render/poses/palette.py
+        #: pose sharing (render/poses/cache.py): copies in one pose drawn from posed vertices skinned once
         self.poses = PoseCache(self)
         #: use the DrawList's pose table (``DrawList.poses``) when it has one; False draws every copy with its
         #: own palette (the per-instance pre-pass, as before pose sharing)
         self.pose_sharing = True
+        #: poses evaluated (joint matrices blended for a pose) in the frame being drawn: the pose cache's palettes
+        #: plus any per-copy palette (the pre-pass), per-vertex blend ("direct") or follow pose without a palette;
+        #: ``DrawList.stats["pose_passes"]`` after :meth:`draw` (issue 33: at most one per distinct pose)
+        self.pose_evaluations = 0
         # separate queries, nested: a combined samples+time query reads a
         # constant ~20 ns on llvmpipe (see gpu_seconds)
         self._q_samples = self._track(ctx.query(samples=True), "render.query.samples")
@@ -246,7 +243,7 @@ class Renderer:
         """Compiled program ``name`` (cached). With ``varyings`` it is the
         vertex-only transform-feedback variant recording those outputs; with
         ``defines`` the variant compiled with those preprocessor names."""
-        defines = tuple(defines) + (("PIXEL_RAY",) if self.pixel_ray and not varyings else ())  # render/pixel_ray.py
+        defines = tuple(defines) + (("PIXEL_RAY",) if self.pixel_ray and not varyings else ())  # render/screen.py
         key = (name, tuple(varyings), tuple(defines))
         if key not in self._programs:
             src = program_sources(name, fragment=not varyings, defines=tuple(defines))
@@ -255,12 +252,12 @@ class Renderer:
             self._programs[key] = self._track(prog, label)
         return self._programs[key]
 
-    # the skinning palette lives in render/palette.py; these forward to it
+    # the skinning palette lives in render/poses/palette.py; these forward to it
     palette_width = property(lambda self: self._palette.width, lambda self, v: setattr(self._palette, "width", v),
                              doc="texels per palette row (a multiple of 3)")
     palette_chunk_texels = property(lambda self: self._palette.max_texels,
                                     lambda self, v: setattr(self._palette, "max_texels", int(v)),
-                                    doc="most palette texels per chunk (render.palette)")
+                                    doc="most palette texels per chunk (render.poses.palette)")
     _palette_tex = property(lambda self: self._palette.texture)
 
     @property
@@ -273,14 +270,15 @@ class Renderer:
         return self._raster
 
     def _build_palette(self, items) -> list:
-        """Palette pre-pass of one chunk (``render.palette.Palette.build``): items are
+        """Palette pre-pass of one chunk (``render.poses.palette.Palette.build``): items are
         (_GpuRep, instance buffer, byte offset of the first instance, count); returns
         each item's first palette texel, the texture bound to unit 1."""
+        self.pose_evaluations += sum(int(k) for _, _, _, k in items)  # one palette per copy
         return self._palette.build(self.program("palette", ("v_row",)), items, INSTANCE_BYTES)
 
     def _palette_chunks(self, items) -> list:
         """``items`` as :meth:`_build_palette` takes them, cut into chunks that fit
-        (:func:`render.palette.plan_chunks`): a list of item lists, offsets moved to
+        (:func:`render.poses.palette.plan_chunks`): a list of item lists, offsets moved to
         each piece's first instance; each piece also names its item and first instance."""
         plan = plan_chunks([k for _, _, _, k in items], [3 * g.n_joints for g, _, _, _ in items],
                            self._palette.chunk_texels)
@@ -313,7 +311,7 @@ class Renderer:
         if kind == "skinned":
             jn, wt, n_inf = compact_influences(rep.joints, rep.weights)
             if n_inf < 4 and self.specialize_influences and getattr(rep, "collapse_next", None) is None:
-                defines += (f"SKIN_INFLUENCES_{n_inf}",)  # shaders/skinning.glsl (geomorph tables are not compacted)
+                defines += (f"SKIN_INFLUENCES_{n_inf}",)  # shaders/poses/skinning.glsl (geomorph tables are not compacted)
             prog = self.program(prog_name(kind, self.skinning), defines=defines)
             joints = np.ascontiguousarray(rep.joint_table, np.float32)
             F, J = joints.shape[0], joints.shape[1]
@@ -369,7 +367,7 @@ class Renderer:
         g.default_count = 3 * int(rep.level_count[0]) if hasattr(rep, "level_count") else g.n_indices
         g.defines = defines
         g.source = rep  # the compute rasteriser reads its arrays (render/raster/)
-        if TARGETS_DEFINE in defines:  # morph targets (render.targets); g.objects is objs
+        if TARGETS_DEFINE in defines:  # morph targets (render.poses.targets); g.objects is objs
             g.targets = target_textures(ctx, rep.targets, rep.joint_table.shape[0], rep.key)
             objs.extend(g.targets)
         if kind == "skinned":
@@ -484,15 +482,15 @@ class Renderer:
     def _draw_batch(self, b, offset: int, view_proj, used: set, pieces=None, cursor=None) -> None:
         """Draw built-in batch ``b`` (instance data from byte ``offset``) with ``view_proj``; programs not in
         ``used`` get their uniforms first. ``pieces``: (first instance, count, palette chunk, item) in draw order
-        (palette skinning: ``cursor``, a render.palette.PaletteCursor, builds each chunk's palette when its first
+        (palette skinning: ``cursor``, a render.poses.palette.PaletteCursor, builds each chunk's palette when its first
         piece comes); default all instances, no palette. The camera pass and the shadow-map pass share it."""
         g = self._reps[b.rep]
         if g.n_indices == 0:
             return
         morph = getattr(b, "morph", None) if g.kind == "skinned" else None
-        shared = self.poses.shared(b) if g.kind == "skinned" else None  # pose sharing (render/pose_cache.py)
+        shared = self.poses.shared(b) if g.kind == "skinned" else None  # pose sharing (render/poses/cache.py)
         if shared is not None:
-            vao, locs = posed_draw.pose_vao(self, g, shared[0], morph is not None)  # render/posed_draw.py
+            vao, locs = posed_draw.pose_vao(self, g, shared[0], morph is not None)  # render/poses/draw.py
         else:
             vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
         prog = vao.program
@@ -542,6 +540,7 @@ class Renderer:
         """
         ctx = self.ctx
         batches = [b for b in drawlist.batches if b.n_instances]
+        self.pose_evaluations = 0
         plugin: dict = {}
         for b in batches:
             if b.rep in self._plugin_reps:
@@ -553,11 +552,15 @@ class Renderer:
                 raise KeyError(f"DrawList batch names representation {b.rep!r}, which was not uploaded; "
                                f"uploaded: {sorted(self._reps)}")
         tp = time.perf_counter()
-        # pose sharing (render/pose_cache.py): palettes of the distinct poses, posed vertices, and which skinned
+        # pose sharing (render/poses/cache.py): palettes of the distinct poses, posed vertices, and which skinned
         # batches draw from them (a batch whose slots span several posed windows is sorted by window)
         self.poses.begin(getattr(drawlist, "poses", None) if self.pose_sharing and self.skinning == "palette"
                          else None)
         batches = self.poses.plan(batches, self._reps)
+        self.pose_evaluations += int(self.poses.last_stats.get("poses", 0))
+        if self.skinning != "palette":  # every vertex blends its copy's frame pair itself
+            self.pose_evaluations += sum(b.n_instances for b in batches if b.rep in self._reps
+                                         and self._reps[b.rep].kind == "skinned")
         t0 = time.perf_counter()
         # small triangles to the compute rasteriser: its instances last in their batches (render/raster/hook.py)
         batches, hw_counts, self.raster_work = raster_split(self, batches, drawlist)
@@ -586,7 +589,7 @@ class Renderer:
         self._palette.passes = 0
         with self._q_samples, self._q_time:
             starts = np.concatenate([[0], np.cumsum([b.n_instances for b in batches], dtype=np.int64)]) * INSTANCE_BYTES
-            # palette skinning: the skinned batches' instances cut into chunks whose palette fits (render.palette);
+            # palette skinning: the skinned batches' instances cut into chunks whose palette fits (render.poses.palette);
             # each batch is drawn as its pieces (first instance, count, chunk, item of the chunk) in draw order
             pieces: dict = {}
             chunks: list = []
@@ -634,11 +637,12 @@ class Renderer:
             "samples_passed": int(self._q_samples.samples),
         }
         self.last_timings = timings
+        drawlist.stats["pose_passes"] = int(self.pose_evaluations)
         return timings
 
     def capture(self, key: str, instance_data: np.ndarray, part: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Vertex positions and normals as the draw shader computes them (``render.capture``)."""
-        from render.capture import capture
+        """Vertex positions and normals as the draw shader computes them (``render.poses.capture``)."""
+        from render.poses.capture import capture
 
         return capture(self, key, instance_data, part)
 

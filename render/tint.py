@@ -1,7 +1,7 @@
 """Per-instance colour variation and debug colours, one path for every draw.
 
 Every drawn instance carries two uint32 words, ``(variation, debug)``
-(``shaders/tint.glsl`` decodes them in every vertex shader and in the point
+(``shaders/core/tint.glsl`` decodes them in every vertex shader and in the point
 splat's colour pass, so full detail, LOD chains, clusters and points give an
 instance the same colour and a LOD switch never changes one):
 

@@ -5,7 +5,7 @@ Packed: position 3 x f32 (exact: crowds of characters far from their model origi
 normal 3 x f16, colour 4 x f16, weights 4 x f16, joints 4 x u8 (u16 above 256 joints) = 38 bytes; a static
 vertex 40 -> 26 bytes. The shaders read the same ``vec3``/``vec4`` inputs either way (GL converts). Half
 floats convert to float exactly on every GL, so tables that must hold the very values the vertex shader
-reads (the geomorph targets, render/morph.py) use :func:`drawn` for them.
+reads (the geomorph targets, render/clusters/morph.py) use :func:`drawn` for them.
 
 What packing changes in the image: normals, colours and weights deviate by < 2^-11 relative (weights
 summing to 1 +- 1e-3 move a vertex by at most 1e-3 of its distance from the joints' origins, below a pixel at
@@ -61,7 +61,7 @@ def compact_influences(joints, weights) -> tuple:
     """(joints (V, 4), weights (V, 4) float32, n): every vertex's non-zero weights moved to the front in their
     order (zeros after them), and n = the most non-zero weights of any vertex (1 ..= 4).
 
-    The skinning loop (``shaders/skinning.glsl``) skips zero weights, so a program compiled to read only the
+    The skinning loop (``shaders/poses/skinning.glsl``) skips zero weights, so a program compiled to read only the
     first n influences (``SKIN_INFLUENCES_n``) adds the very same terms in the very same order (the shader
     compiler may contract them into fused multiply-adds differently: tests/render/test_skin_influences.py
     bounds the image difference).

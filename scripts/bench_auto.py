@@ -60,9 +60,9 @@ sys.path.insert(0, str(ROOT))
 from crowd.engine import Engine  # noqa: E402
 from crowd.image_metrics import mse  # noqa: E402
 from crowd.scene import load_scene  # noqa: E402
-from lod.atomic_io import atomic_open  # noqa: E402
+from sim.atomic_io import atomic_open  # noqa: E402
 from lod.auto import cost_model  # noqa: E402
-from lod.auto import mode as auto_mode  # noqa: E402
+from lod.auto import build as auto_mode  # noqa: E402
 from lod.chains import mode as triangles_mode  # noqa: E402
 from lod.clusters import mode as clusters_mode  # noqa: E402
 from lod.full import mode as nolod  # noqa: E402

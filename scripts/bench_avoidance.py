@@ -775,7 +775,7 @@ def _main(a) -> int:
         for n, w in rows:
             out(f"| {n:,} | " + " | ".join(f"{w[k]:.1f}" for k in keys) + " |")
     if not a.no_write:
-        from lod.atomic_io import write_atomic
+        from sim.atomic_io import write_atomic
 
         write_atomic(a.md, "\n".join(lines) + "\n")
         print(f"wrote {a.md}")

@@ -113,7 +113,7 @@ def main(argv=None) -> int:
               f"{platform.processor() or platform.platform()}; commit {rev}.\n"
               f"Command: `python scripts/bench_avoidance_scale.py {' '.join(sys.argv[1:] if argv is None else argv)}`\n\n"
               + text + "\n")
-        from lod.atomic_io import write_atomic
+        from sim.atomic_io import write_atomic
 
         write_atomic(a.md, md)
     return 0

@@ -8,7 +8,7 @@ shipped changes (their image is checked against "before", PSNR in the table)
   before          back faces drawn, headlight from a position varying, 4 influences read per vertex
                   (the renderer before issue 21)
   shipped         back faces of single-sided reps culled, headlight from the pixel's camera ray
-                  (render/pixel_ray.py: one vertex output fewer), only the influences the mesh uses
+                  (render/screen.py: one vertex output fewer), only the influences the mesh uses
                   (SKIN_INFLUENCES_n), 60-byte vertices
   no cull         shipped, but the rep drawn double-sided
   world varying   shipped, but the headlight from the interpolated camera-relative position (v_world)
@@ -24,8 +24,8 @@ diagnostics (not shipped; they change the image: they bound what a part of the p
   discard         GL_RASTERIZER_DISCARD: vertex shading only, nothing rasterised
 experiments of issue 29 (speeds against "shipped", the per-copy palette path without a pose table; PSNR against it)
   pose sharing    lod.poses at the default rate (the clip's keys): copies in one pose skinned once by the pose
-                  cache's compute pass (render/pose_cache.py), every copy drawn from the posed vertices
-                  (shaders/posed.vert); the scenario's copies all play from time 0, so they share one pose
+                  cache's compute pass (render/poses/cache.py), every copy drawn from the posed vertices
+                  (shaders/poses/posed.vert); the scenario's copies all play from time 0, so they share one pose
   pose sharing, random phases  the same with every copy at a random time of the clip (pose_rate "key")
   exact poses     pose_rate 0: every copy its own pose, each skinned once by the compute pass, drawn from the posed
                   vertices (pose sharing off, the skinning moved out of the vertex stage)
@@ -69,8 +69,8 @@ NOTES = """
   the 60 K humanoid's ring-by-ring strips shade each vertex 2.4 times per instance and the Morton order 1.6
   times, but a later run of this script at load 2.4 measured no gain (mesh order vs Morton: 0.99x CPU on h4),
   so the splitter's re-shading is not where this frame's time goes; the change was reverted.
-- The pose cache's skinning pass (issue 29): the compute shader (`shaders/pose_skin.comp`) against numba over both
-  cores (`render/pose_skin.py`), CPU time of the pass alone at load 14-15: h4 (30,042 vertices, 4 influences) x 100
+- The pose cache's skinning pass (issue 29): the compute shader (`shaders/poses/pose_skin.comp`) against numba over both
+  cores (`render/poses/skin.py`), CPU time of the pass alone at load 14-15: h4 (30,042 vertices, 4 influences) x 100
   poses 75 vs 188 ns per posed vertex, Fox (1,728 vertices) x 1,024 poses 72.5 vs 117 ns (numba includes writing
   the textures); the rows "exact poses" / "exact poses, numba" above compare them inside a frame. The compute
   pass is the default. Its palettes come from a uniform block (1.1x faster than texel fetches, same output).
@@ -282,7 +282,7 @@ def main(argv=None) -> int:
         sections.append("\n".join(lines))
     end = bp.machine_note()
     print(f"# end: {end}")
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     text = f"""# Full detail on heavy skinned characters: where the time goes (issues 21, 29)
 

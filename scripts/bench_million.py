@@ -135,6 +135,7 @@ def kernels(n: int = 1_000_000, repeats: int = 3) -> list:
     from lod.full import pack
     from lod.full.reps import build_keyframed_rep
     from lod.points import coarse
+    from lod.points import jobs
     from lod.points import mode as pm
     from lod.points.octree import build_hierarchy
     from lod.view import Camera
@@ -163,10 +164,10 @@ def kernels(n: int = 1_000_000, repeats: int = 3) -> list:
     planes = cam.frustum_planes(16 / 9)
     vs = 720 / (2 * np.tan(np.radians(25.0)))
     times = []
-    for lim in (10 ** 12, pm.TRAVERSE_PARALLEL_MIN):
-        pm.TRAVERSE_PARALLEL_MIN = lim
-        times.append(med(lambda: pm.traverse_instances(h, data, planes, vs, 2.0)))
-    out.append(("points traversal (lod/points/mode.py)", *times))
+    for lim in (10 ** 12, jobs.TRAVERSE_PARALLEL_MIN):
+        jobs.TRAVERSE_PARALLEL_MIN = lim
+        times.append(med(lambda: jobs.traverse_instances(h, data, planes, vs, 2.0)))
+    out.append(("points traversal (lod/points/jobs.py)", *times))
     pos = np.c_[rng.uniform(-1000, 1000, n), np.zeros(n), rng.uniform(-1000, 1000, n)]
     G = 15
     args = (pos, np.array([0.0, 1000.0, 2200.0]), rng.uniform(-3, 3, n), np.ones(n), rng.integers(0, G, n),
@@ -287,7 +288,7 @@ def main(argv=None) -> int:
           "`cpu ms` is the process's CPU time per measured frame, every thread counted. "
           "`load s` is the time from the scene file to the first frame with the LOD cache warm. "
           "Peak RSS is the benchmark process's own (one process per mode)."]
-    from lod.atomic_io import atomic_open
+    from sim.atomic_io import atomic_open
 
     with atomic_open(a.md, "w") as f:
         f.write("\n".join(md) + "\n")

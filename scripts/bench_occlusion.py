@@ -1,4 +1,4 @@
-"""Benchmark: occlusion culling of point-hierarchy nodes (render/occlusion.py) on the grid seen from inside.
+"""Benchmark: occlusion culling of point-hierarchy nodes (render/points/occlusion.py) on the grid seen from inside.
 
 ``scenes/grid.toml`` (90,000 instances, §3.6 hierarchical instantiation, mode "points", splat 2) with its
 camera replaced by a walk at eye height through the grid (:data:`INSIDE_CAMERA`; the scene's own camera

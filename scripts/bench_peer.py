@@ -289,7 +289,7 @@ def main(argv=None) -> int:
 
 
 def write_md(args, rows, notes, gl_line, peer_line, start_note, end_note) -> None:
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     cmd = "scripts/bench_peer.py " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("bench_peer.py") else "main()"
     modes = args.modes

@@ -1,4 +1,4 @@
-"""Benchmark of the point-hierarchy LOD mode (Wand & Straßer 2002; lod/points/mode.py, render/points.py).
+"""Benchmark of the point-hierarchy LOD mode (Wand & Straßer 2002; lod/points/mode.py, render/points/draw.py).
 
 Prints:
 

@@ -68,7 +68,7 @@ def main(argv=None) -> int:
         lines += pairs(args)
     if args.long_triangles > 0:
         lines += long_clip(args)
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     write_atomic(args.out, "# bench_points_build\n\nCommand: `scripts/bench_points_build.py "
                  + " ".join(argv if argv is not None else sys.argv[1:]) + "`\n\n" + "\n".join(lines) + "\n")

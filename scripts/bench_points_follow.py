@@ -161,7 +161,7 @@ def run_crowd(crowd: str, args, td: Path) -> dict | None:
 
 
 def write_md(args, rows, start: str, end: str) -> None:
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     cmd = "scripts/bench_points_follow.py " + " ".join(sys.argv[1:])
     lines = ["| crowd | baked ms | follow ms | follow / baked (median of per-frame ratios) | points baked / follow "

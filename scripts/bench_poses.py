@@ -151,7 +151,7 @@ def main(argv=None) -> int:
     print()
     print("\n".join(lines))
     if a.out is not None:
-        from lod.atomic_io import write_atomic
+        from sim.atomic_io import write_atomic
 
         cmd = "scripts/bench_poses.py " + " ".join(argv if argv is not None else sys.argv[1:])
         write_atomic(a.out, f"# bench_poses\n\nCommand: `{cmd}`\n\n" + "\n".join(lines) + "\n")

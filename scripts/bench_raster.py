@@ -122,7 +122,7 @@ def peer_case(key: str, n: int, size, frames: int, models_dir: Path) -> dict:
         r = eng._open_renderer()
         eng.step()
         dl = eng.select(eng.camera_at(eng.world.time), tuple(size))
-        variants = ("hardware", "compute raster alone", "compute raster, same-time copies posed once")
+        variants = ("hardware", "compute raster, a gathered copy per instance", "compute raster, slots gathered once")
 
         def setup(v):
             r.compute_raster = v != "hardware"
@@ -197,14 +197,15 @@ RASTER_END = "<!-- bench_raster.py --peer-models: end -->"
 def write_full_detail_rows(md: Path, cases: list, command: str, start: str, end: str) -> None:
     """Put the compute rasteriser's rows into scripts/bench_full_detail.md between the RASTER markers (that
     section only: the rest of the file is scripts/bench_full_detail.py's), atomically."""
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     lines = [RASTER_BEGIN, "", "## Compute rasteriser of small triangles (issue 29; `scripts/bench_raster.py`)", "",
              f"Command: `{command}`. The same crowds (bench_peer's grid and camera), mode none, drawn by the "
-             "shipped hardware path and with the compute rasteriser on, alternately; medians. \"compute raster "
-             "alone\": every copy skinned by the rasteriser's own pose pass (render/raster/poses.py, the adapter "
-             "until the pose cache lands: no pose sharing); \"same-time copies posed once\": copies at the very "
-             "same frame coordinate share one pose (exact; the bench's copies all play from time 0, so one pose). "
+             "shipped hardware path and with the compute rasteriser on, alternately; medians. Both compute "
+             "variants read the pose cache's posed vertices (render/poses/cache.py: each distinct pose skinned "
+             "once); \"a gathered copy per instance\": the rasteriser copies a slot's posed vertices into its own "
+             "table once per instance (Raster.share_poses = False); \"slots gathered once\": once per slot "
+             "(the shipped default; the bench's copies all play from time 0, so one slot). "
              "PSNR: compute against hardware.", "",
              "| crowd | variant | CPU ms (median) | speed vs hardware, CPU | wall ms (median) | speed vs hardware, wall | "
              "triangles in compute | PSNR vs hardware (dB) |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
@@ -271,7 +272,7 @@ def main(argv=None) -> int:
         rows = size_sweep(args.sizes, tuple(args.size), args.frames)
         end = machine_note()
         print(f"# end: {end}")
-        from lod.atomic_io import write_atomic
+        from sim.atomic_io import write_atomic
 
         cmd = "scripts/bench_raster.py " + " ".join(sys.argv[1:] if argv is None else argv)
         table = "\n".join(f"| {s:g} | {k:,} | {t:,} | {c:,} | {hc:.1f} | {cc:.1f} | {hc / cc:.2f}x | {hw:.1f} | {cw:.1f} | "
@@ -349,7 +350,7 @@ Machine at the start: {start}; at the end: {end}.
     end = machine_note()
     print(f"# end: {end}")
     worst = min(q for _, q in rows) if rows else float("inf")
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     text = f"""# Compute rasteriser of small triangles: images and draw times on the shipped scenes (issue 29)
 

@@ -542,7 +542,7 @@ def _main(a) -> int:
         out()
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
     if not a.no_write:
-        from lod.atomic_io import atomic_open
+        from sim.atomic_io import atomic_open
 
         with atomic_open(a.md, "w") as f:
             f.write("\n".join(lines) + "\n")

@@ -1,4 +1,4 @@
-"""Cost of the per-agent colour variation (render/tint.py, shaders/tint.glsl) per frame.
+"""Cost of the per-agent colour variation (render/tint.py, shaders/core/tint.glsl) per frame.
 
 The renderer always uploads the colour words (8 bytes per instance) and every
 vertex shader (and the splat's colour pass) calls ``tint_color``; with the

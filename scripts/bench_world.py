@@ -147,7 +147,7 @@ def main(argv=None) -> int:
         lines.append("not toggled in this build: " + "; ".join(skipped))
     print("\n".join(lines))
     if args.md:
-        from lod.atomic_io import write_atomic
+        from sim.atomic_io import write_atomic
 
         cmd = "python scripts/bench_world.py " + " ".join(argv if argv is not None else sys.argv[1:])
         head = ["# bench_world: ground + props + shadows against none (issue 22)", "",

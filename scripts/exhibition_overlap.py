@@ -144,7 +144,7 @@ def main(argv=None) -> int:
               f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; commit {rev}.\n"
               f"Command: `python scripts/exhibition_overlap.py {' '.join(argv if argv is not None else sys.argv[1:])}`\n\n"
               + text + "\n")
-        from lod.atomic_io import write_atomic
+        from sim.atomic_io import write_atomic
 
         write_atomic(a.md, md)
     return 0

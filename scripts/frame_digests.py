@@ -8,6 +8,9 @@ of ``summary.json``) is written, one line per image:
     <scene> <mode> frame=<n> <sha256 of the RGB(A) pixels>
     <scene> <mode> state <the run's state digest>
 
+Beside each run it prints how many poses a frame evaluated beyond its distinct poses (frames.csv
+``pose_passes`` minus ``poses``): 0 when the pose cache is the one place animation is evaluated (issue 33).
+
 A refactor that changes no behaviour leaves this file unchanged: run it before
 and after, then ``diff`` (or ``--compare OLD``, which exits 1 on a difference).
 
@@ -21,11 +24,16 @@ from ``$CROWD_CACHE_DIR`` (warm after the first run).
 
 Run:  .venv/bin/python scripts/frame_digests.py [--out scripts/frame_digests.txt] [--scenes grid office]
       [--modes none points] [--frames 4] [--size 160 90] [--lod MODE:KEY=VALUE ...] [--compare OLD.txt]
+      [--keep DIR [--psnr OLD_DIR]]
+
+A change that may move pixels (issue 44's pose evaluation) keeps the images of both runs (``--keep``) and prints
+every changed image's PSNR against the old one (``--psnr OLD_DIR``).
 """
 from __future__ import annotations
 
 import argparse
 import hashlib
+import shutil
 import sys
 import tempfile
 import time
@@ -57,8 +65,34 @@ def pixel_digest(path: Path) -> str:
     return h.hexdigest()
 
 
-def run_one(scene_path: Path, mode: str, frames: int, size: tuple, lod: dict) -> list:
-    """Lines of one scene in one mode."""
+def pose_excess(frames_csv: Path) -> int:
+    """The most poses any frame of a run evaluated beyond its distinct poses (frames.csv ``pose_passes`` minus
+    ``poses``; issue 33: 0 on every frame when each distinct pose is evaluated once)."""
+    import csv
+
+    worst = 0
+    with open(frames_csv, newline="", encoding="utf-8") as f:
+        for row in csv.DictReader(f):
+            passes = float(row.get("pose_passes") or 0.0)
+            worst = max(worst, int(round(passes - float(row.get("poses") or 0.0))))
+    return worst
+
+
+def psnr(a_path: Path, b_path: Path) -> float:
+    """PSNR in dB of two images of one size (RGB, peak 255); inf when equal."""
+    import numpy as np
+    from PIL import Image
+
+    a = np.asarray(Image.open(a_path).convert("RGB"), np.float64)
+    b = np.asarray(Image.open(b_path).convert("RGB"), np.float64)
+    mse = float(np.mean((a - b) ** 2))
+    return float("inf") if mse == 0.0 else 10.0 * np.log10(255.0 ** 2 / mse)
+
+
+def run_one(scene_path: Path, mode: str, frames: int, size: tuple, lod: dict, excess: dict | None = None,
+            keep: Path | None = None) -> list:
+    """Lines of one scene in one mode (``excess``: filled with (scene, mode) -> :func:`pose_excess`; ``keep``: a
+    folder the images are copied to as ``<scene>_<mode>_frame<n>.png``)."""
     from crowd.engine import Engine
     from crowd.report.settings import expand_settings
 
@@ -72,7 +106,11 @@ def run_one(scene_path: Path, mode: str, frames: int, size: tuple, lod: dict) ->
         for p in sorted(Path(x) for x in r.pngs):
             n = int(p.stem.split("_")[-1])
             lines.append(f"{scene_path.stem} {mode} frame={n} {pixel_digest(p)}")
+            if keep is not None:
+                shutil.copyfile(p, keep / f"{scene_path.stem}_{mode}_frame{n}.png")
         lines.append(f"{scene_path.stem} {mode} state {r.summary.get('state_digest', '?')}")
+        if excess is not None and (out / "frames.csv").exists():
+            excess[(scene_path.stem, mode)] = pose_excess(out / "frames.csv")
     return lines
 
 
@@ -88,6 +126,9 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=(160, 90))
     ap.add_argument("--lod", action="append", default=None, help="MODE:KEY=VALUE, a [lod] key for one mode")
     ap.add_argument("--compare", default=None, help="an earlier digest file: exit 1 when any line differs")
+    ap.add_argument("--keep", default=None, help="a folder to keep the images in (<scene>_<mode>_frame<n>.png)")
+    ap.add_argument("--psnr", default=None, help="with --keep: an earlier run's --keep folder; every image that "
+                    "differs is printed with its PSNR against the earlier one")
     a = ap.parse_args(argv)
     if a.frames < 2:
         ap.error("--frames must be at least 2 (frame 0 and a later one)")
@@ -111,6 +152,11 @@ def main(argv=None) -> int:
     for m in set(modes) | set(lod):
         if m not in mode_names():
             ap.error(f"unknown LOD mode {m!r}; accepted: {', '.join(mode_names())}")
+    keep = Path(a.keep) if a.keep else None
+    if keep is not None:
+        keep.mkdir(parents=True, exist_ok=True)
+    if a.psnr and keep is None:
+        ap.error("--psnr needs --keep (the images to compare)")
     old = None
     if a.compare:
         try:
@@ -118,28 +164,46 @@ def main(argv=None) -> int:
         except OSError as e:
             ap.error(f"--compare {a.compare}: cannot read it ({e.strerror})")
     from crowd.report.runs import _user_errors
-    from lod.atomic_io import write_atomic
+    from sim.atomic_io import write_atomic
 
     lines = []
+    excess: dict = {}
     for s in scenes:
         for m in modes:
             t0 = time.perf_counter()
             try:
-                got = run_one(s, m, a.frames, tuple(a.size), lod)
+                got = run_one(s, m, a.frames, tuple(a.size), lod, excess, keep)
             except _user_errors() as e:  # e.g. a --lod key the mode does not accept: one sentence, exit 2
                 print(f"frame_digests: {s.name} in mode {m}: {str(e).splitlines()[0]}", file=sys.stderr)
                 return 2
             lines += got
-            print(f"{s.stem:12s} {m:10s} {time.perf_counter() - t0:7.1f} s  " + " ".join(x.split()[-1][:12] for x in got),
-                  flush=True)
+            print(f"{s.stem:12s} {m:10s} {time.perf_counter() - t0:7.1f} s  " + " ".join(x.split()[-1][:12] for x in got)
+                  + f"  pose passes beyond distinct poses: {excess.get((s.stem, m), '?')}", flush=True)
     out = Path(a.out)
     write_atomic(out, "\n".join(lines) + "\n")
     print(f"{len(lines)} lines -> {out}")
+    over = {k: v for k, v in excess.items() if v > 0}
+    print("pose passes: at most one per distinct pose on every frame" if not over else
+          "pose passes beyond the distinct poses: " + ", ".join(f"{sc} {mo} +{v}" for (sc, mo), v in sorted(over.items())))
     if old is not None:
         diff = sorted(set(old) ^ set(lines))
         for line in diff:
             print(("- " if line in old else "+ ") + line)
         print("digests equal" if not diff else f"{len(diff)} lines differ")
+    if a.psnr:
+        worst = float("inf")
+        for p in sorted(keep.glob("*.png")):
+            q = Path(a.psnr) / p.name
+            if not q.is_file():
+                print(f"psnr: {p.name}: not in {a.psnr}")
+                continue
+            v = psnr(p, q)
+            worst = min(worst, v)
+            if v != float("inf"):
+                print(f"psnr: {p.stem} {v:.1f} dB")
+        print(f"psnr: lowest {worst:.1f} dB over the images that differ" if worst < float("inf") else
+              "psnr: every image equal")
+    if old is not None:
         return 1 if diff else 0
     return 0
 

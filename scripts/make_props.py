@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from lod.atomic_io import write_atomic  # noqa: E402
+from sim.atomic_io import write_atomic  # noqa: E402
 
 
 def _part(mesh: trimesh.Trimesh, rgb, at=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:

@@ -14,5 +14,6 @@ Modules in data-flow order (asset -> character -> world -> systems stepping the 
   schedule), ``sim.params`` (their parameter schemas), ``sim.animation``, ``sim.boids``, ``sim.goals``,
   ``sim.obstacles``, ``sim.terrain_follow``, ``sim.instancing`` (hierarchical instantiation, Wand & Straßer
   §3.6).
-- ``sim.config`` (tunable constants), ``sim.errors``.
+- ``sim.config`` (tunable constants), ``sim.errors``, ``sim.atomic_io`` (atomic file writes: every cache and
+  output of the sandbox, from ``sim``'s own to ``crowd``'s, is written through it).
 """

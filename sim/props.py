@@ -11,7 +11,7 @@ effect (:mod:`sim.obstacles`), so what stops agents is what one sees.
 
 This module only reads meshes and computes placements and footprints (sim may
 use trimesh to read a mesh); the representations (LOD chains) are built in
-``lod.props`` and drawn by ``render.world``.
+``lod.props`` and drawn by ``render.world.draw``.
 
 Conventions: a prop's model is Y up (as glTF; ``up = "z"`` turns a Z-up file,
 e.g. most STL, upright) and in metres. Yaw about +Y maps local +Z to

@@ -13,7 +13,7 @@ obviously correct) and a numba kernel used by :func:`skin` for large meshes;
 Morph targets (glTF 2.0 §3.7.2.2) act before skinning: :func:`morph` moves the
 bind-pose vertices by the weighted target deltas and :func:`skin_morph` skins
 the result (``skin ∘ morph``, the order glTF prescribes). This is the CPU
-reference of the GPU path (``render/shaders/targets.glsl``).
+reference of the GPU path (``render/shaders/poses/targets.glsl``).
 """
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""Mode "auto"'s build (``lod.modes``' interface: the candidates' representations and an
-:class:`lod.auto.mode.AutoSelector`) and its memory estimate; re-exported by :mod:`lod.auto.mode`."""
+"""Mode "auto" as ``lod.modes`` names it (the registry's module of the mode): its ``[lod]`` keys
+(:data:`lod.auto.mode.PARAMS`), its build (the candidates' representations and an
+:class:`lod.auto.mode.AutoSelector`) and its memory estimate. The selector's module does not import this one."""
 from __future__ import annotations
 
 from lod.auto import candidates as ac
@@ -96,4 +97,4 @@ def memory_estimate(characters, params: dict) -> int:
     return int(total)
 
 
-__all__ = ["build", "memory_estimate"]
+__all__ = ["PARAMS", "build", "memory_estimate"]

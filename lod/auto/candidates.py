@@ -56,7 +56,7 @@ Three candidates exist:
 - :class:`PointsCandidate`: the Wand & Straßer point/triangle octree of the
   instance's keyframe segment traversed at the largest splat size (1 to 3
   pixels) not above the bound (half the bound when a keyframe deviation
-  must fit too, :meth:`PointsCandidate.splat_size`) (:func:`lod.points.mode.traverse_instances`),
+  must fit too, :meth:`PointsCandidate.splat_size`) (:func:`lod.points.jobs.traverse_instances`),
   so that its cost is exact too. A skinned character's point hierarchies
   are built over poses baked at a few keyframes (Wand & Straßer §3:
   keyframe animations) and interpolated linearly between them, which
@@ -460,7 +460,7 @@ class PointsCandidate(Candidate):
         return max(1, splat_for_bound(bound * share, self.max_splat))
 
     def options(self, frame, group):
-        from lod.points.mode import traverse_instances
+        from lod.points.jobs import traverse_instances
         from lod.points.traverse import viewport_scale
 
         r = self.by_char.get(group.char)

@@ -11,7 +11,7 @@ Virtual Environments", SIGGRAPH 1993, §4.1)::
               + c_pass·pixels + c_area·pixels·s²     (when any point is splatted)
               + c_pinst·point_instances + c_cpath·[any cluster cut drawn]
 
-The last two terms are the point splatting pass of ``render/points.py``
+The last two terms are the point splatting pass of ``render/points/draw.py``
 (clearing and resolving a depth/colour buffer of the whole viewport,
 gathering s x s anchors per pixel for splat size s; Schütz, Kerbl & Wimmer
 2021): a per-frame cost that does not depend on how many points are drawn,
@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 
 #: feature names, in the order of :attr:`CostModel.coefficients` (after ``frame``): what ``crowd calibrate`` fits
 FEATURES = ("triangles", "points", "batches", "instances", "clusters", "splat_pixels", "splat_area",

@@ -11,10 +11,11 @@ layout.
 Here the work is a few numba passes over the instances of all groups at once, written straight into the
 side-by-side layout (one row per candidate, one column per instance, groups in master order; a group
 without a candidate's block has +inf there): the point candidate's segments, sort and traversal
-(:mod:`lod.auto.flat_points`, with an exact decision at the root for far instances; a character whose
+(:mod:`lod.auto.flat_points`, the job writer :mod:`lod.points.jobs` with the root decided in line for far
+instances; a character whose
 samples follow the animation, :mod:`lod.points.follow`, has one hierarchy traversed at each copy's pose:
 its groups get the candidate's own options, one :func:`lod.points.follow_select.follow_batch` per group
-traversed by :func:`lod.points.follow_traverse.follow_traverse` (the same results, the root decided in line),
+traversed by :func:`lod.points.jobs.follow_traverse` (the same results, the root decided in line),
 whose per-instance totals the pass below prices), then one pass
 (:func:`_rows_kernel`) that reads each instance's model rows once and fills every candidate's row: the
 triangle chain's cheapest admissible level (the projected error of
@@ -40,8 +41,8 @@ from numba import njit, prange
 
 from lod.auto import candidates as ac
 from lod.auto import flat_points as fp
-from lod.points.follow_traverse import follow_traverse
 from lod.auto.plans import _Block
+from lod.points.jobs import follow_traverse
 
 class FlatGroup:
     """A master batch (:class:`lod.auto.candidates.Group`'s fields) whose float64 model rows are
@@ -290,7 +291,7 @@ class _PointsFrame:
     and traversed (:mod:`lod.auto.flat_points`); ``tables`` for :func:`_rows_kernel`; :meth:`options`
     after it. A group whose rep follows the animation (``follow``) is not sorted into the forest's bins:
     its Options are the candidate's (:meth:`lod.auto.candidates.PointsCandidate._follow_options`, one
-    follow batch traversed by :func:`lod.points.follow_traverse.follow_traverse`: the plan
+    follow batch traversed by :func:`lod.points.jobs.follow_traverse`: the plan
     ``("follow", rep, batch, splat)`` its emission reads), and its instances' rows
     of the traversal totals (``pos``) point at the batch's per-instance totals, appended after the sorted
     rows', so the pass prices them by the same expression (no keyframe deviation: the samples follow the

@@ -634,7 +634,4 @@ class AutoSelector:
             m *= math.exp(self.chooser.bias(plan, self.fit)[0])
         return m, math.sqrt(sd ** 2 + (self.fit.noise * m) ** 2)
 
-
-from lod.auto.build import build, memory_estimate  # noqa: E402 (the mode interface; build needs AutoSelector)
-
-__all__ = ["PARAMS", "CANDIDATES", "AutoSelector", "build", "memory_estimate", "parse_candidates", "projected_errors"]
+__all__ = ["PARAMS", "CANDIDATES", "AutoSelector", "parse_candidates", "projected_errors"]

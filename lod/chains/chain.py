@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 from lod.clusters import poses
 from lod.clusters.dag import skin_poses
 from lod.clusters.mode import cache_dir, cache_key

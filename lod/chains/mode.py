@@ -44,7 +44,7 @@ Cache: chains are stored under ``$CROWD_CACHE_DIR`` (default ``~/.cache/crowd``,
 :func:`lod.clusters.mode.cache_dir`) as ``triangles-<sha256>.npz``; the key
 extends :func:`lod.clusters.mode.cache_key` with this module's source, the
 chain parameters and :data:`FORMAT_VERSION`. Writes are atomic
-(:func:`lod.atomic_io.atomic_open`); a file that fails to load is rebuilt.
+(:func:`sim.atomic_io.atomic_open`); a file that fails to load is rebuilt.
 
 Morph targets (glTF 2.0 §3.7.2.2): the chain's rep is the full-detail
 :class:`lod.full.reps.SkinnedRep` with its :class:`lod.full.targets.TargetTable`,

@@ -82,7 +82,7 @@ import numpy as np
 from numba import njit
 from tqdm import tqdm
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 from lod.clusters import clustering, deformation, poses
 from lod.clusters.config import (
     CLUSTERS_DEFORM_TOLERANCE,
@@ -200,7 +200,7 @@ class ClusterHierarchy:
         return int(sum(a.nbytes for a in self.arrays().values()))
 
     def save(self, path) -> None:
-        """Write to ``path`` (.npz) atomically (:func:`lod.atomic_io.atomic_open`)."""
+        """Write to ``path`` (.npz) atomically (:func:`sim.atomic_io.atomic_open`)."""
         import json
 
         d = dict(self.arrays())

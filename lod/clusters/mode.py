@@ -5,7 +5,7 @@ Models*. The hierarchy of every skinned character is built once (§4,
 :func:`lod.clusters.dag.build_cluster_hierarchy`) or loaded from an on-disk
 cache; each frame, every visible instance gets its own LOD cut by pixels of
 error (§5.1, :func:`lod.clusters.cut.cut`) and the renderer draws the selected
-clusters with GPU skinning (``render/clusters.py``).
+clusters with GPU skinning (``render/clusters/draw.py``).
 
 Batching: instances are culled and packed exactly as in the full-detail mode
 (:class:`lod.full.mode.NoLodSelector`, one :class:`ClusterDrawBatch` per
@@ -135,7 +135,7 @@ class ClusterDrawBatch(DrawBatch):
     offsets : (k+1,) int64; clusters : (offsets[-1],) int32 cluster ids
     morph_height, morph_weight : None, or (offsets[-1],) int32 / float32 per cluster
         entry: a geomorphed union of two cuts (:mod:`lod.clusters.morph`, drawn by
-        ``render/shaders/clusters_morph.vert``): the entry's vertices are blended
+        ``render/shaders/clusters/clusters_morph.vert``): the entry's vertices are blended
         with weight ``morph_weight`` towards the vertices they collapse into in
         the ancestor cluster of height ``morph_height`` (-1: drawn unmoved)
     """

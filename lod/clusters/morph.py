@@ -38,7 +38,7 @@ is reported as not morphable and the caller falls back to the screen-door fade
 its whole region) is drawn unmoved.
 
 :func:`collapse_table` turns the hierarchy's per-cluster lists into per-vertex
-arrays (the GPU follows them in ``render/shaders/clusters_morph.vert``);
+arrays (the GPU follows them in ``render/shaders/clusters/clusters_morph.vert``);
 :func:`chain_targets` is the CPU form of that walk, :func:`morph_union` builds
 the union per instance (numba kernel beside :func:`morph_union_numpy`), and
 :func:`morphed_triangle_positions` evaluates a morphed union on the CPU (tests,
@@ -57,7 +57,7 @@ NEVER_REMOVED = np.int32(2 ** 30)
 NO_MORPH = -1
 #: side of a union entry: the finer cluster comes from cut A (blend weight t) or from cut B (weight 1 - t)
 SIDE_A, SIDE_B = 0, 1
-#: longest collapse chain the shader follows (``render/shaders/clusters_morph.vert`` MAX_CHAIN); a chain
+#: longest collapse chain the shader follows (``render/shaders/clusters/clusters_morph.vert`` MAX_CHAIN); a chain
 #: climbs strictly in height, so hierarchies up to this height morph (taller ones are faded)
 MAX_CHAIN = 64
 

@@ -5,8 +5,8 @@ A skinned glTF mesh with morph targets (glTF 2.0 §3.7.2.2) is drawn as
 targets, then linear-blend skinned (``sim.skinning.skin_morph`` is the CPU
 reference). :func:`build_target_table` turns a character's
 :class:`sim.mesh.MorphTargets` and its clips' ``weights`` channels into a
-:class:`TargetTable` the renderer uploads (``render/targets.py``,
-``shaders/targets.glsl``):
+:class:`TargetTable` the renderer uploads (``render/poses/targets.py``,
+``shaders/poses/targets.glsl``):
 
 - Weights are baked like the joint matrices (:class:`lod.full.reps.SkinnedRep`):
   one row per baked frame of every clip, the same rows as ``joint_table``, so

@@ -8,7 +8,7 @@ the two ends of every segment of a keyframed one (``lod.full.reps.KeyframedRep``
 segments). Posed vertex positions of a frame (:meth:`SkinnedFrames.positions`; numba kernel beside
 :func:`pose_positions_numpy`): the morph target weights of the row added to the rest positions, then linear
 blend skinning with the row's matrices (``skin ∘ morph``, glTF 2.0 §3.7.2.2, the arithmetic of
-``render/shaders/targets.glsl`` and ``skinning.glsl``); keyframed, the segment's end positions. Between two
+``render/shaders/poses/targets.glsl`` and ``skinning.glsl``); keyframed, the segment's end positions. Between two
 rows the GPU blends linearly, so a vertex lies on the chord of its positions at the rows (with morph targets
 on a quadratic curve near it, ``lod.full.targets``).
 

@@ -32,7 +32,7 @@ build (a 35 s dance of a 62 K-triangle character: an estimated 144 GB). Here a c
    in that order (``vorder``), so what the nodes up to the deepest one a pose draws need is a prefix of both:
    ``pprefix`` samples and ``vprefix`` vertices. Per frame and distinct pose the renderer poses that vertex
    prefix (skin ∘ morph with the pose's baked rows, or the keyframes' interpolation) and places the sample
-   prefix by barycentric interpolation of the posed corners (``render/points_follow.py``): the samples lie on
+   prefix by barycentric interpolation of the posed corners (``render/points/follow.py``): the samples lie on
    the very triangles full detail draws. Normals: the filtered normal is kept in the frame of the sample's
    shading normal and first edge (``lnrm``) and turned with it.
 
@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 from lod.points import config as C
 from lod.points import deform
 from lod.points.coarse import add_coarse
@@ -161,7 +161,7 @@ def vertex_order(h: PointHierarchy, V: int) -> tuple[np.ndarray, np.ndarray, np.
 def frame_coordinates(p, n, idx, tri, bary, nrm) -> np.ndarray:
     """(P, 3) float64 unit coordinates of the filtered normals ``nrm`` of samples (tri, bary) in their
     shading frame at positions p (V, 3) and vertex normals n (V, 3): N the interpolated vertex normal,
-    T the triangle's first edge made orthogonal to N, B = N x T (``render/shaders/points_follow.glsl``
+    T the triangle's first edge made orthogonal to N, B = N x T (``render/shaders/points/points_place.glsl``
     turns them back with the posed frame). A degenerate frame keeps the normal in N's direction."""
     tri = np.asarray(tri, np.int64)
     b = np.asarray(bary, np.float64)
@@ -429,7 +429,7 @@ class FollowRep:
         return self.tree.nbytes
 
     def view(self, part: int) -> PointHierarchy:
-        """The octree as the traversal (``lod.points.mode.traverse_instances``) reads it for ``part``:
+        """The octree as the traversal (``lod.points.jobs.traverse_instances``) reads it for ``part``:
         node boxes in joint frames over clip ``part``'s frames (skinned) or at segment ``part``'s ends
         (keyframed), the spacing times the clip's stretch, the clip's coarse prefixes."""
         views = self.__dict__.setdefault("_views", {})

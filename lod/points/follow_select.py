@@ -13,12 +13,13 @@ traversal runs there too: its node boxes are the drawn samples' bounds.
 Prefixes: the samples are stored and the vertices numbered in breadth-first node order
 (``lod.points.follow.vertex_order``), so a pose whose instances draw nodes up to the deepest one d needs the
 samples ``pprefix[d]`` and the vertices ``vprefix[d]``: the render layer places that much once per pose
-(``render/points_follow.py``), however many copies share it.
+(``render/points/follow.py``), however many copies share it.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from lod.points.jobs import follow_traverse
 from lod.points.rep import FollowBatch
 
 #: ``pose_rate`` that quantises to the baked rows
@@ -72,13 +73,11 @@ def _prefixes(rep, slot, n_poses: int, deep) -> tuple[np.ndarray, np.ndarray]:
 def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE, traverse=None) -> FollowBatch:
     """The :class:`lod.points.rep.FollowBatch` of one culled and located batch of ``rep`` (instances of one
     clip, or one segment): poses quantised (module docstring), the hierarchy traversed at each instance's pose
-    (``lod.points.mode.traverse_instances``), the prefixes of every distinct pose. The batch also keeps each
+    (``lod.points.jobs.traverse_instances``), the prefixes of every distinct pose. The batch also keeps each
     instance's point and triangle totals and deepest node (``inst_points``, ``inst_triangles``, ``deep``) for
     :func:`subset` (mode auto's choice among candidates). ``traverse``: a function with
-    ``traverse_instances``' signature and results; default :func:`lod.points.follow_traverse.follow_traverse`
+    ``traverse_instances``' signature and results; default :func:`lod.points.jobs.follow_traverse`
     (the same results, each instance's root decided in line: far crowds stop there)."""
-    from lod.points.follow_traverse import follow_traverse
-
     traverse = follow_traverse if traverse is None else traverse
 
     data = np.array(batch.instance_data, np.float32)
@@ -90,7 +89,7 @@ def follow_batch(rep, batch, planes, vscale: float, splat: float, rate=KEY_RATE,
     data[:, 12] = q
     pose, slot = np.unique(data[:, 12].astype(np.float64), return_inverse=True)
     pj, tj, psum, tsum, deep = traverse(rep.view(batch.part), data, planes, vscale, splat, totals=True,
-                                                  deepest=True)
+                                        deepest=True)
     pts, vts = _prefixes(rep, slot, pose.shape[0], deep)
     fb = FollowBatch(batch.rep, int(batch.part), batch.instance_ids, data, triangles=int(tsum.sum()),
                      points=int(psum.sum()), level=batch.level, tint=batch.tint, fade=batch.fade, point_jobs=pj,

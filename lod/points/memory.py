@@ -1,27 +1,26 @@
 """Memory of mode points' representations before they are built (``crowd.memory``'s hooks): the estimate per
 character (the hierarchy that follows the animation: independent of the clips' length; the per-keyframe-pair
-octrees of Wand & Strasser §3.3: poses x triangles) and, when the guard refuses a scene, each character's share
-named with its path and the setting that would shrink it. Re-exported by :mod:`lod.points.mode`."""
+octrees of Wand & Strasser §3.3: poses x triangles; the sizes of both in :mod:`lod.points.sizes`, the path each
+character takes by :mod:`lod.points.paths`) and, when the guard refuses a scene, each character's share named
+with its path and the setting that would shrink it. Re-exported by :mod:`lod.points.mode`."""
 from __future__ import annotations
 
-import numpy as np
-
-from lod.points import config as C
-from lod.points.paths import animation_path, follow_bytes
+from lod.points.params import PARAMS
+from lod.points.paths import animation_path
 from lod.points.poses import clip_poses
+from lod.points.sizes import baked_size, follow_bytes
 
 
 def memory_estimate(characters, params: dict) -> int:
     """Bytes of the point hierarchies mode "points" will build (``crowd.memory``'s hook): per character
-    its triangles x the keyframe segments x the bytes per triangle and segment
-    (:data:`lod.points.config.POINTS_SEGMENT_BYTES_COEF`, growing with the mesh).
+    the follow hierarchy (:func:`lod.points.sizes.follow_bytes`) where it takes that path, else its baked
+    octrees (:func:`lod.points.sizes.baked_size`: triangles x the keyframe segments x the bytes per
+    triangle and segment, :data:`lod.points.config.POINTS_SEGMENT_BYTES_COEF`, growing with the mesh).
 
     characters : built characters (the segments are counted: for a skinned one the poses
-        :func:`lod.points.poses.clip_poses` chooses, as :func:`build` will) or scene character specs
-        (before building: ``GENERATOR_SEGMENTS`` segments of the spec's triangles; a glTF spec counts 0
-        here and is estimated once built)."""
-    from lod.points.mode import PARAMS
-
+        :func:`lod.points.poses.clip_poses` chooses, as :func:`lod.points.mode.build` will) or scene
+        character specs (before building: ``GENERATOR_SEGMENTS`` segments of the spec's triangles; a glTF
+        spec counts 0 here and is estimated once built)."""
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     total = 0
     for ch in characters:
@@ -30,30 +29,13 @@ def memory_estimate(characters, params: dict) -> int:
                                          or (kind == "keyframed" and animation_path(ch, p)[0] == "follow")):
             total += follow_bytes(ch)  # independent of the clips' length (lod.points.follow)
             continue
-        if kind == "skinned" and ch.mesh.is_skinned:
-            tris = ch.mesh.n_triangles
-            poses = clip_poses(ch, int(p["keyframes"]), float(p["pose_error"]), int(p["max_keyframes"]))
-            segs = sum(len(cp.times) for cp in poses.values())
-        elif kind == "keyframed":
-            segs, tris = 0, 0
-            for a in ch.animations.values():
-                segs += len(a.segments)
-                tris = max(tris, max((int(np.asarray(k.indices).reshape(-1, 3).shape[0]) for k in a.keyframes),
-                                     default=0))
-        elif kind is not None:  # a character points cannot bake: nothing built for it here
-            continue
-        else:  # a spec: only generators say their size before building
-            tris = int(getattr(ch, "triangles", 0) or (5000 if getattr(ch, "generator", None) else 0))
-            segs = C.GENERATOR_SEGMENTS
-        total += tris * segs * C.POINTS_SEGMENT_BYTES_COEF * max(tris, 1) ** C.POINTS_SEGMENT_BYTES_EXP
+        total += baked_size(ch, p)
     return int(total)
 
 
 def memory_causes(characters, params: dict, names) -> list:
     """(bytes, clause) per character of :func:`memory_estimate`, each naming the character, the path and
     the ``[lod]`` setting that changes it (``crowd.memory``'s refusal)."""
-    from lod.points.mode import PARAMS
-
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     out = []
     for ch, name in zip(characters, names):

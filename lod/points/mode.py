@@ -14,12 +14,12 @@ Selection (:class:`PointsSelector`): whole-animation sphere culling and
 segment/u location are those of the full-detail selector
 (``lod.full.mode.NoLodSelector``) run on the keyframed form of the characters;
 then for each visible instance the octree of its segment is traversed at its
-u with its camera-relative model matrix (§3.2, numba kernel
-:func:`traverse_instances` over all instances of a segment, beside the
-per-instance reference :func:`traverse_instances_reference`). The result is
+u with its camera-relative model matrix (§3.2, the job writer
+:func:`lod.points.jobs.traverse_instances` over all instances of a segment, beside
+the per-instance reference :func:`lod.points.jobs.traverse_instances_reference`). The result is
 one :class:`PointsBatch` per (character, segment): the instances, and two job
 lists ``(instance row, start, count)``: point ranges into the segment's points
-and triangle ranges into its ``tri_order``. ``render.points`` draws both.
+and triangle ranges into its ``tri_order``. ``render.points.draw`` draws both.
 
 §3.6 hierarchical instantiation: when the engine hands over the
 simulation's instancing groups (``build(..., instancing=...)``), every group
@@ -39,60 +39,22 @@ between (as every other vertex motion of §3).
 """
 from __future__ import annotations
 
-import numba
 import numpy as np
-from numba import njit, prange
 
 from lod.drawlist import DrawList
 from lod.full.mode import NoLodSelector
 from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points import config as C
-from lod.points.coarse import add_coarse, coarse_arrays
+from lod.points.coarse import add_coarse
+from lod.points.follow_select import follow_batch
+from lod.points.jobs import traverse_instances
 from lod.points.memory import memory_causes, memory_estimate  # noqa: F401 (the mode interface)
 from lod.points.octree import PointHierarchy
-from lod.points.paths import ANIMATION_PATHS, animation_path, build_follow_rep
+from lod.points.params import PARAMS
+from lod.points.paths import animation_path, build_follow_rep
 from lod.points.poses import clip_poses
 from lod.points.rep import HierarchyCache, PointsBatch, PointsRep
-from lod.points.traverse import _traverse_kernel, joint_frames, traverse, viewport_scale
-from sim.params import Param
-
-#: instances per call below which :func:`traverse_instances` runs serially (a parallel region costs a
-#: thread wake-up, milliseconds on a loaded machine)
-TRAVERSE_PARALLEL_MIN = 20_000
-#: chunks per numba thread of the parallel traversal
-TRAVERSE_CHUNKS_PER_THREAD = 4
-#: renderer paths of the point splats
-RENDERERS = ("compute", "gl_points")
-
-#: ``[lod]`` keys of mode "points"
-PARAMS: dict = {
-    "splat_size": Param("int", 2, min=1, max=3, doc="splat size in pixels (§3.2): a node is drawn as points "
-                                                    "when its projected spacing is at most this"),
-    "keyframes": Param("int", 0, min=0, max=256,
-                       doc="poses baked per clip of a skinned character, evenly spaced; 0 = per clip the fewest "
-                           "that keep the pose error within pose_error (lod.points.poses)"),
-    "pose_error": Param("float", C.POINTS_POSE_ERROR, min=1e-4, max=1.0,
-                        doc="largest vertex distance between the interpolated baked poses and the skinned "
-                            "animation, as a fraction of the character's largest rest extent (keyframes = 0)"),
-    "max_keyframes": Param("int", C.POINTS_MAX_POSES, min=2, max=4096,
-                           doc="cap on the poses baked per clip when keyframes = 0"),
-    "intervals": Param("int", C.POINTS_TIME_INTERVALS, min=1, max=16,
-                       doc="stratification time intervals per keyframe pair (§3.4.2)"),
-    "spacing_fraction": Param("float", C.POINTS_SPACING_FRACTION, min=1.0 / 64.0, max=1.0,
-                              doc="sample spacing as a fraction of a node's side (§3.1, 1/8-1/16)"),
-    "coarse": Param("bool", True, doc="representations coarser than a hierarchy's root: the smallest "
-                                      "farthest-point prefix of the root's points whose spacing projects within "
-                                      "the splat size, down to one splat per agent (lod.points.coarse)"),
-    "renderer": Param("str", "compute", choices=RENDERERS,
-                      doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
-    "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
-                                          "likely occluders (render.occlusion; not in Wand & Strasser)"),
-    "animation": Param("str", "auto", choices=ANIMATION_PATHS,
-                       doc="how the samples move: \"follow\" = one hierarchy of rest-pose samples per character, "
-                           "placed with the animation at draw time (memory independent of the clips' length); "
-                           "\"baked\" = one octree per keyframe pair (Wand & Strasser 3.3; grows with the clips); "
-                           "\"auto\" = per character by a measured rule (lod.points.paths)"),
-}
+from lod.points.traverse import viewport_scale
 
 
 # ---------------------------------------------------------------------------- build
@@ -341,197 +303,6 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
     return reps + (plan.reps if plan is not None else []), sel
 
 
-# ---------------------------------------------------------------------------- traversal of many instances
-@njit(cache=True)
-def _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start, tri_count,
-                   bounds, coarse_count, coarse_spacing, ref, jt, data, planes, vscale, splat, r0, r1, base, cap,
-                   pjobs, tjobs, psum, tsum, deep):  # pragma: no cover
-    """Traverse instances ``r0 .. r1 - 1`` into ``pjobs`` / ``tjobs`` rows ``base ..
-    base + cap - 1``; returns (point jobs, triangle jobs) written, or (-1, -1) when
-    they do not fit. ``deep[r]``: the largest node instance r draws (points or
-    triangles), -1 for none. With joint frames (``ref`` not empty,
-    ``lod.points.follow``) column 12 is the instance's fractional baked row."""
-    N = child_start.shape[0]
-    out_p = np.empty((N, 2), np.int64)
-    out_pn = np.empty(N, np.int32)
-    out_t = np.empty((N, 2), np.int64)
-    out_tn = np.empty(N, np.int32)
-    stack = np.empty(N + 8, np.int64)
-    cs = np.empty((16, 3))
-    lo = np.empty(3)
-    hi = np.empty(3)
-    model = np.empty((3, 4))
-    npj = 0
-    ntj = 0
-    intervals = bounds.shape[0] - 1
-    for r in range(r0, r1):
-        for a in range(3):
-            for b in range(4):
-                model[a, b] = data[r, 4 * a + b]
-        scale = 0.0
-        for b in range(3):
-            s = np.sqrt(model[0, b] ** 2 + model[1, b] ** 2 + model[2, b] ** 2)
-            if s > scale:
-                scale = s
-        u = data[r, 12]
-        if not np.isfinite(u):
-            u = 0.0
-        f0 = 0
-        f1 = 0
-        a = 0.0
-        if ref.shape[0] > 0:  # a baked row (lod.points.follow), as render/shaders/skinning.glsl frame_pair
-            last = jt.shape[0] - 1
-            f = min(max(u, 0.0), float(last))
-            f0 = int(np.floor(f))
-            f1 = min(f0 + 1, last)
-            a = f - f0
-            u = 0.0
-        u = min(max(u, 0.0), 1.0)
-        j = 0  # the interval holding u (lod.points.stratify.interval_of)
-        while j < intervals - 1 and bounds[j + 1] <= u:
-            j += 1
-        np_, nt = _traverse_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                                   tri_start, tri_count, coarse_count, coarse_spacing, ref, jt, f0, f1, a, u, j,
-                                   planes, model, scale, vscale, splat, out_p, out_pn, out_t, out_tn, stack, cs, lo,
-                                   hi)
-        if npj + np_ > cap or ntj + nt > cap:
-            return -1, -1
-        dn = -1
-        for q in range(np_):
-            dn = max(dn, out_pn[q])
-        for q in range(nt):
-            dn = max(dn, out_tn[q])
-        deep[r] = dn
-        sp = 0
-        for q in range(np_):
-            pjobs[base + npj, 0] = r
-            pjobs[base + npj, 1] = out_p[q, 0]
-            pjobs[base + npj, 2] = out_p[q, 1]
-            sp += out_p[q, 1]
-            npj += 1
-        st = 0
-        for q in range(nt):
-            tjobs[base + ntj, 0] = r
-            tjobs[base + ntj, 1] = out_t[q, 0]
-            tjobs[base + ntj, 2] = out_t[q, 1]
-            st += out_t[q, 1]
-            ntj += 1
-        psum[r] = sp
-        tsum[r] = st
-    return npj, ntj
-
-
-@njit(cache=True, parallel=True)
-def _traverse_chunks_kernel(child_start, child_count, box0, box1, spacing, point_start, point_count, tri_start,
-                            tri_count, bounds, coarse_count, coarse_spacing, ref, jt, data, planes, vscale, splat,
-                            first, cap, pjobs, tjobs, npc, ntc, psum, tsum, deep):  # pragma: no cover
-    """Chunk c (rows ``first[c] .. first[c + 1] - 1``) into job rows ``c * cap ..``,
-    the chunks in parallel (each writes only its own rows and instances)."""
-    for c in prange(first.shape[0] - 1):
-        npc[c], ntc[c] = _traverse_rows(child_start, child_count, box0, box1, spacing, point_start, point_count,
-                                        tri_start, tri_count, bounds, coarse_count, coarse_spacing, ref, jt, data,
-                                        planes, vscale, splat, first[c], first[c + 1], c * cap, cap, pjobs, tjobs,
-                                        psum, tsum, deep)
-
-
-def _harrays(h: PointHierarchy) -> tuple:
-    arr = getattr(h, "_traverse_arrays", None)
-    if arr is None:
-        arr = (h.child_start.astype(np.int64), h.child_count.astype(np.int64), np.ascontiguousarray(h.box0),
-               np.ascontiguousarray(h.box1), np.ascontiguousarray(h.spacing), np.ascontiguousarray(h.point_start),
-               np.ascontiguousarray(h.point_count), np.ascontiguousarray(h.tri_start),
-               np.ascontiguousarray(h.tri_count), np.ascontiguousarray(h.bounds, np.float64), *coarse_arrays(h),
-               *joint_frames(h))
-        h._traverse_arrays = arr
-    return arr
-
-
-def traverse_instances(h: PointHierarchy, data: np.ndarray, planes, vscale: float, splat: float,
-                       totals: bool = False, deepest: bool = False):
-    """Traverse ``h`` (§3.2) once per instance (numba).
-
-    Parameters
-    ----------
-    h : PointHierarchy
-    data : (k, 16) float32/64 instance data (camera-relative model rows, u in column 12)
-    planes : (6, 4) float64 camera-relative frustum planes; vscale : pixels per
-        metre at depth 1; splat : splat size in pixels
-    totals : also return each instance's point and triangle totals
-    deepest : also return each instance's largest drawn node (-1: none), whose
-        point and vertex prefixes ``lod.points.follow`` places per pose
-
-    Returns
-    -------
-    point_jobs (J, 3) int64 and tri_jobs (Q, 3) int64: (instance row, start,
-    count); with ``totals`` also points (k,) int64 and triangles (k,) int64
-    per instance (the sums of its jobs' counts); with ``deepest`` then (k,)
-    int64 nodes.
-    """
-    data = np.asarray(data)
-    # float32 instance data is read as it is (the kernel widens each value to float64 as a copy would)
-    data = np.ascontiguousarray(data, data.dtype if data.dtype in (np.float32, np.float64) else np.float64)
-    data = data.reshape(-1, 16)
-    planes = np.ascontiguousarray(planes, np.float64)
-    k = data.shape[0]
-    # job capacity per instance: what this hierarchy needed before (a retry doubles it)
-    per = int(getattr(h, "_jobs_per_instance", 4))
-    arr = _harrays(h)
-    psum = np.empty(k, np.int64)
-    tsum = np.empty(k, np.int64)
-    deep = np.empty(k, np.int64)
-    chunks = traverse_chunks(k)
-    first = np.linspace(0, k, chunks + 1).astype(np.int64)
-    rows = int(np.diff(first).max()) if k else 0
-    cap = max(16, per * rows)
-    while True:
-        pj = np.empty((cap * chunks, 3), np.int64)
-        tj = np.empty((cap * chunks, 3), np.int64)
-        if chunks == 1:
-            npj, ntj = _traverse_rows(*arr, data, planes, float(vscale), float(splat), 0, k, 0, cap, pj, tj, psum,
-                                      tsum, deep)
-            npc, ntc = np.array([npj]), np.array([ntj])
-        else:
-            npc, ntc = np.empty(chunks, np.int64), np.empty(chunks, np.int64)
-            _traverse_chunks_kernel(*arr, data, planes, float(vscale), float(splat), first, cap, pj, tj, npc, ntc,
-                                    psum, tsum, deep)
-        if (npc >= 0).all():
-            break
-        cap *= 2
-    h._jobs_per_instance = max(per, -(-int(max(npc.max(), ntc.max())) // max(rows, 1)))
-    if chunks == 1:
-        npj, ntj = int(npc[0]), int(ntc[0])
-        # a view while the buffer is at most twice what was used (no copy), else a compact copy
-        pj = pj[:npj] if 2 * npj >= cap else pj[:npj].copy()
-        tj = tj[:ntj] if 2 * ntj >= cap else tj[:ntj].copy()
-    else:  # the chunks' jobs in row order: the serial kernel's tables exactly
-        pj = np.concatenate([pj[c * cap:c * cap + npc[c]] for c in range(chunks)])
-        tj = np.concatenate([tj[c * cap:c * cap + ntc[c]] for c in range(chunks)])
-    out = (pj, tj) + ((psum, tsum) if totals else ()) + ((deep,) if deepest else ())
-    return out
-
-
-def traverse_chunks(k: int) -> int:
-    """Chunks of :func:`traverse_instances` for ``k`` instances: 1 (the serial kernel) below
-    :data:`TRAVERSE_PARALLEL_MIN`, else ``TRAVERSE_CHUNKS_PER_THREAD`` per numba thread (uneven
-    instance costs balance), at most one per ``TRAVERSE_PARALLEL_MIN // 4`` instances."""
-    threads = numba.get_num_threads()
-    if k < TRAVERSE_PARALLEL_MIN or threads < 2:
-        return 1
-    return int(max(2, min(threads * TRAVERSE_CHUNKS_PER_THREAD, k // max(1, TRAVERSE_PARALLEL_MIN // 4))))
-
-
-def traverse_instances_reference(h: PointHierarchy, data, planes, vscale: float, splat: float):
-    """Reference of :func:`traverse_instances`: ``lod.points.traverse.traverse`` per instance."""
-    data = np.asarray(data, np.float64).reshape(-1, 16)
-    pj, tj = [], []
-    for r in range(data.shape[0]):
-        res = traverse(h, float(data[r, 12]), planes, vscale, splat, data[r, :12].reshape(3, 4),
-                       frame=float(data[r, 12]))
-        pj += [(r, s, c) for s, c in res.point_ranges.tolist()]
-        tj += [(r, s, c) for s, c in res.tri_ranges.tolist()]
-    return np.array(pj, np.int64).reshape(-1, 3), np.array(tj, np.int64).reshape(-1, 3)
-
-
 # ---------------------------------------------------------------------------- selector
 def super_batches(draws, planes, vscale: float, splat: float) -> list:
     """PointsBatches of the super-hierarchy draws of ``InstancingPlan.select`` (§3.6): per drawn
@@ -605,8 +376,6 @@ class PointsSelector:
                 out.append(b)
                 continue
             if getattr(rep, "follow", False):  # samples placed with the animation (lod.points.follow_select)
-                from lod.points.follow_select import follow_batch
-
                 fb = follow_batch(rep, b, planes, vs, self.splat_size, self.pose_rate)
                 pts += fb.points
                 tris += fb.triangles
@@ -627,7 +396,7 @@ class PointsSelector:
             out.append(b)
         dl.batches = out
         dl.stats["points"] = int(pts)
-        if poses:  # the draw's placement work (render/points_follow.py): samples placed, one set per pose
+        if poses:  # the draw's placement work (render/points/follow.py): samples placed, one set per pose
             dl.stats["placed_points"] = int(placed)
             dl.stats["point_poses"] = int(poses)
         dl.options["splat_size"] = self.splat_size  # the drawer splats at the size the traversal assumed

@@ -61,7 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 from lod.points import config as C
 from lod.points.filter import filter_points, filter_set
 from lod.points.sampling import (
@@ -606,7 +606,7 @@ _FORMAT = 1
 
 
 def save_hierarchy(h: PointHierarchy, path) -> None:
-    """Write ``h`` to an ``.npz`` file atomically (:func:`lod.atomic_io.atomic_open`).
+    """Write ``h`` to an ``.npz`` file atomically (:func:`sim.atomic_io.atomic_open`).
 
     The file holds every array of :class:`PointHierarchy` plus ``intervals``,
     the build parameters (JSON) and a format number; see

@@ -29,9 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from lod.points import config as C
+from lod.points.sizes import baked_bytes, follow_bytes
 
-#: ``[lod] animation`` values
-ANIMATION_PATHS = ("auto", "follow", "baked")
 #: a keyframed character with one triangle list is baked while its octrees are estimated below this
 BAKED_BUDGET_BYTES = 64_000_000
 
@@ -56,13 +55,6 @@ def shared_topology(kf) -> tuple | None:
     if tris is None:
         return None
     return np.asarray(vbase, np.int64), V, tris
-
-
-def baked_bytes(character, params: dict) -> int:
-    """Estimated bytes of the per-keyframe-pair octrees of one character (``lod.points.mode``'s estimate)."""
-    from lod.points.mode import memory_estimate
-
-    return int(memory_estimate([character], {**dict(params), "animation": "baked"}))
 
 
 def animation_path(character, params: dict) -> tuple[str, str]:
@@ -165,22 +157,4 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
                      bool(params.get("coarse", True)))
 
 
-def follow_bytes(character) -> int:
-    """Estimated bytes of a character's follow hierarchy: about ``FOLLOW_BYTES_PER_TRIANGLE`` per triangle,
-    whatever its clips' length (measured: ``scripts/bench_points_follow.py``)."""
-    if getattr(character, "kind", None) == "skinned":
-        tris = int(character.mesh.n_triangles)
-    elif getattr(character, "kind", None) == "keyframed":
-        tris = max((int(np.asarray(k.indices).reshape(-1, 3).shape[0]) for a in character.animations.values()
-                    for k in a.keyframes), default=0)
-    else:
-        tris = int(getattr(character, "triangles", 0) or (5000 if getattr(character, "generator", None) else 0))
-    return int(FOLLOW_BYTES_PER_TRIANGLE * tris)
-
-
-#: bytes of follow hierarchy per character triangle (measured on generated humanoids, lod.points.follow)
-FOLLOW_BYTES_PER_TRIANGLE = 300
-
-
-__all__ = ["ANIMATION_PATHS", "BAKED_BUDGET_BYTES", "FOLLOW_BYTES_PER_TRIANGLE", "animation_path", "baked_bytes",
-           "build_follow_rep", "describe_path", "follow_bytes", "shared_topology"]
+__all__ = ["BAKED_BUDGET_BYTES", "animation_path", "build_follow_rep", "describe_path", "shared_topology"]

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lod.atomic_io import write_atomic
+from sim.atomic_io import write_atomic
 from lod.drawlist import DrawBatch
 from lod.full.reps import KeyframedRep
 from lod.points.octree import PointHierarchy, build_hierarchy, load_hierarchy, save_hierarchy
@@ -131,7 +131,7 @@ class HierarchyCache:
 
     Entry ``<key>.npz`` (written atomically by ``save_hierarchy``) and
     ``<key>.sha256``, the digest of the npz bytes, written after it
-    (``lod.atomic_io``). An entry is used only if the digest matches and the
+    (``sim.atomic_io``). An entry is used only if the digest matches and the
     file loads; anything else (truncated, corrupt, missing digest) is rebuilt
     and overwritten. ``hits``/``misses`` count lookups.
     """

@@ -28,7 +28,7 @@ scaled by the largest column norm of the model's linear part.
 
 No occlusion culling: Wand & Straßer's traversal culls by the view frustum only (the paper
 has no occlusion test at all). Hidden nodes are culled at draw time, optionally, by
-``render.occlusion`` (``[lod] occlusion``), which tests the boxes of the nodes this traversal
+``render.points.occlusion`` (``[lod] occlusion``), which tests the boxes of the nodes this traversal
 selects against a depth pyramid of the frame's likely occluders.
 
 ``traverse`` runs the numba kernel; ``traverse_reference`` is the plain Python
@@ -258,7 +258,7 @@ def joint_frames(h) -> tuple:
 
 def frame_rows(frame, rows: int) -> tuple:
     """(f0, f1, a): the baked rows around a fractional frame coordinate (clamped to 0 .. rows - 1; a
-    non-finite one is row 0), as the GPU blends them (shaders/skinning.glsl ``frame_pair``)."""
+    non-finite one is row 0), as the GPU blends them (shaders/poses/skinning.glsl ``frame_pair``)."""
     f = float(frame) if np.isfinite(frame) else 0.0
     f = min(max(f, 0.0), float(max(rows - 1, 0)))
     f0 = int(np.floor(f))

@@ -1,7 +1,7 @@
 """The pose table: per frame, the distinct poses of every skinned character and each drawn copy's pose slot.
 
 Copies of a character that stand in the same pose (same clip, same time quantised to the clip's key rate or
-``[lod] pose_rate``) share one slot, so the render layer's pose cache (``render/pose_cache.py``) blends each
+``[lod] pose_rate``) share one slot, so the render layer's pose cache (``render/poses/cache.py``) blends each
 distinct pose's joint palette once and skins each distinct pose's vertices once per frame, whatever the number
 of copies. :mod:`lod.poses.table` holds the parameter, the registry of skinned representations (pose groups),
 the numba assignment kernel beside its numpy reference, and :class:`lod.poses.table.PoseTable`, the frame's

@@ -2,7 +2,7 @@
 
 A skinned copy is drawn at a frame coordinate (``DrawBatch.instance_data[:, 12]``: a fractional row of its
 character's baked joint table, :class:`lod.full.reps.SkinnedRep`). Copies whose coordinates fall on the same
-*quantised* pose share a slot; the render layer's pose cache (``render/pose_cache.py``) then blends one joint
+*quantised* pose share a slot; the render layer's pose cache (``render/poses/cache.py``) then blends one joint
 palette and skins one set of vertices per slot, and every copy draws from its slot with only its instance
 transform (issue 29: llvmpipe's vertex stage is one thread, so per-copy skinning is the serial part of a frame).
 
@@ -44,7 +44,7 @@ from sim.params import Param, ParamError
 
 #: ``[lod] pose_rate`` value that quantises to the clip's keys (the baked rows)
 KEY_RATE = "key"
-#: instance float holding the pose slot (``i_anim.y``; render/cluster_cuts.py's PALETTE_SLOT_FLOAT)
+#: instance float holding the pose slot (``i_anim.y``; render/clusters/cuts.py's PALETTE_SLOT_FLOAT)
 SLOT_FLOAT = 13
 #: instance float holding the frame coordinate (``i_anim.x``)
 FRAME_FLOAT = 12

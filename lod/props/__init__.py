@@ -1,6 +1,6 @@
 """World geometry around the crowd: props (static meshes with triangle LOD chains),
 the solids of the ``obstacles`` effect and the ground, as representations of kind
-``"world"`` that ``render.world`` draws.
+``"world"`` that ``render.world.draw`` draws.
 
 - :mod:`lod.props.chain`: a prop's triangle chain (fast-simplification levels with
   a sampled Hausdorff error each) and its content-addressed cache.

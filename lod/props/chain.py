@@ -27,7 +27,7 @@ the nearest full-mesh vertex.
 
 Chains are cached as ``props-<sha256>.npz`` (key: the mesh arrays, the build
 parameters and :data:`FORMAT_VERSION`) written atomically
-(:func:`lod.atomic_io.atomic_open`); an unreadable entry is rebuilt.
+(:func:`sim.atomic_io.atomic_open`); an unreadable entry is rebuilt.
 """
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lod.atomic_io import atomic_open
+from sim.atomic_io import atomic_open
 
 #: bump when the cached layout or its meaning changes
 FORMAT_VERSION = 2  # 2: centroids and edge midpoints among the error samples
@@ -70,7 +70,7 @@ ERROR_SEED = 7
 
 @dataclass
 class PropChainRep:
-    """A prop's chain, ready to upload (``render.world``).
+    """A prop's chain, ready to upload (``render.world.draw``).
 
     key : str, representation key (``"props:<name>"``)
     positions : (V, 3) float32 model space; normals : (V, 3) float32; colors : (V, 4) float32

@@ -24,7 +24,7 @@ from lod.drawlist import INSTANCE_FLOATS, DrawBatch
 
 @dataclass
 class WorldBatch(DrawBatch):
-    """A DrawBatch of a world representation (``render.world``): ``index_range`` =
+    """A DrawBatch of a world representation (``render.world.draw``): ``index_range`` =
     (first index, index count) of the drawn chain level; None for the ground."""
 
     index_range: tuple | None = None

@@ -33,7 +33,7 @@ GROUND_COLOR = (0.46, 0.47, 0.45)
 
 @dataclass
 class GroundRep:
-    """The ground plane y = ``height`` (drawn by ``render.world`` with its grid).
+    """The ground plane y = ``height`` (drawn by ``render.world.draw`` with its grid).
 
     color : (3,) linear RGB
     """

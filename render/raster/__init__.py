@@ -5,7 +5,7 @@ Why: on Mesa llvmpipe the vertex stage runs on one thread while compute shaders 
 triangles of a crowd are smaller than a pixel. A copy whose triangles are estimated below ``[render]
 raster_threshold`` pixels (``lod/raster_route.py``) is drawn by compute passes instead of the fixed-function pipeline:
 
-1. vertex pass (``shaders/raster_vertex.glsl``): every used vertex of every copy to window coordinates in fixed
+1. vertex pass (``shaders/raster/raster_vertex.glsl``): every used vertex of every copy to window coordinates in fixed
    point with 8 sub-pixel bits (llvmpipe's FIXED_ORDER), pixel centres on integers, its window depth and clip
    outcodes, computed as the hardware path's vertex stage computes them (instance rows, then ``u_view_proj``;
    the viewport transform as llvmpipe's draw module does it);
@@ -30,13 +30,14 @@ Its tables are textures (``tables``): llvmpipe scalarises a storage-buffer load 
 while ``texelFetch`` is vectorised; on 100 copies of a 60 K-triangle character the triangle pass took 740 ms of CPU
 with storage buffers and 102 ms with textures (a vertex pass reading in order: 122 ms against 65 ms). Work groups
 sharing vertices through shared memory (Nanite's cluster layout) measured 5x slower on llvmpipe (its barriers are
-coroutine switches). Skinned copies read posed vertices (``poses``: the adapter that stands for the pose cache,
-one slot per distinct pose). A frame above a texture's size or a storage buffer's binding limit (llvmpipe: 128 MB)
+coroutine switches). Skinned copies read the pose cache's posed vertices (``render/poses/cache.py``: one slot per
+distinct pose, skinned once), gathered by slot into the rasteriser's own table (``shaders/raster/raster_gather.glsl``);
+a copy whose mesh the cache cannot pose this frame stays on the hardware path. A frame above a texture's size or a storage buffer's binding limit (llvmpipe: 128 MB)
 is cut into windows of whole copies, each through all passes (``frame``). Not taken by the compute path: MSAA
 renderers, geomorphed LOD levels, screen-door transitions, occlusion-culled cluster cuts, point splats' triangles.
 
 Modules, in data-flow order (the routing rule is ``lod/raster_route.py``): ``tables`` (the CPU side of its
-textures), ``poses`` (posed vertices of skinned copies), ``frame`` (the ``Raster``: uploaded meshes, the per-frame
-passes, windows), ``hook`` (the renderer's, world drawer's and cluster drawer's side: splitting their instances
+textures), ``frame`` (the ``Raster``: uploaded meshes, the gather of posed vertices, the per-frame passes,
+windows), ``hook`` (the renderer's, world drawer's and cluster drawer's side: splitting their instances
 between the paths).
 """

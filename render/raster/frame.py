@@ -3,8 +3,9 @@
 A frame's compute work is a list of instances (camera-relative model rows, a representation part or a
 triangle range, colour words). Its passes (render/raster/__init__.py gives the design):
 
-1. poses: skinned instances' vertices skinned into the posed table (``render/raster/poses.py``, the adapter
-   that stands for the pose cache);
+1. poses: skinned instances' posed vertices gathered from the pose cache (``render/poses/cache.py``, the one
+   place a frame's poses are evaluated: each distinct pose skinned once) into the posed table, one copy per pose
+   slot and vertex range (``raster_gather.glsl``);
 2. vertex pass (``raster_vertex.glsl``): every used vertex of every instance to fixed-point window
    coordinates, depth and clip outcodes;
 3. depth pass (``raster_tri.glsl``): a thread per triangle: cull, set aside for the hardware path (too large,
@@ -37,9 +38,8 @@ CHUNK = 1 << LOG_CHUNK
 VERTS_PER_THREAD = 16
 VERTEX_JOB = 8 * VERTS_PER_THREAD
 #: texture units of the tables (0..7: the renderer's joints, palette, morph and target tables, shadow map;
-#: 8, 9: the pose cache's posed vertices, render/pose_cache.py)
-UNITS = {"u_rs_tris": 20, "u_rs_mesh": 21, "u_rs_posed": 22, "u_rs_inst": 23, "u_rs_jobs": 24, "u_screen": 25,
-         "u_skin": 26}
+#: 8, 9: the pose cache's posed vertices, render/poses/cache.py)
+UNITS = {"u_rs_tris": 20, "u_rs_mesh": 21, "u_rs_posed": 22, "u_rs_inst": 23, "u_rs_jobs": 24, "u_screen": 25}
 #: side (pixels) of the tiles the id pass marks: the shading pass draws the marked tiles only (a crowd
 #: covers a small share of the screen: 100 copies of a 60 K-triangle character fill 3 % of 1280 x 720, where
 #: a full-screen pass cost 170-240 ms on a loaded machine)
@@ -62,7 +62,6 @@ class _Mesh:
             rep, kind, record, verts, tri, tris, cull
         pos = rep.positions0 if kind == tb.KEYFRAMED else rep.positions
         self.extent, self.radius, self.centre = triangle_extent(pos, rep.indices)
-        self.skin = None  # (texture, joint texture, targets) of a skinned mesh (render.raster.poses)
         self._ranges: dict = {}  # (first triangle, count) -> (first vertex, vertices) used
 
     def extent_of(self, first: int, count: int) -> float:
@@ -127,8 +126,9 @@ class Raster:
         self.texel_limit = None
         #: bytes the per-pixel buffers may bind (None: the context's storage-buffer limit); tests inject one
         self.pixel_limit = None
-        #: copies of a mesh at the very same frame coordinate skinned once (False: every copy posed: the
-        #: benchmarks' "without pose sharing")
+        #: copies of a mesh in one pose-cache slot gathered once into the posed table (False: one gathered copy
+        #: of the slot's posed vertices per instance: the benchmarks' "without sharing"; the poses are evaluated
+        #: once by the pose cache either way)
         self.share_poses = True
         #: every eligible instance to the compute path, whatever its estimated triangle size (its large and
         #: near-plane triangles still go to the hardware): tests and benchmarks
@@ -191,7 +191,9 @@ class Raster:
     def mesh(self, rep, cull: bool, g=None) -> _Mesh | None:
         """The uploaded mesh of representation ``rep`` (back faces culled or not; a skinned one needs the
         renderer's ``_GpuRep`` ``g`` for its joint table), registered on first use; None for a kind the compute
-        path does not draw. Props and obstacle solids (kind "world", lod.props) are static meshes."""
+        path does not draw. Props and obstacle solids (kind "world", lod.props) are static meshes. A skinned
+        mesh's posed vertices come from the pose cache each frame (:func:`render.raster.hook.split` routes its
+        copies here only when the cache has them)."""
         m = self._meshes.get(rep.key)
         if m is not None and m.rep is rep:
             return m
@@ -211,10 +213,6 @@ class Raster:
         self._records = np.concatenate([self._records, recs])
         self._tris = np.concatenate([self._tris, tris])
         self._dirty = True
-        if kind == tb.POSED:
-            from render.raster.poses import skin_table
-
-            m.skin = (skin_table(self.ctx, rep, self._track), g.joints, g.targets)
         self._meshes[rep.key] = m
         return m
 
@@ -284,6 +282,8 @@ class Raster:
         wi = np.repeat(np.arange(len(work)), n)
         rows = np.concatenate([w.rows for w in work]).astype(np.float32)
         tints = np.concatenate([w.tints for w in work]).astype(np.uint32)
+        # each copy's pose slot (lod.poses; a cluster cut's from its item): its row in the pose cache
+        slots = np.concatenate([w.slots for w in work]).astype(np.int64)
         if not np.isfinite(rows).all():
             raise FloatingPointError("compute raster: instance data hold NaN or Inf")
         tcount = np.array([w.count for w in work], np.int64)[wi]
@@ -296,7 +296,7 @@ class Raster:
         counts["triangles"] = int(tcount.sum())
         vp = np.asarray(view_proj, np.float64)
         for a, b in zip(cuts[:-1], cuts[1:]):
-            self._window(work, wi[a:b], rows[a:b], tints[a:b], tcount[a:b], vcount[a:b], vp, counts)
+            self._window(work, wi[a:b], rows[a:b], tints[a:b], slots[a:b], tcount[a:b], vcount[a:b], vp, counts)
             counts["windows"] += 1
         return counts
 
@@ -313,7 +313,34 @@ class Raster:
 
     _count_pass = False
 
-    def _window(self, work, wi, rows, tints, tcount, vcount, vp, counts) -> None:
+    def _gather(self, work, wi, slots, vcount, vfirst, reps) -> None:
+        """Copy the window's pose slots (``reps``: the instance standing for each, its record naming where the
+        copy goes) from the pose cache's posed vertices into the posed table: one dispatch per mesh and posed
+        window of the cache."""
+        from render.poses.cache import POSED_NORMAL_UNIT, POSED_POSITION_UNIT
+
+        self.posed_table.texture.bind_to_image(1, read=False, write=True)
+        cs = self._compute("raster_gather", (f"RS_VERTS_PER_THREAD {VERTS_PER_THREAD}",))
+        self._samplers(cs)
+        for b in np.unique(wi[reps]):
+            w = work[b]
+            pv = self.r.poses.posed(w.pose_key, w.mesh.rep.key)
+            if pv is None:  # routing keeps such copies on the hardware path (render.raster.hook)
+                raise RuntimeError(f"compute raster: no posed vertices of {w.mesh.rep.key!r} in the pose cache")
+            sel = reps[wi[reps] == b]
+            win = pv.window_of(slots[sel])
+            for wn in np.unique(win):
+                part = sel[win == wn]
+                jobs = _vertex_jobs(vcount[part], vfirst[part])
+                jobs[:, 3] = slots[part][jobs[:, 0]].astype(np.uint32)
+                jobs[:, 0] = part[jobs[:, 0]]
+                pv.bind(int(wn), cs, (POSED_POSITION_UNIT, POSED_NORMAL_UNIT))
+                cs["u_njobs"].value = int(jobs.shape[0])
+                self._buffer("pose_jobs", jobs).bind_to_storage_buffer(5)
+                self._dispatch(cs, int(jobs.shape[0]))
+                self.ctx.memory_barrier()
+
+    def _window(self, work, wi, rows, tints, slots, tcount, vcount, vp, counts) -> None:
         ctx = self.ctx
         k = rows.shape[0]
         meshes = [w.mesh for w in work]
@@ -327,11 +354,8 @@ class Raster:
         verts = np.array([m.verts for m in meshes], np.int64)[wi]
         screen = np.zeros(k, np.int64)
         np.cumsum(vcount[:-1], out=screen[1:])
-        # one pose slot per distinct (mesh, frame coordinate, vertex range): copies in the very same pose are
-        # skinned once (exact: no quantisation; the pose cache will share quantised poses)
-        from render.raster.poses import pose_slots
-
-        posed, posed_n, reps = pose_slots(kind == tb.POSED, mesh_rec, rows[:, 12], vfirst, vcount, self.share_poses)
+        # one posed copy per distinct (mesh, pose slot, vertex range): copies in one pose are gathered once
+        posed, posed_n, reps = pose_slots(kind == tb.POSED, mesh_rec, slots, vfirst, vcount, self.share_poses)
         wrap = lambda x: (np.asarray(x, np.int64) % (1 << 32)).astype(np.uint32)  # noqa: E731 (GLSL uint wraps)
         u = rows[:, 12]
         recs = tb.instance_records(rows, np.where(kind == tb.KEYFRAMED, u, 0.0), kind, flags, mesh_rec,
@@ -358,12 +382,10 @@ class Raster:
                         ("u_rs_posed", self.posed_table), ("u_rs_inst", self.inst_table),
                         ("u_rs_jobs", self.job_table), ("u_screen", self.screen_table)):
             t.texture.use(UNITS[name])
-        # 1. poses (skinned instances)
+        # 1. poses (skinned instances), gathered from the pose cache
         if (kind == tb.POSED).any():
-            from render.raster.poses import pose_pass
-
             self._mark("tables")
-            pose_pass(self, meshes, wi, rows, vcount, vfirst, reps)
+            self._gather(work, wi, slots, vcount, vfirst, reps)
             self._mark("poses")
         # 2. vertex pass
         cs = self._compute("raster_vertex", (f"RS_VERTS_PER_THREAD {VERTS_PER_THREAD}",))
@@ -449,7 +471,7 @@ class Raster:
         return self._progs[k]
 
     def _uniforms(self, prog, vp) -> None:
-        from render.pixel_ray import write_pixel_ray
+        from render.screen import write_pixel_ray
 
         self._samplers(prog)
         if "u_view_proj" in prog:
@@ -459,7 +481,7 @@ class Raster:
             prog["u_fade"].value = (0.0, 0.0)
         write_pixel_ray(prog, vp, self.r.size)
         if "u_pixel_ray" in prog and not self.r.pixel_ray:
-            from render.pixel_ray import pixel_ray_matrix
+            from render.screen import pixel_ray_matrix
 
             prog["u_pixel_ray"].write(np.ascontiguousarray(pixel_ray_matrix(vp, self.r.size).T,
                                                            np.float32).tobytes())
@@ -470,7 +492,7 @@ class Raster:
         prog["u_size"].value = tuple(self.r.size)
         self._depth.bind_to_storage_buffer(0)
         self._ids.bind_to_storage_buffer(1)
-        from render.points_frame import rect_vertices, resolve_rects
+        from render.screen import rect_vertices, resolve_rects
 
         tx, ty = self._tiles_xy
         w, h = self.r.size
@@ -521,12 +543,20 @@ class Work:
     (lod.drawlist), ``tints`` (k, 2) uint32 colour words, triangles ``first .. first + count - 1`` of the mesh
     (or, given ``tris`` (count, 3): those triangles of the mesh's vertices, e.g. a cluster cut's, placed in the
     frame's part of the triangle table) using vertices ``vfirst .. vfirst + vcount - 1``; ``world``: shaded as
-    props and obstacle solids."""
+    props and obstacle solids. A skinned mesh's copies read the pose cache's posed vertices of the pose group
+    of representation ``pose_key`` (default: the mesh's own) at their ``slots`` (default: instance float
+    ``lod.poses.SLOT_FLOAT``)."""
 
-    __slots__ = ("mesh", "rows", "tints", "first", "count", "vfirst", "vcount", "world", "tris", "tri_abs")
+    __slots__ = ("mesh", "rows", "tints", "first", "count", "vfirst", "vcount", "world", "tris", "tri_abs",
+                 "pose_key", "slots")
 
-    def __init__(self, mesh, rows, tints, first: int, count: int, world: bool = False, tris=None):
+    def __init__(self, mesh, rows, tints, first: int, count: int, world: bool = False, tris=None, pose_key=None,
+                 slots=None):
+        from lod.poses.table import SLOT_FLOAT
+
         self.mesh, self.rows, self.tints = mesh, np.asarray(rows, np.float32).reshape(-1, 16), tints
+        self.pose_key = mesh.rep.key if pose_key is None else pose_key
+        self.slots = np.rint(self.rows[:, SLOT_FLOAT] if slots is None else np.asarray(slots)).astype(np.int64)
         self.first, self.count, self.world = int(first), int(count), bool(world)
         self.tris = None if tris is None else np.asarray(tris, np.uint32).reshape(-1, 3)
         self.tri_abs = None  # first row of ``tris`` in the triangle table (Raster.draw)
@@ -569,3 +599,30 @@ def _vertex_jobs(vcount, vfirst) -> np.ndarray:
     out[:, 1] = vfirst[ji] + c * VERTEX_JOB
     out[:, 2] = np.minimum(VERTEX_JOB, vcount[ji] - c * VERTEX_JOB)
     return out
+
+
+def pose_slots(posed, mesh, slot, vfirst, vcount, share: bool = True) -> tuple:
+    """Pose slots of a window's instances: (first posed vertex of each instance (its slot's base: the slot
+    holds the instance's vertex range), posed vertices per slot (k,) with 0 for all but the first instance of a
+    slot, the instances that represent the slots). Instances of one mesh in the same pose-cache slot with the
+    same vertex range share a slot (``share`` False: every instance its own slot); ``posed`` (k,) bool marks the
+    skinned instances."""
+    k = posed.shape[0]
+    base = np.zeros(k, np.int64)
+    n = np.zeros(k, np.int64)
+    sel = np.flatnonzero(posed)
+    if not sel.shape[0]:
+        return base, n, sel
+    key = np.stack([np.asarray(mesh, np.int64)[sel], np.asarray(slot, np.int64)[sel],
+                    np.asarray(vfirst, np.int64)[sel], np.asarray(vcount, np.int64)[sel]]
+                   + ([] if share else [sel]), 1)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    reps = sel[np.sort(first)]
+    order = np.argsort(np.argsort(first))  # unique rows in order of first appearance
+    sizes = np.asarray(vcount, np.int64)[reps]
+    starts = np.zeros(reps.shape[0], np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    base[sel] = starts[order[inv]]
+    n[reps] = sizes
+    return base, n, reps

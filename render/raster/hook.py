@@ -69,8 +69,8 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         if getattr(b, "morph", None) is not None or getattr(b, "fade", None) is not None:
             continue
         m = raster.mesh(g.source, g.cull, g)
-        if m is None:
-            continue
+        if m is None or (g.kind == "skinned" and renderer.poses.posed(b.rep) is None):
+            continue  # a skinned copy reads its pose from the pose cache (none this frame: the hardware path)
         data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
         first, count = triangle_range(g, b)
         mask = _mask(raster, m, data, route, m.extent_of(first, count))
@@ -131,7 +131,7 @@ def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
 
 
 def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
-    """VDR-AM cluster cuts (the clusters drawer's collected items, ``render/clusters.py``): (the items the
+    """VDR-AM cluster cuts (the clusters drawer's collected items, ``render/clusters/draw.py``): (the items the
     hardware draws, their compute rows removed; the compute work: per distinct cut of the compute rows, its
     gathered triangles). Geomorphed rows, screen-door transitions and items with occlusion culling stay on
     the hardware path."""
@@ -140,15 +140,16 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
         return items, []
     from types import SimpleNamespace
 
-    from render.cluster_cuts import PALETTE_SLOT_FLOAT, _sub_csr, gather, group_cuts
+    from render.clusters.cuts import PALETTE_SLOT_FLOAT, _sub_csr, gather, group_cuts
 
     raster = route[0]
     out, work = [], []
     for it in items:
         g = it.st.skin
         src = getattr(g, "source", None)
-        if it.program != "clusters" or tuple(it.fade) != (0.0, 0.0) or it.st.occlusion or src is None:
-            out.append(it)
+        if (it.program != "clusters" or tuple(it.fade) != (0.0, 0.0) or it.st.occlusion or src is None
+                or getattr(it, "slots", None) is None or renderer.poses.posed(it.key, src.key) is None):
+            out.append(it)  # the compute path reads poses from the pose cache: none this frame, hardware path
             continue
         m = raster.mesh(src, g.cull, g)
         mask = _mask(raster, m, it.data, route)
@@ -168,7 +169,8 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
             rows = sub[order[starts[gi]:starts[gi + 1]]]
             t = tris[ifirst[gi] // 3:ifirst[gi + 1] // 3]
             if t.shape[0]:
-                work.append(Work(m, it.data[rows], it.words[rows], 0, t.shape[0], tris=t))
+                work.append(Work(m, it.data[rows], it.words[rows], 0, t.shape[0], tris=t, pose_key=it.key,
+                                 slots=it.slots[rows]))
         keep = np.flatnonzero(~mask)
         if keep.shape[0]:
             offsets, clusters = _sub_csr(it.offsets, it.clusters, keep)

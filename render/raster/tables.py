@@ -1,4 +1,4 @@
-"""CPU side of the compute rasteriser's tables (``shaders/raster_common.glsl``): vertex records, triangle rows,
+"""CPU side of the compute rasteriser's tables (``shaders/raster/raster_common.glsl``): vertex records, triangle rows,
 instance records, and the 4096-wide textures that hold them.
 
 Why textures: llvmpipe scalarises a storage-buffer load whose address differs per lane (a bounds-checked

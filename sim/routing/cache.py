@@ -3,18 +3,18 @@
 A goal's field, vias and corner distances depend only on the walkable area, the clearance, the grid, the build
 constants and the goal's shape: their SHA-256 (:func:`field_key`) names an ``.npz`` file. A field of an office
 floor (28 goals, 63 K nodes, 830 corners) takes 0.2-0.4 s to build and 1 ms to load. Files are written to a
-temporary name in the cache folder and moved into place (``os.replace``: a reader sees a whole file or none; the
-``lod.atomic_io`` discipline, which ``sim`` cannot import); an unreadable or mismatched file is rebuilt.
+temporary name in the cache folder and moved into place (:func:`sim.atomic_io.atomic_open`: a reader sees a whole
+file or none); an unreadable or mismatched file is rebuilt.
 """
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from sim.atomic_io import atomic_open
 
 CACHE_ENV = "CROWD_CACHE_DIR"
 #: bump when the build changes what a key's arrays hold
@@ -55,16 +55,8 @@ def load(key: str, expect: dict) -> dict | None:
 def save(key: str, arrays: dict) -> None:
     """Store ``arrays`` under ``key``, atomically; a cache that cannot be written is skipped (the field stays
     in memory)."""
-    folder = cache_dir()
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{key}.", suffix=".tmp", dir=folder)
+        with atomic_open(cache_dir() / f"{key}.npz") as f:
+            np.savez(f, **arrays)
     except OSError:
         return
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, folder / f"{key}.npz")
-    except OSError:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)

@@ -50,7 +50,8 @@ def test_png_written_with_several_cluster_colours(tmp_path, capsys):
     (["inspect", ASSET, "--png", "X", "--pose", "999"], "--pose"),
     (["inspect", ASSET, "--png", "X.jpg"], ".png"),
 ])
-def test_bad_input_is_one_sentence_and_exit_2(tmp_path, capsys, argv, words):
+def test_bad_input_is_one_sentence_and_exit_2(loaded, tmp_path, capsys, argv, words):
+    """(``loaded``: the hierarchy is in this worker's cache, so no first build's progress bar precedes the line.)"""
     argv = [a.replace("X", str(tmp_path / "o.png")) if a == "X" else a for a in argv]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()

@@ -13,7 +13,7 @@ def test_million_scene_is_a_million_agents_estimated_before_building():
     e = memory.estimate_scene(sc)
     assert e.agents == 1_000_000 and sc.render.size == (1280, 720)
     assert sc.lod_mode == "auto" and "boids" in sc.effect_names
-    # the palette is one chunk at most (render/palette.py), not a million instances' worth
+    # the palette is one chunk at most (render/poses/palette.py), not a million instances' worth
     assert e.parts["gpu"] < 2 * 10 ** 9
 
 

@@ -124,7 +124,7 @@ def test_map_mode_with_mixed_triangle_and_cluster_batches_keeps_every_silhouette
 
 
 def test_characters_shadows_fall_on_the_world_ground(write_scene):
-    """Without a terrain the world's ground plane (render.world) is the floor: it receives the characters' shadow
+    """Without a terrain the world's ground plane (render.world.draw) is the floor: it receives the characters' shadow
     map (darker 0.6 .. 0.9 m towards -x of each agent, unchanged 0.7 m towards +x) and lies under their blob
     shadows (darker around each agent's feet than the bare ground, unchanged 1 m away)."""
     plain, cam, pos, _ = _frame(write_scene, "none", "none", "g0.toml", append="")

@@ -1,14 +1,14 @@
-"""Blob shadows of many agents (render/blobs.py): the numba rows equal render.shadows.blob_instances (the numpy
+"""Blob shadows of many agents (render/world/blobs.py): the numba rows equal render.world.shadows.blob_instances (the numpy
 reference), and drawing only the quads that can cover a pixel centre leaves the image unchanged while dropping
 most of a far crowd's blobs."""
 import numpy as np
 
-import render.shadows as shadows
+import render.world.shadows as shadows
 from lod.drawlist import DrawBatch, DrawList
 from lod.view import Camera
-from render import blobs as rb
+from render.world import blobs as rb
 from render.renderer import Renderer
-from render.shadows import blob_instances, footprint
+from render.world.shadows import blob_instances, footprint
 from test_shadows import box_rep, ground_rep
 
 

@@ -1,4 +1,4 @@
-"""Rendering VDR-AM cluster cuts (render/clusters.py): equality with the full mesh at
+"""Rendering VDR-AM cluster cuts (render/clusters/draw.py): equality with the full mesh at
 PoE 0, no cracks, screen-space error bounded by PoE, and the CPU command kernels."""
 from types import SimpleNamespace
 
@@ -10,7 +10,7 @@ from lod.clusters import cut as cluster_cut
 from lod.clusters import mode as clusters_mode
 from lod.full import mode as nolod
 from lod.view import Camera
-from render import clusters as rc
+from render.clusters import draw as rc
 from render.renderer import Renderer
 from sim.procedural import humanoid, quadruped
 
@@ -393,7 +393,7 @@ def test_filled_silhouette_of_the_walker_within_poe(walker, poe):
 
 @pytest.mark.parametrize("strategy", rc.STRATEGIES)
 def test_geomorph_ends_render_the_two_cuts_exactly(scene, strategy):
-    """A geomorphed union (lod/clusters/morph.py, shaders/clusters_morph.vert) renders exactly
+    """A geomorphed union (lod/clusters/morph.py, shaders/clusters/clusters_morph.vert) renders exactly
     cut A at t = 0 and exactly cut B at t = 1, pixel for pixel; in between it is neither."""
     import copy
 
@@ -436,7 +436,7 @@ def test_geomorph_shader_constants_match_python():
     import re
 
     from lod.clusters import morph as cm
-    from render.morph import MORPH_TEXTURE_WIDTH
+    from render.clusters.morph import MORPH_TEXTURE_WIDTH
     from render.shaders import load_source
 
     src = load_source("morph.glsl")

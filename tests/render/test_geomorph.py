@@ -1,5 +1,5 @@
 """Geomorphs of LOD chain levels (lod/chains/mode.py TriangleDrawBatch.morph,
-shaders/skinned_morph.vert and skinned_direct_morph.vert): a level drawn with
+shaders/poses/skinned_morph.vert and skinned_direct_morph.vert): a level drawn with
 weight 0 is that level pixel for pixel, with weight 1 the coarser level pixel for
 pixel, in between neither; both skinning paths."""
 from types import SimpleNamespace

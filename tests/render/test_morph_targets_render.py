@@ -1,5 +1,5 @@
 """Morph targets blended on the GPU before skinning (glTF 2.0 §3.7.2.2;
-``shaders/targets.glsl``, ``render/targets.py``) against the CPU reference
+``shaders/poses/targets.glsl``, ``render/poses/targets.py``) against the CPU reference
 ``sim.skinning.skin_morph``: vertices read back through transform feedback, and
 frames of mode none and of mode triangles (level 0) pixel for pixel against the
 reference mesh drawn as a static mesh through the same renderer.
@@ -20,7 +20,7 @@ from lod.full.mode import NoLodSelector
 from lod.full.reps import build_rep, build_static_rep
 from lod.view import Camera
 from render.renderer import Renderer
-from render.targets import TARGETS_DEFINE, target_textures
+from render.poses.targets import TARGETS_DEFINE, target_textures
 from sim.mesh import Mesh
 from sim.skinning import skin, skin_morph
 from sim.state import CrowdState

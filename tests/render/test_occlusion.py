@@ -1,4 +1,4 @@
-"""Occlusion culling of point-hierarchy nodes (render/occlusion.py, render/points.py): the numba
+"""Occlusion culling of point-hierarchy nodes (render/points/occlusion.py, render/points/draw.py): the numba
 kernels against their numpy references, and on a scene with known occluders the culled image equals
 the unculled one while the hidden instances' nodes are culled."""
 import sys
@@ -10,7 +10,7 @@ import pytest
 from lod.points import mode as pm
 from lod.points import rep as pm_rep
 from lod.view import Camera
-from render import occlusion as occ
+from render.points import occlusion as occ
 from render.renderer import Renderer
 from sim.state import CrowdState
 

@@ -1,4 +1,4 @@
-"""The skinning palette in chunks (render/palette.py): a frame whose skinned
+"""The skinning palette in chunks (render/poses/palette.py): a frame whose skinned
 instances x palette texels exceed the (injected, small) chunk limit draws the
 same pixels as one unchunked palette, in the full-detail path and in the
 clusters drawer (with and without occlusion culling); plan_chunks cuts draws
@@ -11,7 +11,7 @@ import pytest
 from lod.clusters import mode as clusters_mode
 from lod.full import mode as nolod
 from lod.view import Camera
-from render.palette import PALETTE_MAX_TEXELS, plan_chunks
+from render.poses.palette import PALETTE_MAX_TEXELS, plan_chunks
 from render.renderer import Renderer
 from sim.procedural import humanoid
 

@@ -1,4 +1,4 @@
-"""The headlight from the pixel's camera ray (render/pixel_ray.py, ``lit.frag`` with PIXEL_RAY) instead of
+"""The headlight from the pixel's camera ray (render/screen.py, ``lit.frag`` with PIXEL_RAY) instead of
 the interpolated camera-relative position: the ray points where the position did, and images agree."""
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ import pytest
 from lod.full.mode import NoLodSelector
 from lod.full.reps import build_rep
 from lod.view import Camera
-from render.pixel_ray import pixel_ray_matrix
+from render.screen import pixel_ray_matrix
 from render.renderer import Renderer
 from sim.procedural import humanoid
 from sim.state import CrowdState

@@ -1,7 +1,7 @@
 """Far crowds drawn coarser than their hierarchies' roots (lod/points/coarse.py):
 the image stays within the points rule (silhouette within the splat size of the
 root's image) with several times fewer points; short jobs splatted one per
-thread give the same pixels as one per work group (render/points.py)."""
+thread give the same pixels as one per work group (render/points/draw.py)."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -79,7 +79,7 @@ def test_far_crowd_coarser_than_the_root_stays_within_the_splat_of_the_root_imag
 
 @pytest.mark.parametrize("short", [0, 1 << 30])
 def test_short_jobs_one_per_thread_splat_the_same_image(far, monkeypatch, short):
-    import render.points as rp
+    import render.points.draw as rp
 
     reps, sel = far.reps[True]
     st = far.st
@@ -98,7 +98,7 @@ def test_short_jobs_one_per_thread_splat_the_same_image(far, monkeypatch, short)
 
 def test_a_frame_in_storage_buffer_windows_draws_the_same_pixels(far):
     """A tiny injected storage-buffer limit (16 instances, 64 jobs a binding) cuts the instances,
-    point jobs and triangle items into windows (render/points_frame.py): the same image."""
+    point jobs and triangle items into windows (render/points/frame.py): the same image."""
     reps, sel = far.reps[True]
     st = far.st
     near = CrowdState.empty(st.n + 3)
@@ -124,7 +124,7 @@ def test_a_frame_in_storage_buffer_windows_draws_the_same_pixels(far):
 
 
 def test_instance_windows_rebase_and_bound_every_piece():
-    from render.points_frame import instance_windows
+    from render.points.frame import instance_windows
 
     rng = np.random.default_rng(0)
     jobs = np.c_[rng.integers(0, 100, 50), rng.integers(1, 5, 50), np.sort(rng.integers(0, 40, 50)),

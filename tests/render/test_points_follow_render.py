@@ -1,4 +1,4 @@
-"""Drawing samples that follow the animation (render/points_follow.py, shaders points_pose/points_place and the
+"""Drawing samples that follow the animation (render/points/follow.py, shaders points_pose/points_place and the
 PLACED splat, triangle and GL_POINTS variants): the GPU's posed vertices and placed samples against the CPU, pose
 sharing, placement rounds under a small storage limit, morph targets and keyframes, the image against full
 detail and against the per-keyframe-pair octrees."""
@@ -65,7 +65,7 @@ def _draw(gl_ctx, reps, dl, size=SIZE, limit=None):
 
 
 def _decode(words, lo, scale):
-    from render.points_samples import unpack_samples
+    from render.points.samples import unpack_samples
 
     w = np.zeros((words.shape[0], 8), np.uint32)
     w[:, 0], w[:, 1] = words[:, 0], words[:, 1]
@@ -77,7 +77,7 @@ def test_gpu_poses_and_places_what_the_cpu_does(gl_ctx, walker, cache):
     """One copy at one pose: the pose pass's vertices (follow numbering) and the placement pass's samples, read
     back from the placed buffer, are the CPU's skinning of the same baked row and the barycentric blend of its
     posed corners, within the unorm16 quantisation of the pose box; normals within a few degrees."""
-    from render.points_follow import pose_box
+    from render.points.follow import pose_box
 
     reps, sel = _build(walker, cache)
     rep = reps[0]

@@ -1,13 +1,13 @@
-"""The point drawer's per-frame packing in numba (render/points_pack.py) against the numpy functions it stands
-for: folded instance rows (render.points.fold_box), colour words (render.tint.batch_words), job tables with
-their prefix (render.points.job_table); and the fused dot product against numpy's matrix product."""
+"""The point drawer's per-frame packing in numba (render/points/pack.py) against the numpy functions it stands
+for: folded instance rows (render.points.draw.fold_box), colour words (render.tint.batch_words), job tables with
+their prefix (render.points.draw.job_table); and the fused dot product against numpy's matrix product."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from render import points as rp
-from render import points_pack as pack
+from render.points import draw as rp
+from render.points import pack
 from render import tint
 
 

@@ -1,4 +1,4 @@
-"""Point-hierarchy drawer (render/points.py): compute-shader splats against the
+"""Point-hierarchy drawer (render/points/draw.py): compute-shader splats against the
 GL_POINTS reference and against the triangle rendering, depth test with the
 frame's triangles, splat footprints, and the mode end to end through the CLI."""
 import dataclasses
@@ -204,7 +204,7 @@ def test_crowd_run_with_points_mode_end_to_end(tmp_path, monkeypatch):
 
 
 def test_sample_packing_and_job_tables():
-    from render.points import expand_jobs, fold_box, job_table, pack_samples, sample_box, unpack_samples
+    from render.points.draw import expand_jobs, fold_box, job_table, pack_samples, sample_box, unpack_samples
 
     rng = np.random.default_rng(0)
     p0, p1 = rng.normal(size=(64, 3)) + 1e4, rng.normal(size=(64, 3)) + 1e4  # far from the origin
@@ -327,7 +327,7 @@ def test_hierarchical_instantiation_renders_a_block_within_the_flat_instances_er
 
 @pytest.mark.parametrize("per_group", [3, 16])
 def test_several_jobs_per_work_group_splat_the_same_image(renderer, ball, monkeypatch, per_group):
-    import render.points as rp
+    import render.points.draw as rp
 
     _, sel = ball
     st = CrowdState.empty(7)  # several instances: a job count that is not a multiple of the group's jobs
@@ -348,7 +348,8 @@ def test_several_jobs_per_work_group_splat_the_same_image(renderer, ball, monkey
 # ---------------------------------------------------------------------------- filled tiles: resolve and clear
 @pytest.mark.parametrize("splat", [1, 2, 3])
 def test_resolve_rects_hold_every_pixel_a_filled_anchor_reaches(splat):
-    from render.points import MARGIN, TILE, resolve_rects
+    from render.points.draw import MARGIN, TILE
+    from render.screen import resolve_rects
 
     rng = np.random.default_rng(splat)
     for w, h in ((64, 40), (61, 37), (8, 8), (9, 1)):
@@ -386,7 +387,7 @@ def test_frames_after_a_dense_frame_keep_no_stale_splats(renderer, ball, monkeyp
     after a dense one must equal the sparse frame drawn first, with either
     clear (tile list or everything) and either resolve (rectangles or one
     full-screen triangle)."""
-    import render.points as rp
+    import render.points.draw as rp
 
     _, sel = ball
     dense = CrowdState.empty(9)
@@ -444,7 +445,7 @@ def test_two_reps_share_the_sample_buffer_and_a_replaced_upload(gl_ctx, ball, tm
 
 
 def test_indexed_triangle_jobs_give_every_jobs_triangles_in_order():
-    from render.points import expand_jobs, indexed_triangle_jobs
+    from render.points.draw import expand_jobs, indexed_triangle_jobs
 
     rng = np.random.default_rng(5)
     corners = rng.integers(0, 40, size=(60, 3)).astype(np.uint32)

@@ -1,4 +1,4 @@
-"""Pose sharing, render side (render/pose_cache.py, shaders/pose_skin.comp, shaders/posed.vert): the posed
+"""Pose sharing, render side (render/poses/cache.py, shaders/poses/pose_skin.comp, shaders/poses/posed.vert): the posed
 vertices against the CPU reference skinning (positions and inverse-transpose normals, morph targets included),
 exact-rate frames of every triangle mode against per-copy skinning, key-rate frames within the quantisation,
 windows at the binding limit, and nothing non-finite sent to the GPU."""
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from tiny_characters import tiny_morphed, tiny_skinned
 
-import render.pose_cache as pc
+import render.poses.cache as pc
 from crowd.image_metrics import psnr
 from lod.chains import chain as tm_chain
 from lod.full.mode import NoLodSelector

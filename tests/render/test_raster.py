@@ -44,7 +44,14 @@ def _drawlist(rep, rows=None, size=SIZE):
         rows[0, [0, 5, 10]] = 1.0
     rows = np.asarray(rows, np.float32).reshape(-1, 16)
     b = DrawBatch(rep.key, 0, np.arange(rows.shape[0], dtype=np.int32), rows, triangles=rep.n_triangles)
-    return DrawList(np.zeros(3), cam.view_matrix(), cam.projection(size[0] / size[1]), size, [b])
+    dl = DrawList(np.zeros(3), cam.view_matrix(), cam.projection(size[0] / size[1]), size, [b])
+    if getattr(rep, "kind", None) == "skinned":  # the frame's pose table (exact poses), as the engine attaches it
+        from lod.poses import PoseSharing
+
+        ps = PoseSharing(rate=0.0)
+        ps.register([rep])
+        ps.assign(dl)
+    return dl
 
 
 def _gpu(ctx, rep, threshold=64.0, compute=True, dl=None):

@@ -1,4 +1,4 @@
-"""The light and the shadows (render/light.py, render/shadows.py): blob shadows under each agent's feet, a shadow
+"""The light and the shadows (render/world/light.py, render/world/shadows.py): blob shadows under each agent's feet, a shadow
 map that darkens the ground where a known occluder's shadow falls and not elsewhere, light validation."""
 import math
 
@@ -9,9 +9,9 @@ from image_checks import box_faces
 from lod.drawlist import DrawBatch, DrawList
 from lod.full.reps import StaticRep
 from lod.view import Camera
-from render.light import Light, LightError, make_light
+from render.world.light import Light, LightError, make_light
 from render.renderer import Renderer
-from render.shadows import (BLOB_HEIGHT_RANGE, blob_instances, fit_light_matrix, footprint, light_basis)
+from render.world.shadows import (BLOB_HEIGHT_RANGE, blob_instances, fit_light_matrix, footprint, light_basis)
 
 SIZE = (160, 120)
 GROUND = (0.5, 0.5, 0.5)

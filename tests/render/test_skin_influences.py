@@ -1,5 +1,5 @@
 """Skinned programs specialised to the influences a mesh uses (render/vertex_format.py compact_influences,
-``SKIN_INFLUENCES_n`` in shaders/skinning.glsl): the compaction keeps every vertex's non-zero weights in order,
+``SKIN_INFLUENCES_n`` in shaders/poses/skinning.glsl): the compaction keeps every vertex's non-zero weights in order,
 and the specialised draw is the 4-influence draw (the same terms in the same order; the shader compiler may
 contract them into fused multiply-adds differently, so a few pixels may differ by a level)."""
 import numpy as np

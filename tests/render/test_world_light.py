@@ -1,4 +1,4 @@
-"""The world lit by the scene's light (render/world.py, shaders/world_light.glsl): the light's direction and colour
+"""The world lit by the scene's light (render/world/draw.py, shaders/world/world_light.glsl): the light's direction and colour
 shade the ground and the props; props cast into the shadow map and the ground and props receive it; the world's
 statics get no blob shadow."""
 import numpy as np
@@ -10,7 +10,7 @@ from lod.props.chain import PropChainRep, bounding_sphere
 from lod.props.select import WorldSelector
 from lod.props.solids import GroundRep
 from lod.view import Camera
-from render.light import make_light
+from render.world.light import make_light
 from render.renderer import Renderer
 
 SIZE = (160, 120)

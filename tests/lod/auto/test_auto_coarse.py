@@ -4,6 +4,7 @@ pixels) must be at most poe; then far agents get a handful of points instead of 
 import numpy as np
 import pytest
 
+from lod.auto import build as ab
 from lod.auto import candidates as ac
 from lod.auto import cost_model
 from lod.auto import mode as am
@@ -37,14 +38,14 @@ class Free(ac.Candidate):
 
 @pytest.fixture(scope="module")
 def built():
-    reps, sel = am.build([humanoid(1500, 0)], ["h"], [30], {"poe": 2.0, "keyframes": 3}, cache=False, model=MODEL,
+    reps, sel = ab.build([humanoid(1500, 0)], ["h"], [30], {"poe": 2.0, "keyframes": 3}, cache=False, model=MODEL,
                          progress=False, points_params={"animation": "baked"})
     return reps, sel
 
 
 @pytest.fixture(scope="module")
 def follows():
-    reps, sel = am.build([humanoid(1500, 0)], ["h"], [30], {"poe": 2.0}, cache=False, model=MODEL, progress=False)
+    reps, sel = ab.build([humanoid(1500, 0)], ["h"], [30], {"poe": 2.0}, cache=False, model=MODEL, progress=False)
     return reps, sel
 
 

@@ -8,14 +8,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from lod.auto import build as ab
 from lod.auto import candidates as ac
 from lod.auto import cost_model
 from lod.auto import flat, flat_plans
 from lod.auto import flat_points as fp
-from lod.points.follow_traverse import follow_traverse
 from lod.auto import mode as am
 from lod.full.reps import build_keyframed_rep
+from lod.points import jobs
 from lod.points import mode as pm
+from lod.points.jobs import follow_traverse
 from lod.view import Camera
 from sim.procedural import humanoid
 
@@ -34,7 +36,7 @@ def built():
     char = humanoid(1200, 5)
     # the per-keyframe-pair octrees: the flat point forest's (hierarchies that follow the animation:
     # test_follow_points_run_the_flat_path)
-    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
+    reps, sel = ab.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3}, cache=False, model=MODEL,
                          progress=False, points_params={"animation": "baked"})
     return SimpleNamespace(char=char, reps=reps, tri_reps=[reps[0]], sel=sel)
 
@@ -170,7 +172,7 @@ def test_a_candidate_without_a_flat_form_runs_the_per_group_path(built):
 
 def test_flat_traversal_equals_traverse_instances():
     """The traversal over a forest of segment hierarchies (every instance with its bin's hierarchy) gives
-    the job tables and totals of lod.points.mode.traverse_instances per segment, serial and in chunks."""
+    the job tables and totals of lod.points.jobs.traverse_instances per segment, serial and in chunks."""
     kf = build_keyframed_rep(pm.keyframed_character(humanoid(800, 2), 3), key="w")
     from lod.points.coarse import add_coarse
     from lod.points.octree import build_hierarchy
@@ -197,14 +199,14 @@ def test_flat_traversal_equals_traverse_instances():
     bstart = np.array([0, 700, K])
     kbin = np.repeat([0, 1], counts)
     for chunk_min in (10 ** 9, 64):
-        old = pm.TRAVERSE_PARALLEL_MIN
-        pm.TRAVERSE_PARALLEL_MIN = chunk_min
+        old = jobs.TRAVERSE_PARALLEL_MIN
+        jobs.TRAVERSE_PARALLEL_MIN = chunk_min
         try:
             pj, tj, ps, ts, p_at, t_at = fp.traverse(forest, d, kbin, np.array([0, 1, 0]), bstart, planes, vs, 2.0)
         finally:
-            pm.TRAVERSE_PARALLEL_MIN = old
+            jobs.TRAVERSE_PARALLEL_MIN = old
         for b in range(2):
-            rj, rt, rps, rts = pm.traverse_instances(hs[b], d[bstart[b]:bstart[b + 1]], planes, vs, 2.0, totals=True)
+            rj, rt, rps, rts = jobs.traverse_instances(hs[b], d[bstart[b]:bstart[b + 1]], planes, vs, 2.0, totals=True)
             np.testing.assert_array_equal(pj[p_at[b]:p_at[b + 1]], rj)
             np.testing.assert_array_equal(tj[t_at[b]:t_at[b + 1]], rt)
             np.testing.assert_array_equal(ps[bstart[b]:bstart[b + 1]], rps)
@@ -230,78 +232,10 @@ def test_flat_locate_equals_keyframed_locate(built):
         np.testing.assert_array_equal(uof, u)
 
 
-def test_root_fast_path_is_exact_at_the_thresholds():
-    """lod.auto.flat_points._root_fast decides an instance from its root only where the traversal kernel
-    draws exactly the root's points (count included) or nothing; instances placed within 1e-12 of the
-    kernel's thresholds (the spacing test, each coarse prefix) are left to the kernel."""
-    from lod.points.coarse import add_coarse, coarse_arrays
-    from lod.points.octree import build_hierarchy
-    from lod.points.traverse import NO_JOINTS, _traverse_kernel
-
-    kf = build_keyframed_rep(pm.keyframed_character(humanoid(800, 2), 3), key="w")
-    h = build_hierarchy(*pm.segment_arrays(kf, 0), seed=0, progress=False)
-    add_coarse(h)
-    forest = fp.build_forest({0: SimpleNamespace(hierarchies=[h])})
-    assert forest.fast[0]
-    cam = Camera.look_at((0, 0.0, 0.0), (0, 0.0, -1.0))
-    planes = cam.frustum_planes(1.0)
-    vs, splat = 240.0, 2.0
-    N = h.n_nodes
-    scratch = (np.empty((N, 2), np.int64), np.empty(N, np.int32), np.empty((N, 2), np.int64), np.empty(N, np.int32),
-               np.empty(N + 8, np.int64), np.empty((16, 3)), np.empty(3), np.empty(3))
-    arr = pm._harrays(h)
-
-    def both(z, u=0.3, yaw=0.4, s=1.0):
-        d = np.zeros((1, 16), np.float32)
-        d[0, :12] = [np.cos(yaw) * s, 0, np.sin(yaw) * s, 0.1, 0, s, 0, -0.9, -np.sin(yaw) * s, 0, np.cos(yaw) * s, z]
-        d[0, 12] = u
-        m = d[0, :12].astype(np.float64).reshape(3, 4)
-        sc = float(np.linalg.norm(m[:, :3], axis=0).max())
-        uu = float(d[0, 12])
-        j = int(min(max(np.searchsorted(h.bounds[1:-1], uu, side="right"), 0), h.intervals - 1))
-        out = np.empty(1, np.int64)
-        fp._root_fast(forest.box0, forest.box1, forest.spacing, forest.point_count, forest.coarse_count,
-                      forest.coarse_spacing, forest.fast, forest.node0, forest.intervals, forest.bounds, d,
-                      np.zeros(1, np.int64), np.zeros(1, np.int64), planes, vs, splat, 0, 1, out)
-        np_, nt = _traverse_kernel(*arr[:9], *arr[10:12], *NO_JOINTS, 0, 0, 0.0, uu, j, planes, m, sc, vs, splat,
-                                   *scratch)
-        return int(out[0]), np_, nt, scratch[0][:np_].copy(), j
-
-    def decided(z):  # the kernel's decision as a comparable value
-        _, np_, nt, p, _ = both(z)
-        return (np_, nt, tuple(map(tuple, p)))
-
-    # thresholds: depths where the kernel's decision changes, found by bisection
-    zs = -np.geomspace(0.5, 400.0, 300)
-    cuts = []
-    for a, b in zip(zs[:-1], zs[1:]):
-        if decided(a) != decided(b):
-            for _ in range(200):
-                mid = 0.5 * (a + b)
-                if mid in (a, b):
-                    break
-                a, b = (mid, b) if decided(mid) == decided(a) else (a, mid)
-            cuts.append(a)
-    assert len(cuts) >= 2
-    near = [c + dz for c in cuts for dz in (-1e-12, -1e-14, 0.0, 1e-14, 1e-12)]
-    n_fast = n_left = 0
-    for z in list(zs) + near:
-        fast, np_, nt, p, j = both(z)
-        if fast < 0:
-            n_left += 1
-            continue
-        n_fast += 1
-        assert nt == 0 and np_ == (1 if fast > 0 else 0)
-        if fast > 0:
-            assert p[0, 0] == h.point_start[0, j] and p[0, 1] == fast
-    assert n_fast > 100 and n_left >= len(cuts)
-    assert coarse_arrays(h)[0].shape[1] > 1
-
-
 @pytest.fixture(scope="module")
 def follow_built():
     char = humanoid(600, 3)
-    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
+    reps, sel = ab.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 2}, cache=False, model=CHEAP_POINTS,
                          progress=False, points_params={"animation": "follow"})
     return SimpleNamespace(reps=reps, sel=sel)
 
@@ -333,7 +267,7 @@ def test_follow_traverse_equals_traverse_instances(follow_built):
             d[:, 12] = f
             planes = cam.frustum_planes(SIZE[0] / SIZE[1])
             for p in (1, 2, 3):
-                want = pm.traverse_instances(h, d, planes, vs, p, totals=True, deepest=True)
+                want = jobs.traverse_instances(h, d, planes, vs, p, totals=True, deepest=True)
                 got = follow_traverse(h, d, planes, vs, p)
                 for x, y in zip(got, want):
                     np.testing.assert_array_equal(x, y)
@@ -382,7 +316,7 @@ def test_follow_and_other_points_in_one_flat_selection(keyframed, monkeypatch):
     if keyframed == "follow":
         monkeypatch.setattr(pm, "animation_path", lambda ch, p: ("follow", "test"))
     chars = [humanoid(600, 3), pm.keyframed_character(humanoid(500, 2), 3)]
-    reps, sel = am.build(chars, ["h", "k"], [30, 30], {"poe": 0.0, "keyframes": 2}, cache=False,
+    reps, sel = ab.build(chars, ["h", "k"], [30, 30], {"poe": 0.0, "keyframes": 2}, cache=False,
                          model=CHEAP_POINTS, progress=False)
     pc = [c for c in sel.candidates if isinstance(c, ac.PointsCandidate)][0]
     cl = [c for c in sel.candidates if isinstance(c, ac.ClustersCandidate)][0]

@@ -11,6 +11,7 @@ import pytest
 
 from lod.auto import candidates as ac
 from lod.auto import budget as am_budget
+from lod.auto import build as ab
 from lod.auto import mode as am
 from lod import modes
 from lod.auto import cost_model
@@ -39,7 +40,7 @@ def built(char):
     # adapt off: one selection per call, the cheapest plan (the adaptive choice: tests/lod/auto/test_control.py);
     # the point candidate on the per-keyframe-pair path (its keyframe deviation is what several tests measure;
     # samples that follow the animation: tests/lod/auto/test_auto_coarse.py)
-    reps, sel = am.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3, "adapt": False}, cache=False,
+    reps, sel = ab.build([char], ["h"], [30], {"poe": 0.0, "keyframes": 3, "adapt": False}, cache=False,
                          model=MODEL, progress=False, points_params={"animation": "baked"})
     full, fsel = nolod.build([char], ["h"], [30], {})
     return SimpleNamespace(rep=reps[0], reps=reps, tri_reps=[reps[0]], sel=sel, full=full, fsel=fsel)
@@ -89,7 +90,7 @@ CAM = Camera.look_at((0, 1.6, 8.0), (0, 1.0, -10.0))
 
 
 def test_registered_with_params():
-    assert modes.MODES["auto"] == "lod.auto.mode"
+    assert modes.MODES["auto"] == "lod.auto.build"
     p = modes.mode_params("auto")
     assert p["poe"].default == 1.0 and p["budget_ms"].default == 0.0 and "levels" in p
     assert p["candidates"].default == "triangles,clusters,points"
@@ -101,7 +102,7 @@ def test_registered_with_params():
 
 
 def test_leaf_triangles_reaches_the_cluster_candidate(built, char):
-    _, sel = am.build([char], ["h"], [30], {"poe": 1.0, "candidates": "triangles,clusters", "leaf_triangles": 600},
+    _, sel = ab.build([char], ["h"], [30], {"poe": 1.0, "candidates": "triangles,clusters", "leaf_triangles": 600},
                       cache=False, model=MODEL, progress=False)
     big = sel.candidates[1].reps[0].hierarchy
     default = built.sel.candidates[1].reps[0].hierarchy
@@ -298,7 +299,7 @@ def test_point_pass_used_only_when_it_pays(built):
 
 
 def test_keyframed_character_at_full_detail_or_points(char):
-    reps, sel = am.build([char, tiny_keyframed()], ["h", "flag"], [30, 30], {"poe": 5.0, "keyframes": 3},
+    reps, sel = ab.build([char, tiny_keyframed()], ["h", "flag"], [30, 30], {"poe": 5.0, "keyframes": 3},
                          cache=False, model=MODEL, progress=False)
     st = _crowd(40, 1)
     st.character = np.arange(40) % 2
@@ -496,11 +497,11 @@ def test_keyframe_deviation(char):
     assert 0.0 < d9 < d3 < 2.0
     assert ac.keyframe_deviation(tiny_keyframed(), 3) == 0.0
     baked = {"animation": "baked"}
-    pts = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3}, progress=False,
+    pts = next(c for c in ab.build([char], ["h"], [30], {"keyframes": 3}, progress=False,
                                    points_params=baked)[1].candidates if c.name == "points")
     assert pts.deviation[0] == pytest.approx(d3)
     assert [pts.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0, 6.0, 9.0)] == [0, 1, 1, 2, 3, 3]
-    loose = next(c for c in am.build([char], ["h"], [30], {"keyframes": 3, "points_error": "splat"},
+    loose = next(c for c in ab.build([char], ["h"], [30], {"keyframes": 3, "points_error": "splat"},
                                      progress=False, points_params=baked)[1].candidates if c.name == "points")
     assert loose.deviation == [0.0] and [loose.splat_size(b) for b in (0.5, 1.0, 2.0, 4.0)] == [0, 1, 2, 3]
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lod.points import coarse
-from lod.points import mode as pm
+from lod.points import jobs
 from lod.points.octree import build_hierarchy
 from lod.points.traverse import traverse, traverse_reference, viewport_scale
 from lod.view import Camera
@@ -102,15 +102,15 @@ def test_parallel_instance_traversal_equals_the_serial_one(walker, monkeypatch, 
     data[:, 12] = rng.uniform(0, 1, k)
     cam = Camera.look_at((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), fov_y=50.0, near=0.1, far=1e4)
     planes = cam.frustum_planes(4 / 3)
-    monkeypatch.setattr(pm, "TRAVERSE_PARALLEL_MIN", 10 ** 9)
-    serial = pm.traverse_instances(h, data, planes, 500.0, 2.0, totals=True)
-    assert pm.traverse_chunks(k) == 1
-    monkeypatch.setattr(pm, "TRAVERSE_PARALLEL_MIN", 8)
+    monkeypatch.setattr(jobs, "TRAVERSE_PARALLEL_MIN", 10 ** 9)
+    serial = jobs.traverse_instances(h, data, planes, 500.0, 2.0, totals=True)
+    assert jobs.traverse_chunks(k) == 1
+    monkeypatch.setattr(jobs, "TRAVERSE_PARALLEL_MIN", 8)
     h._jobs_per_instance = 1  # force retries of the chunked kernel
-    par = pm.traverse_instances(h, data, planes, 500.0, 2.0, totals=True)
+    par = jobs.traverse_instances(h, data, planes, 500.0, 2.0, totals=True)
     if k >= 8:
-        assert pm.traverse_chunks(k) > 1
+        assert jobs.traverse_chunks(k) > 1
     for a, b in zip(serial, par):
         assert np.array_equal(a, b)
-    ref_p, ref_t = pm.traverse_instances_reference(h, data, planes, 500.0, 2.0)
+    ref_p, ref_t = jobs.traverse_instances_reference(h, data, planes, 500.0, 2.0)
     assert np.array_equal(par[0], ref_p) and np.array_equal(par[1], ref_t)

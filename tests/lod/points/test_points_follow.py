@@ -152,7 +152,7 @@ def test_traversal_in_joint_frames_matches_the_reference(cache):
     """The instance kernel (numba) reads node boxes in joint frames at fractional frames as the per-instance
     Python reference does."""
     rep = _rep(humanoid(900, 6), cache)
-    from lod.points.mode import traverse_instances, traverse_instances_reference
+    from lod.points.jobs import traverse_instances, traverse_instances_reference
     from lod.view import Camera
 
     rng = np.random.default_rng(4)
@@ -387,7 +387,7 @@ def _worst_gap(rep, f, splat: float = 2.0, probes: int = 40_000) -> list:
     surface point at baked row f to the nearest sample of the nodes drawn as points whose subtrees hold it."""
     from scipy.spatial import cKDTree
 
-    from lod.points.mode import traverse_instances
+    from lod.points.jobs import traverse_instances
     from lod.points.sampling import sample_triangles
     from lod.points.traverse import viewport_scale
     from lod.view import Camera

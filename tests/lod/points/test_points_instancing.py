@@ -315,12 +315,13 @@ def test_auto_draws_far_groups_from_the_super_hierarchies_as_mode_points_does(bu
     """Mode auto with the point candidate at a bound of 2 px (issue 7, "far groups ... chosen as a whole"):
     the super-hierarchy nodes it draws are those of mode points at splat size 2, their agents get no
     per-instance draw, every other visible agent is drawn once, and the far view is a few points."""
+    from lod.auto import build as ab
     from lod.auto import mode as am
     from lod.auto import cost_model
 
     h, reps, sel, cache = built
     monkeypatch.setenv(pm_rep.CACHE_ENV, str(cache.folder))  # the fixture's hierarchies
-    _, auto = am.build([walker_character()], ["w"], [30], {"poe": 2.0, "points_error": "splat", "keyframes": 3,
+    _, auto = ab.build([walker_character()], ["w"], [30], {"poe": 2.0, "points_error": "splat", "keyframes": 3,
                                                           "adapt": False, "candidates": "triangles,points"},
                        progress=False, model=cost_model.CostModel(), instancing=Instancing([(0, h)]),
                        points_params={"splat_size": 2})

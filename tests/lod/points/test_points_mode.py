@@ -8,6 +8,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "fixtures"))
 
+from lod.points import jobs as pm_jobs  # noqa: E402
 from lod.points import mode as pm  # noqa: E402
 from lod.points import rep as pm_rep  # noqa: E402
 from lod.modes import MODES, mode_params  # noqa: E402
@@ -111,10 +112,10 @@ def test_instance_kernel_matches_the_per_instance_reference(skinned, cache):
     data[5, 3:12:4] = [0.0, -1.0, 0.0]  # camera inside the box: must descend, not divide by 0
     for h in reps[0].hierarchies[:3]:
         for splat in (1, 2, 3):
-            pj, tj = pm.traverse_instances(h, data, planes, 400.0, splat)
+            pj, tj = pm_jobs.traverse_instances(h, data, planes, 400.0, splat)
             ref = data.copy()
             ref[3, 12] = 0.0
-            rp, rt = pm.traverse_instances_reference(h, ref, planes, 400.0, splat)
+            rp, rt = pm_jobs.traverse_instances_reference(h, ref, planes, 400.0, splat)
             np.testing.assert_array_equal(pj, rp)
             np.testing.assert_array_equal(tj, rt)
     # the camera-inside instance draws every triangle of the nearby nodes and no NaN arises

@@ -264,7 +264,7 @@ def test_shrinking_mesh_gets_unequal_intervals_that_cover_and_traverse(tmp_path)
     per-instance traversal kernel against its reference, the file round trip."""
     from scipy.spatial import cKDTree
 
-    from lod.points import mode as pm
+    from lod.points import jobs
     from lod.points.octree import load_hierarchy, save_hierarchy
     from lod.points.stratify import interval_of
 
@@ -294,8 +294,8 @@ def test_shrinking_mesh_gets_unequal_intervals_that_cover_and_traverse(tmp_path)
     data[:, 11] = -12.0
     data[:, 12] = np.r_[b[1:4] - 1e-6, b[1:4], b[1:4] + 1e-6]
     for splat in (0.5, 2.0, 8.0):
-        pj, tj = pm.traverse_instances(h, data, planes, 400.0, splat)
-        rp, rt = pm.traverse_instances_reference(h, data, planes, 400.0, splat)
+        pj, tj = jobs.traverse_instances(h, data, planes, 400.0, splat)
+        rp, rt = jobs.traverse_instances_reference(h, data, planes, 400.0, splat)
         np.testing.assert_array_equal(pj, rp)
         np.testing.assert_array_equal(tj, rt)
     f = tmp_path / "s.npz"

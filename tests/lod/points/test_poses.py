@@ -175,17 +175,18 @@ def test_points_mode_bakes_the_chosen_poses(walker, tmp_path):
 
 def test_auto_prices_points_with_the_pose_error_of_its_poses(walker):
     from lod.auto import candidates as ac
+    from lod.auto import build as ab
     from lod.auto import mode as am
 
     ch = dataclasses.replace(walker, clips={"walk": walker.clip("walk")})
-    _, sel = am.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False,
+    _, sel = ab.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False,
                       points_params={"animation": "baked"})
     pts = next(c for c in sel.candidates if c.name == "points")
     dev = ac.keyframe_deviation(ch, 0)
     assert pts.deviation[0] == pytest.approx(dev)
     assert 0.0 < dev <= 0.02 * lp.character_extent(ch)
     # samples that follow the animation (the default) depart from it by nothing: the splat gets the whole bound
-    _, sel = am.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False)
+    _, sel = ab.build([ch], ["w"], [30], {"candidates": "triangles,points"}, progress=False, cache=False)
     pts = next(c for c in sel.candidates if c.name == "points")
     assert pts.deviation[0] == 0.0 and pts.splat_size(2.0) == 2
 
