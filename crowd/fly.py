@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,6 +70,8 @@ KEYFRAME_RANGE = (1, 64)
 #: seconds between HUD text refreshes (numbers readable, text not re-rasterised every frame);
 #: any input refreshes it at once
 HUD_REFRESH = 0.1
+#: frames the HUD's rate is measured over: frames drawn divided by the wall-clock time between their starts
+RATE_FRAMES = 20
 #: exit code when no display is available (as for bad usage)
 EXIT_NO_DISPLAY = 2
 
@@ -455,7 +458,9 @@ class FlyApp:
         self.controller = FlyController(engine, cam, size, out_dir, record_path, echo=echo)
         window.attach(self.controller)
         self.frames = 0
-        self.fps = 0.0
+        self.fps = 0.0  # frames per wall-clock second over the last RATE_FRAMES frames (0 before the second)
+        self._starts: deque = deque(maxlen=RATE_FRAMES + 1)  # perf_counter at the start of recent frames
+        self.periods: list = []  # wall seconds from each frame's start to the next's (the exit summary)
         self.last = None
         self._frozen = None
         self._last_stages: dict = {}
@@ -515,6 +520,7 @@ class FlyApp:
         Does not swap buffers (the window's back buffer holds the frame)."""
         c, e = self.controller, self.engine
         t0 = time.perf_counter()
+        self._clock_frame(t0)
         self._apply_resize()
         c.update(dt)
         stepped = False
@@ -551,10 +557,25 @@ class FlyApp:
             result.screenshot = self.screenshot()
         stages["total"] = time.perf_counter() - t0
         self._last_stages = stages
-        if dt > 0:
-            self.fps = 1.0 / dt if self.fps == 0.0 else 0.9 * self.fps + 0.1 / dt
         self.frames += 1
         return result
+
+    def _clock_frame(self, start: float) -> None:
+        """Note a frame's start: the rate shown is the frames begun over the wall-clock time they spanned,
+        over the last :data:`RATE_FRAMES` (a rate from whole periods, not an average of per-frame rates, which
+        a first short period throws off for many frames)."""
+        if self._starts:
+            self.periods.append(start - self._starts[-1])
+        self._starts.append(start)
+        span = self._starts[-1] - self._starts[0]
+        self.fps = (len(self._starts) - 1) / span if span > 0.0 else 0.0
+
+    def summary(self) -> str:
+        """The run's frame count, median frame time and rate (wall clock from one frame's start to the next)."""
+        if not self.periods:
+            return f"{self.frames} frames"
+        med = float(np.median(self.periods))
+        return f"{self.frames} frames, median frame {med * 1e3:.1f} ms ({1.0 / med:.1f} fps)"
 
     def screenshot(self, path=None) -> Path:
         """Write the last rendered frame (without HUD) as PNG, atomically; returns the path."""
@@ -621,8 +642,8 @@ def fly(scene_path, size=None, out=None, record=None, frames=None, echo=print) -
         app = FlyApp(engine, window, out_dir, record_path=record, echo=echo)
         echo(f"crowd fly {scene.name}: OpenGL {window.gl_version[0]}.{window.gl_version[1]} core "
              f"({window.ctx.info['GL_RENDERER']}); press H for help")
-        n = app.run(max_frames=frames)
-        echo(f"crowd fly {scene.name}: {n} frames")
+        app.run(max_frames=frames)
+        echo(f"crowd fly {scene.name}: {app.summary()}")
     except KeyboardInterrupt:
         print("crowd fly: interrupted", file=sys.stderr)
         return 130

@@ -340,7 +340,31 @@ def test_cli_fly_runs_frames_under_xvfb(display, scene_file, tmp_path):
     assert env_display == display
     r = run_cli("fly", scene_file, "--frames", 2, "--size", "64x48", "--out", tmp_path)
     assert r.returncode == 0, r.stderr
-    assert "2 frames" in r.stdout
+    assert "2 frames, median frame" in r.stdout and "fps)" in r.stdout
+
+
+def test_hud_rate_is_the_wall_clock_rate_over_20_frames(app, monkeypatch):
+    """The HUD's rate is within 5 % of the wall-clock rate over every 20 frames, from the first frames on,
+    whatever their pace: five quick frames, then slower ones (an average of per-frame rates -- the first
+    period near zero -- read thousands of fps for dozens of frames)."""
+    import time
+
+    starts, shown = [], []
+    real = app.frame
+
+    def paced(dt):
+        time.sleep(0.001 if len(starts) < 5 else 0.025)
+        starts.append(time.perf_counter())
+        out = real(dt)
+        shown.append(app.fps)
+        return out
+
+    monkeypatch.setattr(app, "frame", paced)
+    assert app.run(max_frames=50) == 50
+    for i in range(20, len(starts)):
+        wall = 20 / (starts[i] - starts[i - 20])
+        assert abs(shown[i] - wall) <= 0.05 * wall, (i, shown[i], wall)
+    assert len(app.periods) == 49 and app.summary().startswith("50 frames, median frame ")
 
 
 def test_cli_fly_without_display_suggests_run_or_xvfb(scene_file, monkeypatch):
