@@ -475,6 +475,17 @@ class Engine:
         self.pose_sharing.assign(dl)
         return self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
 
+    def observe(self, drawlist, select_seconds: float, timings: dict) -> float:
+        """The cost of a frame drawn that a budget covers -- LOD selection and rendering (``timings``' upload,
+        draw, finish: :meth:`render.renderer.Renderer.draw`); the simulation is the scene's own cost -- reported
+        to a selector that adapts to it (mode auto fits its costs and moves its budget's bound by the frames it
+        drew: :meth:`lod.auto.mode.AutoSelector.observe`). ``crowd run`` and ``crowd fly`` both report every
+        frame. Returns those seconds."""
+        measured = float(select_seconds) + sum(float(timings.get(k) or 0.0) for k in ("upload", "draw", "finish"))
+        if hasattr(self.selector, "observe"):
+            self.selector.observe(measured, select_seconds=float(select_seconds), drawlist=drawlist)
+        return measured
+
     def apply_live_settings(self) -> None:
         """Hand the live LOD settings to the current selector: pixels of error
         to a cluster cut, the splat size to a point traversal (the drawer
@@ -616,10 +627,7 @@ class Engine:
                                "lod_transitions": float(dl.stats.get("transitions", 0)),
                                "lod_geomorphs": float(dl.stats.get("geomorphs", 0))}
                 r = renderer.draw(dl, bg)
-                # the frame cost a budget covers: LOD selection + rendering (simulation is the scene's own cost)
-                measured = (t2 - t1) + sum(float(r.get(k) or 0.0) for k in ("upload", "draw", "finish"))
-                if hasattr(self.selector, "observe"):  # mode auto fits its costs to the frame drawn
-                    self.selector.observe(measured, select_seconds=t2 - t1, drawlist=dl)
+                measured = self.observe(dl, t2 - t1, r)
                 if explain is not None and isinstance(dl.stats.get("auto"), dict):
                     text = explain.frame(f, dl.stats["auto"], measured - (t2 - t1))
                     if callable(self.explain_lod):

@@ -541,6 +541,7 @@ class FlyApp:
         t2 = time.perf_counter()
         r = self.renderer.draw(dl, e.scene.render.background)
         t3 = time.perf_counter()
+        e.observe(dl, t2 - t1, r)  # mode auto learns its costs (and holds its budget) from the frames drawn here too
         self.window.blit(self.renderer.fbo)
         t4 = time.perf_counter()
         stages = {"simulate": t1 - t0, "select": t2 - t1, "upload": float(r.get("upload") or 0.0),

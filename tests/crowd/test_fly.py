@@ -184,6 +184,19 @@ def test_pause_keeps_the_state(app):
     assert e.world.state.digest() != d0
 
 
+def test_mode_auto_learns_from_the_frames_flown(app):
+    """The fly-through reports every frame's selection + rendering time to mode auto, as ``crowd run`` does:
+    its online cost fit takes a row per frame (before, the fly-through never reported one, so auto's budget
+    followed its own predictions and its costs were never fitted)."""
+    app.engine.set_lod_mode("auto")
+    sel = app.engine.selector
+    assert type(sel).__name__ == "AutoSelector" and sel.fit is not None and sel.fit.frames == 0
+    for _ in range(6):
+        app.frame(1 / 30)
+    assert sel.fit.frames >= 5  # a row per frame drawn (the last one is reported before the next selection)
+    assert sel._uses_measured
+
+
 def test_live_settings_keys(app):
     s = app.engine.settings
     press(app, glfw.KEY_M)  # points: built on first use, and the selector follows
