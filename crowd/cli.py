@@ -3,7 +3,7 @@
     crowd run SCENE [--frames N] [--size WxH] [--out DIR] [--png-every K] [--video] [--explain-lod] [--quiet]
     crowd validate SCENE
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
-    crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N]
+    crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N] [--budget MS]
     crowd report SCENE... [--sweep KEY=V1,V2,...]... [--frames N] [--size WxH] [--out DIR] [--sample-every K]
                  [--compare BASELINE_DIR] [--repeat N] [--cluster local|none|tcp://HOST:PORT]
     crowd calibrate [--quick] [--size WxH] [--no-save]
@@ -62,6 +62,15 @@ def _nonneg_int(text: str) -> int:
     return v
 
 
+def _budget(text: str) -> float:
+    from crowd.fly_budget import parse_budget
+
+    try:
+        return parse_budget(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def _size(text: str) -> tuple:
     from crowd.scene import SIZE_RANGE, parse_size
 
@@ -72,8 +81,16 @@ def _size(text: str) -> tuple:
     return s
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with bad usage said in one line (exit 2), as every other bad input is; ``--help`` shows the
+    usage (its subcommands' parsers are of this class too)."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (`{self.prog} --help` lists the options)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="crowd", description="Crowd simulation and LOD rendering sandbox.")
+    p = _Parser(prog="crowd", description="Crowd simulation and LOD rendering sandbox.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", help="simulate and render a scene headless, writing frames and telemetry")
@@ -104,6 +121,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the scene's output dir + '-fly')")
     f.add_argument("--record", metavar="PATH", help="camera recording file written by R (default: timestamped)")
     f.add_argument("--frames", type=_positive_int, help="close after N frames (scripted runs)")
+    f.add_argument("--budget", type=_budget, metavar="MS",
+                   help="frame budget in ms of selection + rendering (default 70): a scene whose mode misses it is "
+                   "drawn in mode auto under it; 0 draws the scene's mode as written")
 
     rp = sub.add_parser("report", help="frame-time and accuracy report (HTML) over scenes and swept settings")
     rp.add_argument("scenes", nargs="+", metavar="SCENE", help="scene files (.toml)")
@@ -235,7 +255,7 @@ def cmd_report(args) -> int:
 def cmd_fly(args) -> int:
     from crowd.fly import fly
 
-    return fly(args.scene, size=args.size, out=args.out, record=args.record, frames=args.frames)
+    return fly(args.scene, size=args.size, out=args.out, record=args.record, frames=args.frames, budget=args.budget)
 
 
 def cmd_run(args) -> int:

@@ -78,6 +78,7 @@ EXIT_NO_DISPLAY = 2
 HELP_TEXT = """\
 W A S D: move (along the view)   Q / E: down / up   mouse drag (left/right button): look   scroll: speed
 space: pause   N: step while paused   M: LOD mode   [ ]: splat size   - =: PoE   , .: keyframe interval
+9 / 0: frame budget down / up (mode auto draws under it)
 O: occlusion culling   F: freeze LOD selection   C: colour by rep/level   K: compute raster
 R: record camera path
 P / F12: screenshot   Tab: HUD   H / F1: help   Esc: quit"""
@@ -199,6 +200,7 @@ class FlyController:
         self.messages: list = []  # (text, expiry on the controller clock)
         self.clock = 0.0
         self.revision = 0  # counts input events that may change what the HUD shows
+        self.budget = None  # crowd.fly_budget.FlyBudget, set by FlyApp
         self._mode_cursor = LOD_MODES_ALL.index(self.settings.lod_mode) if self.settings.lod_mode in LOD_MODES_ALL else 0
         k = glfw
         self._move_keys = {k.KEY_W: (0, 1), k.KEY_S: (0, -1), k.KEY_D: (1, 1), k.KEY_A: (1, -1),
@@ -208,6 +210,8 @@ class FlyController:
             k.KEY_O: self.toggle_occlusion, k.KEY_F: self.toggle_freeze, k.KEY_C: self.cycle_color,
             k.KEY_K: self.toggle_compute_raster,
             k.KEY_R: self.toggle_recording, k.KEY_P: self.request_screenshot, k.KEY_F12: self.request_screenshot,
+            k.KEY_9: lambda: self.budget.change(-1) if self.budget is not None else None,
+            k.KEY_0: lambda: self.budget.change(1) if self.budget is not None else None,
             k.KEY_H: self.show_help, k.KEY_F1: self.show_help, k.KEY_TAB: self.toggle_hud,
             k.KEY_ESCAPE: self.request_quit,
         }
@@ -319,6 +323,8 @@ class FlyController:
         mode = LOD_MODES_ALL[self._mode_cursor]
         if mode in self.engine.lod_modes:
             self.engine.set_lod_mode(mode)
+            if self.budget is not None:
+                self.budget.mode_picked()
             self.say(f"lod mode {mode}")
         else:
             self.say(f"mode {mode} not available yet")
@@ -446,7 +452,8 @@ class FlyApp:
     echo : line printer for messages and help (default print)
     """
 
-    def __init__(self, engine, window, out_dir, record_path=None, echo=print):
+    def __init__(self, engine, window, out_dir, record_path=None, echo=print, budget_ms: float = 0.0):
+        from crowd.fly_budget import FlyBudget
         from render.window import Hud
 
         self.engine = engine
@@ -457,6 +464,8 @@ class FlyApp:
         cam = engine.camera_at(engine.world.time)
         self.controller = FlyController(engine, cam, size, out_dir, record_path, echo=echo)
         window.attach(self.controller)
+        #: the frame budget (crowd.fly_budget; ``budget_ms`` 0: the scene's mode as written)
+        self.budget = self.controller.budget = FlyBudget(engine, budget_ms, self.controller.say)
         self.frames = 0
         self.fps = 0.0  # frames per wall-clock second over the last RATE_FRAMES frames (0 before the second)
         self._starts: deque = deque(maxlen=RATE_FRAMES + 1)  # perf_counter at the start of recent frames
@@ -488,8 +497,8 @@ class FlyApp:
         s = dl.stats if dl is not None else {}
         p = c.position
         lines = [
-            f"{e.scene.name}  {self.fps:5.1f} fps  frame {e.world.frame}  t {e.world.time:.2f} s  "
-            f"{self.size[0]}x{self.size[1]}{flags}",
+            f"{e.scene.name}  {self.fps:5.1f} fps  {self.budget.hud()}  frame {e.world.frame}  "
+            f"t {e.world.time:.2f} s  {self.size[0]}x{self.size[1]}{flags}",
             f"ms  simulate {ms('simulate')}  select {ms('select')}  upload {ms('upload')}  draw {ms('draw')}  "
             f"finish {ms('finish')}  hud {ms('hud')}  total {ms('total')}",
             f"drawn  {s.get('instances', 0):,} instances ({s.get('culled', 0):,} culled)  "
@@ -541,7 +550,9 @@ class FlyApp:
         t2 = time.perf_counter()
         r = self.renderer.draw(dl, e.scene.render.background)
         t3 = time.perf_counter()
-        e.observe(dl, t2 - t1, r)  # mode auto learns its costs (and holds its budget) from the frames drawn here too
+        # mode auto learns its costs (and holds its budget) from the frames drawn here too; another mode that
+        # misses the budget gives way to auto (crowd.fly_budget)
+        self.budget.observe(e.observe(dl, t2 - t1, r))
         self.window.blit(self.renderer.fbo)
         t4 = time.perf_counter()
         stages = {"simulate": t1 - t0, "select": t2 - t1, "upload": float(r.get("upload") or 0.0),
@@ -612,7 +623,7 @@ class FlyApp:
         self.engine.close()
 
 
-def fly(scene_path, size=None, out=None, record=None, frames=None, echo=print) -> int:
+def fly(scene_path, size=None, out=None, record=None, frames=None, echo=print, budget=None) -> int:
     """``crowd fly``: open a window, build the scene's engine and fly until closed; returns the exit code.
 
     Parameters
@@ -622,8 +633,11 @@ def fly(scene_path, size=None, out=None, record=None, frames=None, echo=print) -
     out : folder for screenshots and recordings, default ``<output dir>-fly`` (e.g. ``out/quickstart-fly``)
     record : path of the camera recording (default a timestamped file in ``out``)
     frames : stop after this many frames (scripted runs), default: until closed
+    budget : frame budget in ms (``crowd.fly_budget``), default :data:`crowd.fly_budget.DEFAULT_BUDGET_MS`;
+        0 draws the scene's mode as written
     """
     from crowd.engine import Engine
+    from crowd.fly_budget import DEFAULT_BUDGET_MS
     from crowd.scene import load_scene
     from render.window import Window, WindowError, display_available
 
@@ -640,7 +654,8 @@ def fly(scene_path, size=None, out=None, record=None, frames=None, echo=print) -
     app = None
     try:
         engine = Engine(scene, quiet=False)
-        app = FlyApp(engine, window, out_dir, record_path=record, echo=echo)
+        app = FlyApp(engine, window, out_dir, record_path=record, echo=echo,
+                     budget_ms=DEFAULT_BUDGET_MS if budget is None else budget)
         echo(f"crowd fly {scene.name}: OpenGL {window.gl_version[0]}.{window.gl_version[1]} core "
              f"({window.ctx.info['GL_RENDERER']}); press H for help")
         app.run(max_frames=frames)

@@ -298,6 +298,15 @@ class AutoSelector:
                     out.append(r)
         return out
 
+    def set_budget(self, budget_ms: float) -> None:
+        """Change the frame-time budget while running (``crowd fly``): 0 = the fixed bound ``poe``; > 0 = the
+        bound adapts to it (:class:`lod.auto.budget.BudgetController`, starting from the current bound)."""
+        if not (np.isfinite(budget_ms) and float(budget_ms) >= 0.0):
+            raise ValueError(f"[lod] budget_ms: expected a finite number >= 0, got {budget_ms}")
+        bound = self.bound
+        self.budget_ms = float(budget_ms)
+        self.controller = BudgetController(self.budget_ms * 1e-3, bound) if self.budget_ms > 0 else None
+
     @property
     def bound(self) -> float:
         """Pixels of error the next frame is selected with."""

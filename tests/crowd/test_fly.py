@@ -447,3 +447,89 @@ def test_live_keyframe_interval_and_occlusion_keys_are_applied(app):
     for _ in range(3):
         press(app, glfw.KEY_COMMA)
     assert "keyframe" not in app.frame(1 / 30).drawlist.stats and e.selector.n == 1
+
+
+# -- the frame budget (crowd/fly_budget.py) ----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def budget_app(display, scene_file, tmp_path):
+    made = []
+
+    def make(budget_ms):
+        window = Window(SIZE, title="test_fly_budget")
+        a = FlyApp(Engine(load_scene(scene_file), quiet=True), window, tmp_path / "fly-out", echo=lambda _: None,
+                   budget_ms=budget_ms)
+        made.append((a, window))
+        return a
+
+    yield make
+    for a, window in made:
+        a.close()
+        window.close()
+
+
+def test_a_scene_that_misses_the_budget_is_drawn_in_auto_under_it(budget_app):
+    """Mode none of the tiny scene cannot draw in 0.01 ms: the first judged frame (frame 2, over the budget by
+    far more than URGENT) switches to auto with that budget, and the HUD says so; a mode picked by hand is
+    drawn as picked."""
+    from crowd.fly_budget import SKIP_FRAMES
+
+    app = budget_app(0.01)
+    assert app.engine.settings.lod_mode == "none" and "budget 0.01 ms" in app.hud_lines()[0]
+    for _ in range(SKIP_FRAMES + 1):
+        app.frame(1 / 30)
+    assert app.engine.settings.lod_mode == "auto" and app.budget.switched
+    sel = app.budget.auto()
+    assert sel is not None and sel.budget_ms == 0.01 and sel.controller is not None
+    app.frame(1 / 30)
+    head = app.hud_lines()[0]
+    assert "auto in place of none" in head and "bound" in head
+    assert any("misses the 0.01 ms budget" in m for m, _ in app.controller.messages)
+    assert "lod auto" in app.hud_lines()[3]
+    for _ in range(4):  # auto raises its bound (it cannot meet the budget): never back to none, never a NaN
+        app.frame(1 / 30)
+    assert app.engine.settings.lod_mode == "auto" and math.isfinite(sel.bound) and sel.bound > 1.0
+    press(app, glfw.KEY_M)  # by hand: points, drawn as picked whatever the budget
+    for _ in range(4):
+        app.frame(1 / 30)
+    assert app.engine.settings.lod_mode == "points" and not app.budget.switched
+
+
+def test_a_scene_that_fits_the_budget_keeps_its_mode(budget_app):
+    app = budget_app(5000.0)
+    for _ in range(8):
+        app.frame(1 / 30)
+    assert app.engine.settings.lod_mode == "none" and not app.budget.switched
+    off = budget_app(0.0)  # --budget 0: the scene's mode as written, however slow
+    off.budget.observe(10.0)
+    for _ in range(3):
+        off.frame(1 / 30)
+    assert off.engine.settings.lod_mode == "none" and "budget off" in off.hud_lines()[0]
+
+
+def test_budget_keys_move_auto_s_budget(budget_app):
+    from crowd.fly_budget import BUDGET_STEP, DEFAULT_BUDGET_MS
+
+    app = budget_app(80.0)
+    for _ in range(4):
+        press(app, glfw.KEY_M)  # points, triangles, clusters, auto: picked by hand, it draws under the budget
+    assert app.engine.settings.lod_mode == "auto" and app.budget.auto().budget_ms == 80.0
+    press(app, glfw.KEY_0)
+    assert app.budget.auto().budget_ms == pytest.approx(80.0 * BUDGET_STEP)
+    press(app, glfw.KEY_9)
+    press(app, glfw.KEY_9)
+    assert app.budget.auto().budget_ms == pytest.approx(80.0 / BUDGET_STEP)
+    off = budget_app(0.0)
+    press(off, glfw.KEY_9)
+    assert off.budget.budget_ms == 0.0
+    press(off, glfw.KEY_0)  # from off: on at the default
+    assert off.budget.budget_ms == DEFAULT_BUDGET_MS
+
+
+@pytest.mark.parametrize("value", ["-5", "nan", "inf", "fast"])
+def test_cli_bad_budget_is_one_line_and_exit_2(scene_file, value):
+    r = run_cli("fly", scene_file, f"--budget={value}", "--frames", 1)
+    assert r.returncode == 2
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and "--budget" in err[0] and value in err[0] and "Traceback" not in r.stderr

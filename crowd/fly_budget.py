@@ -1,0 +1,141 @@
+"""The fly-through's frame budget (``crowd fly --budget MS``): a person watching gets an interactive rate by
+default, not a slide show of a scene written for measurement.
+
+The budget covers what mode auto trades for time: a frame's LOD selection and rendering, the same seconds
+``crowd run`` reports to auto (:meth:`crowd.engine.Engine.observe`); the simulation, the window's blit and
+the HUD are the scene's and the window's own. With a budget > 0:
+
+- a scene in mode auto draws under it (:meth:`lod.auto.mode.AutoSelector.set_budget`: the pixel bound
+  adapts to the measured frames);
+- a scene in another mode is drawn in its own mode while that mode holds the budget. When it does not -- the
+  median of :data:`CHECK_FRAMES` frames after the first :data:`SKIP_FRAMES` over the budget by more than
+  :data:`TOLERANCE`, or one such frame over it by more than a factor :data:`URGENT` (a scene that draws in
+  seconds is not watched for five frames) -- the fly-through switches to mode auto under the budget and says
+  so (HUD and console);
+- a mode picked by hand (M) is drawn as picked, never switched; auto picked by hand draws under the budget.
+
+``--budget 0`` draws the scene's mode exactly as written (as ``crowd run`` does). ``crowd run`` and ``crowd
+report`` keep the scene's mode: their job is to measure it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: default budget of ``crowd fly``, milliseconds of selection + rendering: a 100 ms frame (10 fps) less what
+#: the frame spends outside the budget (simulation, blit, HUD, swap)
+DEFAULT_BUDGET_MS = 70.0
+#: the keys move the budget by this factor, within BUDGET_RANGE milliseconds
+BUDGET_STEP = 1.25
+BUDGET_RANGE = (5.0, 5000.0)
+#: frames of the scene's own mode not judged (the first draws build, upload and compile)
+SKIP_FRAMES = 1
+#: frames whose median decides that the scene's mode misses the budget
+CHECK_FRAMES = 5
+#: the median may exceed the budget by this fraction before the mode is switched
+TOLERANCE = 0.10
+#: one frame over the budget by more than this factor switches at once
+URGENT = 3.0
+
+
+def parse_budget(text) -> float:
+    """Milliseconds from ``--budget`` text: a finite number >= 0; ValueError (one sentence) otherwise."""
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"expected milliseconds >= 0 (0: the scene's mode as written), got {text!r}") from None
+    if not math.isfinite(v) or v < 0.0:
+        raise ValueError(f"expected milliseconds >= 0 (0: the scene's mode as written), got {text!r}")
+    return v
+
+
+class FlyBudget:
+    """The budget of one fly-through (module docstring).
+
+    Parameters
+    ----------
+    engine : crowd.engine.Engine (its mode may be switched to auto)
+    budget_ms : milliseconds >= 0; 0 = off
+    say : callable(text) showing a message on the HUD (and the console)
+    """
+
+    def __init__(self, engine, budget_ms: float, say):
+        self.engine = engine
+        self.say = say
+        self.budget_ms = parse_budget(budget_ms)
+        #: the scene's own mode (what ``--budget 0`` draws)
+        self.scene_mode = engine.settings.lod_mode
+        #: mode auto is drawn in place of the scene's mode (it missed the budget)
+        self.switched = False
+        #: the person picked a mode (M): it is drawn as picked
+        self.manual = False
+        self._seen = 0
+        self._samples: list = []
+        self._apply()
+
+    def auto(self):
+        """The engine's mode-auto selector (inside a keyframed selection too), or None in another mode."""
+        sel = self.engine.selector
+        sel = getattr(sel, "inner", sel)
+        return sel if hasattr(sel, "set_budget") else None
+
+    def _apply(self) -> None:
+        a = self.auto()
+        if a is not None:
+            a.set_budget(self.budget_ms)
+
+    def observe(self, seconds: float) -> None:
+        """A frame's selection + rendering seconds: switches the scene's mode to auto when it misses the budget."""
+        if (self.budget_ms <= 0.0 or self.switched or self.manual or self.auto() is not None
+                or not math.isfinite(seconds)):
+            return
+        self._seen += 1
+        if self._seen <= SKIP_FRAMES:
+            return
+        ms = 1e3 * float(seconds)
+        self._samples.append(ms)
+        recent = self._samples[-CHECK_FRAMES:]
+        if ms > URGENT * self.budget_ms:
+            self._switch(ms)
+        elif len(recent) == CHECK_FRAMES and float(np.median(recent)) > (1.0 + TOLERANCE) * self.budget_ms:
+            self._switch(float(np.median(recent)))
+
+    def _switch(self, ms: float) -> None:
+        self.engine.set_lod_mode("auto")
+        self._apply()
+        self.switched = True
+        self.say(f"mode {self.scene_mode} misses the {self.budget_ms:g} ms budget ({ms:.0f} ms a frame): "
+                 f"drawing mode auto under it (--budget 0 draws the scene's mode)")
+
+    def mode_picked(self) -> None:
+        """The person picked a mode by hand: drawn as picked (auto under the budget)."""
+        self.manual = True
+        self.switched = False
+        self._apply()
+
+    def change(self, direction: int) -> None:
+        """Raise (``direction`` > 0) or lower the budget by :data:`BUDGET_STEP`; from off, raising turns it on at
+        :data:`DEFAULT_BUDGET_MS`."""
+        if self.budget_ms <= 0.0:
+            if direction <= 0:
+                return
+            self.budget_ms = DEFAULT_BUDGET_MS
+        else:
+            self.budget_ms = float(np.clip(self.budget_ms * BUDGET_STEP ** int(np.sign(direction)), *BUDGET_RANGE))
+        self._samples.clear()
+        self._seen = 0
+        self._apply()
+        self.say(f"frame budget {self.budget_ms:g} ms")
+
+    def hud(self) -> str:
+        """The HUD's words for the budget: its value, what is drawn under it, auto's current error bound."""
+        if self.budget_ms <= 0.0:
+            return "budget off"
+        text = f"budget {self.budget_ms:g} ms"
+        if self.switched:
+            text += f" (auto in place of {self.scene_mode})"
+        a = self.auto()
+        if a is not None:
+            text += f"  bound {a.bound:.3g} px"
+        return text
