@@ -14,6 +14,10 @@ the HUD are the scene's and the window's own. With a budget > 0:
   so (HUD and console);
 - a mode picked by hand (M) is drawn as picked, never switched; auto picked by hand draws under the budget.
 
+Mode auto's representations are built (or read from the disk cache) and uploaded when the fly-through starts
+with a budget, not when the scene's mode misses it: a switch in flight is then one frame like the others, not a
+build of seconds.
+
 ``--budget 0`` draws the scene's mode exactly as written (as ``crowd run`` does). ``crowd run`` and ``crowd
 report`` keep the scene's mode: their job is to measure it.
 """
@@ -72,7 +76,15 @@ class FlyBudget:
         self.manual = False
         self._seen = 0
         self._samples: list = []
+        self._prepare()
         self._apply()
+
+    def _prepare(self) -> None:
+        """Mode auto built and uploaded beside the scene's mode while a budget is on (module docstring)."""
+        if self.budget_ms > 0.0 and self.auto() is None and "auto" in self.engine.lod_modes:
+            mode = self.engine.settings.lod_mode
+            self.engine.set_lod_mode("auto")
+            self.engine.set_lod_mode(mode)
 
     def auto(self):
         """The engine's mode-auto selector (inside a keyframed selection too), or None in another mode."""
@@ -121,6 +133,7 @@ class FlyBudget:
             if direction <= 0:
                 return
             self.budget_ms = DEFAULT_BUDGET_MS
+            self._prepare()
         else:
             self.budget_ms = float(np.clip(self.budget_ms * BUDGET_STEP ** int(np.sign(direction)), *BUDGET_RANGE))
         self._samples.clear()

@@ -1,0 +1,142 @@
+"""Benchmark: the fly-through as a person gets it (issue 49): every shipped scene flown with ``crowd fly``'s defaults.
+
+For each scene (default: every ``scenes/*.toml`` but ``million``, which has its own benchmark) a window is opened on
+an Xvfb display at ``--size`` and :class:`crowd.fly.FlyApp` runs ``--frames`` frames with the given budget
+(default :data:`crowd.fly_budget.DEFAULT_BUDGET_MS`, as ``crowd fly`` has it), the camera where the scene starts
+it, the simulation running. Printed per scene: the median frame rate over frames ``--from`` .. ``--frames`` (wall
+clock from one frame's start to the next, blit, HUD and swap included: what the person sees), the median and the
+slowest frame of that span, the mode drawn at the end (``auto*``: auto in place of the scene's mode, which missed
+the budget), auto's error bound, and the PSNR of the last frame against full detail (mode ``none``) of the same
+state and view (the aliased frame; against the supersampled reference once that exists, issue 42).
+
+Run:  .venv/bin/python scripts/bench_fly.py [--scenes exhibition stadium] [--frames 110] [--from 10]
+      [--size 1280 720] [--budget MS] [--md scripts/bench_fly.md]
+Needs Xvfb (Debian package xvfb). Take the figures with nothing else running.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from crowd.fly_budget import DEFAULT_BUDGET_MS  # noqa: E402
+
+#: scenes flown only when named (a million agents: scripts/bench_million.py)
+NAMED_ONLY = ("million",)
+#: frames per second the issue asks of every shipped scene's fly-through
+TARGET_FPS = 10.0
+
+
+def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -> dict:
+    """Fly ``path`` for ``frames`` frames; its figures (module docstring)."""
+    from crowd.engine import Engine
+    from crowd.fly import FlyApp
+    from crowd.image_metrics import psnr
+    from crowd.scene import load_scene
+    from render.window import Window
+
+    scene = load_scene(path).with_overrides(size=size)
+    window = Window(scene.render.size, title=f"bench_fly {scene.name}")
+    app = None
+    try:
+        engine = Engine(scene, quiet=True)
+        app = FlyApp(engine, window, Path("/tmp") / "bench_fly", echo=lambda _: None, budget_ms=budget)
+        t0 = time.perf_counter()
+        app.run(max_frames=frames)
+        wall = time.perf_counter() - t0
+        periods = np.asarray(app.periods[max(0, start - 1):], np.float64)  # from frame `start`'s start on
+        sel = app.budget.auto()
+        mode = engine.settings.lod_mode + ("*" if app.budget.switched else "")
+        bound = float(sel.bound) if sel is not None else float("nan")
+        drawn = app.renderer.read_pixels().astype(np.float64) / 255.0
+        # full detail of the same state and view: mode none selected and drawn without a step
+        camera, _ = engine.terrain_frame(app.controller.camera(), app.renderer)
+        engine.set_lod_mode("none")
+        dl = engine.select(camera, app.renderer.size)
+        from lod.debug_colors import apply_tints
+
+        apply_tints(dl, engine.settings.color_by, statics=engine.static_keys)
+        app.renderer.draw(dl, scene.render.background)
+        full = app.renderer.read_pixels().astype(np.float64) / 255.0
+        med = float(np.median(periods)) if periods.size else float("nan")
+        return {"scene": path.stem, "scene_mode": app.budget.scene_mode, "fps": 1.0 / med, "median_ms": 1e3 * med,
+                "max_ms": 1e3 * float(periods.max()) if periods.size else float("nan"), "mode": mode, "bound": bound,
+                "psnr": psnr(drawn, full), "wall_s": wall, "frames": frames}
+    finally:
+        if app is not None:
+            app.close()
+        window.close()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", nargs="*", default=None, help="scene names (default: every scenes/*.toml but million)")
+    ap.add_argument("--frames", type=int, default=110)
+    ap.add_argument("--from", dest="start", type=int, default=10, help="first frame of the measured span")
+    ap.add_argument("--size", type=int, nargs=2, default=(1280, 720))
+    ap.add_argument("--budget", type=float, default=DEFAULT_BUDGET_MS, help="ms (crowd fly --budget); 0: off")
+    ap.add_argument("--md", default=None, help="also write the table to this markdown file")
+    a = ap.parse_args(argv)
+    if not 1 <= a.start < a.frames:
+        ap.error("--from must be at least 1 and below --frames")
+    scenes = sorted((ROOT / "scenes").glob("*.toml"))
+    if a.scenes:
+        unknown = sorted(set(a.scenes) - {s.stem for s in scenes})
+        if unknown:
+            ap.error(f"--scenes: no scenes/{unknown[0]}.toml")
+        scenes = [s for s in scenes if s.stem in a.scenes]
+    else:
+        scenes = [s for s in scenes if s.stem not in NAMED_ONLY]
+    from render.window import VirtualDisplay
+
+    display = None
+    if not os.environ.get("DISPLAY"):
+        display = VirtualDisplay().start()
+        os.environ["DISPLAY"] = display.display
+    head = (f"| scene | scene's mode | fps (median, frames {a.start}-{a.frames}) | median ms | slowest ms | mode drawn "
+            f"| bound px | PSNR vs full detail (aliased) dB |")
+    rows = [head, "| --- | --- | ---: | ---: | ---: | --- | ---: | ---: |"]
+    print(head)
+    results = []
+    try:
+        for s in scenes:
+            r = fly_scene(s, a.frames, a.start, tuple(a.size), a.budget)
+            results.append(r)
+            row = (f"| {r['scene']} | {r['scene_mode']} | {r['fps']:.1f} | {r['median_ms']:.0f} | {r['max_ms']:.0f} | "
+                   f"{r['mode']} | {r['bound']:.3g} | {r['psnr']:.1f} |")
+            rows.append(row)
+            print(row + f"  ({r['wall_s']:.0f} s)", flush=True)
+    finally:
+        if display is not None:
+            display.stop()
+    met = sum(r["fps"] >= TARGET_FPS for r in results)
+    over = [r["scene"] for r in results if r["max_ms"] > 2.0 * a.budget + 1e-9] if a.budget > 0 else []
+    summary = (f"{met} of {len(results)} scenes at >= {TARGET_FPS:g} fps; slowest frame over 2x the budget "
+               f"({2 * a.budget:g} ms) on: {', '.join(over) or 'none'}")
+    print(summary)
+    if a.md:
+        from sim.atomic_io import write_atomic
+
+        load = os.getloadavg()
+        text = (f"# bench_fly: the fly-through with crowd fly's defaults\n\n"
+                f"`{' '.join(['scripts/bench_fly.py', *(argv if argv is not None else sys.argv[1:])])}`, "
+                f"{time.strftime('%Y-%m-%d')}, {platform.node()} ({os.cpu_count()} cores, Mesa llvmpipe under "
+                f"Xvfb), {a.size[0]}x{a.size[1]}, budget {a.budget:g} ms, load before the run "
+                f"{load[0]:.1f}.\n\n" + "\n".join(rows) + f"\n\n{summary}\n\n"
+                "`auto*`: mode auto drawn in place of the scene's mode, which missed the budget. Frame time is the "
+                "wall clock from one frame's start to the next (simulation, selection, rendering, blit, HUD, swap); "
+                "the budget covers selection and rendering only.\n")
+        write_atomic(Path(a.md), text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
