@@ -552,7 +552,7 @@ class FlyApp:
         t3 = time.perf_counter()
         # mode auto learns its costs (and holds its budget) from the frames drawn here too; another mode that
         # misses the budget gives way to auto (crowd.fly_budget)
-        self.budget.observe(e.observe(dl, t2 - t1, r))
+        self.budget.observe(e.observe(dl, t2 - t1, r), dl)
         self.window.blit(self.renderer.fbo)
         t4 = time.perf_counter()
         stages = {"simulate": t1 - t0, "select": t2 - t1, "upload": float(r.get("upload") or 0.0),

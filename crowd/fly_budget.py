@@ -12,7 +12,9 @@ the HUD are the scene's and the window's own. With a budget > 0:
   :data:`TOLERANCE`, or one such frame over it by more than a factor :data:`URGENT` (a scene that draws in
   seconds is not watched for five frames) -- the fly-through switches to mode auto under the budget and says
   so (HUD and console);
-- a mode picked by hand (M) is drawn as picked, never switched; auto picked by hand draws under the budget.
+- a mode picked by hand (M) is drawn as picked, never switched; auto picked by hand draws under the budget;
+- a budget no plan of auto can meet is said once (HUD and console); auto then draws its cheapest plan
+  (:mod:`lod.auto.control`, "Under a frame budget").
 
 Mode auto's representations are built (or read from the disk cache) and uploaded when the fly-through starts
 with a budget, not when the scene's mode misses it: a switch in flight is then one frame like the others, not a
@@ -76,6 +78,7 @@ class FlyBudget:
         self.manual = False
         self._seen = 0
         self._samples: list = []
+        self._said_unmeetable = False
         self._prepare()
         self._apply()
 
@@ -97,8 +100,14 @@ class FlyBudget:
         if a is not None:
             a.set_budget(self.budget_ms)
 
-    def observe(self, seconds: float) -> None:
-        """A frame's selection + rendering seconds: switches the scene's mode to auto when it misses the budget."""
+    def observe(self, seconds: float, drawlist=None) -> None:
+        """A frame's selection + rendering seconds (and its DrawList): switches the scene's mode to auto when it
+        misses the budget; says once when auto finds no plan that can meet it."""
+        auto = drawlist.stats.get("auto") if drawlist is not None else None
+        if isinstance(auto, dict) and auto.get("unmeetable") and not self._said_unmeetable and self.budget_ms > 0:
+            self._said_unmeetable = True
+            self.say(f"no plan of mode auto fits the {self.budget_ms:g} ms budget here: drawing the cheapest "
+                     f"(0 raises the budget)")
         if (self.budget_ms <= 0.0 or self.switched or self.manual or self.auto() is not None
                 or not math.isfinite(seconds)):
             return
@@ -138,6 +147,7 @@ class FlyBudget:
             self.budget_ms = float(np.clip(self.budget_ms * BUDGET_STEP ** int(np.sign(direction)), *BUDGET_RANGE))
         self._samples.clear()
         self._seen = 0
+        self._said_unmeetable = False
         self._apply()
         self.say(f"frame budget {self.budget_ms:g} ms")
 

@@ -33,6 +33,15 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   every :data:`REPRICE_FRAMES`-th frame only; in between the incumbent is drawn without a decision, by the
   single mode's own selector once its list is verified to be the plan's (:mod:`lod.auto.delegate`): then auto's
   selection costs what the single mode's does.
+- **Under a frame budget** (:attr:`PlanChooser.budget`, the rendering seconds a budget leaves, issue 49) every
+  plan has a *pessimistic* cost: its corrected mean times :data:`PESSIMISM` (:attr:`PlanChooser.
+  unmeasured_factor` for a plan never drawn), or what its last clean frame measured when that was more (no
+  older than :data:`MEASURED_AGE` frames: a plan's content follows the bound). Exploration tries only plans
+  whose pessimistic cost fits the budget (exploring happens inside it) and the hysteresis switches only to a
+  plan that fits it or is surely cheaper than the incumbent. A frame that draws more than :data:`OVERRUN`
+  times the budget pulls back on the next frame, without a fade, to the plan of lowest pessimistic cost (an
+  exploration is cut short). When no plan fits, :attr:`PlanChooser.unmeetable` says so and the cheapest
+  pessimistic plan is drawn.
 - **No pop.** A change of the drawn plan is a transition of ``switch_frames`` frames: the instances whose
   representation differs between the two plans are drawn by both with complementary screen-door fades
   (``DrawBatch.fade``, as :mod:`lod.temporal.selection` blends two keyframe selections), the weight
@@ -83,6 +92,12 @@ UNMEASURED_FACTOR_NEUTRAL = 3.0
 BIAS_FRAMES = 8
 BIAS_AGE = 90
 BIAS_SHRINK = 2.0
+#: under a budget: a measured plan's pessimistic cost is its corrected mean times this (predictions after warm-up
+#: are asked to be within 25 %), or what it last measured when more, no older than MEASURED_AGE frames
+PESSIMISM = 1.25
+MEASURED_AGE = 30
+#: a frame over the budget by more than this factor pulls back at once
+OVERRUN = 1.5
 
 
 @dataclass
@@ -135,6 +150,15 @@ class PlanChooser:
         self._z: dict = {}  # plan -> counts row (fit units) of its last drawn frame
         self._obs: dict = {}  # plan -> deque of (frame, row / seconds) of its clean frames
         self.last = {}  # plan -> (mean, sd of the difference to the incumbent, lower bound) of the last frame
+        #: rendering seconds a frame budget leaves (None: no budget; module docstring, "Under a frame budget")
+        self.budget: float | None = None
+        #: no plan's pessimistic cost fits the budget (the cheapest is drawn)
+        self.unmeetable = False
+        self.pullbacks = 0
+        self.high: dict = {}  # plan -> its pessimistic cost on the last priced frame
+        self._measured: dict = {}  # plan -> (frame, seconds) of its last clean frame
+        self._overrun = False
+        self._before = None  # the incumbent before this frame's decision
 
     # ------------------------------------------------------------------------------------------ measurements
     def observed(self, plan: str, z, u, clean: bool) -> None:
@@ -146,6 +170,26 @@ class PlanChooser:
         self._z[plan] = np.asarray(z, np.float64)
         if clean:
             self._obs.setdefault(plan, deque(maxlen=BIAS_FRAMES)).append((self.frames, np.asarray(u, np.float64)))
+
+    def measured(self, plans, seconds: float, clean: bool) -> None:
+        """The rendering ``seconds`` of the last frame, which drew ``plans`` (their names; ``clean``: one plan
+        alone, no transition): kept per plan for its pessimistic cost; a frame over :data:`OVERRUN` times the
+        budget makes the next decision pull back."""
+        if not math.isfinite(seconds):
+            return
+        if clean:
+            for p in plans:
+                self._measured[p] = (self.frames, float(seconds))
+        if self.budget is not None and seconds > OVERRUN * self.budget:
+            self._overrun = True
+
+    def _high(self, p: str, mean: float, drawn: bool) -> float:
+        """The pessimistic cost of plan ``p`` (module docstring)."""
+        hi = mean * (PESSIMISM if drawn else self.unmeasured_factor)
+        f, sec = self._measured.get(p, (None, 0.0))
+        if f is not None and self.frames - f <= MEASURED_AGE:
+            hi = max(hi, sec)
+        return hi
 
     def bias(self, plan: str, fit) -> tuple[float, int]:
         """(log factor, clean frames) of ``plan``'s measured / predicted under the current fit (shrunk)."""
@@ -189,6 +233,7 @@ class PlanChooser:
         """
         self.frames += 1
         self._since = 1
+        self._before = self.incumbent
         st = self._stats(means, fit)
         best = min(st, key=lambda p: st[p][0])
         if self.incumbent is None or self.incumbent not in st:
@@ -212,6 +257,29 @@ class PlanChooser:
 
         others = [p for p in st if p != c and not same(p, c)]
         thr = min((threshold(p, c) for p in others), default=None)
+        self.high = {p: self._high(p, st[p][0], st[p][2] is not None) for p in st}
+        limit = self.budget  # the frame budget's rendering seconds (None: no budget)
+        self.unmeetable = limit is not None and min(self.high.values()) > limit
+        if limit is not None and self._overrun:  # a frame far over the budget: pull back now, no fade
+            self._overrun = False
+            fresh = {p for p, (f, sec) in self._measured.items() if self.frames - f <= MEASURED_AGE and sec <= limit}
+            # to a plan measured lately within the budget if there is one (a prediction is what just failed), then
+            # the cheapest
+            target = min(self.high, key=lambda p: (p not in fresh, self.high[p], p != c))
+            drawn = self._exploring[0] if self._exploring is not None else (
+                self._transition[1] if self._transition is not None else c)
+            if not same(target, drawn):
+                if self._exploring is not None or self._transition is not None:
+                    self._last_explore = self.frames
+                self._transition = None
+                self._exploring = None
+                self._pending = (None, 0)
+                self.incumbent = target
+                self.pullbacks += 1
+                return Decision(target, None, 0.0, "pullback", target, thr)
+
+        def allowed(p):  # under a budget: a plan that fits it, or one surely cheaper than the incumbent
+            return limit is None or self.high[p] <= limit or self.high[p] < min(self.high[c], st[c][0])
         # a transition in progress runs to its end
         if self._transition is not None:
             a, b, r, kind, n = self._transition
@@ -243,7 +311,7 @@ class PlanChooser:
                 self.explored += 1
                 return self._start(e, c, "return", thr)
         # steady: the hysteresis rule
-        cand = [p for p in others if gain(p, c) > threshold(p, c)]
+        cand = [p for p in others if gain(p, c) > threshold(p, c) and allowed(p)]
         if cand:
             b = max(cand, key=lambda p: gain(p, c))
             n = self._pending[1] + 1 if self._pending[0] == b else 1
@@ -262,7 +330,8 @@ class PlanChooser:
             if (self.explored + cost <= budget and self.frames - self._last_explore >= EXPLORE_GAP
                     and st[c][1] >= EXPLORE_AFTER):  # the incumbent measured first: the comparison needs it
                 ok = [p for p in others if self.last[p][2] < st[c][0] * (1.0 - MIN_GAIN)
-                      and self.frames - self._tried.get(p, -10 ** 9) >= EXPLORE_COOLDOWN]
+                      and self.frames - self._tried.get(p, -10 ** 9) >= EXPLORE_COOLDOWN
+                      and (limit is None or self.high[p] <= limit)]
                 if ok:
                     e = min(ok, key=lambda p: self.last[p][2])
                     self._tried[e] = self.frames
@@ -271,6 +340,23 @@ class PlanChooser:
                     self.explored += 1
                     return self._start(c, e, "explore", thr)
         return Decision(c, None, 0.0, "steady", c, thr)
+
+    def veto(self, dec: Decision, seconds: float) -> Decision | None:
+        """Under a budget, a change (exploration or switch) to a plan that was priced optimistically (a
+        candidate's cost lower bound) and whose exact price ``seconds`` passes the budget pessimistically is
+        undone: the plan drawn before stays (the plan is not tried again for :data:`EXPLORE_COOLDOWN` frames).
+        Returns that decision, or None when the change stands."""
+        if self.budget is None or dec.state not in ("explore", "switch") or self._before is None:
+            return None
+        if self._high(dec.plan, float(seconds), dec.plan in self._z) <= self.budget:
+            return None
+        self._transition = None
+        self._exploring = None
+        self._pending = (None, 0)
+        self._tried[dec.plan] = self.frames
+        self._last_explore = self.frames
+        self.incumbent = self._before
+        return Decision(self._before, None, 0.0, "veto", self._before, dec.threshold)
 
     def _fade_frames(self, state: str) -> int:
         """Frames of a transition: ``switch_frames``, at most :data:`EXPLORE_FADE` to and from an exploration."""
@@ -291,7 +377,7 @@ class PlanChooser:
         """True when this frame may draw the incumbent without pricing the other plans: steady (no switch
         pending, no transition or exploration) and priced within the last :data:`REPRICE_FRAMES` frames."""
         return (self.incumbent is not None and self._transition is None and self._exploring is None
-                and self._pending[0] is None and 0 < self._since < REPRICE_FRAMES)
+                and self._pending[0] is None and 0 < self._since < REPRICE_FRAMES and not self._overrun)
 
     def hold(self) -> Decision:
         """The decision of a held frame (:meth:`can_hold`): the incumbent, counted as a frame."""
@@ -301,8 +387,8 @@ class PlanChooser:
 
     def summary(self) -> dict:
         return {"incumbent": self.incumbent, "frames": self.frames, "switches": self.switches,
-                "explorations": self.explorations, "explored_frames": self.explored}
+                "explorations": self.explorations, "explored_frames": self.explored, "pullbacks": self.pullbacks}
 
 
-__all__ = ["PlanChooser", "Decision", "MIN_GAIN", "K_SWITCH", "PERSIST", "SWITCH_FRAMES", "EXPLORE_RUN",
+__all__ = ["PlanChooser", "Decision", "PESSIMISM", "MEASURED_AGE", "OVERRUN", "MIN_GAIN", "K_SWITCH", "PERSIST", "SWITCH_FRAMES", "EXPLORE_RUN",
            "EXPLORE_FRACTION", "EXPLORE_ALLOWANCE", "EXPLORE_GAP", "EXPLORE_COOLDOWN", "UNMEASURED_SD"]

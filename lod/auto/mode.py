@@ -338,6 +338,8 @@ class AutoSelector:
         if not (self.fit is not None and np.isfinite(render) and render > 0):
             return
         own = last is not None and (drawlist is None or drawlist is last["dl"])
+        if own:  # under a budget: the plan's last measurement, and a pull-back after a frame far over it
+            self.chooser.measured(last["plans"], render, last["clean"])
         if drawlist is not None:
             x = cost_model.features(drawlist, extended=True)  # as drawn: scenery and other counts included
         elif last is not None:
@@ -443,6 +445,9 @@ class AutoSelector:
         bound = float(self.bound)
         if not (np.isfinite(bound) and bound >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
+        if self.chooser is not None:  # the rendering seconds the budget leaves (lod.auto.control, issue 49)
+            b = self.budget_ms * 1e-3
+            self.chooser.budget = b - min(self.last_select_seconds, 0.5 * b) if b > 0 else None
         held = self._held()  # steady on a pure plan: the others are not priced (lod.auto.control)
         if held is not None and self.delegates.ready(held):  # or the single mode's own selector
             dl = self.delegates.select(held, state, camera, size, statics, bound, self.candidates)
@@ -520,7 +525,8 @@ class AutoSelector:
              "incumbent": dec.incumbent, "fade_t": dec.t, "threshold": dec.threshold,
              "fade_from": plans[dec.fade_from].measured_as(dec.fade_from) if old is not None else None,
              "plans_ms": {n: 1e3 * v[0] for n, v in self._means.items()},
-             "plans_sd_ms": {n: 1e3 * v[1] for n, v in self._means.items()}}
+             "plans_sd_ms": {n: 1e3 * v[1] for n, v in self._means.items()},
+             "unmeetable": bool(self.chooser is not None and self.chooser.unmeetable)}
         if gc is not None:
             a["groups"] = gc
             a["model"] = self.fit.state() if self.fit is not None else None
@@ -595,6 +601,8 @@ class AutoSelector:
         if any(not plans[n].exact for n in (dec.plan, dec.fade_from) if n is not None):
             groups = self._exact(frame, groups, bound)
             plans = self._plans(frame, groups, bound, fixed)
+            undone = self.chooser.veto(dec, plans[dec.plan].seconds)  # under a budget (lod.auto.control)
+            dec = undone if undone is not None else dec
         return dec, plans, groups
 
     def _emit(self, frame, g, opts, choice, rows, fade, out, tally) -> None:

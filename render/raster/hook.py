@@ -130,6 +130,41 @@ def split_world(renderer, batches: list, drawlist) -> tuple[list, list]:
     return out, work
 
 
+def cluster_extents(st, m) -> np.ndarray:
+    """(N,) float64 per cluster of ``st.hierarchy`` (VDR-AM): the routing summary
+    (:func:`lod.raster_route.triangle_extent`'s percentile of its triangles' largest extent) over mesh ``m``'s
+    bind positions; 0 for a cluster without triangles. Computed once per hierarchy (kept on ``st``)."""
+    ext = getattr(st, "_raster_cluster_extents", None)
+    if ext is None:
+        from lod.raster_route import EXTENT_PERCENTILE
+
+        ts = np.asarray(st.hierarchy.tri_start, np.int64)
+        tris = np.asarray(st.flat, np.int64).reshape(-1, 3)
+        pos = np.asarray(m.rep.positions, np.float64).reshape(-1, 3)
+        c = pos[tris]
+        tri_ext = (c.max(axis=1) - c.min(axis=1)).max(axis=1)
+        ext = np.zeros(ts.shape[0] - 1)
+        for k in range(ext.shape[0]):
+            if ts[k + 1] > ts[k]:
+                ext[k] = np.percentile(tri_ext[ts[k]:ts[k + 1]], EXTENT_PERCENTILE)
+        st._raster_cluster_extents = ext
+    return ext
+
+
+def cut_extents(offsets, clusters, ext) -> np.ndarray:
+    """(k,) float64 per CSR cut (rows of ``offsets``/``clusters``): the largest routing extent of its clusters
+    (``ext``, :func:`cluster_extents`): a coarse cut's triangles are larger than the full mesh's, and it is
+    routed by them (0 for an empty cut)."""
+    offsets = np.asarray(offsets, np.int64)
+    clusters = np.asarray(clusters, np.int64)
+    out = np.zeros(offsets.shape[0] - 1)
+    if clusters.size:
+        per = ext[clusters]
+        nonempty = offsets[1:] > offsets[:-1]
+        out[nonempty] = np.maximum.reduceat(per, offsets[:-1][nonempty])
+    return out
+
+
 def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
     """VDR-AM cluster cuts (the clusters drawer's collected items, ``render/clusters/draw.py``): (the items the
     hardware draws, their compute rows removed; the compute work: per distinct cut of the compute rows, its
@@ -152,7 +187,9 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
             out.append(it)  # the compute path reads poses from the pose cache: none this frame, hardware path
             continue
         m = raster.mesh(src, g.cull, g)
-        mask = _mask(raster, m, it.data, route)
+        # each copy routed by its own cut's triangles (a coarse cut's are larger than the mesh's: routed by the
+        # mesh's, coarse cuts of a far crowd went to the compute path, ~100x slower there than drawn by hardware)
+        mask = _mask(raster, m, it.data, route, cut_extents(it.offsets, it.clusters, cluster_extents(it.st, m)))
         if not mask.any():
             out.append(it)
             continue

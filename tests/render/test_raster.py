@@ -379,3 +379,34 @@ def test_keyframed_segments_match_the_hardware_path(gl_ctx):
     hw, cs, counts = _both_paths(gl_ctx, rep, dl)
     assert counts["rasterised"] > 0
     assert hw.std() > 3 and _psnr(hw, cs) >= 45.0
+
+
+def test_a_cluster_cut_is_routed_by_its_own_triangles():
+    """VDR-AM cuts go to the compute path by the size of the triangles they draw (render/raster/hook.py): a
+    copy drawn at its leaf clusters (small triangles) is taken, one drawn at the coarse root cluster (large
+    triangles) stays on the hardware path at the same distance (routed by the full mesh's triangles, far crowds'
+    coarse cuts went to the compute path, where their large triangles cost ~100x what the hardware does)."""
+    from types import SimpleNamespace
+
+    from lod.raster_route import compute_mask
+    from render.raster.hook import cluster_extents, cut_extents
+
+    rng = np.random.default_rng(3)
+    small = rng.uniform(-1.0, 1.0, (40, 1, 3)) + rng.uniform(-0.01, 0.01, (40, 3, 3))  # 40 triangles ~2 cm
+    big = rng.uniform(-1.0, 1.0, (4, 3, 3))  # 4 triangles ~1 m: the coarse level of the same surface
+    pos = np.concatenate([small.reshape(-1, 3), big.reshape(-1, 3)])
+    flat = np.arange(pos.shape[0], dtype=np.uint32)
+    st = SimpleNamespace(hierarchy=SimpleNamespace(tri_start=np.array([0, 20, 40, 44, 44])), flat=flat)
+    m = SimpleNamespace(rep=SimpleNamespace(positions=pos.astype(np.float32)))
+    ext = cluster_extents(st, m)
+    assert ext.shape == (4,) and ext[3] == 0.0 and max(ext[:2]) < 0.03 < 0.5 < ext[2]
+    assert cluster_extents(st, m) is ext  # once per hierarchy
+    offsets, clusters = np.array([0, 2, 3, 3]), np.array([0, 1, 2], np.int32)  # leaves, root, an empty cut
+    cut = cut_extents(offsets, clusters, ext)
+    assert cut[0] == max(ext[:2]) and cut[1] == ext[2] and cut[2] == 0.0
+    rows = np.zeros((2, 16), np.float32)
+    rows[:, [0, 5, 10]] = 1.0
+    rows[:, 11] = -40.0  # 40 m in front of the camera
+    proj = _camera().projection(SIZE[0] / SIZE[1])
+    mask = compute_mask(rows, cut[:2], 1.8, np.zeros(3), proj, SIZE[1], 2.0, 0.1)
+    assert mask.tolist() == [True, False]
