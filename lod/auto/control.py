@@ -39,8 +39,8 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   older than :data:`MEASURED_AGE` frames: a plan's content follows the bound). Exploration tries only plans
   whose pessimistic cost fits the budget (exploring happens inside it) and the hysteresis switches only to a
   plan that fits it or is surely cheaper than the incumbent. A frame that draws more than :data:`OVERRUN`
-  times the budget pulls back on the next frame, without a fade, to the plan of lowest pessimistic cost (an
-  exploration is cut short). When no plan fits, :attr:`PlanChooser.unmeetable` says so and the cheapest
+  times the budget pulls back on the next frame, without a fade, to the plan measured cheapest lately within the
+  budget (else the one of lowest pessimistic cost; an exploration is cut short). When no plan fits, :attr:`PlanChooser.unmeetable` says so and the cheapest
   pessimistic plan is drawn.
 - **No pop.** A change of the drawn plan is a transition of ``switch_frames`` frames: the instances whose
   representation differs between the two plans are drawn by both with complementary screen-door fades
@@ -183,6 +183,11 @@ class PlanChooser:
         if self.budget is not None and seconds > OVERRUN * self.budget:
             self._overrun = True
 
+    @property
+    def pulling_back(self) -> bool:
+        """The next decision pulls back (a frame far over the budget): the plans must be priced exactly."""
+        return self.budget is not None and self._overrun
+
     def _high(self, p: str, mean: float, drawn: bool) -> float:
         """The pessimistic cost of plan ``p`` (module docstring)."""
         hi = mean * (PESSIMISM if drawn else self.unmeasured_factor)
@@ -262,10 +267,12 @@ class PlanChooser:
         self.unmeetable = limit is not None and min(self.high.values()) > limit
         if limit is not None and self._overrun:  # a frame far over the budget: pull back now, no fade
             self._overrun = False
-            fresh = {p for p, (f, sec) in self._measured.items() if self.frames - f <= MEASURED_AGE and sec <= limit}
-            # to a plan measured lately within the budget if there is one (a prediction is what just failed), then
-            # the cheapest
-            target = min(self.high, key=lambda p: (p not in fresh, self.high[p], p != c))
+            fresh = {p: sec for p, (f, sec) in self._measured.items()
+                     if self.frames - f <= MEASURED_AGE and p in st and sec <= limit}
+            # to the plan measured cheapest lately within the budget (a prediction is what just failed), else the
+            # cheapest pessimistic
+            target = (min(fresh, key=lambda p: (fresh[p], p != c)) if fresh else
+                      min(self.high, key=lambda p: (self.high[p], p != c)))
             drawn = self._exploring[0] if self._exploring is not None else (
                 self._transition[1] if self._transition is not None else c)
             if not same(target, drawn):

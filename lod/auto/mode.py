@@ -587,7 +587,8 @@ class AutoSelector:
 
         best = cheapest(plans)
         inc = self.chooser.incumbent if self.chooser is not None else None
-        if not plans[best].exact or (inc in plans and not plans[inc].exact):
+        if (not plans[best].exact or (inc in plans and not plans[inc].exact)
+                or (self.chooser is not None and self.chooser.pulling_back)):  # a pull-back chooses on exact prices
             groups = self._exact(frame, groups, bound)
             plans = self._plans(frame, groups, bound, fixed)
             best = cheapest(plans)
