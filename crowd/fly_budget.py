@@ -43,6 +43,9 @@ CHECK_FRAMES = 5
 TOLERANCE = 0.10
 #: one frame over the budget by more than this factor switches at once
 URGENT = 3.0
+#: consecutive frames auto finds no plan within the budget before the HUD says so (its first frames price plans
+#: never drawn pessimistically)
+UNMEETABLE_FRAMES = 10
 
 
 def parse_budget(text) -> float:
@@ -79,6 +82,7 @@ class FlyBudget:
         self._seen = 0
         self._samples: list = []
         self._said_unmeetable = False
+        self._unmeetable = 0
         self._prepare()
         self._apply()
 
@@ -104,7 +108,8 @@ class FlyBudget:
         """A frame's selection + rendering seconds (and its DrawList): switches the scene's mode to auto when it
         misses the budget; says once when auto finds no plan that can meet it."""
         auto = drawlist.stats.get("auto") if drawlist is not None else None
-        if isinstance(auto, dict) and auto.get("unmeetable") and not self._said_unmeetable and self.budget_ms > 0:
+        self._unmeetable = self._unmeetable + 1 if isinstance(auto, dict) and auto.get("unmeetable") else 0
+        if self._unmeetable >= UNMEETABLE_FRAMES and not self._said_unmeetable and self.budget_ms > 0:
             self._said_unmeetable = True
             self.say(f"no plan of mode auto fits the {self.budget_ms:g} ms budget here: drawing the cheapest "
                      f"(0 raises the budget)")
@@ -161,4 +166,6 @@ class FlyBudget:
         a = self.auto()
         if a is not None:
             text += f"  bound {a.bound:.3g} px"
+            if self._unmeetable >= UNMEETABLE_FRAMES:
+                text += " (no plan fits: the cheapest)"
         return text

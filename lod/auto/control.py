@@ -40,8 +40,8 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   whose pessimistic cost fits the budget (exploring happens inside it) and the hysteresis switches only to a
   plan that fits it or is surely cheaper than the incumbent. A frame that draws more than :data:`OVERRUN`
   times the budget pulls back on the next frame, without a fade, to the plan measured cheapest lately within the
-  budget (else the one of lowest pessimistic cost; an exploration is cut short). When no plan fits, :attr:`PlanChooser.unmeetable` says so and the cheapest
-  pessimistic plan is drawn.
+  budget (else the one of lowest pessimistic cost; an exploration is cut short). When no plan fits,
+  :attr:`PlanChooser.unmeetable` says so and the cheapest pessimistic plan is drawn.
 - **No pop.** A change of the drawn plan is a transition of ``switch_frames`` frames: the instances whose
   representation differs between the two plans are drawn by both with complementary screen-door fades
   (``DrawBatch.fade``, as :mod:`lod.temporal.selection` blends two keyframe selections), the weight
