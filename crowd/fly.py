@@ -541,6 +541,8 @@ class FlyApp:
         camera = c.camera()
         size = self.renderer.size
         camera, _ = e.terrain_frame(camera, self.renderer)
+        if self.frames == 0:  # a scene's mode hopeless under the budget starts in auto (crowd.fly_budget)
+            self.budget.before_first_frame(camera, size)
         if e.settings.freeze and self._frozen is not None:
             dl = reframe(self._frozen, camera, size)
         else:

@@ -16,6 +16,11 @@ the HUD are the scene's and the window's own. With a budget > 0:
 - a budget no plan of auto can meet is said once (HUD and console); auto then draws its cheapest plan
   (:mod:`lod.auto.control`, "Under a frame budget").
 
+A scene whose own mode is hopeless under the budget does not make the person wait for it: before the first
+frame, the scene's mode's selection is priced with auto's cost model (its calibration), and when the prediction
+passes :data:`START_FACTOR` times the budget (a full-detail crowd of tens of millions of triangles: seconds a
+frame) the fly-through starts in auto. Anything closer is judged by measured frames, as above.
+
 Mode auto's representations are built (or read from the disk cache) and uploaded when the fly-through starts
 with a budget, not when the scene's mode misses it: a switch in flight is then one frame like the others, not a
 build of seconds.
@@ -43,6 +48,8 @@ CHECK_FRAMES = 5
 TOLERANCE = 0.10
 #: one frame over the budget by more than this factor switches at once
 URGENT = 3.0
+#: before the first frame: a scene's mode predicted above this many times the budget starts in auto
+START_FACTOR = 10.0
 #: consecutive frames auto finds no plan within the budget before the HUD says so (its first frames price plans
 #: never drawn pessimistically)
 UNMEETABLE_FRAMES = 10
@@ -104,6 +111,25 @@ class FlyBudget:
         if a is not None:
             a.set_budget(self.budget_ms)
 
+    def before_first_frame(self, camera, size) -> None:
+        """Price the scene's mode's first selection with auto's cost model; start in auto when it is hopeless
+        (module docstring). Costs one selection."""
+        if self.budget_ms <= 0.0 or self.auto() is not None or self.manual or "auto" not in self.engine.lod_modes:
+            return
+        from lod.auto.cost_model import FEATURES, features
+
+        e = self.engine
+        mode = e.settings.lod_mode
+        e.set_lod_mode("auto")
+        a = self.auto()
+        e.set_lod_mode(mode)
+        if a is None:
+            return
+        x = features(e.select(camera, size), extended=True)
+        secs = a.fit.predict(x)[0] if a.fit is not None else float(a.model.predict_counts(*x[:len(FEATURES)]))
+        if math.isfinite(secs) and 1e3 * secs > START_FACTOR * self.budget_ms:
+            self._switch(1e3 * secs, predicted=True)
+
     def observe(self, seconds: float, drawlist=None) -> None:
         """A frame's selection + rendering seconds (and its DrawList): switches the scene's mode to auto when it
         misses the budget; says once when auto finds no plan that can meet it."""
@@ -127,11 +153,12 @@ class FlyBudget:
         elif len(recent) == CHECK_FRAMES and float(np.median(recent)) > (1.0 + TOLERANCE) * self.budget_ms:
             self._switch(float(np.median(recent)))
 
-    def _switch(self, ms: float) -> None:
+    def _switch(self, ms: float, predicted: bool = False) -> None:
         self.engine.set_lod_mode("auto")
         self._apply()
         self.switched = True
-        self.say(f"mode {self.scene_mode} misses the {self.budget_ms:g} ms budget ({ms:.0f} ms a frame): "
+        what = "predicted" if predicted else "a frame"
+        self.say(f"mode {self.scene_mode} misses the {self.budget_ms:g} ms budget ({ms:.0f} ms {what}): "
                  f"drawing mode auto under it (--budget 0 draws the scene's mode)")
 
     def mode_picked(self) -> None:

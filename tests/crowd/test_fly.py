@@ -470,16 +470,14 @@ def budget_app(display, scene_file, tmp_path):
 
 
 def test_a_scene_that_misses_the_budget_is_drawn_in_auto_under_it(budget_app):
-    """Mode none of the tiny scene cannot draw in 0.01 ms: the first judged frame (frame 2, over the budget by
-    far more than URGENT) switches to auto with that budget, and the HUD says so; a mode picked by hand is
-    drawn as picked."""
-    from crowd.fly_budget import SKIP_FRAMES
-
+    """Mode none of the tiny scene cannot draw in 0.01 ms: priced before the first frame (auto's cost model: a
+    frame costs at least its constant, ~1 ms, over START_FACTOR x the budget) it starts in auto with that
+    budget, and the HUD says so; a mode picked by hand is drawn as picked."""
     app = budget_app(0.01)
     assert app.engine.settings.lod_mode == "none" and "budget 0.01 ms" in app.hud_lines()[0]
-    for _ in range(SKIP_FRAMES + 1):
-        app.frame(1 / 30)
+    app.frame(1 / 30)
     assert app.engine.settings.lod_mode == "auto" and app.budget.switched
+    assert any("misses the 0.01 ms budget" in m and "predicted" in m for m, _ in app.controller.messages)
     sel = app.budget.auto()
     assert sel is not None and sel.budget_ms == 0.01 and sel.controller is not None
     app.frame(1 / 30)
@@ -498,6 +496,31 @@ def test_a_scene_that_misses_the_budget_is_drawn_in_auto_under_it(budget_app):
     for _ in range(4):
         app.frame(1 / 30)
     assert app.engine.settings.lod_mode == "points" and not app.budget.switched
+
+
+def test_measured_frames_over_the_budget_switch_to_auto(budget_app):
+    """The measured rule (frames reported to the budget, not timed here): after SKIP_FRAMES, one frame over
+    URGENT x the budget switches at once; frames a little over switch when the median of CHECK_FRAMES passes
+    the budget by TOLERANCE, not before."""
+    from crowd.fly_budget import CHECK_FRAMES, SKIP_FRAMES, TOLERANCE, URGENT
+
+    app = budget_app(5000.0)  # fits: nothing switched before the reported frames
+    app.frame(1 / 30)
+    b = app.budget
+    assert not b.switched and app.engine.settings.lod_mode == "none"
+    b.budget_ms = 100.0
+    b._seen = SKIP_FRAMES  # the unjudged frames are behind
+    for _ in range(CHECK_FRAMES - 1):
+        b.observe(1e-3 * 100.0 * (1.0 + 2 * TOLERANCE))
+    assert not b.switched  # fewer than CHECK_FRAMES frames
+    b.observe(1e-3 * 100.0 * (1.0 + 2 * TOLERANCE))
+    assert b.switched and app.engine.settings.lod_mode == "auto"
+    other = budget_app(5000.0)
+    other.frame(1 / 30)
+    other.budget.budget_ms = 100.0
+    other.budget._seen = SKIP_FRAMES
+    other.budget.observe(1e-3 * 100.0 * URGENT * 1.01)
+    assert other.budget.switched
 
 
 def test_a_scene_that_fits_the_budget_keeps_its_mode(budget_app):
