@@ -319,7 +319,9 @@ class FlyController:
 
     def cycle_mode(self) -> None:
         """Next mode of :data:`LOD_MODES_ALL`; only modes the engine has are set."""
-        self._mode_cursor = (self._mode_cursor + 1) % len(LOD_MODES_ALL)
+        cur = self.settings.lod_mode  # the mode drawn (the budget may have switched it to auto)
+        i = LOD_MODES_ALL.index(cur) if cur in LOD_MODES_ALL else self._mode_cursor
+        self._mode_cursor = (i + 1) % len(LOD_MODES_ALL)
         mode = LOD_MODES_ALL[self._mode_cursor]
         if mode in self.engine.lod_modes:
             self.engine.set_lod_mode(mode)

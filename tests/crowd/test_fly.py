@@ -492,7 +492,9 @@ def test_a_scene_that_misses_the_budget_is_drawn_in_auto_under_it(budget_app):
     assert app.engine.settings.lod_mode == "auto" and math.isfinite(sel.bound) and sel.bound > 1.0
     said = [m for m, _ in app.controller.messages if "no plan of mode auto fits" in m]
     assert len(said) == 1  # said once: no plan draws the tiny scene in 0.01 ms
-    press(app, glfw.KEY_M)  # by hand: points, drawn as picked whatever the budget
+    press(app, glfw.KEY_M)  # by hand: the mode after auto (none), drawn as picked whatever the budget
+    assert app.engine.settings.lod_mode == "none"
+    press(app, glfw.KEY_M)  # points
     for _ in range(4):
         app.frame(1 / 30)
     assert app.engine.settings.lod_mode == "points" and not app.budget.switched
