@@ -184,8 +184,17 @@ class RunResult:
         ms = lambda k: f"{st[k]['mean'] * 1e3:.1f}" if st.get(k) else "-"
         return (f"wrote {self.out_dir}: {s['frames']} frames in {s['wall_seconds']:.2f} s; mean ms per frame: "
                 f"total {ms('total')}, simulate {ms('simulate')}, select {ms('select')}, upload {ms('upload')}, "
-                f"draw {ms('draw')}, finish {ms('finish')}, gpu {ms('gpu')}; "
-                f"{s['counts']['triangles']['mean']:,.0f} triangles/frame; {len(self.pngs)} PNG(s)")
+                f"draw {ms('draw')}, finish {ms('finish')}, gpu {ms('gpu')}; {self.drawn()}; {len(self.pngs)} PNG(s)")
+
+    def drawn(self) -> str:
+        """What a frame drew, on average: instances, triangles and, when any, points (a frame drawn only in points
+        is not "0 triangles")."""
+        c = self.summary.get("counts", {})
+        mean = lambda k: float((c.get(k) or {}).get("mean") or 0.0)
+        parts = [f"{mean('instances'):,.0f} instances", f"{mean('triangles'):,.0f} triangles"]
+        if mean("points") > 0:
+            parts.append(f"{mean('points'):,.0f} points")
+        return ", ".join(parts) + " per frame"
 
 
 class Engine:

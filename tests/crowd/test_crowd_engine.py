@@ -332,3 +332,18 @@ def test_played_clips_are_the_placed_clips_plus_the_boids_gait_pair(tmp_path, wr
     text = tiny_scene(effects=effects, replace={'[[placement]]': extra + '\n[[placement]]'})
     with Engine(load_scene(write_scene(text)), quiet=True) as e:
         assert e._played_clips() == expected
+
+
+def test_the_run_summary_names_what_was_drawn(tmp_path):
+    """The console summary of a run names instances, triangles and, when drawn, points (a frame drawn only in
+    points read "0 triangles/frame" and nothing else)."""
+    from crowd.engine import RunResult
+
+    def result(points):
+        counts = {"instances": {"mean": 3000.0}, "triangles": {"mean": 0.0}, "points": {"mean": points}}
+        summary = {"frames": 3, "wall_seconds": 1.0, "stages": {"total": {"mean": 0.02}}, "counts": counts}
+        return RunResult(tmp_path, summary, [], "")
+
+    line = result(125000.0).report()
+    assert "3,000 instances, 0 triangles, 125,000 points per frame" in line
+    assert "points" not in result(0.0).report()
