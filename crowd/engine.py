@@ -218,6 +218,8 @@ class Engine:
         self.quiet = quiet
         self.renderer = None
         self.video_options: dict = {}  # crowd.video.VideoWriter keywords of run videos (crowd report: small clips)
+        #: which of the frames ``png_every`` selects are written (frame -> bool; None: all of them)
+        self.png_frames = None
         #: mode auto: write explain_lod.jsonl (crowd.explain) and pass each frame's text to this callable
         self.explain_lod = None
         self.plan = plan(scene, quiet=quiet)
@@ -608,6 +610,7 @@ class Engine:
         tel = Telemetry(systems=[s.name for s in self.world.schedule.order()])
         pngs = []
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
+        from crowd.images import write_png
         from crowd.population import frame_counts, summary as population_summary
         from crowd.video import VIDEO_NAME, video_writer
 
@@ -657,9 +660,9 @@ class Engine:
                     stages[s] = (off, d)
                     off += d
                 t_png = time.perf_counter()
-                if png_every and f % png_every == 0:
+                if png_every and f % png_every == 0 and (self.png_frames is None or self.png_frames(f)):
                     p = tmp / "frames" / f"frame_{f:05d}.png"
-                    renderer.save_png(p)
+                    write_png(p, renderer.read_pixels())
                     pngs.append(out_dir / "frames" / p.name)
                 if traj is not None:  # streamed: one frame in memory (crowd.trajectories)
                     traj.write(f, self.world.state.position, self.world.state.ids)

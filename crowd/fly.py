@@ -597,8 +597,10 @@ class FlyApp:
         """Write the last rendered frame (without HUD) as PNG, atomically; returns the path."""
         c = self.controller
         path = Path(path) if path is not None else _free_path(c.out_dir, f"screenshot-{_stamp()}", ".png")
+        from crowd.images import write_png
+
         path.parent.mkdir(parents=True, exist_ok=True)
-        self.renderer.save_png(path)
+        write_png(path, self.renderer.read_pixels())
         c.say(f"wrote screenshot {path}")
         return path
 

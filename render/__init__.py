@@ -1,4 +1,4 @@
-"""Rendering layer: GL context, GPU resources, shaders, draws, timing, images. Imports ``lod`` types only.
+"""Rendering layer: GL context, GPU resources, shaders, draws, timing, pixels read back. Imports ``lod`` types only.
 
 The core modules at the top, in data-flow order (representations and DrawList in, pixels and timings out):
 
@@ -12,7 +12,6 @@ The core modules at the top, in data-flow order (representations and DrawList in
 - ``render.renderer``: uploads representations, draws a DrawList's triangle batches (full detail and the chain
   levels of ``lod.full`` and ``lod.chains``), hands the other kinds to their families' drawers.
 - ``render.timing``: which GPU timer-query readings to believe (llvmpipe).
-- ``render.image``: PNG output written atomically.
 - ``render.window``: the glfw window of the fly-through.
 
 The families, each a package whose ``__init__`` lists its modules in data-flow order:

@@ -657,12 +657,6 @@ class Renderer:
         raw = fbo.read(viewport=(0, 0, w, h), components=3, alignment=1)
         return np.frombuffer(raw, np.uint8).reshape(h, w, 3)[::-1].copy()
 
-    def save_png(self, path):
-        """Write the last frame as a PNG (atomically); returns the path."""
-        from render.image import write_png
-
-        return write_png(path, self.read_pixels())
-
     def release(self) -> None:
         """Release every GL object in the reverse order of creation (safe twice);
         the context too if this renderer created it."""

@@ -162,7 +162,9 @@ def time_ours(eng, mode: str, frames: int, warmup: int, png=None) -> tuple:
             wall.append(t1 - t0)
             cpu.append(c1 - c0)
     if png:
-        r.save_png(png)
+        from crowd.images import write_png
+
+        write_png(png, r.read_pixels())
     eng.pose_sharing.rate = KEY_RATE
     return wall, cpu
 

@@ -99,7 +99,7 @@ def check_model(model: Path, size: tuple, modes: tuple, keep: str | None = None)
     from crowd.image_metrics import psnr, ssim
     from crowd.scene import load_scene
     from lod.modes import mode_module
-    from render.image import read_png
+    from crowd.images import read_png
     from sim.describe import describe
 
     rows = []

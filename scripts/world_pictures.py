@@ -25,7 +25,7 @@ def picture(name: str, size, frames: int, lod: str, out: Path) -> Path:
 
     from crowd.engine import Engine
     from crowd.scene import load_scene
-    from render.image import write_png
+    from crowd.images import write_png
 
     scene = load_scene(ROOT / "scenes" / f"{name}.toml").with_overrides(size=size)
     if lod != scene.lod_mode:

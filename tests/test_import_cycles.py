@@ -1,6 +1,6 @@
 """No import circle among the modules of crowd/, sim/, lod/ and render/ (issue 33), and the layering of
-docs/architecture.md: no module imports from a layer above its own (scene file -> crowd -> sim -> lod -> render is the
-data flow; ``render`` and ``lod`` may read ``sim``'s utilities, nothing below imports ``crowd``).
+shared/ARCHITECTURE.md and docs/architecture.md: crowd -> sim, lod, render; lod -> sim; render -> lod (not sim: the
+renderer hands over pixels, files are crowd's); sim imports none of them, nothing imports crowd.
 
 The imports are read from the source (ast), every ``import`` and ``from ... import`` anywhere in a module, inside
 functions too: a lazy import hides a circle, it does not remove it. Package ``__init__`` files are left out of the
@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("crowd", "sim", "lod", "render")
 #: which packages each package may import (the layers of docs/architecture.md)
 MAY_IMPORT = {"crowd": {"crowd", "sim", "lod", "render"}, "sim": {"sim"}, "lod": {"lod", "sim"},
-              "render": {"render", "lod", "sim"}}
+              "render": {"render", "lod"}}
 
 
 def modules(root: Path, packages) -> dict:

@@ -69,7 +69,7 @@ def _png(data: bytes) -> np.ndarray:
     """PNG bytes -> (h, w, 3) uint8."""
     import io
 
-    from render.image import read_png
+    from crowd.images import read_png
 
     return read_png(io.BytesIO(data))
 

@@ -113,7 +113,7 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     """
     from crowd.image_metrics import flip_available
     from crowd.output import atomic_dir, check_output_dir
-    from render.image import write_png
+    from crowd.images import write_png
 
     all_settings = [(Path(p), expand_settings(p, sweeps, size=size, frames=frames)) for p in scene_paths]
     for _, settings in all_settings:  # pedestrian measures (crowd.report.pedestrian) need the first run's trajectories

@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -97,24 +96,6 @@ def test_sleep_seconds() -> float:
 test_sleep_seconds.__test__ = False  # not a pytest test
 
 
-class _PairRenderer:
-    """Proxy of the engine's renderer that writes only the PNGs of sampled frames ``f % k == 0`` and of their
-    successors ``f + 1`` (the consecutive pairs of the flicker measure) when the engine is run with
-    ``png_every=1``; the other frames are neither read back nor written. Everything else is delegated."""
-
-    def __init__(self, renderer, every: int):
-        self._inner, self._every = renderer, every
-
-    def save_png(self, path):
-        f = int(re.search(r"(\d+)", Path(path).name).group(1))
-        if f % self._every in (0, 1 % self._every):
-            return self._inner.save_png(path)
-        return path
-
-    def __getattr__(self, name):
-        return getattr(self._inner, name)
-
-
 def _run(scene, out_dir: Path, png_every: int, pairs: bool = False, sleep: float | None = None) -> tuple:
     """Run ``scene`` headless into ``out_dir``; with ``pairs`` the PNGs of frames ``f % png_every in (0, 1)``.
 
@@ -134,7 +115,9 @@ def _run(scene, out_dir: Path, png_every: int, pairs: bool = False, sleep: float
             engine.selector = _SleepySelector(engine.selector, sleep)
         every = png_every
         if pairs and png_every:
-            engine.renderer = _PairRenderer(engine.open_renderer(), png_every)
+            # the sampled frames f % k == 0 and their successors f + 1 (the flicker measure's consecutive pairs);
+            # the other frames are neither read back nor written
+            engine.png_frames = lambda f, k=png_every: f % k in (0, 1 % k)
             every = 1
         r = engine.run(frames=scene.frames, out_dir=out_dir, png_every=every)
     return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(p for p in r.pngs if Path(p).is_file())

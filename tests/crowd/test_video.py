@@ -5,7 +5,7 @@ import pytest
 
 from crowd.video import VideoWriter, even_size, pad_even, read_video, video_writer
 from crowd_testutil import run_cli, tiny_scene
-from render.image import read_png
+from crowd.images import read_png
 
 #: PSNR bound (dB) of a decoded frame against its PNG: x264 at CRF 12 in yuv420p (half-resolution chroma) on the
 #: tiny scene's 64x48 frames measured 37.5-39.6 dB; 35 dB leaves room for encoder versions, and a wrong frame (the

@@ -10,7 +10,7 @@ from tiny_characters import tiny_keyframed, tiny_skinned
 from lod.full.mode import NoLodSelector
 from lod.full.reps import build_rep
 from lod.view import Camera
-from render.image import read_png
+from crowd.images import read_png, write_png
 from render.renderer import Renderer
 from render.timing import GL_TIMER_INVALID, gpu_seconds
 from render.shaders import ShaderNotFound, load_source, program_sources
@@ -181,7 +181,7 @@ def test_msaa_renderer_and_png_output(gl_ctx, rep, tmp_path):
         r.draw(dl, background=BG)
         px = r.read_pixels()
         assert px.shape == (H, W, 3) and px.dtype == np.uint8 and _foreground(px).sum() > 300
-        path = r.save_png(tmp_path / "sub" / "frame.png")
+        path = write_png(tmp_path / "sub" / "frame.png", px)
     assert np.array_equal(read_png(path), px)
     assert os.listdir(tmp_path / "sub") == ["frame.png"]  # no temp file left
 

@@ -198,7 +198,7 @@ def test_flicker_cancels_motion_the_reference_shares():
 
 
 def test_report_flicker_from_consecutive_frame_pairs(write_scene, tmp_path):
-    from render.image import read_png
+    from crowd.images import read_png
 
     scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 7"))
     out = tmp_path / "rep"
@@ -232,7 +232,7 @@ def _strip_times(entry):
 
 
 def test_sweep_through_a_local_dask_cluster_matches_the_local_path(write_scene, tmp_path, dask_cluster):
-    from render.image import read_png
+    from crowd.images import read_png
 
     addr = dask_cluster
     assert addr.startswith("tcp://127.0.0.1:")

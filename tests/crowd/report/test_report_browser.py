@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from crowd_testutil import run_cli, tiny_scene
 
-from render.image import read_png
+from crowd.images import read_png
 
 SCENE = tiny_scene(replace={"frames = 3": "frames = 4", "size = [64, 48]": "size = [96, 72]",
                             "png_every = 1": "png_every = 0"})

@@ -1,4 +1,5 @@
-"""Image output: PNG files written atomically."""
+"""PNG files of rendered frames: written atomically, read back (the renderer hands over pixels, ``render.renderer.
+Renderer.read_pixels``; files are the application's)."""
 from __future__ import annotations
 
 from pathlib import Path
