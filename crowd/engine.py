@@ -404,14 +404,22 @@ class Engine:
         The mode's representations are built once (hierarchies come from the
         disk cache when present) and uploaded to the open renderer.
         """
+        self.prepare_mode(mode)
+        self.reps, self.selector = self._modes[mode]
+        self.settings.lod_mode = mode
+
+    def prepare_mode(self, mode: str):
+        """The selector of LOD ``mode``, its representations built once (hierarchies from the disk cache when
+        present) and uploaded to the open renderer, without switching to it (the fly-through's budget keeps
+        mode auto ready beside the scene's mode)."""
         if mode not in self.lod_modes:
             raise ValueError(f"lod mode {mode!r}: expected one of {', '.join(self.lod_modes)}")
         fresh = mode not in self._modes
-        self.reps, self.selector = self._build_mode(mode)
+        reps, selector = self._build_mode(mode)
         if fresh and self.renderer is not None:
-            for rep in self.reps:
+            for rep in reps:
                 self.renderer.upload(rep)
-        self.settings.lod_mode = mode
+        return selector
 
     def _build_selector(self):
         return self._selector

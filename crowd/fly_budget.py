@@ -96,9 +96,7 @@ class FlyBudget:
     def _prepare(self) -> None:
         """Mode auto built and uploaded beside the scene's mode while a budget is on (module docstring)."""
         if self.budget_ms > 0.0 and self.auto() is None and "auto" in self.engine.lod_modes:
-            mode = self.engine.settings.lod_mode
-            self.engine.set_lod_mode("auto")
-            self.engine.set_lod_mode(mode)
+            self.engine.prepare_mode("auto")
 
     def auto(self):
         """The engine's mode-auto selector (inside a keyframed selection too), or None in another mode."""
@@ -119,12 +117,8 @@ class FlyBudget:
         from lod.auto.cost_model import FEATURES, features
 
         e = self.engine
-        mode = e.settings.lod_mode
-        e.set_lod_mode("auto")
-        a = self.auto()
-        e.set_lod_mode(mode)
-        if a is None:
-            return
+        a = e.prepare_mode("auto")
+        a = getattr(a, "inner", a)  # inside a keyframed selection
         x = features(e.select(camera, size), extended=True)
         secs = a.fit.predict(x)[0] if a.fit is not None else float(a.model.predict_counts(*x[:len(FEATURES)]))
         if math.isfinite(secs) and 1e3 * secs > START_FACTOR * self.budget_ms:

@@ -56,14 +56,13 @@ import os
 import time
 from dataclasses import dataclass, field
 
-import moderngl
 import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context, track
 from render.clusters.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.poses.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
-                            plan_chunks)
+                                  joint_texture, plan_chunks)
 from render.shaders import prog_name, program_sources
 from render.world.shadows import Lighting
 from render.poses.targets import TARGETS_DEFINE, target_textures, use_targets
@@ -313,15 +312,7 @@ class Renderer:
             if n_inf < 4 and self.specialize_influences and getattr(rep, "collapse_next", None) is None:
                 defines += (f"SKIN_INFLUENCES_{n_inf}",)  # shaders/poses/skinning.glsl (geomorph tables are not compacted)
             prog = self.program(prog_name(kind, self.skinning), defines=defines)
-            joints = np.ascontiguousarray(rep.joint_table, np.float32)
-            F, J = joints.shape[0], joints.shape[1]
-            maxs = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
-            if 3 * J > maxs or F > maxs:
-                raise ValueError(f"representation {rep.key!r}: joint table of {F} frames x {J} joints exceeds the "
-                                 f"GL texture limit {maxs} (at most {maxs} baked frames and {maxs // 3} joints)")
-            tex = ctx.texture((3 * J, F), 4, joints.tobytes(), dtype="f4")
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            tex.repeat_x = tex.repeat_y = False
+            tex = joint_texture(ctx, rep.key, rep.joint_table)
             tex.label = f"{rep.key}.joints"
             objs.append(tex)
             content = surface_attributes(rep, buf, self.packed_vertices) + \

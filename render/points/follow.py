@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-import moderngl
 import numpy as np
 
 from lod.poses.table import SLOT_FLOAT
@@ -112,6 +111,7 @@ def skinned_vertex_words(base, vorder) -> np.ndarray:
 def upload(ctx, rep, track) -> FollowGpu:
     """The GPU resources of a FollowRep (``track(obj, label)`` registers each GL object)."""
     from render.points.samples import pack_samples
+    from render.poses.palette import joint_texture
     from render.poses.targets import target_textures
 
     t = rep.tree
@@ -131,15 +131,8 @@ def upload(ctx, rep, track) -> FollowGpu:
     if rep.skinned:
         b = rep.base
         verts = buf(skinned_vertex_words(b, vorder), "follow_vertices")
-        jt = np.ascontiguousarray(b.joint_table, np.float32)
-        F, J = jt.shape[0], jt.shape[1]
-        maxs = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
-        if 3 * J > maxs or F > maxs:
-            raise ValueError(f"representation {rep.key!r}: joint table of {F} frames x {J} joints exceeds the GL "
-                             f"texture limit {maxs}")
-        joints = ctx.texture((3 * J, F), 4, jt.tobytes(), dtype="f4")
-        joints.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        joints.repeat_x = joints.repeat_y = False
+        joints = joint_texture(ctx, rep.key, b.joint_table)
+        F = int(np.asarray(b.joint_table).shape[0])  # baked frames (the morph targets' table has as many)
         objs.append(track(joints, f"{rep.key}.follow_joints"))
         if b.targets is not None:
             tt = dataclasses.replace(b.targets, first=np.asarray(b.targets.first)[vorder],

@@ -25,6 +25,7 @@ injected limit draws the same pixels as one unchunked palette).
 from __future__ import annotations
 
 import moderngl
+import numpy as np
 
 #: texels per row of the per-frame skinning palette (a multiple of 3, so the
 #: three rows of one matrix never straddle two texture rows)
@@ -34,6 +35,22 @@ PALETTE_WIDTH = 4095
 PALETTE_MAX_TEXELS = 1 << 25
 #: default chunk size (texels): 4 M texels = 64 MB of buffer and 64 MB of texture
 PALETTE_CHUNK_TEXELS = 1 << 22
+
+
+def joint_texture(ctx, key: str, joint_table):
+    """The baked joint table of representation ``key`` (F frames x J joints x 3 rows of 4) as the RGBA32F texture
+    the palette pre-pass and the skinning shaders read (``3 J`` texels wide, ``F`` rows, nearest, no repeat);
+    ValueError naming the representation when it passes the GL texture limit."""
+    jt = np.ascontiguousarray(joint_table, np.float32)
+    F, J = jt.shape[0], jt.shape[1]
+    maxs = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+    if 3 * J > maxs or F > maxs:
+        raise ValueError(f"representation {key!r}: joint table of {F} frames x {J} joints exceeds the GL texture "
+                         f"limit {maxs} (at most {maxs} baked frames and {maxs // 3} joints)")
+    tex = ctx.texture((3 * J, F), 4, jt.tobytes(), dtype="f4")
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
 
 
 def plan_chunks(sizes, per_instance, max_texels: int) -> list:
