@@ -27,7 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from crowd.fly_budget import DEFAULT_BUDGET_MS  # noqa: E402
+from crowd.fly_budget import DEFAULT_BUDGET_MS, parse_budget  # noqa: E402
 
 #: scenes flown only when named (a million agents: scripts/bench_million.py)
 NAMED_ONLY = ("million",)
@@ -90,17 +90,28 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -
         window.close()
 
 
+def _budget(text: str) -> float:
+    try:
+        return parse_budget(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="*", default=None, help="scene names (default: every scenes/*.toml but million)")
     ap.add_argument("--frames", type=int, default=110)
     ap.add_argument("--from", dest="start", type=int, default=10, help="first frame of the measured span")
     ap.add_argument("--size", type=int, nargs=2, default=(1280, 720))
-    ap.add_argument("--budget", type=float, default=DEFAULT_BUDGET_MS, help="ms (crowd fly --budget); 0: off")
+    ap.add_argument("--budget", type=_budget, default=DEFAULT_BUDGET_MS, help="ms (crowd fly --budget); 0: off")
     ap.add_argument("--md", default=None, help="also write the table to this markdown file")
     a = ap.parse_args(argv)
     if not 1 <= a.start < a.frames:
         ap.error("--from must be at least 1 and below --frames")
+    from crowd.scene import SIZE_RANGE
+
+    if not all(SIZE_RANGE[0] <= v <= SIZE_RANGE[1] for v in a.size):
+        ap.error(f"--size: expected two integers in {SIZE_RANGE[0]} ..= {SIZE_RANGE[1]}, got {a.size[0]} {a.size[1]}")
     scenes = sorted((ROOT / "scenes").glob("*.toml"))
     if a.scenes:
         unknown = sorted(set(a.scenes) - {s.stem for s in scenes})
@@ -109,7 +120,8 @@ def main(argv=None) -> int:
         scenes = [s for s in scenes if s.stem in a.scenes]
     else:
         scenes = [s for s in scenes if s.stem not in NAMED_ONLY]
-    from render.window import VirtualDisplay
+    from crowd.report.runs import _user_errors
+    from render.window import VirtualDisplay, WindowError
 
     display = None
     if not os.environ.get("DISPLAY"):
@@ -122,7 +134,11 @@ def main(argv=None) -> int:
     results = []
     try:
         for s in scenes:
-            r = fly_scene(s, a.frames, a.start, tuple(a.size), a.budget)
+            try:
+                r = fly_scene(s, a.frames, a.start, tuple(a.size), a.budget)
+            except (*_user_errors(), WindowError) as e:  # a scene or asset the code cannot handle: one sentence, exit 2
+                print(f"bench_fly: {s.name}: {str(e).splitlines()[0]}", file=sys.stderr)
+                return 2
             results.append(r)
             row = (f"| {r['scene']} | {r['scene_mode']} | {r['fps']:.1f} | {r['median_ms']:.0f} | {r['max_ms']:.0f} | "
                    f"{r['mode']} | {r['bound']:.3g} | {r['psnr']:.1f} | {r['pred']:.2f} | {100 * r['pred25']:.0f} % |")

@@ -154,7 +154,10 @@ def main(argv=None) -> int:
             ap.error(f"unknown LOD mode {m!r}; accepted: {', '.join(mode_names())}")
     keep = Path(a.keep) if a.keep else None
     if keep is not None:
-        keep.mkdir(parents=True, exist_ok=True)
+        try:
+            keep.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            ap.error(f"--keep {a.keep}: cannot make that folder ({e.strerror})")
     if a.psnr and keep is None:
         ap.error("--psnr needs --keep (the images to compare)")
     old = None
