@@ -44,13 +44,12 @@ from crowd.report.runs import (
     STAGE_COLUMNS,
     RunData,
     _checked,
-    _is_reference,
-    _reference_scene,
     frame_seconds,
     run_task,
     test_sleep_seconds,
 )
 from crowd.report.settings import expand_settings
+from crowd.reference import is_reference as _is_reference, reference_scene as _reference_scene
 
 #: default number of sampled (compared) frames per run
 DEFAULT_SAMPLES = 4

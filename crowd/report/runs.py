@@ -4,7 +4,7 @@ For each scene and each setting (:mod:`crowd.report.settings`) the scene runs he
 (``Engine.run``: frames.csv, summary.json, trace.json and every k-th frame as PNG). A full-detail reference
 run (LOD mode ``none``, same scene, seed and size; the simulation does not depend on the LOD mode, so the
 states and cameras of both runs are equal frame by frame) renders the same sampled frames
-(:func:`_reference_scene`). A run (:func:`run_task`) writes to a temporary folder on its worker and returns
+(:func:`crowd.reference.reference_scene`). A run (:func:`run_task`) writes to a temporary folder on its worker and returns
 its files as data; the client writes them into the report. A run's frame time is the sum of its stage
 columns (:func:`frame_seconds`).
 
@@ -180,39 +180,6 @@ def _checked(result: dict) -> dict:
         err.exit_code = int(result.get("exit_code", 2))
         raise err
     return result
-
-
-#: common LOD keys the full-detail reference sets away from their defaults: exact per-copy animation times
-#: (``[lod] pose_rate = 0``, lod.poses: the default shares quantised poses, an error the report measures)
-REFERENCE_LOD_COMMON = (("pose_rate", 0.0),)
-
-
-def _is_reference(scene) -> bool:
-    """True when ``scene`` renders its own full-detail reference: mode none, exact pose times
-    (:data:`REFERENCE_LOD_COMMON`), the other common LOD keys at their defaults."""
-    if scene.lod_mode != "none":
-        return False
-    try:
-        from lod.temporal.selection import LOD_COMMON_PARAMS
-    except ImportError:
-        return True
-    common = dict(getattr(scene, "lod_common", ()) or ())
-    want = {k: p.default for k, p in LOD_COMMON_PARAMS.items()}
-    want.update((k, v) for k, v in REFERENCE_LOD_COMMON if k in want)
-    return all(common.get(k, LOD_COMMON_PARAMS[k].default) == v for k, v in want.items())
-
-
-def _reference_scene(scene):
-    """The full-detail reference of ``scene``: LOD mode none, no LOD keys (per-frame selection) but exact pose
-    times (:data:`REFERENCE_LOD_COMMON`)."""
-    extra = {}
-    if any(f.name == "lod_common" for f in dataclasses.fields(scene)):
-        try:
-            from lod.temporal.selection import LOD_COMMON_PARAMS
-        except ImportError:
-            LOD_COMMON_PARAMS = {}
-        extra = {"lod_common": tuple((k, v) for k, v in REFERENCE_LOD_COMMON if k in LOD_COMMON_PARAMS)}
-    return dataclasses.replace(scene, lod_mode="none", lod_params=(), **extra)
 
 
 def frame_seconds(columns: dict) -> np.ndarray:

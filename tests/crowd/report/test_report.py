@@ -332,7 +332,7 @@ def test_sweep_of_a_key_every_mode_takes(write_scene):
     lod.mode is swept; a NoLOD setting with keyframing is not its own reference, nor one sharing quantised poses
     (``pose_rate`` at its default, lod.poses): the reference draws exact times; ``pose_rate = 0`` is one."""
     ks = pytest.importorskip("lod.temporal.selection", reason="keyframed selection is not in this tree")
-    from crowd.report.runs import _is_reference, _reference_scene
+    from crowd.reference import is_reference as _is_reference, reference_scene as _reference_scene
 
     assert "keyframe_every" in ks.LOD_COMMON_PARAMS
     p = write_scene(REPORT_SCENE)
