@@ -37,7 +37,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from crowd.errors import AssetError, CrowdError
+from crowd.errors import AssetError, CrowdError, user_errors
 
 #: LOD modes that keep hierarchies in the on-disk cache (``--mode all`` builds each)
 CACHED_MODES = ("points", "clusters", "triangles", "auto")
@@ -173,7 +173,7 @@ def build_task(job: BuildJob, cache: str, *after) -> dict:
             module = mode_module(job.mode)
             extra = {"instancing": None} if "instancing" in inspect.signature(module.build).parameters else {}
             reps, _ = module.build([ch], [job.spec.name], [job.fps], dict(job.params), progress=False, **extra)
-    except _user_errors() as e:
+    except user_errors() as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         return {"label": job.label, "asset": job.asset, "error": msg if Path(job.asset).name in msg else f"{job.asset}: {msg}"}
     finally:
@@ -211,12 +211,6 @@ def pose_summary(reps, character, seconds: float) -> str:
             line += f"; {seconds / dur:.2g} s and {r.nbytes / dur / 1e6:.3g} MB per clip second"
         parts.append(line)
     return "; ".join(parts)
-
-
-def _user_errors() -> tuple:
-    from crowd.report.runs import _user_errors as ue
-
-    return ue()
 
 
 def _entries(folder: Path) -> set:

@@ -5,7 +5,7 @@
     crowd info ASSET            # a .glb/.gltf file or generator:humanoid:5000
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N] [--budget MS]
     crowd report SCENE... [--sweep KEY=V1,V2,...]... [--frames N] [--size WxH] [--out DIR] [--sample-every K]
-                 [--compare BASELINE_DIR] [--repeat N] [--cluster local|none|tcp://HOST:PORT]
+                 [--compare BASELINE_DIR] [--repeat N] [--cluster local|none|tcp://HOST:PORT] [--reference-samples K]
     crowd calibrate [--quick] [--size WxH] [--no-save]
     crowd build ASSET... [--mode points|clusters|triangles|auto|all] [--cluster local|none|tcp://HOST:PORT]
     crowd inspect ASSET [--png FILE] [--clip NAME] [--time S] [--pose K] [--poe P] [--camera X,Y,Z] [--size WxH]
@@ -21,7 +21,7 @@ import os
 import signal
 import sys
 
-from crowd.errors import CrowdError
+from crowd.errors import CrowdError, user_errors
 
 # numba's OpenMP worker threads spin between parallel regions by default (libgomp reads this when it loads, at
 # the first parallel kernel): on a machine shared with other work the spinning takes the cores the kernels
@@ -32,14 +32,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 EXIT_USAGE = 2
 #: exit code after an interrupt (Ctrl-C / SIGTERM), as shells report it
 EXIT_INTERRUPTED = 130
-
-
-def _user_errors() -> tuple:
-    from render.context import ContextError
-    from sim.errors import AssetError as SimAssetError
-    from sim.params import ParamError
-
-    return CrowdError, SimAssetError, ParamError, ContextError
 
 
 def _positive_int(text: str) -> int:
@@ -136,7 +128,10 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", metavar="DIR", default="out/report", help="report directory (replaced atomically; "
                     "default out/report)")
     rp.add_argument("--sample-every", type=_positive_int, metavar="K",
-                    help="compare every K-th frame with its NoLOD reference (default: frames // 4)")
+                    help="compare every K-th frame with its reference (default: frames // 4)")
+    rp.add_argument("--reference-samples", metavar="K", default="4",
+                    help="the reference is full detail drawn with K x K samples per pixel and box-filtered down "
+                    "(2 to 8, default 4; cached, so a second report of a scene does not draw it again)")
     rp.add_argument("--compare", metavar="BASELINE_DIR", help="flag frame-time regressions against an earlier "
                     "report directory (exit code 1 when one is found)")
     rp.add_argument("--repeat", type=_positive_int, metavar="N", help="timed runs per setting (default 3 with "
@@ -218,6 +213,7 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_report(args) -> int:
+    from crowd.reference import check_k
     from crowd.report.pipeline import build_report
     from crowd.report.settings import parse_sweep
 
@@ -235,7 +231,8 @@ def cmd_report(args) -> int:
         baseline = load_baseline(args.compare)  # read before --out may replace the same directory
     res = build_report(args.scenes, sweeps, frames=args.frames, size=args.size, out=args.out,
                        sample_every=args.sample_every, quiet=args.quiet, repeat=args.repeat, baseline=baseline,
-                       baseline_dir=args.compare, cluster=args.cluster)
+                       baseline_dir=args.compare, cluster=args.cluster,
+                       reference_samples=check_k(args.reference_samples, "--reference-samples"))
     if not args.quiet:
         n = sum(len(s["settings"]) for s in res.data["scenes"])
         print(f"wrote {res.out_dir / 'index.html'}: {len(res.data['scenes'])} scene(s), {n} setting(s)")
@@ -360,7 +357,7 @@ def main(argv=None) -> int:
         signal.signal(signal.SIGTERM, _sigterm)  # so temporary outputs are cleaned up
     try:
         return COMMANDS[args.command](args)
-    except _user_errors() as e:
+    except user_errors() as e:
         code = getattr(e, "exit_code", EXIT_USAGE)
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         print(f"crowd {args.command}: error: {msg}", file=sys.stderr)

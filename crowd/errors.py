@@ -33,3 +33,13 @@ class SimulationError(CrowdError):
     """The simulation produced NaN or Inf (named array, frame); nothing is written."""
 
     exit_code = 3
+
+
+def user_errors() -> tuple:
+    """Exceptions that are bad input, not bugs: one sentence and an exit code (2 unless the class says), never a
+    traceback (``crowd.cli``, the report's and the build's tasks, the scripts)."""
+    from render.context import ContextError
+    from sim.errors import AssetError as SimAssetError
+    from sim.params import ParamError
+
+    return CrowdError, SimAssetError, ParamError, ContextError

@@ -272,7 +272,7 @@ def reference_frames(scene, frames, k: int = DEFAULT_K, limits: tuple | None = N
     k : samples per pixel along each axis (:data:`MIN_K`..:data:`MAX_K`)
     limits, available : tile limits (default: the context's, :func:`gl_limits`) and bytes available (default:
         :func:`crowd.memory.available_memory`), for tests
-    on_frame : called as ``on_frame(frame, image)`` for each drawn frame (default: keep them all)
+    on_frame : called as ``on_frame(frame, image, seconds)`` for each drawn frame (default: keep them all)
 
     Returns
     -------
@@ -301,7 +301,7 @@ def reference_frames(scene, frames, k: int = DEFAULT_K, limits: tuple | None = N
                 img = drawer.draw(camera, scene.render.background)
                 seconds[f] = time.perf_counter() - t0
                 if on_frame is not None:
-                    on_frame(f, img)
+                    on_frame(f, img, seconds[f])
                 else:
                     images[f] = img
         finally:

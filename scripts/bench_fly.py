@@ -120,7 +120,7 @@ def main(argv=None) -> int:
         scenes = [s for s in scenes if s.stem in a.scenes]
     else:
         scenes = [s for s in scenes if s.stem not in NAMED_ONLY]
-    from crowd.report.runs import _user_errors
+    from crowd.errors import user_errors
     from render.window import VirtualDisplay, WindowError
 
     display = None
@@ -136,7 +136,7 @@ def main(argv=None) -> int:
         for s in scenes:
             try:
                 r = fly_scene(s, a.frames, a.start, tuple(a.size), a.budget)
-            except (*_user_errors(), WindowError) as e:  # a scene or asset the code cannot handle: one sentence, exit 2
+            except (*user_errors(), WindowError) as e:  # a scene or asset the code cannot handle: one sentence, exit 2
                 print(f"bench_fly: {s.name}: {str(e).splitlines()[0]}", file=sys.stderr)
                 return 2
             results.append(r)

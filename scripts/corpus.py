@@ -41,12 +41,6 @@ if str(ROOT) not in sys.path:
 MODES = ("none", "triangles", "clusters", "points", "auto")
 
 
-def _user_errors() -> tuple:
-    from crowd.report.runs import _user_errors as ue
-
-    return ue()
-
-
 def _scene_text(model: Path, ext: float, center, size: tuple, mode: str, clip: str) -> str:
     """A scene of a 3x3 grid of ``model`` (spacing 1.5 extents), one frame, camera over one edge."""
     sp = 1.5 * ext
@@ -96,6 +90,7 @@ def check_model(model: Path, size: tuple, modes: tuple, keep: str | None = None)
 
     from crowd.characters import build_character, parse_asset
     from crowd.engine import Engine
+    from crowd.errors import user_errors
     from crowd.image_metrics import psnr, ssim
     from crowd.scene import load_scene
     from lod.modes import mode_module
@@ -107,7 +102,7 @@ def check_model(model: Path, size: tuple, modes: tuple, keep: str | None = None)
         spec = parse_asset(str(model))
         ch = build_character(spec)
         describe(ch)
-    except _user_errors() as e:
+    except user_errors() as e:
         return {"model": model.name, "rows": [{"mode": m, "status": "refused", "note": _line(e)} for m in modes]}
     if hasattr(ch, "mesh"):
         p = np.asarray(ch.mesh.positions, np.float64)
@@ -153,7 +148,7 @@ def check_model(model: Path, size: tuple, modes: tuple, keep: str | None = None)
 
                     Path(keep).mkdir(parents=True, exist_ok=True)
                     shutil.copyfile(png, Path(keep) / f"{model.stem}-{mode}.png")
-            except _user_errors() as e:
+            except user_errors() as e:
                 row["status"], row["note"] = "refused", _line(e)
             except Exception as e:  # noqa: BLE001 - the corpus reports every failure as a row
                 row["status"] = "FAILED"

@@ -166,7 +166,7 @@ def main(argv=None) -> int:
             old = Path(a.compare).read_text(encoding="utf-8").splitlines()
         except OSError as e:
             ap.error(f"--compare {a.compare}: cannot read it ({e.strerror})")
-    from crowd.report.runs import _user_errors
+    from crowd.errors import user_errors
     from sim.atomic_io import write_atomic
 
     lines = []
@@ -176,7 +176,7 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             try:
                 got = run_one(s, m, a.frames, tuple(a.size), lod, excess, keep)
-            except _user_errors() as e:  # e.g. a --lod key the mode does not accept: one sentence, exit 2
+            except user_errors() as e:  # e.g. a --lod key the mode does not accept: one sentence, exit 2
                 print(f"frame_digests: {s.name} in mode {m}: {str(e).splitlines()[0]}", file=sys.stderr)
                 return 2
             lines += got

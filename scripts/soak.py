@@ -188,7 +188,8 @@ def format_report(r: dict) -> str:
 
 
 def main(argv=None) -> int:
-    from crowd.cli import _size, _user_errors
+    from crowd.cli import _size
+    from crowd.errors import user_errors
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", help="scene file (.toml)")
@@ -212,7 +213,7 @@ def main(argv=None) -> int:
     try:
         r = soak(a.scene, a.seconds, warmup, size=a.size, quiet=a.quiet, trim=a.malloc_trim,
                  warmup_frames=a.warmup_frames, max_triangles_in_flight=a.max_triangles_in_flight)
-    except _user_errors() as e:
+    except user_errors() as e:
         print(f"soak: error: {str(e).splitlines()[0]}", file=sys.stderr)
         return 2
     print(format_report(r))

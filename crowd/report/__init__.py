@@ -4,7 +4,7 @@ Modules, in data-flow order (scene + sweeps -> settings -> timed and reference r
 HTML/table):
 
 - :mod:`crowd.report.settings`: ``--sweep`` arguments and the validated settings (sweep combinations) of a scene
-- :mod:`crowd.report.runs`: one headless run (``run_task``), timed or the NoLOD reference; frames.csv, frame time
+- :mod:`crowd.report.runs`: one headless run (``run_task``), timed (aliased full detail among them); frames.csv, frame time
 - :mod:`crowd.report.cluster`: ``ClusterPool``, where runs and image-error work execute (dask or this process)
 - :mod:`crowd.report.metrics`: image error of the sampled frames against the reference, aggregates, Pareto front
 - :mod:`crowd.report.compare`: ``--compare``, frame-time regressions against a baseline report

@@ -8,7 +8,7 @@ per core); ``--cluster tcp://HOST:PORT`` uses a running dask scheduler and
 first, through one queue per host: a host runs one timed run at a time and
 nothing else of the report runs anywhere meanwhile, so no two timed runs share a
 machine's cores and no image-error work disturbs them; different hosts time in
-parallel. Then the NoLOD reference runs and the image error of every sampled
+parallel. Then the true references (crowd.reference) and the image error of every sampled
 frame run in parallel on all workers. A run (:func:`crowd.report.runs.run_task`) writes to a
 temporary folder on its worker and returns its files as data; the client writes
 them into the report. Results are the same as in this process (same frames,

@@ -1,4 +1,4 @@
-"""``crowd report`` image metrics: the error of each sampled frame against its NoLOD reference, per setting.
+"""``crowd report`` image metrics: the error of each sampled frame against the true reference (crowd.reference), per setting.
 
 Each sampled frame is compared with its reference by PSNR, SSIM and FLIP (:mod:`crowd.image_metrics`), each
 consecutive pair by the LOD flicker measure; :func:`metrics_task` is the unit of work sent to a dask worker.
@@ -48,7 +48,7 @@ def frame_metrics(img: np.ndarray, ref: np.ndarray, nxt: np.ndarray | None = Non
 
     Parameters
     ----------
-    img, ref : (h, w, 3) uint8, the frame and its NoLOD reference
+    img, ref : (h, w, 3) uint8, the frame and its reference
     nxt, ref_nxt : (h, w, 3) uint8 or None, the following frame of both (for the flicker measure)
 
     Returns

@@ -10,6 +10,13 @@ with its reference by PSNR, SSIM and FLIP (:mod:`crowd.image_metrics`, :mod:`cro
 The work runs on :class:`crowd.report.cluster.ClusterPool` (``--cluster``); ``--compare`` checks the frame
 times against a baseline report (:mod:`crowd.report.compare`).
 
+The true reference (:mod:`crowd.reference`): each sampled frame (and its successor, for the flicker measure) is
+also drawn at full detail with K x K samples per pixel and box-filtered down (``--reference-samples K``, default
+4), once: the frames are cached by content (:mod:`crowd.reference_cache`), so a second report of the same scene
+draws none. Every setting's image error is taken against it; aliased full detail (mode none, one sample per
+pixel) is a setting like any other (added when the sweep has none at a size), and every setting's error against
+it is reported beside (``accuracy_aliased``).
+
 The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
 
     index.html         self-contained page (relative links only; crowd.report.page)
@@ -49,7 +56,10 @@ from crowd.report.runs import (
     test_sleep_seconds,
 )
 from crowd.report.settings import expand_settings
-from crowd.reference import is_reference as _is_reference, reference_scene as _reference_scene
+from crowd.memory import available_memory
+from crowd.reference import DEFAULT_K, FILTER, check_fits, check_k, is_reference, plan_tiles, reference_scene
+from crowd.reference_cache import reference_task
+from crowd.report.settings import Setting, _fmt_value
 
 #: default number of sampled (compared) frames per run
 DEFAULT_SAMPLES = 4
@@ -78,7 +88,7 @@ class ReportResult:
 def build_report(scene_paths: list, sweeps: list, frames: int | None = None, size: tuple | None = None,
                  out: str | Path = "out/report", sample_every: int | None = None, quiet: bool = False,
                  repeat: int | None = None, baseline: dict | None = None, baseline_dir: str | None = None,
-                 cluster: str | None = DEFAULT_CLUSTER) -> ReportResult:
+                 cluster: str | None = DEFAULT_CLUSTER, reference_samples: int = DEFAULT_K) -> ReportResult:
     """Run every scene x setting plus references, measure, and write the report directory atomically.
 
     Parameters
@@ -96,13 +106,15 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     baseline_dir : the baseline's directory, as shown on the page
     cluster : ``"local"`` (default, an embedded dask LocalCluster), ``"none"``/None (this process) or the
         address of a dask scheduler (``tcp://HOST:PORT``): see :class:`ClusterPool`.
+    reference_samples : K of the true reference (:mod:`crowd.reference`), 2 to 8
 
     Notes
     -----
-    Two phases. First every timed run (each setting ``repeat`` times, all scenes) through
-    :meth:`ClusterPool.timed`: one at a time per host, nothing else running. Then, in parallel on every
-    worker, the NoLOD reference runs (untimed) and the image error of every sampled frame
-    (:func:`crowd.report.metrics.metrics_task`). The client writes the runs' files, plots and the page.
+    Two phases. First every timed run (each setting ``repeat`` times, all scenes; aliased full detail among
+    them) through :meth:`ClusterPool.timed`: one at a time per host, nothing else running. Then, in parallel on
+    every worker, the true references (:func:`crowd.reference_cache.reference_task`, from the cache where
+    drawn before) and the image error of every sampled frame against the reference and against aliased full
+    detail (:func:`crowd.report.metrics.metrics_task`). The client writes the runs' files, plots and the page.
 
     Raises
     ------
@@ -114,7 +126,13 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     from crowd.output import atomic_dir, check_output_dir
     from crowd.images import write_png
 
+    k_ref = check_k(reference_samples)
     all_settings = [(Path(p), expand_settings(p, sweeps, size=size, frames=frames)) for p in scene_paths]
+    # true references: one per scene and distinct full-detail drawing (size, light and shadows), each with its
+    # aliased full-detail setting (added where the sweep has none)
+    groups = [_reference_groups(settings) for _, settings in all_settings]
+    for g in (g for gs in groups for g in gs):  # a reference that cannot fit fails before anything runs
+        check_fits(plan_tiles(g.scene.render.size, k_ref), available_memory())
     for _, settings in all_settings:  # pedestrian measures (crowd.report.pedestrian) need the first run's trajectories
         s0 = settings[0]
         if getattr(s0.scene, "measurements", ()) and not s0.scene.trajectories:
@@ -128,16 +146,11 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     sleep = test_sleep_seconds()  # a bad test-only setting fails before anything runs
     pool = ClusterPool(cluster)  # a malformed address fails here, before anything runs
     ks = [sample_every or max(1, settings[0].scene.frames // DEFAULT_SAMPLES) for _, settings in all_settings]
-    # reference runs: one per scene and size, unless a setting of mode none without LOD keys is its own
-    refs_needed = []
-    for (_, settings), k in zip(all_settings, ks):
-        own = {tuple(st.scene.render.size) for st in settings if _is_reference(st.scene)}
-        refs_needed.append(sorted({tuple(st.scene.render.size) for st in settings} - own))
     n_timed = sum(repeat * len(s) for _, s in all_settings)
-    n_refs = sum(len(r) for r in refs_needed)
-    n_metrics = sum(len(s) * len(range(0, s[0].scene.frames, k)) for (_, s), k in zip(all_settings, ks))
+    n_refs = sum(len(g) for g in groups)
+    n_metrics = 2 * sum(len(s) * len(range(0, s[0].scene.frames, k)) for (_, s), k in zip(all_settings, ks))
     data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None,
-            "repeat": repeat}
+            "repeat": repeat, "reference": {"k": k_ref, "filter": FILTER}}
     with pool, atomic_dir(out) as tmp, _progress(n_timed + n_refs + n_metrics, quiet) as bar:
         data["cluster"] = pool.description
         data["hosts"] = {h: len(w) for h, w in pool.hosts().items()}
@@ -178,54 +191,54 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
                 first[id(run)] = (handle, v)
             runs_of[si][-1].repeat_medians.append(median)
 
-        # phase 2: reference runs and image error, in parallel on every worker
+        # phase 2: true references and image error, in parallel on every worker
         bar.set_postfix_str("references and image error")
         ref_handles = {}
         for si, (_, settings) in enumerate(all_settings):
-            for sz in refs_needed[si]:
-                scene = _reference_scene(next(st.scene for st in settings if tuple(st.scene.render.size) == sz))
-                ref_handles[si, sz] = pool.submit(run_task, scene, ks[si], True, 0.0)
+            n = settings[0].scene.frames
+            want = sorted({g for f in range(0, n, ks[si]) for g in (f, f + 1) if g < n})
+            for g in groups[si]:
+                ref_handles[si, g.name] = pool.submit(reference_task, g.scene, want, k_ref)
         mjobs, mhandles = [], []
         for si in range(len(all_settings)):
             for run in runs_of[si]:
-                sz = tuple(run.setting.scene.render.size)
-                if (si, sz) in ref_handles:
-                    ref = ref_handles[si, sz]
-                else:  # a NoLOD setting of this size is the reference
-                    ref = first[id(next(r for r in runs_of[si] if _is_reference(r.setting.scene)
-                                        and tuple(r.setting.scene.render.size) == sz))][0]
+                g = next(g for g in groups[si] if run.setting.slug in g.members)
+                ref = ref_handles[si, g.name]
+                aliased = first[id(next(r for r in runs_of[si] if r.setting.slug == g.aliased))][0]
                 handle = first[id(run)][0]
                 for name in first[id(run)][1]["pngs"]:
                     frame = int(re.search(r"(\d+)", name).group(1))
                     if frame % ks[si] == 0:  # not the second frame of a flicker pair
-                        mjobs.append((si, run, frame, ref))
-                        mhandles.append(pool.submit(metrics_task, handle, ref, frame))
+                        mjobs.append((si, run, frame))
+                        mhandles.append((pool.submit(metrics_task, handle, ref, frame),
+                                         pool.submit(metrics_task, handle, aliased, frame)))
         ref_values = dict(zip(ref_handles, pool.results(list(ref_handles.values()), done=lambda: bar.update(1))))
-        for (si, sz), v in ref_values.items():
+        for (si, name), v in ref_values.items():
             _checked(v)
-            data["schedule"].append({"kind": "reference", "scene": names[si], "label": f"{sz[0]}x{sz[1]}", "run": 0,
-                                     "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
-            _write_files(tmp / "runs" / slugs[si] / f"reference_{sz[0]}x{sz[1]}", v["files"])
-        results = pool.results(mhandles, done=lambda: bar.update(1))
+            data["schedule"].append({"kind": "reference", "scene": names[si], "label": name[len("reference_"):],
+                                     "run": 0, "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
+            _write_files(tmp / "runs" / slugs[si] / name, v["files"])
+        flat = pool.results([h for pair in mhandles for h in pair], done=lambda: bar.update(1))
+        results = list(zip(flat[0::2], flat[1::2]))
 
         for si, (path, settings) in enumerate(all_settings):
             slug, k = slugs[si], ks[si]
-            for (sj, run, frame, ref), m in zip(mjobs, results):
+            for (sj, run, frame), (m, m_aliased) in zip(mjobs, results):
                 if sj != si:
                     continue
-                sz = tuple(run.setting.scene.render.size)
-                ref_dir = (tmp / "runs" / slug / f"reference_{sz[0]}x{sz[1]}" if (si, sz) in ref_handles
-                           else next(r.out_dir for r in runs_of[si] if _is_reference(r.setting.scene)
-                                     and tuple(r.setting.scene.render.size) == sz))
+                ref_dir = tmp / "runs" / slug / next(g.name for g in groups[si] if run.setting.slug in g.members)
                 base = f"{slug}_{run.setting.slug}_f{frame:05d}"
                 shutil.copyfile(run.out_dir / "frames" / f"frame_{frame:05d}.png", tmp / "samples" / f"{base}.png")
                 shutil.copyfile(ref_dir / "frames" / f"frame_{frame:05d}.png", tmp / "samples" / f"{base}_ref.png")
                 m = dict(m)
                 write_png(tmp / "samples" / f"{base}_err.png", m.pop("error_png"))
-                run.metrics.append({"frame": frame, **m, "image": f"samples/{base}.png",
+                aliased = {q: v for q, v in m_aliased.items() if q != "error_png"}
+                run.metrics.append({"frame": frame, **m, "aliased": aliased, "image": f"samples/{base}.png",
                                     "reference": f"samples/{base}_ref.png", "error": f"samples/{base}_err.png"})
             scene_entry = {"name": names[si], "slug": slug, "file": str(path), "frames": settings[0].scene.frames,
-                           "sample_every": k, "settings": []}
+                           "sample_every": k, "settings": [],
+                           "reference": [_reference_entry(ref_values[si, g.name], g, k_ref, slug)
+                                         for g in groups[si]]}
             for run in runs_of[si]:
                 scene_entry["settings"].append(_setting_entry(run, tmp))
                 if data["machine"] is None:
@@ -250,6 +263,61 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
         write_json(tmp / "report.json", _json_safe(data))
         write_atomic(tmp / "index.html", render_html(data))
     return ReportResult(out_dir=out, data=data)
+
+
+#: label of the aliased full-detail setting a report adds (mode none, one sample per pixel)
+ALIASED_LABEL = "full detail (aliased)"
+
+
+@dataclass
+class _RefGroup:
+    """The settings of a scene that share one full-detail drawing (:func:`crowd.reference.reference_scene` of
+    theirs is the same: size, light, shadows): their true reference (folder ``name`` under the scene's runs) and
+    their aliased full-detail setting (slug ``aliased``)."""
+
+    name: str
+    scene: object
+    members: list
+    aliased: str
+    label: str
+
+
+def _reference_groups(settings: list) -> list:
+    """Group ``settings`` by their full-detail drawing, appending an aliased full-detail setting to ``settings``
+    for each group that has none (labelled by the group's swept values other than LOD keys)."""
+    from crowd.reference_cache import reference_identity
+
+    by_key: dict = {}
+    for st in list(settings):
+        ref = reference_scene(st.scene)
+        by_key.setdefault(reference_identity(ref), (ref, []))[1].append(st)
+    out = []
+    for ref, members in by_key.values():
+        shown = {k: v for k, v in members[0].values.items() if not k.startswith("lod.")}
+        label = ", ".join(f"{k}={_fmt_value(v)}" for k, v in shown.items())
+        own = next((st for st in members if is_reference(st.scene)), None)
+        if own is None:
+            own = Setting(label=ALIASED_LABEL + (f", {label}" if label else ""), values={}, scene=ref,
+                          slug=f"s{len(settings)}")
+            settings.append(own)
+            members.append(own)
+        w, h = ref.render.size
+        name = f"reference_{w}x{h}"
+        if any(g.name == name for g in out):
+            name += f"_{len(out) + 1}"
+        out.append(_RefGroup(name=name, scene=ref, members=[st.slug for st in members], aliased=own.slug,
+                             label=label))
+    return out
+
+
+def _reference_entry(v: dict, g: _RefGroup, k: int, slug: str) -> dict:
+    """What the report says of one true reference: its size, K, tiles, frames drawn now or found in the cache,
+    and the seconds a frame took to draw (median)."""
+    secs = [float(x) for x in v["seconds"].values()]
+    return {"size": list(g.scene.render.size), "k": k, "label": g.label, "frames": len(v["files"]),
+            "drawn": len(v["drawn"]), "cached": len(v["cached"]), "tiles": v.get("tiles"),
+            "tile_pixels": v.get("tile_pixels"), "seconds_per_frame": float(np.median(secs)) if secs else None,
+            "dir": f"runs/{slug}/{g.name}", "settings": g.members, "aliased": g.aliased}
 
 
 def _write_files(folder: Path, files: dict) -> None:
@@ -300,7 +368,9 @@ def _setting_entry(run: RunData, tmp: Path) -> dict:
             "gpu_ms": (stages["gpu"]["p50"] * 1e3) if stages.get("gpu") else None,
             "triangles": s["counts"]["triangles"]["mean"], "points": s["counts"]["points"]["mean"],
             "instances": s["counts"]["instances"]["mean"],
-            "accuracy": aggregate(run.metrics), "samples": run.metrics}
+            "aliased_full_detail": is_reference(st.scene),
+            "accuracy": aggregate(run.metrics), "accuracy_aliased": aggregate([m["aliased"] for m in run.metrics]),
+            "samples": run.metrics}
 
 
 def _json_safe(obj):

@@ -105,7 +105,7 @@ def _plots(tmp: Path, entry: dict, runs: list) -> None:
     if log_x:
         ax.set_xscale("log")
     ax.set_xlabel("median frame time, ms" + (" (log scale)" if log_x else ""))
-    ax.set_ylabel(name + " vs NoLOD")
+    ax.set_ylabel(name + " vs reference")
     ax.set_title(f"{entry['name']}: accuracy against time")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
@@ -120,7 +120,7 @@ _NO_CURVE = ("lod.mode", "render.size")
 
 
 def _sweep_curves(plt, tmp: Path, entry: dict) -> dict:
-    """key -> plot of the accuracy (PSNR against the NoLOD reference) and the median frame time against each
+    """key -> plot of the accuracy (PSNR against the reference, crowd.reference) and the median frame time against each
     swept setting with numeric values (e.g. ``lod.pose_rate``: the pose quantisation's error as a curve against
     its rate); a setting's non-numeric value (``pose_rate = "key"``) is a dashed level of its own."""
     out = {}
@@ -137,7 +137,7 @@ def _sweep_curves(plt, tmp: Path, entry: dict) -> dict:
         cap = 99.0  # an identical setting (PSNR inf) and the reference itself (no PSNR) are drawn at the top
         ps = [min(cap, s["accuracy"]["psnr"]) if s["accuracy"]["psnr"] is not None else cap for _, s in num]
         ax.plot([v for v, _ in num], ps, marker="o", lw=1.4,
-                label="PSNR vs NoLOD (dB; identical or the reference itself at the top)")
+                label="PSNR vs reference (dB; identical at the top)")
         for s in other:
             if s["accuracy"]["psnr"] is not None:
                 ax.axhline(min(cap, s["accuracy"]["psnr"]), ls="--", lw=1, color="grey")

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crowd.errors import CrowdError
+from crowd.errors import CrowdError, user_errors
 from crowd.report.settings import Setting
 
 #: frame-time stages of the breakdown plot (crowd.telemetry.STAGES)
@@ -123,15 +123,6 @@ def _run(scene, out_dir: Path, png_every: int, pairs: bool = False, sleep: float
     return r.summary, read_frames_csv(out_dir / "frames.csv"), sorted(p for p in r.pngs if Path(p).is_file())
 
 
-def _user_errors() -> tuple:
-    """Exceptions that are bad input, not bugs (as ``crowd.cli`` treats them)."""
-    from render.context import ContextError
-    from sim.errors import AssetError as SimAssetError
-    from sim.params import ParamError
-
-    return CrowdError, SimAssetError, ParamError, ContextError
-
-
 def run_task(scene, png_every: int, pairs: bool = False, sleep: float = 0.0) -> dict:
     """One headless run of ``scene``: the unit of work of a timed or reference run, in this process or on a dask
     worker.
@@ -166,7 +157,7 @@ def run_task(scene, png_every: int, pairs: bool = False, sleep: float = 0.0) -> 
             rd = Path(d) / "run"
             summary, columns, pngs = _run(scene, rd, png_every, pairs=pairs, sleep=sleep)
             files = {p.relative_to(rd).as_posix(): p.read_bytes() for p in sorted(rd.rglob("*")) if p.is_file()}
-    except _user_errors() as e:
+    except user_errors() as e:
         return {"error": str(e).splitlines()[0] if str(e) else type(e).__name__,
                 "exit_code": int(getattr(e, "exit_code", 2))}  # e.g. 3: NaN/Inf in the simulation
     return {"summary": summary, "columns": columns, "files": files, "pngs": [Path(p).name for p in pngs],

@@ -69,7 +69,8 @@ def test_report_section_on_mode_auto(scene, tmp_path, monkeypatch):
     assert r.returncode == 0, r.stderr
     data = json.loads((out / "report.json").read_text())
     (sc,) = data["scenes"]
-    (s,) = sc["settings"]
+    s, aliased = sc["settings"]  # mode auto, and aliased full detail beside it
+    assert aliased["auto"] is None and aliased["aliased_full_detail"]
     a = s["auto"]
     assert a["frames"] == 4 and abs(sum(a["plans"].values()) - 1.0) < 1e-9 and a["pred_err"] is not None
     assert a["model"]["coefficients"]["triangles"] > 0

@@ -199,3 +199,71 @@ def test_the_reference_converges_on_a_subpixel_crowd(write_scene):
     assert abs(a4 - a8) < 0.5, f"aliased full detail: {a4:.2f} dB against K=4, {a8:.2f} dB against K=8"
     assert _psnr(r4, r8) > a4 + 6.0  # K = 4 is much closer to K = 8 than the aliased frame is
     assert a4 < 40.0  # the crowd is sub-pixel: the aliased frame is visibly off
+
+
+# ---------------------------------------------------------------------------------------------------- the cache
+def test_reference_frames_are_cached_by_content(write_scene, tmp_path, monkeypatch):
+    import dataclasses
+
+    from crowd.reference_cache import cache_folder, reference_task
+
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    scene = load_scene(write_scene(TILED_SCENE))
+    a = reference_task(scene, [0, 2], 2)
+    assert a["drawn"] == [0, 2] and a["cached"] == [] and a["tiles"] == 1
+    b = reference_task(scene, [0, 2, 3], 2)  # a second report: only the new frame is drawn
+    assert b["cached"] == [0, 2] and b["drawn"] == [3]
+    assert all(b["files"][n] == a["files"][n] for n in a["files"])
+    assert b["seconds"][0] == pytest.approx(a["seconds"][0])  # the cost it took, reported from the cache
+    assert reference_task(scene, [0], 3)["drawn"] == [0]  # another K
+    moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, position=(1.0, 2.0, 8.0)))
+    assert reference_task(moved, [0], 2)["drawn"] == [0]  # another view
+    out_only = scene.with_overrides(out=tmp_path / "elsewhere", frames=9, png_every=3)
+    assert reference_task(out_only, [0], 2)["cached"] == [0]  # outputs and frame count change no frame
+    for p in cache_folder().glob("*.png"):  # a truncated entry is drawn again
+        p.write_bytes(p.read_bytes()[:20])
+    assert reference_task(scene, [0], 2)["drawn"] == [0]
+    assert not list(cache_folder().glob("*.tmp*")) and not list(cache_folder().glob(".*"))
+
+
+def test_the_cache_key_follows_the_bytes_of_named_files(write_scene, tmp_path):
+    import dataclasses
+
+    from crowd.reference_cache import frame_key, scene_digest
+
+    scene = load_scene(write_scene(TILED_SCENE))
+    asset = tmp_path / "walker.glb"
+    asset.write_bytes(b"one")
+    ch = dataclasses.replace(scene.characters[0], file=asset)
+    named = dataclasses.replace(scene, characters=(ch,))
+    d1 = scene_digest(named)
+    asset.write_bytes(b"two")
+    assert scene_digest(named) != d1
+    assert len({frame_key(scene, k, f) for k in (2, 4) for f in (0, 1)}) == 4
+
+
+def test_report_refuses_bad_reference_samples_and_a_reference_that_does_not_fit(write_scene, tmp_path):
+    import os
+
+    from crowd_testutil import run_cli
+
+    scene = write_scene(TILED_SCENE)
+    out = tmp_path / "rep"
+    for bad in ("9", "1", "x"):
+        r = run_cli("report", scene, "--reference-samples", bad, "--out", out, "--cluster", "none")
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and "--reference-samples" in lines[0] and "2 to 8" in lines[0]
+        assert "Traceback" not in r.stderr and not out.exists()
+    env = dict(os.environ, CROWD_MEMORY_LIMIT=str(500 << 20))  # the scene fits; a K = 8 reference does not
+    import subprocess
+    import sys
+
+    from crowd_testutil import REPO
+
+    env["PYTHONPATH"] = str(REPO)
+    r = subprocess.run([sys.executable, "-m", "crowd", "report", str(scene), "--reference-samples", "8", "--size",
+                        "1280x720", "--out", str(out), "--cluster", "none"], capture_output=True, text=True, env=env, cwd=REPO, timeout=300)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert "--reference-samples 8: the reference at 1280x720 needs" in lines[0] and "would fit" in lines[0]
+    assert not out.exists() and not list(tmp_path.glob(".rep*"))

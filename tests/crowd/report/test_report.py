@@ -134,11 +134,18 @@ def test_report_of_a_tiny_scene_with_a_two_value_sweep(write_scene, tmp_path):
             assert 0.0 <= m["ssim"] <= 1.0 and (m["flip"] is None or 0.0 <= m["flip"] <= 1.0)
             assert m["psnr"] is None or math.isfinite(m["psnr"])  # None = identical (inf)
     nolod, clusters = sc["settings"]
-    assert nolod["accuracy"]["identical"] and nolod["accuracy"]["psnr"] is None  # inf: its own reference
-    assert nolod["accuracy"]["ssim"] == 1.0
-    assert all(m["psnr"] is None and m["ssim"] == 1.0 for m in nolod["samples"])
+    # the mode-none setting is aliased full detail: identical to itself, not to the supersampled reference
+    assert nolod["aliased_full_detail"] and not clusters["aliased_full_detail"]
+    assert nolod["accuracy_aliased"]["identical"] and nolod["accuracy_aliased"]["psnr"] is None  # inf
+    assert nolod["accuracy_aliased"]["ssim"] == 1.0
+    assert all(m["aliased"]["psnr"] is None and m["aliased"]["ssim"] == 1.0 for m in nolod["samples"])
+    assert not nolod["accuracy"]["identical"] and 15.0 < nolod["accuracy"]["psnr"] < 60.0
     assert clusters["triangles"] <= nolod["triangles"] and clusters["triangles"] > 0
     assert clusters["accuracy"]["psnr"] is None or 10.0 < clusters["accuracy"]["psnr"]
+    assert clusters["accuracy_aliased"]["psnr"] is None or 10.0 < clusters["accuracy_aliased"]["psnr"]
+    (ref,) = sc["reference"]
+    assert ref["k"] == 4 and ref["size"] == [96, 72] and ref["frames"] == 6 and ref["drawn"] + ref["cached"] == 6
+    assert data["reference"]["k"] == 4 and "box filter" in data["reference"]["filter"] and "4 x 4 samples" in page
     assert sc["pareto_front"][0] in ("s0", "s1")
     assert data["machine"]["cpu"] and "∞ (identical)" in page
     assert (out / "runs" / sc["slug"] / "s0" / "summary.json").is_file()
@@ -157,11 +164,16 @@ def test_reference_run_when_no_setting_is_nolod(write_scene, tmp_path):
     assert r.returncode == 0, r.stderr
     data = json.loads((out / "report.json").read_text())
     (sc,) = data["scenes"]
-    assert [s["size"] for s in sc["settings"]] == [[64, 48], [80, 60]]
+    # aliased full detail added at each size, as a setting like any other
+    assert [(s["label"], s["size"]) for s in sc["settings"]] == [
+        ("lod.mode=clusters, render.size=64x48", [64, 48]), ("lod.mode=clusters, render.size=80x60", [80, 60]),
+        ("full detail (aliased), render.size=64x48", [64, 48]), ("full detail (aliased), render.size=80x60", [80, 60])]
     assert sorted(p.name for p in (out / "runs" / sc["slug"]).iterdir()) == [
-        "reference_64x48", "reference_80x60", "s0", "s1"]
+        "reference_64x48", "reference_80x60", "s0", "s1", "s2", "s3"]
     for s in sc["settings"]:
         assert len(s["samples"]) == 2 and all(0.0 < m["ssim"] <= 1.0 for m in s["samples"])
+    assert [s["aliased_full_detail"] for s in sc["settings"]] == [False, False, True, True]
+    assert [r["size"] for r in sc["reference"]] == [[64, 48], [80, 60]]
 
 
 @pytest.mark.parametrize("args, msg", [
@@ -214,11 +226,17 @@ def test_report_flicker_from_consecutive_frame_pairs(write_scene, tmp_path):
         assert frames == [f"frame_{f:05d}.png" for f in (0, 1, 3, 4, 6)]
     assert [m["frame"] for m in pts["samples"]] == [0, 3, 6]
     assert [m["flicker"] is None for m in pts["samples"]] == [False, False, True]
-    assert all(m["flicker"] == 0.0 for m in nolod["samples"][:2]) and nolod["accuracy"]["flicker"] == 0.0
+    assert all(m["aliased"]["flicker"] == 0.0 for m in nolod["samples"][:2])
+    assert nolod["accuracy_aliased"]["flicker"] == 0.0
     d = out / "runs" / sc["slug"]
     png = lambda s, f: read_png(d / s / "frames" / f"frame_{f:05d}.png")  # noqa: E731
-    want = im.flicker(png("s1", 3), png("s1", 4), png("s0", 3), png("s0", 4))
+    # flicker against the reference's own change between frames (the supersampled reference's pair)
+    ref = "reference_96x72"
+    assert sorted(p.name for p in (d / ref / "frames").iterdir()) == [f"frame_{f:05d}.png" for f in (0, 1, 3, 4, 6)]
+    want = im.flicker(png("s1", 3), png("s1", 4), png(ref, 3), png(ref, 4))
     assert pts["samples"][1]["flicker"] == pytest.approx(want) and math.isfinite(want) and want >= 0.0
+    want = im.flicker(png("s1", 3), png("s1", 4), png("s0", 3), png("s0", 4))
+    assert pts["samples"][1]["aliased"]["flicker"] == pytest.approx(want)
     assert pts["accuracy"]["flicker"] == pytest.approx(np.mean([m["flicker"] for m in pts["samples"][:2]]))
     page = (out / "index.html").read_text()
     assert "LOD flicker" in page and (out / sc["plots"]["flicker"]).is_file()
@@ -262,7 +280,10 @@ def test_sweep_through_a_local_dask_cluster_matches_the_local_path(write_scene, 
     sched = dd["schedule"]
     timed = sorted((x["start"], x["end"]) for x in sched if x["kind"] == "timed")
     assert len(timed) == 2 and all(a[1] <= b[0] for a, b in zip(timed, timed[1:]))
-    assert not [x for x in sched if x["kind"] == "reference"]  # the NoLOD settings are the references
+    refs = [x for x in sched if x["kind"] == "reference"]  # the true reference, after every timed run
+    assert len(refs) == 1 and refs[0]["start"] >= max(t[1] for t in timed)
+    # the second report (this process) found the first's reference frames in the cache
+    assert [r["cached"] for r in hd["scenes"][0]["reference"]] == [3]
     # the pages of both paths name the same images
     pages = [(tmp_path / d / "index.html").read_text() for d in ("dask", "here")]
     assert re.findall(r"<img src='([^']+)'", pages[0]) == re.findall(r"<img src='([^']+)'", pages[1])
@@ -279,13 +300,13 @@ def test_reference_runs_follow_the_timed_runs_on_the_cluster(write_scene, tmp_pa
     sched = data["schedule"]
     timed = sorted((x["start"], x["end"]) for x in sched if x["kind"] == "timed")
     refs = [x for x in sched if x["kind"] == "reference"]
-    assert len(timed) == 4 and len(refs) == 1 and refs[0]["label"] == "96x72"
+    assert len(timed) == 6 and len(refs) == 1 and refs[0]["label"] == "96x72"  # aliased full detail timed too
     assert all(a[1] <= b[0] for a, b in zip(timed, timed[1:]))
     assert refs[0]["start"] >= timed[-1][1]
     assert all(len(s["repeat_medians_ms"]) == 2 for s in data["scenes"][0]["settings"])
     assert (out / "runs" / "tiny" / "reference_96x72" / "frames" / "frame_00000.png").is_file()
     assert sorted(p.name for p in (out / "runs" / "tiny").iterdir()) == ["reference_96x72", "s0", "s0_r1", "s1",
-                                                                          "s1_r1"]
+                                                                          "s1_r1", "s2", "s2_r1"]
 
 
 def test_metrics_pool_map_on_the_cluster_equals_this_process(dask_cluster):

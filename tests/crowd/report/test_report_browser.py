@@ -71,7 +71,8 @@ def test_report_page_in_headless_chromium(write_scene, tmp_path):
     assert r.returncode == 0, r.stderr
     page = (out / "index.html").read_text()
     srcs = re.findall(r"<img src='([^']+)'", page)
-    assert len(srcs) == 6 + 2 * 2 * 3  # 6 plots; 2 settings x 2 sampled frames x (frame, reference, error map)
+    # 7 plots; 3 settings (aliased full detail added) x 2 sampled frames x (frame, reference, error map)
+    assert len(srcs) == 7 + 3 * 2 * 3
 
     # every image loads, no script/console error; the control image (a missing file) is the only one that fails
     probe = out / "probe.html"
@@ -96,7 +97,7 @@ def test_report_page_in_headless_chromium(write_scene, tmp_path):
     px = read_png(shot).astype(np.int16)
     assert px.shape[:2] == (WINDOW[1], WINDOW[0])
     plots = [i for i in check["images"] if i["src"].startswith("plots/") and i["id"] != "crowd-control"]
-    assert len(plots) == 6 and all(i["y"] + i["height"] <= WINDOW[1] for i in plots), "a plot is below the window"
+    assert len(plots) == 7 and all(i["y"] + i["height"] <= WINDOW[1] for i in plots), "a plot is below the window"
     for i in plots:
         w, h = int(round(i["width"])), int(round(i["height"]))
         png = read_png(out / i["src"]).astype(np.int16)

@@ -72,18 +72,21 @@ def test_compare_cli_flags_an_artificially_slower_run(write_scene, tmp_path, mon
     assert r.returncode == 0, r.stderr
     b = json.loads((base / "report.json").read_text())
     assert b["cluster"].startswith("embedded dask LocalCluster tcp://127.0.0.1:")
-    (st,) = b["scenes"][0]["settings"]
+    st, aliased = b["scenes"][0]["settings"]  # the scene, and aliased full detail (its mode none is not exact)
+    assert aliased["label"] == "full detail (aliased)" and len(aliased["repeat_medians_ms"]) == 3
     assert len(st["repeat_medians_ms"]) == 3 and all(m > 0 for m in st["repeat_medians_ms"])
     assert "compare" not in b
 
     monkeypatch.setenv(SLEEP_ENV, "60")  # 60 ms inside every timed frame
     r = run_cli("report", scene, "--out", slow, "--compare", base, "--cluster", "none", "--quiet")
     assert r.returncode == 1, r.stderr
-    assert "REGRESSION tiny [scene]" in r.stdout and "1 regression(s)" in r.stdout
+    # the sleep is in every timed run: the scene's and aliased full detail's
+    assert "REGRESSION tiny [scene]" in r.stdout and "REGRESSION tiny [full detail (aliased)]" in r.stdout
+    assert "2 regression(s)" in r.stdout
     s = json.loads((slow / "report.json").read_text())
-    assert s["repeat"] == 3 and s["compare"]["regressions"] == 1
-    (row,) = s["compare"]["rows"]
-    assert row["regression"] and row["current_ms"] >= 60.0 and row["ratio"] > 1 + row["threshold"]
+    assert s["repeat"] == 3 and s["compare"]["regressions"] == 2
+    for row in s["compare"]["rows"]:
+        assert row["regression"] and row["current_ms"] >= 60.0 and row["ratio"] > 1 + row["threshold"]
     page = (slow / "index.html").read_text()
     assert "Comparison with baseline" in page and "<tr class='regressed'>" in page
 
@@ -91,8 +94,9 @@ def test_compare_cli_flags_an_artificially_slower_run(write_scene, tmp_path, mon
     r = run_cli("report", scene, "--out", fast, "--compare", slow, "--repeat", "2", "--cluster", "none", "--quiet")
     assert r.returncode == 0, r.stdout + r.stderr
     f = json.loads((fast / "report.json").read_text())
-    (row,) = f["compare"]["rows"]
-    assert not row["regression"] and row["ratio"] < 1.0 and row["runs_current"] == 2
+    assert len(f["compare"]["rows"]) == 2
+    for row in f["compare"]["rows"]:
+        assert not row["regression"] and row["ratio"] < 1.0 and row["runs_current"] == 2
     assert "REGRESSION" not in r.stdout and "0 regression(s)" in (fast / "index.html").read_text()
 
 

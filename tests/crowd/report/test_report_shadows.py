@@ -26,9 +26,13 @@ def test_report_sweeps_shadows_with_a_clip_per_setting(write_scene, tmp_path):
     assert r.returncode == 0, r.stderr
     page = (out / "index.html").read_text()
     (sc,) = json.loads((out / "report.json").read_text())["scenes"]
-    assert [s["label"] for s in sc["settings"]] == [f"render.shadows={m}" for m in ("none", "blob", "map")]
+    # each shadow setting against its own reference, beside its own aliased full detail
+    assert [s["label"] for s in sc["settings"]] == [f"render.shadows={m}" for m in ("none", "blob", "map")] + [
+        f"full detail (aliased), render.shadows={m}" for m in ("none", "blob", "map")]
+    assert [(r["label"], r["settings"]) for r in sc["reference"]] == [
+        (f"render.shadows={m}", [f"s{i}", f"s{i + 3}"]) for i, m in enumerate(("none", "blob", "map"))]
     clips = re.findall(r"<video src='([^']+)'", page)
-    assert clips == [s["clip"] for s in sc["settings"]] and len(set(clips)) == 3
+    assert clips == [s["clip"] for s in sc["settings"]] and len(set(clips)) == 6
     for s in sc["settings"]:
         assert s["frame_ms"]["p50"] > 0 and f"{s['label']}</td>" in page
         frames, (w, h) = read_video(out / s["clip"])
