@@ -25,10 +25,13 @@ drawn again (its median marked ``~``: it is not the best).
 Passes (``--passes``): ``quiet``, then ``loaded`` (a second process spinning on one core for the whole pass)
 and, optionally, ``half`` (that process starts halfway through the measured frames).
 
-Image error: PSNR against mode ``none`` on ``--nolod-samples`` measured frames per scene (evenly spaced), of the
-mean MSE over those frames as ``crowd report`` measures it; NoLOD frames predicted slower than ``--nolod-max``
-seconds are not drawn (million: ~10 min a frame) and the scene has no PSNR. Reference images are drawn once
-(the simulation is deterministic: the passes see the same states).
+Image error: PSNR against the true reference (:mod:`crowd.reference`: full detail with ``--reference-samples``
+K x K samples per pixel, box-filtered; the selection of mode ``none`` at K x the size drawn in tiles) on
+``--nolod-samples`` measured frames per scene (evenly spaced), of the mean MSE over those frames as ``crowd
+report`` measures it, and beside it against aliased full detail (mode ``none``, one sample per pixel), which
+gets its own PSNR against the reference; NoLOD frames predicted slower than ``--nolod-max`` seconds are not drawn
+(million: ~10 min a frame) and the scene has no PSNR. Reference images are drawn once (the simulation is
+deterministic: the passes see the same states).
 
 The script prints every figure and writes ``scripts/bench_auto.md`` (atomically; the text after its
 ``<!-- earlier runs -->`` line is kept). Cold builds of the hierarchies take many minutes per big scene: build
@@ -143,8 +146,10 @@ def loadavg() -> str:
 
 
 def run_pass(path: Path, args, models, kind: str, refs: dict) -> dict:
-    """One pass over one scene: every case on the same frames; ``refs`` (frame -> NoLOD image) is filled on
-    the first pass and reused by the next."""
+    """One pass over one scene: every case on the same frames; ``refs`` (frame -> (true reference, aliased
+    NoLOD image)) is filled on the first pass and reused by the next."""
+    from crowd.reference import draw_tiles, plan_tiles
+
     size = tuple(args.size)
     scene = load_scene(path)
     scene = dataclasses.replace(scene, lod_mode="none", lod_params=())  # the cases are built here
@@ -159,6 +164,12 @@ def run_pass(path: Path, args, models, kind: str, refs: dict) -> dict:
                 r.upload(rep)
     for rep in eng.statics:
         r.upload(rep)
+    plan = plan_tiles(size, args.reference_samples)
+    ref_r = Renderer(plan.tile_pixels, ctx=r.ctx) if args.nolod_samples else None  # the true reference's tiles
+    if ref_r is not None:
+        for rep in [*cases["nolod"][0], *eng.statics]:
+            ref_r.upload(rep)
+    big = plan.k * size[0], plan.k * size[1]
     for _ in range(args.steps):
         eng.step()
     statics = [(s.key, np.eye(4)) for s in eng.statics]
@@ -166,7 +177,8 @@ def run_pass(path: Path, args, models, kind: str, refs: dict) -> dict:
     n_all = args.warmup + args.frames
     samples = set(np.linspace(args.warmup, n_all - 1, args.nolod_samples).round().astype(int).tolist()) \
         if args.nolod_samples else set()
-    rec = {n: {"t": [], "render": [], "warm": [], "pred": [], "plan": [], "mse": [], "state": []} for n in cases}
+    rec = {n: {"t": [], "render": [], "warm": [], "pred": [], "plan": [], "mse": [], "mse_aliased": [], "state": []}
+           for n in cases}
     dropped, load = set(), Load()
     rng = np.random.default_rng(7)
     half_at = args.warmup + args.frames // 2
@@ -212,9 +224,12 @@ def run_pass(path: Path, args, models, kind: str, refs: dict) -> dict:
                 if k in samples:
                     img = r.read_pixels()
                     if name == "nolod":
-                        refs[k] = ref = img
-                    elif ref is not None:
-                        x["mse"].append(mse(img, ref))
+                        true = draw_tiles(ref_r, sel.select(eng.world.state, cam, big, statics=statics), plan,
+                                          eng.scene.render.background)
+                        refs[k] = ref = (true, img)
+                    if ref is not None:
+                        x["mse"].append(mse(img, ref[0]))
+                        x["mse_aliased"].append(mse(img, ref[1]))
             if measured:  # a single mode far slower than the fastest case is no candidate for the best
                 done = k - args.warmup + 1
                 if done >= args.slow_frames:
@@ -234,15 +249,22 @@ def run_pass(path: Path, args, models, kind: str, refs: dict) -> dict:
     finally:
         load.stop()
         r.release()
+        if ref_r is not None:
+            ref_r.release()
         eng.close()
     out = {"scene": path.stem, "agents": int(eng.world.state.n), "build_s": t_build, "dropped": sorted(dropped),
            "load": load_avg, "cases": {}}
+    def db(m):
+        return (math.inf if np.mean(m) == 0 else 10 * math.log10(1 / float(np.mean(m)))) if m else None
+
+    # aliased full detail against the reference: the first pass draws it (its rows); later passes reuse it
+    nolod_mse = rec["nolod"]["mse"] or [mse(a, t) for t, a in (refs[k] for k in sorted(samples) if k in refs)]
+    out["nolod_psnr"] = db(nolod_mse)
     for n, x in rec.items():
         if n == "nolod":
             continue
         c = {"median": statistics.median(x["t"]) if x["t"] else None, "frames": x["t"],
-             "psnr": (math.inf if x["mse"] and np.mean(x["mse"]) == 0 else
-                      10 * math.log10(1 / float(np.mean(x["mse"])))) if x["mse"] else None}
+             "psnr": db(x["mse"]), "psnr_aliased": db(x["mse_aliased"])}
         if n.startswith("auto"):
             sel = cases[n][1]
             c["warmup"] = statistics.median(x["warm"]) if x["warm"] else None
@@ -277,8 +299,9 @@ def summarize(o: dict) -> dict:
 def table(rows: list, kind: str, cals: list) -> list:
     lines = [f"| scene | agents | triangles / clusters / points ms | best | "
              + " | ".join(f"auto {c} ms (x best; paired)" for c in cals)
-             + " | auto right warm-up ms | PSNR dB best / auto right | auto right plans | pred. err | switches / explored frames |",
-             "| --- | ---: | --- | --- | " + " | ".join("---" for _ in cals) + " | ---: | --- | --- | ---: | --- |"]
+             + " | auto right warm-up ms | PSNR dB vs reference: full detail (aliased) / best / auto right | "
+               "PSNR dB vs aliased: best / auto right | auto right plans | pred. err | switches / explored frames |",
+             "| --- | ---: | --- | --- | " + " | ".join("---" for _ in cals) + " | ---: | --- | --- | --- | ---: | --- |"]
     for o in rows:
         s, cs = summarize(o), o["cases"]
         single = " / ".join(("~" if n in o["dropped"] else "") + (f"{1e3 * cs[n]['median']:.0f}" if cs[n]["median"]
@@ -297,9 +320,11 @@ def table(rows: list, kind: str, cals: list) -> list:
         plans = ", ".join(f"{p} {100 * f:.0f} %" for p, f in (ar.get("plans") or {}).items())
         ch = ar.get("chooser") or {}
         lines.append(f"| {o['scene']} | {o['agents']:,} | {single} | {s['best']} | " + " | ".join(cells)
-                     + f" | {1e3 * ar['warmup']:.0f} | {ps(cs[s['best']]['psnr'])} / {ps(ar.get('psnr'))} | {plans} | "
+                     + f" | {1e3 * ar['warmup']:.0f} | {ps(o.get('nolod_psnr'))} / {ps(cs[s['best']]['psnr'])} / "
+                     f"{ps(ar.get('psnr'))} | {ps(cs[s['best']].get('psnr_aliased'))} / {ps(ar.get('psnr_aliased'))} | "
+                     f"{plans} | "
                      f"{100 * ar['pred_err']:.0f} % | {ch.get('switches', 0)} / {ch.get('explored_frames', 0)} |"
-                     if ar.get("warmup") is not None and ar.get("pred_err") is not None else " | - | - | - | - | - |")
+                     if ar.get("warmup") is not None and ar.get("pred_err") is not None else " | - | - | - | - | - | - |")
     return lines
 
 
@@ -345,6 +370,7 @@ def main(argv=None) -> int:
     ap.add_argument("--passes", default="quiet,loaded", help="comma-separated: quiet, loaded, half")
     ap.add_argument("--nolod-samples", type=int, default=3, help="measured frames per scene compared with NoLOD")
     ap.add_argument("--nolod-max", type=float, default=120.0, help="seconds; NoLOD predicted slower is not drawn")
+    ap.add_argument("--reference-samples", type=int, default=4, help="K of the true reference (2 to 8)")
     ap.add_argument("--slow-factor", type=float, default=4.0)
     ap.add_argument("--slow-frames", type=int, default=3)
     ap.add_argument("--out", default=str(ROOT / "scripts" / "bench_auto.md"))
@@ -354,6 +380,8 @@ def main(argv=None) -> int:
     if "right" not in cals or any(c not in CALIBRATIONS for c in cals) or \
             any(p not in ("quiet", "loaded", "half") for p in passes) or not passes:
         ap.error("--calibrations must include 'right' (of right, x0.3, x3, skew); --passes of quiet, loaded, half")
+    if not 2 <= args.reference_samples <= 8:
+        ap.error(f"--reference-samples {args.reference_samples}: expected 2 to 8 samples per pixel along each axis")
     start = datetime.datetime.now(datetime.timezone.utc)
     t_start = time.perf_counter()
     print(f"load at the start: {loadavg()}", flush=True)
@@ -380,8 +408,9 @@ def main(argv=None) -> int:
               + ("; skew: point costs x3, triangle/cluster/instance costs x0.3" if "skew" in cals else "") + ".",
               f"{args.size[0]}x{args.size[1]}, poe {args.poe:g} px (triangles, clusters, auto with points_error "
               f"\"splat\"), points at splat {args.splat}; medians of {args.frames} frames after {args.warmup} "
-              f"warm-up frames (autos only); PSNR against NoLOD on {args.nolod_samples} sampled frames "
-              "(of the mean MSE, as `crowd report`). Bold: within 1.05x of the best single mode and 1 dB of its "
+              f"warm-up frames (autos only); PSNR on {args.nolod_samples} sampled frames (of the mean MSE, as "
+              f"`crowd report`) against the true reference (full detail, {args.reference_samples} x "
+              f"{args.reference_samples} samples per pixel, box filter) and against aliased full detail. Bold: within 1.05x of the best single mode and 1 dB of its "
               "PSNR. `~`: a single mode dropped after a few frames (far slower than the fastest case)."]
     sections = []
     for kind in passes:
