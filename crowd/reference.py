@@ -219,6 +219,56 @@ def draw_tiles(renderer, drawlist, plan: TilePlan, background) -> np.ndarray:
     return out
 
 
+class TileRenderer:
+    """A renderer of a reference's tiles beside one already drawing (the benchmarks: the same context, ``ctx``,
+    never a second one current at once), ``reps`` uploaded; :meth:`draw` takes a DrawList selected at
+    :attr:`big` and returns the filtered frame. Each copy is skinned at its own animation time (no pose table:
+    the pose cache's shared, quantised poses are an error the reference does not make).
+
+    Parameters
+    ----------
+    size : (width, height) of the output
+    k : samples per pixel along each axis
+    ctx : the moderngl context to draw on (None: a headless one of its own)
+    reps : representations to upload (the full-detail reps, statics, scenery)
+    """
+
+    def __init__(self, size, k: int = DEFAULT_K, ctx=None, reps=()):
+        from render.context import create_context
+        from render.renderer import Renderer
+
+        self.size = (int(size[0]), int(size[1]))
+        self._own_ctx = ctx is None
+        self.ctx = create_context() if ctx is None else ctx
+        self.plan = plan_tiles(self.size, check_k(k), *gl_limits(self.ctx))
+        self.renderer = Renderer(self.plan.tile_pixels, ctx=self.ctx)
+        self.renderer.pose_sharing = False
+        for rep in reps:
+            self.renderer.upload(rep)
+
+    @property
+    def big(self) -> tuple:
+        """The size to select the frame at: K x the output size."""
+        return self.plan.k * self.size[0], self.plan.k * self.size[1]
+
+    def draw(self, drawlist, background=(0.1, 0.1, 0.12)) -> np.ndarray:
+        """(h, w, 3) uint8: ``drawlist`` (selected at :attr:`big`) drawn in tiles and filtered."""
+        return draw_tiles(self.renderer, drawlist, self.plan, background)
+
+    def release(self) -> None:
+        """Release the renderer, and the context when it is this one's own (safe twice)."""
+        self.renderer.release()
+        if self._own_ctx and self.ctx is not None:
+            self.ctx.release()
+            self.ctx = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+
 class ReferenceDrawer:
     """Draws an :class:`crowd.engine.Engine`'s current state as the K x K reference.
 

@@ -7,8 +7,8 @@ import pytest
 from crowd_testutil import tiny_scene
 
 from crowd.errors import CrowdError
-from crowd.reference import (DEFAULT_K, box_filter, check_fits, check_k, draw_tiles, plan_tiles, reference_frames,
-                             tile_projection)
+from crowd.reference import (DEFAULT_K, TileRenderer, box_filter, check_fits, check_k, draw_tiles, plan_tiles,
+                             reference_frames, tile_projection)
 from crowd.scene import load_scene
 from lod.drawlist import DrawBatch, DrawList
 from lod.full.reps import StaticRep
@@ -151,6 +151,9 @@ def test_flat_triangles_differ_from_the_aliased_frame_only_along_edges(gl_ctx):
     with Renderer(plan.tile_pixels, ctx=gl_ctx) as r:
         r.upload(rep)
         ref = draw_tiles(r, dl(plan.tile_pixels), plan, (0.1, 0.1, 0.12))
+    with TileRenderer(size, k, ctx=gl_ctx, reps=[rep]) as tiles:  # the benchmarks' way: the same image
+        assert tiles.big == plan.tile_pixels
+        assert np.array_equal(tiles.draw(dl(tiles.big), (0.1, 0.1, 0.12)), ref)
     diff = np.abs(aliased.astype(int) - ref.astype(int)).max(axis=2)
     far = _pixel_edge_distance(rep, cam, size) > 1.0 + math.sqrt(0.5)  # the whole pixel more than 1 px away
     assert far.mean() > 0.8
