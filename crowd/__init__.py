@@ -11,8 +11,10 @@ The only package that imports sim, lod and render; nothing imports it. Modules i
 - ``crowd.fly``: the interactive fly-through; ``crowd.inspect``: a character's cluster hierarchy (pyvista).
 - ``crowd.build``: LOD hierarchies built ahead of time on dask; ``crowd.calibrate``: the cost model's machine
   coefficients.
-- ``crowd.image_metrics``: image error against the full-detail reference; ``crowd.report``: reports over scenes
-  and swept settings (a package).
+- ``crowd.reference``: the true reference, full detail with K x K samples per pixel, box-filtered (tiled where the
+  GL limits ask); ``crowd.reference_cache``: its frames cached by content.
+- ``crowd.image_metrics``: image error against the reference; ``crowd.report``: reports over scenes and swept
+  settings (a package).
 """
 import os as _os
 
