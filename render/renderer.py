@@ -82,6 +82,10 @@ INSTANCE_BYTES = INSTANCE_FLOATS * 4
 INITIAL_INSTANCES = 1024
 #: skinning paths: "palette" (per-frame pre-pass, default) or "direct"
 SKINNING_MODES = ("palette", "direct")
+#: where the compute rasteriser's work composes among the plug-in drawers (their ``order``): after the world drawer
+#: (-10: the ground, and the props and solids it hands to the compute path), before the blob shadows (-5: decals
+#: that write no depth, which ground rasterised after them would cover), the clusters (0) and the points (10)
+RASTER_ORDER = -7.5
 #: environment variable that turns on debug checks (finite instance data)
 DEBUG_ENV = "CROWD_GL_DEBUG"
 #: most triangles handed to the driver in one instanced draw before the renderer
@@ -604,15 +608,17 @@ class Renderer:
             # a drawer issuing occlusion queries of its own (``uses_queries``) runs after the frame's
             # samples query closes: GL allows one active samples query at a time
             querying = [k for k in kinds if getattr(self._drawers[k], "uses_queries", False)]
+            rc = None
             for kind in kinds:
                 if kind in querying:
                     continue
+                if rc is None and getattr(self._drawers[kind], "order", 0) > RASTER_ORDER:
+                    rc = self._raster_pass(view_proj)
                 self.fbo.use()
                 self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
-            # the compute rasteriser's work of the frame (built-in batches, the world's props and solids)
-            rc = self.raster.draw(self.raster_work, view_proj) if self.raster_work else {}
+            if rc is None:
+                rc = self._raster_pass(view_proj)
             drawlist.stats["raster_triangles"] = int(rc.get("triangles", 0)) - int(rc.get("spilled", 0))
-            self.raster_work = []
         for kind in querying:
             self.fbo.use()
             self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
@@ -630,6 +636,13 @@ class Renderer:
         self.last_timings = timings
         drawlist.stats["pose_passes"] = int(self.pose_evaluations)
         return timings
+
+    def _raster_pass(self, view_proj) -> dict:
+        """The compute rasteriser's work of the frame (built-in batches, the world's props and solids), composed
+        by depth at :data:`RASTER_ORDER`; its counts ({} when there was none)."""
+        rc = self.raster.draw(self.raster_work, view_proj) if self.raster_work else {}
+        self.raster_work = []
+        return rc
 
     def capture(self, key: str, instance_data: np.ndarray, part: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Vertex positions and normals as the draw shader computes them (``render.poses.capture``)."""

@@ -144,6 +144,38 @@ def test_blob_shadow_lies_under_each_agents_feet(gl_ctx):
     assert np.abs(images["blob"] - ground)[~near].max() <= 1
 
 
+def test_blob_shadows_survive_ground_drawn_by_the_compute_rasteriser(gl_ctx):
+    """Ground of small triangles taken by the compute rasteriser: it composes before the blob shadows (decals
+    that write no depth), so the blobs stay, and the frame is the hardware path's."""
+    cam = Camera.look_at((0.0, 12.0, 0.01), (0.0, 0.0, 0.0), fov_y=45.0)
+    feet = np.array([[-3.0, 0.0, 0.0], [0.0, 0.0, 2.0], [3.0, 0.0, -1.0], [2.0, 0.0, 3.0]])
+    agent = box_rep("static:agent", (-0.05, 0.0, -0.05), (0.05, 1.7, 0.05))
+    n, half = 60, 12.0  # 7,200 triangles of ~0.4 m: 2-3 pixels each
+    g = np.linspace(-half, half, n + 1)
+    xx, zz = np.meshgrid(g, g)
+    pos = np.stack([xx.ravel(), np.zeros(xx.size), zz.ravel()], 1)
+    q = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    tris = np.stack([q, q + n + 1, q + 1, q + 1, q + n + 1, q + n + 2], 1).reshape(-1, 3)
+    ground = _rep("static:ground", pos, np.tile([0.0, 1.0, 0.0], (pos.shape[0], 1)), tris.ravel(), GROUND)
+    images, raster = {}, {}
+    with Renderer(SIZE, ctx=gl_ctx) as r:
+        r.upload(ground)
+        r.upload(agent)
+        r.lighting.configure(mode="blob")
+        for route in ("hardware", "compute"):
+            r.compute_raster = route == "compute"
+            r.raster.route_all = route == "compute"
+            dl = drawlist(cam, [("static:ground", [-1], [(0, 0, 0)]), ("static:agent", range(4), feet)])
+            r.draw(dl)
+            images[route], raster[route] = luma(r.read_pixels()), dl.stats["raster_triangles"]
+        r.raster.route_all = False
+    assert raster["hardware"] == 0 and raster["compute"] > 5000
+    r_blob = footprint(agent)[3]
+    ring = [f + 0.5 * r_blob * np.array([-f[2], 0.0, f[0]]) / np.hypot(f[0], f[2]) for f in feet]
+    assert (at(images["compute"], cam, ring) < at(images["compute"], cam, [(-5.0, 0.0, 4.0)])[0] - 15).all()
+    assert np.abs(images["compute"] - images["hardware"]).mean() < 0.5
+
+
 # ---------------------------------------------------------------------------------------------------------- map
 def test_fit_light_matrix_holds_the_spheres_and_refuses_nothing_finite():
     c = np.array([[0.0, 0.0, 0.0], [10.0, 2.0, -5.0], [-3.0, 1.0, 4.0]])
