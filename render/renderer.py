@@ -83,9 +83,10 @@ INITIAL_INSTANCES = 1024
 #: skinning paths: "palette" (per-frame pre-pass, default) or "direct"
 SKINNING_MODES = ("palette", "direct")
 #: where the compute rasteriser's work composes among the plug-in drawers (their ``order``): after the world drawer
-#: (-10: the ground, and the props and solids it hands to the compute path), before the blob shadows (-5: decals
-#: that write no depth, which ground rasterised after them would cover), the clusters (0) and the points (10)
-RASTER_ORDER = -7.5
+#: (-10: the ground, and the props and solids it hands to the compute path) and the clusters (0: the cuts it takes),
+#: before the blob shadows (5: decals that write no depth, which ground rasterised after them would cover) and the
+#: points (10)
+RASTER_ORDER = 2.5
 #: environment variable that turns on debug checks (finite instance data)
 DEBUG_ENV = "CROWD_GL_DEBUG"
 #: most triangles handed to the driver in one instanced draw before the renderer
@@ -622,6 +623,9 @@ class Renderer:
         for kind in querying:
             self.fbo.use()
             self._drawers[kind].draw(plugin[kind], drawlist, view_proj)
+        if self.raster_work:  # work a querying drawer handed over (cluster cuts with occlusion culling)
+            late = self._raster_pass(view_proj)
+            drawlist.stats["raster_triangles"] += int(late.get("triangles", 0)) - int(late.get("spilled", 0))
         t2 = time.perf_counter()
         ctx.finish()
         t3 = time.perf_counter()

@@ -21,8 +21,8 @@ Shadows: the ground and the meshes receive the shadow map; the meshes cast into
 it (:meth:`Drawer.cast_shadows`, called by ``Lighting.shadow_pass`` before the
 frame is drawn); the ground only receives. The world gets no blob shadows
 (:attr:`Drawer.blob_shadows`): blobs are the agents'. The ground is drawn first,
-then the meshes, before the blob shadows (``order`` -5: decals on the ground)
-and the point and cluster drawers (``order``), which depth-test against them.
+then the meshes, before the cluster and point drawers and the blob shadows (``order`` 5: decals on the ground),
+which depth-test against them.
 """
 from __future__ import annotations
 

@@ -29,9 +29,11 @@
   lowest vertex under the centre of its footprint, through the instance matrix), radius from the footprint of the
   representation's rest pose times the instance scale; alpha-blended, depth-tested without depth writes, lifted by
   :data:`BLOB_LIFT` metres and pulled forward by polygon offset (no z-fighting with the ground). The renderer
-  runs it as a plug-in drawer ordered after its own batches (characters, terrain) and the world's ground, before
-  the cluster and point drawers: a decal on whatever is already in the depth buffer at the agent's feet, hidden
-  where a character stands in front of it.
+  runs it as a plug-in drawer ordered after every other writer of the ground's depth and colour -- its own
+  batches (characters, terrain), the world's ground, the clusters and the compute rasteriser's work
+  (``render.renderer.RASTER_ORDER``: ground it rasterised after the blobs would cover them) -- and before the
+  point splats: a decal on whatever is already in the depth buffer at the agent's feet, hidden where a character
+  stands in front of it.
 
 Everything handed to the GPU is checked finite; a frame without casters draws no map (everything lit).
 """
@@ -177,8 +179,9 @@ class Lighting:
     :data:`SHADOW_MODES`), ``distance`` (metres), ``map_size`` (texels).
     """
 
-    #: draw position among the renderer's plug-in drawers (see :meth:`draw`)
-    order = -5
+    #: draw position among the renderer's plug-in drawers (see :meth:`draw`): after the world (-10), the clusters
+    #: (0) and the compute rasteriser (``render.renderer.RASTER_ORDER``), before the points (10)
+    order = 5
 
     def __init__(self, renderer):
         self.r = renderer
@@ -374,10 +377,11 @@ class Lighting:
         """Draw the blob shadows of this frame (see the module docstring): every agent of ``drawlist`` in mode
         "blob", the agents drawn as points or clusters in mode "map", none in mode "none".
 
-        The renderer calls this as a plug-in drawer of :attr:`order` -5: after its own triangle batches (the
-        characters in modes none and triangles, the terrain) and the world's ground (``order`` -10), before the
-        cluster (0) and point (10) drawers, so the blobs are depth-tested against the characters already drawn
-        and the later ones cover them."""
+        The renderer calls this as a plug-in drawer of :attr:`order` 5: after its own triangle batches (the
+        characters in modes none and triangles, the terrain), the world's ground (``order`` -10), the clusters
+        (0) and the compute rasteriser's work (``render.renderer.RASTER_ORDER``), so the blobs are depth-tested
+        against the characters already drawn and no ground drawn later covers them; before the point splats
+        (10), which cover them where they are nearer."""
         self.last_counts["blobs"] = self.last_counts["blobs_drawn"] = 0
         if self.mode == "none":
             return
