@@ -6,9 +6,11 @@
     crowd fly SCENE [--size WxH] [--out DIR] [--record PATH] [--frames N] [--budget MS]
     crowd report SCENE... [--sweep KEY=V1,V2,...]... [--frames N] [--size WxH] [--out DIR] [--sample-every K]
                  [--compare BASELINE_DIR] [--repeat N] [--cluster local|none|tcp://HOST:PORT] [--reference-samples K]
+                 [--quiet]
     crowd calibrate [--quick] [--size WxH] [--no-save]
-    crowd build ASSET... [--mode points|clusters|triangles|auto|all] [--cluster local|none|tcp://HOST:PORT]
+    crowd build ASSET... [--mode points|clusters|triangles|auto|all] [--cluster local|none|tcp://HOST:PORT] [--quiet]
     crowd inspect ASSET [--png FILE] [--clip NAME] [--time S] [--pose K] [--poe P] [--camera X,Y,Z] [--size WxH]
+                  [--clustering error-aware|octree]
 
 Bad input (scene, asset, parameter) is reported as one line on stderr with exit
 code 2 and no traceback; nothing is written. Unexpected exceptions keep their
