@@ -158,7 +158,8 @@ class ClusterPool:
 
         Returns
         -------
-        list of (handle, value) in the order of ``jobs``; ``done(value)`` is called as each one finishes.
+        list of (handle, value) in the order of ``jobs``; ``done(index, value)`` is called as each one finishes
+        (``index`` into ``jobs``).
         """
         out = [None] * len(jobs)
         if self._client is None:
@@ -166,7 +167,7 @@ class ClusterPool:
                 v = fn(*a)
                 out[i] = (_Done(v), v)
                 if done is not None:
-                    done(v)
+                    done(i, v)
             return out
         from distributed import as_completed
 
@@ -187,7 +188,7 @@ class ClusterPool:
             v = f.result()
             out[i] = (f, v)
             if done is not None:
-                done(v)
+                done(i, v)
             start(host, workers)
         return out
 

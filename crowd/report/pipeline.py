@@ -21,6 +21,7 @@ The report directory (written atomically, :func:`crowd.output.atomic_dir`)::
 
     index.html         self-contained page (relative links only; crowd.report.page)
     report.json        every number of the page (non-finite values as null)
+    table.md, table.csv  one row per scene and setting (crowd.report.table)
     plots/*.png        matplotlib (Agg) figures (crowd.report.plots; crowd.report.pedestrian for scenes with
                        [[measurement]] areas or lines: PedPy density, speed, flow, fundamental diagram;
                        crowd.report.population for scenes whose agents leave and enter)
@@ -65,11 +66,76 @@ from crowd.report.settings import Setting, _fmt_value
 DEFAULT_SAMPLES = 4
 
 
-def _progress(total: int, quiet: bool):
-    from tqdm import tqdm
+class _Lines:
+    """Progress where stderr is no terminal (a pipe, a log, CI): one line per finished timed run and reference,
+    the steps between (as a tqdm bar's ``update``/``set_postfix_str``, plus :meth:`line`)."""
 
-    return tqdm(total=total, desc="report", disable=quiet or not sys.stderr.isatty(), leave=False,
-                file=sys.stderr, dynamic_ncols=True)
+    def __init__(self, total: int):
+        self.total, self.n = total, 0
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+
+    def set_postfix_str(self, text: str) -> None:
+        self.line(text)
+
+    def line(self, text: str) -> None:
+        print(f"report [{self.n}/{self.total}]: {text}", file=sys.stderr, flush=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+class _Bar:
+    """tqdm's bar on a terminal; :meth:`line` shows the latest finished step beside it."""
+
+    def __init__(self, total: int):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, desc="report", leave=False, file=sys.stderr, dynamic_ncols=True)
+
+    def update(self, k: int = 1) -> None:
+        self.bar.update(k)
+
+    def set_postfix_str(self, text: str) -> None:
+        self.bar.set_postfix_str(text)
+
+    def line(self, text: str) -> None:
+        self.bar.set_postfix_str(text)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.bar.close()  # closed before anything else is printed (no summary glued to a frozen bar)
+        return False
+
+
+class _Silent:
+    def update(self, k: int = 1) -> None:
+        pass
+
+    def set_postfix_str(self, text: str) -> None:
+        pass
+
+    def line(self, text: str) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+def _progress(total: int, quiet: bool):
+    """The report's progress: nothing with ``quiet``, a bar on a terminal, else one line per step (stderr)."""
+    if quiet:
+        return _Silent()
+    return _Bar(total) if sys.stderr.isatty() else _Lines(total)
 
 
 def finite_or_none(x):
@@ -151,7 +217,14 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
     n_metrics = 2 * sum(len(s) * len(range(0, s[0].scene.frames, k)) for (_, s), k in zip(all_settings, ks))
     data = {"scenes": [], "flip": flip_available(), "sweeps": [[k, v] for k, v in sweeps], "machine": None,
             "repeat": repeat, "reference": {"k": k_ref, "filter": FILTER}}
-    with pool, atomic_dir(out) as tmp, _progress(n_timed + n_refs + n_metrics, quiet) as bar:
+    progress = _progress(n_timed + n_refs + n_metrics, quiet)
+    n_set = sum(len(s) for _, s in all_settings)
+    n_aliased = sum(s.label.startswith(ALIASED_LABEL) for _, ss in all_settings for s in ss)
+    progress.line(f"{len(all_settings)} scene(s), {n_set} setting(s)"
+                  + (f" ({n_aliased} of them aliased full detail, added)" if n_aliased else "")
+                  + f": {n_timed} timed run(s), {n_refs} reference(s) at K = {k_ref}, {n_metrics} image comparisons; "
+                  f"starting {'the cluster' if cluster not in (None, 'none') else 'in this process'}")
+    with pool, atomic_dir(out) as tmp, progress as bar:
         data["cluster"] = pool.description
         data["hosts"] = {h: len(w) for h, w in pool.hosts().items()}
         for d in ("plots", "samples", "runs"):
@@ -168,9 +241,13 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
                     where.append((si, st, i))
         bar.set_postfix_str(f"timed runs on {pool.description}")
 
-        def timed_done(v):
+        def timed_done(i, v):
             _checked(v)
             bar.update(1)
+            si, st, rep = where[i]
+            bar.line(f"timed run of {names[si]} [{st.label}]" + (f" (repeat {rep + 1})" if rep else "")
+                     + f": median {1e3 * float(np.median(frame_seconds(v['columns']))):.1f} ms over "
+                     f"{len(v['columns'].get('frame', []))} frames")
 
         timed = pool.timed(run_task, jobs, done=timed_done)
         runs_of = [[] for _ in all_settings]  # per scene: (RunData, handle of the first run)
@@ -215,6 +292,10 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
         ref_values = dict(zip(ref_handles, pool.results(list(ref_handles.values()), done=lambda: bar.update(1))))
         for (si, name), v in ref_values.items():
             _checked(v)
+            secs = list(v["seconds"].values())
+            bar.line(f"reference of {names[si]} {name[len('reference_'):]}: {len(v['files'])} frames, "
+                     f"{len(v['drawn'])} drawn" + (f" ({float(np.median(secs)):.1f} s each)" if v["drawn"] else "")
+                     + f", {len(v['cached'])} from the cache")
             data["schedule"].append({"kind": "reference", "scene": names[si], "label": name[len("reference_"):],
                                      "run": 0, "host": v.get("host"), "start": v.get("start"), "end": v.get("end")})
             _write_files(tmp / "runs" / slugs[si] / name, v["files"])
@@ -262,6 +343,10 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
 
         write_json(tmp / "report.json", _json_safe(data))
         write_atomic(tmp / "index.html", render_html(data))
+        from crowd.report.table import csv_text, markdown
+
+        write_atomic(tmp / "table.md", markdown(data))  # the page's figures as text (crowd.report.table)
+        write_atomic(tmp / "table.csv", csv_text(data))
     return ReportResult(out_dir=out, data=data)
 
 
@@ -363,6 +448,7 @@ def _setting_entry(run: RunData, tmp: Path) -> dict:
             "lod_params": dict(st.scene.lod_params), "size": list(st.scene.render.size),
             "run_dir": str(run.out_dir.relative_to(tmp)),
             "frame_ms": {q: ft[q] * 1e3 for q in ("mean", "p50", "p95", "p99", "max")},
+            "first_frame_ms": float(frame_seconds(run.columns)[0]) * 1e3 if len(run.columns.get("frame", [])) else None,
             "repeat_medians_ms": [m * 1e3 for m in run.repeat_medians],
             "stage_ms": {k: stages[k]["mean"] * 1e3 for k in STAGE_COLUMNS if stages.get(k)},
             "gpu_ms": (stages["gpu"]["p50"] * 1e3) if stages.get("gpu") else None,

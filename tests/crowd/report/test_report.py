@@ -143,6 +143,15 @@ def test_report_of_a_tiny_scene_with_a_two_value_sweep(write_scene, tmp_path):
     assert clusters["triangles"] <= nolod["triangles"] and clusters["triangles"] > 0
     assert clusters["accuracy"]["psnr"] is None or 10.0 < clusters["accuracy"]["psnr"]
     assert clusters["accuracy_aliased"]["psnr"] is None or 10.0 < clusters["accuracy_aliased"]["psnr"]
+    # the page's figures as text beside it (crowd.report.table)
+    import csv
+
+    table = list(csv.DictReader((out / "table.csv").open()))
+    assert [(r["setting"], r["runs"]) for r in table] == [("lod.mode=none", "1"), ("lod.mode=clusters", "1")]
+    assert float(table[1]["psnr_db"]) == pytest.approx(clusters["accuracy"]["psnr"]) or clusters["accuracy"]["psnr"] is None
+    assert float(table[0]["first_frame_ms"]) == pytest.approx(nolod["frame_ms"]["max"], rel=0.5)
+    md = (out / "table.md").read_text()
+    assert md.count("| tiny |") == 2 and "one run" in md and "4 x 4 samples per pixel" in md
     (ref,) = sc["reference"]
     assert ref["k"] == 4 and ref["size"] == [96, 72] and ref["frames"] == 6 and ref["drawn"] + ref["cached"] == 6
     assert data["reference"]["k"] == 4 and "box filter" in data["reference"]["filter"] and "4 x 4 samples" in page
@@ -378,11 +387,31 @@ def test_a_run_that_fails_on_bad_input_is_one_sentence_exit_2(write_scene, tmp_p
     scene = write_scene(REPORT_SCENE.replace('character = "walker"', 'character = "walker"\nclip = "nope"'))
     out = tmp_path / "rep"
     r = run_cli("report", scene, "--out", out, "--cluster", "none")
-    lines = r.stderr.strip().splitlines()
+    lines = [x for x in r.stderr.strip().splitlines() if not x.startswith("report [")]  # progress before it
     assert r.returncode == 2 and len(lines) == 1 and "clip" in lines[0] and "'nope'" in lines[0], r.stderr
+    assert r.stderr.strip().splitlines()[-1] == lines[0]  # the error is the last word
     assert "Traceback" not in r.stderr and not out.exists() and not list(tmp_path.glob(".rep*"))
     err = {"error": "x.toml: frame 3: NaN in positions", "exit_code": 3}
     with pytest.raises(CrowdError, match="NaN") as e:
         _checked(err)
     assert e.value.exit_code == 3
     assert run_task.__doc__ and _checked({"a": 1}) == {"a": 1}
+
+
+def test_report_progress_without_a_terminal_is_one_line_per_step(write_scene, tmp_path):
+    """stderr a pipe (a log, CI): the plan first (before any run), then one line per timed run and reference."""
+    scene = write_scene(REPORT_SCENE.replace("frames = 6", "frames = 2"))
+    out = tmp_path / "rep"
+    r = run_cli("report", scene, "--sweep", "lod.mode=none,points,clusters,triangles", "--out", out,
+                "--cluster", "none")
+    assert r.returncode == 0, r.stderr
+    lines = [x for x in r.stderr.splitlines() if x.startswith("report [")]
+    assert lines[0].endswith("1 scene(s), 4 setting(s): 4 timed run(s), 1 reference(s) at K = 4, 16 image "
+                             "comparisons; starting in this process")
+    timed = [x for x in lines if "timed run of tiny [" in x]
+    assert [x.split("[", 2)[2].split("]")[0] for x in timed] == [
+        "lod.mode=none", "lod.mode=points", "lod.mode=clusters", "lod.mode=triangles"]
+    assert any("reference of tiny 96x72: 2 frames" in x for x in lines)
+    assert (out / "table.md").is_file() and (out / "table.csv").is_file()
+    q = run_cli("report", scene, "--out", tmp_path / "q", "--cluster", "none", "--quiet")
+    assert q.returncode == 0 and q.stderr.strip() == "" and q.stdout.strip() == ""
