@@ -273,6 +273,11 @@ def cmd_run(args) -> int:
         raise CrowdError(f"{scene.path}: --explain-lod explains the choices of LOD mode auto; the scene's "
                          f"[lod] mode is {scene.lod_mode!r}")
     with Engine(scene, quiet=args.quiet or args.explain_lod) as engine:
+        if not args.quiet:
+            from crowd.start_check import start_warnings
+
+            for line in start_warnings(scene, engine.plan.state, engine.plan.agents_per_placement):
+                print(line, file=sys.stderr)
         if args.explain_lod:
             engine.explain_lod = (lambda text: None) if args.quiet else (lambda text: print(text, flush=True))
         result = engine.run()
@@ -290,6 +295,10 @@ def cmd_validate(args) -> int:
     print(f"OK {args.scene}: scene {scene.name!r}")
     for line in p.summary_lines():
         print("  " + line)
+    from crowd.start_check import start_warnings
+
+    for line in start_warnings(scene, p.state, p.agents_per_placement):  # valid, but frame 0 shows it
+        print(line, file=sys.stderr)
     from crowd.memory import estimate_scene
 
     print("  " + estimate_scene(scene, p.characters).line())

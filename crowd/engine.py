@@ -22,6 +22,7 @@ import numpy as np
 from crowd.characters import build_character, clip_duration, clip_names
 from crowd.errors import SceneError, SimulationError
 from crowd.scene import Scene
+from crowd.start_check import check_walkable
 from lod.debug_colors import COLOR_BY  # noqa: F401  (the fly-through's colour-by modes)
 from sim.params import ParamError
 
@@ -124,7 +125,9 @@ def plan(scene: Scene, quiet: bool = True) -> Plan:
         st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
         states.append(st)
         counts.append(st.n)
-    return Plan(scene, chars, concat_states(states), counts, big)
+    state = concat_states(states)
+    check_walkable(scene, state)  # crowd validate refuses what crowd run would (crowd.start_check)
+    return Plan(scene, chars, state, counts, big)
 
 
 def _progress(it, desc: str, disable: bool, total: int | None = None):

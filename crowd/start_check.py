@@ -1,0 +1,65 @@
+"""Where the agents start: placements that put agents inside an obstacle or outside the walkable area.
+
+With the ``routing`` effect an agent must start in its walkable area (outside the polygons or inside an obstacle
+is an error of the scene: the routing effect's install refuses it, and :func:`check_walkable` makes the same check
+when the scene's agents are planned, so ``crowd validate`` refuses what ``crowd run`` would). With ``obstacles``
+alone a grid of agents may be placed across a wall: the effect pushes them out on the first step
+(``sim.obstacles``, the projection), but frame 0 shows them overlapping the wall and the crowd's first moves are a
+jolt. ``crowd validate`` warns of it and ``crowd run`` says it once: one line per placement, with counts
+(:func:`start_warnings`; inside: the obstacles' signed distance is negative at the agent's floor point).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _effect(scene, name: str):
+    return next((e for e in scene.effects if e.name == name), None)
+
+
+def check_walkable(scene, state) -> None:
+    """With ``routing``: every agent of ``state`` starts in the walkable area (``sim.routing.effect.check_agents``).
+
+    Raises
+    ------
+    crowd.errors.SceneError
+        The placement and the first agent outside the area or inside an obstacle, and how many more.
+    """
+    if _effect(scene, "routing") is None:  # a scene without routing imports none of it
+        return
+    from crowd.scene_routing import walkable_of
+
+    area = walkable_of(list(scene.effects))
+    if area is None:
+        return
+    from crowd.errors import SceneError
+    from sim.params import ParamError
+    from sim.routing.effect import check_agents
+
+    try:
+        check_agents(area, state)
+    except ParamError as e:
+        raise SceneError(scene.path, e.key, e.message) from None
+
+
+def start_warnings(scene, state, agents_per_placement) -> list:
+    """One sentence per placement of ``scene`` with agents of ``state`` (its placements back to back, as
+    :func:`crowd.engine.plan` builds it) starting inside an obstacle of the ``obstacles`` effect."""
+    obstacles = _effect(scene, "obstacles")
+    if int(state.n) == 0 or obstacles is None:
+        return []
+    from sim.obstacles import ObstacleSet
+
+    obs = ObstacleSet.from_config(dict(obstacles.params))
+    if not obs.count:
+        return []
+    xz = np.asarray(state.position, np.float64)[:, [0, 2]]
+    inside = obs.sdf(xz[:, 0], xz[:, 1])[0] < 0.0
+    out, first = [], 0
+    for p, count in zip(scene.placements, agents_per_placement):
+        k = int(inside[first:first + int(count)].sum())
+        if k:
+            out.append(f"warning: {scene.path}: placement[{p.index}]: {k} of its {int(count)} agents start inside "
+                       "an obstacle (the obstacles effect pushes them out on the first step)")
+        first += int(count)
+    return out
