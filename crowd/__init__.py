@@ -5,6 +5,7 @@ The only package that imports sim, lod and render; nothing imports it. Modules i
 - ``crowd.cli`` (and ``__main__``): the ``crowd`` command line; ``crowd.errors``: one-sentence user errors.
 - ``crowd.scene``: scene files loaded and validated in full; ``crowd.characters``: the characters they name.
 - ``crowd.memory``: the memory estimate and guard.
+- ``crowd.plan``: a scene's characters built and agents placed (no GL); ``crowd.start_check``: where they start.
 - ``crowd.engine``: builds the world, the LOD mode and the renderer, runs the frame loop.
 - ``crowd.telemetry``, ``crowd.output``: per-frame timings and counts, written atomically; ``crowd.video``: the
   run as an H.264 MP4 (imageio-ffmpeg).

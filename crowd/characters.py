@@ -53,6 +53,44 @@ def build_character(spec: CharacterSpec):
     return ch
 
 
+def build_scene_character(scene_path, index: int, spec: CharacterSpec):
+    """:func:`build_character` of a scene's ``characters[index]``; a file it cannot load is named with the scene
+    and the key that pointed to it (``scene.toml: characters[0].file: /path/fox.glb: truncated GLB: ...``).
+
+    Raises
+    ------
+    crowd.errors.SceneError
+        The asset's own one-sentence error, behind the scene, key and the file's full path.
+    """
+    from sim.errors import AssetError as SimAssetError
+
+    try:
+        return build_character(spec)
+    except (SimAssetError, AssetError) as e:
+        raise scene_asset_error(scene_path, [spec], e, index) from None
+
+
+def scene_asset_error(scene_path, specs, error, index: int | None = None):
+    """A :class:`crowd.errors.SceneError` of ``error`` (an asset's one-sentence error) naming the scene, the key
+    of the character it is about (``index``, or the one of ``specs`` whose file the message names) and the
+    file's full path; ``error`` itself when no character's file is named."""
+    from crowd.errors import SceneError
+
+    msg = str(error).splitlines()[0] if str(error) else type(error).__name__
+    for i, spec in enumerate(specs):
+        if spec.file is None:
+            continue
+        for head in (f"{spec.file}: ", f"{Path(spec.file).name}: "):
+            if msg.startswith(head):
+                return SceneError(scene_path, f"characters[{i if index is None else index}].file",
+                                  f"{spec.file}: {msg[len(head):]}")
+    if index is not None:
+        spec = specs[0]
+        key = f"characters[{index}]" + (".file" if spec.file is not None else "")
+        return SceneError(scene_path, key, f"{spec.file}: {msg}" if spec.file is not None else msg)
+    return error
+
+
 def set_variation_mask(ch, regions=None) -> None:
     """Write the colour-variation mask into the alpha of the character's vertex
     colours (render/tint.py: 1 varies, 0 keeps its colour): 1 on the vertices of

@@ -287,7 +287,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from crowd.engine import plan
+    from crowd.plan import plan
     from crowd.scene import load_scene
 
     scene = load_scene(args.scene)

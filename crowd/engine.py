@@ -12,130 +12,19 @@ seed, so a run is deterministic for a seed (``CrowdState.digest``).
 from __future__ import annotations
 
 import inspect
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from crowd.characters import build_character, clip_duration, clip_names
+from crowd.characters import scene_asset_error
 from crowd.errors import SceneError, SimulationError
+from crowd.plan import plan, progress_bar
 from crowd.scene import Scene
-from crowd.start_check import check_walkable
 from lod.debug_colors import COLOR_BY  # noqa: F401  (the fly-through's colour-by modes)
+from sim.errors import AssetError as SimAssetError
 from sim.params import ParamError
-
-#: show a progress bar for character building when the scene has at least this many characters
-#: or this many triangles in all
-PROGRESS_MIN_CHARACTERS = 3
-PROGRESS_MIN_TRIANGLES = 200_000
-
-
-# ---------------------------------------------------------------------------------------------------------------------
-# plan: characters + agents, no systems, no GL
-# ---------------------------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class Plan:
-    """Characters and the initial CrowdState of a scene (built, nothing installed).
-
-    characters : list of sim.character.Character, index = CrowdState.character
-    state : sim.state.CrowdState of all placements concatenated
-    agents_per_placement : list of int
-    """
-
-    scene: Scene
-    characters: list
-    state: object
-    agents_per_placement: list = field(default_factory=list)
-    big: bool = False  # long builds: show progress bars
-
-    def triangles(self, character_index: int) -> int:
-        ch = self.characters[character_index]
-        if ch.kind == "skinned":
-            return int(ch.mesh.n_triangles)
-        anims = list(ch.animations.values())
-        return int(max((max(s.indices.shape[0] for s in a.segments) for a in anims if a.segments), default=0))
-
-    def triangles_per_frame(self) -> int:
-        """Triangles drawn per frame at full detail (lod mode "none", nothing culled)."""
-        counts = np.bincount(self.state.character, minlength=len(self.characters))
-        return int(sum(int(counts[i]) * self.triangles(i) for i in range(len(self.characters))))
-
-    def summary_lines(self) -> list:
-        s = self.scene
-        lines = [f"characters: {len(self.characters)} ("
-                 + ", ".join(f"{c.name}: {self.triangles(i)} triangles, clips {', '.join(clip_names(c)) or '-'}"
-                             for i, c in enumerate(self.characters)) + ")",
-                 f"agents: {self.state.n} in {len(self.agents_per_placement)} placement group(s) "
-                 f"({', '.join(map(str, self.agents_per_placement))})",
-                 f"effects: {', '.join(s.effect_names) or 'none'}",
-                 *([f"props: {sum(p.instances for p in s.props)} of {len(s.props)} mesh file(s) ("
-                    + ", ".join(f"{p.name}: {p.instances} x {p.triangles} triangles" for p in s.props) + ")"]
-                   if s.props else []),
-                 f"triangles per frame (full detail, before culling): {self.triangles_per_frame():,}",
-                 f"frames: {s.frames} at dt {s.dt:g} s x {s.substeps} substep(s); "
-                 f"{s.render.size[0]}x{s.render.size[1]}; lod {s.lod_mode!r}; output {s.output_dir}"]
-        return lines
-
-
-def plan(scene: Scene, quiet: bool = True) -> Plan:
-    """Build a scene's characters and agents; check clip names.
-
-    Raises
-    ------
-    crowd.errors.SceneError
-        An unknown clip (``placement[i].clip``) or a placement its builder rejects.
-    sim.errors.AssetError
-        A broken glTF file.
-    """
-    from crowd.memory import guard
-    from sim.placement import PLACEMENTS, concat_states
-
-    guard(scene)  # refuse a scene too big for the machine before building anything
-    specs = scene.characters
-    big = len(specs) >= PROGRESS_MIN_CHARACTERS or sum(c.triangles or 0 for c in specs) >= PROGRESS_MIN_TRIANGLES
-    chars = []
-    for spec in _progress(specs, "characters", disable=quiet or not big):
-        chars.append(build_character(spec))
-    guard(scene, chars)  # again with the built characters, before allocating the agents
-    seeds = np.random.SeedSequence(scene.seed).spawn(len(scene.placements))
-    states, counts = [], []
-    for p, ss in zip(scene.placements, seeds):
-        where = f"placement[{p.index}]"
-        ch = chars[p.character]
-        names = clip_names(ch)
-        if not names:
-            raise SceneError(scene.path, f"{where}.character",
-                             f"character {scene.characters[p.character].name!r} has no animation clip")
-        if p.clip is None:
-            ci = 0
-        elif p.clip in names:
-            ci = names.index(p.clip)
-        else:
-            raise SceneError(scene.path, f"{where}.clip", f"unknown clip {p.clip!r} of character "
-                             f"{scene.characters[p.character].name!r}; accepted: {', '.join(map(repr, names))}")
-        build = PLACEMENTS[p.kind][1]
-        try:
-            st = build(p.params, p.character, ci, np.random.default_rng(ss), clip_duration(ch, ci))
-        except ParamError as e:
-            raise SceneError(scene.path, f"{where}.{e.key}", e.message) from None
-        st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
-        states.append(st)
-        counts.append(st.n)
-    state = concat_states(states)
-    check_walkable(scene, state)  # crowd validate refuses what crowd run would (crowd.start_check)
-    return Plan(scene, chars, state, counts, big)
-
-
-def _progress(it, desc: str, disable: bool, total: int | None = None):
-    from tqdm import tqdm
-
-    return tqdm(it, desc=desc, total=total, disable=disable or not sys.stderr.isatty(), leave=False,
-                file=sys.stderr, dynamic_ncols=True)
-
 
 # ---------------------------------------------------------------------------------------------------------------------
 # engine
@@ -231,7 +120,10 @@ class Engine:
 
         check_journeys(scene, self.world)  # agents that cannot reach a stage of their journey: refused now
         self.camera_path = self._build_camera()
-        self.reps, self.statics = self._build_reps()
+        try:
+            self.reps, self.statics = self._build_reps()
+        except SimAssetError as e:  # a character file its representations cannot take: named with scene and key
+            raise scene_asset_error(scene.path, scene.characters, e) from None
         self.selector = self._build_selector()
         self.terrain_lod = self._build_terrain_lod()
         from crowd.world import build_scenery
@@ -300,7 +192,7 @@ class Engine:
         if built is None:
             sc = self.scene
             params = dict(sc.lod_params) if mode == sc.lod_mode else {}
-            progress = False if self.quiet else (lambda it, desc: _progress(it, desc, disable=not self.plan.big))
+            progress = False if self.quiet else (lambda it, desc: progress_bar(it, desc, disable=not self.plan.big))
             module = mode_module(mode)
             extra = {}
             if "instancing" in inspect.signature(module.build).parameters:
@@ -631,7 +523,7 @@ class Engine:
             if png_every:
                 (tmp / "frames").mkdir()
             run_start = time.perf_counter()
-            for f in _progress(range(frames), sc.name, disable=self.quiet, total=frames):
+            for f in progress_bar(range(frames), sc.name, disable=self.quiet, total=frames):
                 t_frame = time.perf_counter()
                 stages, systems = {}, {}
                 self.step(systems)

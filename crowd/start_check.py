@@ -44,7 +44,7 @@ def check_walkable(scene, state) -> None:
 
 def start_warnings(scene, state, agents_per_placement) -> list:
     """One sentence per placement of ``scene`` with agents of ``state`` (its placements back to back, as
-    :func:`crowd.engine.plan` builds it) starting inside an obstacle of the ``obstacles`` effect."""
+    :func:`crowd.plan.plan` builds it) starting inside an obstacle of the ``obstacles`` effect."""
     obstacles = _effect(scene, "obstacles")
     if int(state.n) == 0 or obstacles is None:
         return []

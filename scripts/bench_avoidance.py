@@ -242,12 +242,12 @@ def bottleneck_boxes() -> list:
 
 def load_bottleneck(path, seed: int | None = None) -> dict:
     """The bottleneck scene (``scenes/bottleneck.toml``) as both sides need it: the validated scene, its agents'
-    start positions (n, 2) (the scene's placement and seed, or ``seed`` instead, ``crowd.engine.plan``), the goals,
+    start positions (n, 2) (the scene's placement and seed, or ``seed`` instead, ``crowd.plan.plan``), the goals,
     avoidance and obstacles tables, and the obstacles as polygons and circles (``sim.obstacles.ObstacleSet``, boxes
     made polygons).
 
     Raises BenchError when the scene lacks one of those effects or is invalid."""
-    from crowd.engine import plan
+    from crowd.plan import plan
     from crowd.errors import CrowdError
     from crowd.scene import load_scene
     from sim.obstacles import ObstacleSet

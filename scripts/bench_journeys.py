@@ -38,7 +38,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _world(scene):
-    from crowd.engine import plan
+    from crowd.plan import plan
     from sim.world import World
 
     p = plan(scene)

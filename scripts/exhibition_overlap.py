@@ -31,7 +31,7 @@ import numpy as np
 
 def build_world(scene_path):
     """The scene's world with its effects installed (no renderer)."""
-    from crowd.engine import plan
+    from crowd.plan import plan
     from crowd.scene import load_scene
     from sim.world import World
 

@@ -80,7 +80,11 @@ def test_unsupported_asset_is_one_sentence_exit_2_nothing_written(tmp_path, monk
         r = run_cli("run", scene, "--out", tmp_path / "out", cwd=tmp_path)
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 2 and len(lines) == 1, r.stderr
-    assert lines[0].startswith(f"crowd {command}: error: {glb.name}: ") and what in lines[0], lines[0]
+    if command == "build":  # the file named on the command line: its name
+        assert lines[0].startswith(f"crowd {command}: error: {glb.name}: ") and what in lines[0], lines[0]
+    else:  # a scene's character: the scene, its key and the file's path (issue 48)
+        assert lines[0].startswith(f"crowd {command}: error: {scene}: characters[0].file: ") and what in lines[0]
+        assert str(glb.name) in lines[0], lines[0]
     assert r.stdout == ""
     assert not (tmp_path / "out").exists()
     assert not cache.exists() or not any(p.suffix == ".npz" for p in cache.rglob("*"))

@@ -159,7 +159,7 @@ def test_interrupt_mid_run_writes_nothing(tmp_path, write_scene):
 
 
 def test_placement_builder_error_names_the_key(tmp_path, write_scene):
-    from crowd.engine import plan
+    from crowd.plan import plan
 
     text = tiny_scene(effects="[]", replace={'kind = "grid"': 'kind = "list"', "rows = 2\ncols = 2\nspacing = [1.5, 1.5]":
                                "positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]\nheadings = [10.0]"})
@@ -169,7 +169,7 @@ def test_placement_builder_error_names_the_key(tmp_path, write_scene):
 
 
 def test_character_scale_multiplies_agent_scale(tmp_path, write_scene):
-    from crowd.engine import plan
+    from crowd.plan import plan
 
     scene = load_scene(write_scene(tiny_scene(effects="[]", replace={"triangles = 600": "triangles = 600\nscale = 2.0",
                                                        "rows = 2": "rows = 2\nscale = 1.5"})))

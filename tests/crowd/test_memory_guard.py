@@ -21,7 +21,7 @@ def test_placement_agents_counts_without_building():
 
 
 def test_estimate_matches_built_state_and_grows_linearly(write_scene):
-    from crowd.engine import plan
+    from crowd.plan import plan
 
     sc = load_scene(write_scene(tiny_scene()))
     e = memory.estimate_scene(sc)
@@ -62,7 +62,7 @@ def test_guard_refuses_with_estimate_in_one_sentence(write_scene):
 
 def test_plan_refuses_before_allocating(write_scene, monkeypatch):
     """10^14 agents would need petabytes: plan() must refuse before any array exists."""
-    from crowd.engine import plan
+    from crowd.plan import plan
 
     sc = load_scene(write_scene(tiny_scene(replace=HUGE_GRID)))
     with pytest.raises(SceneError, match="estimated"):
@@ -90,7 +90,7 @@ def test_human_bytes():
 
 
 def test_lod_mode_hierarchies_are_estimated(write_scene):
-    from crowd.engine import plan
+    from crowd.plan import plan
 
     none = load_scene(write_scene(tiny_scene()))
     pts = load_scene(write_scene(tiny_scene(replace={'mode = "none"': 'mode = "points"'}), "p.toml"))
@@ -151,7 +151,7 @@ def test_refusal_names_the_character_mode_and_setting(write_scene):
     """One agent of a character with a long clip in mode points on the per-keyframe-pair path: the refusal says
     which character, which mode and which setting, not "reduce the placements' counts"; the default path (samples
     that follow the animation) needs little whatever the clip's length."""
-    from crowd.engine import plan
+    from crowd.plan import plan
 
     text = tiny_scene(replace={'mode = "none"': 'mode = "points"\nanimation = "baked"'})
     sc = load_scene(write_scene(text, "dance.toml"))

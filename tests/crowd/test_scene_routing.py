@@ -68,7 +68,7 @@ def test_a_routed_scene_runs_and_draws_its_walls(tmp_path, write_scene):
 CHECK_IMPORTS = """
 import sys
 from crowd.scene import load_scene
-from crowd.engine import plan
+from crowd.plan import plan
 from sim.world import World
 sc = load_scene(sys.argv[1])
 pl = plan(sc)

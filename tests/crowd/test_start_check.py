@@ -2,7 +2,7 @@
 placement, with counts, exit 0) and ``crowd run`` says it once (crowd/start_check.py, issue 48)."""
 from crowd_testutil import run_cli
 
-from crowd.engine import plan
+from crowd.plan import plan
 from crowd.scene import load_scene
 from crowd.start_check import start_warnings
 
