@@ -112,7 +112,8 @@ def render_html(data: dict) -> str:
                        + (f" in {r['tiles']} tile(s) of {r['tile_pixels'][0]}x{r['tile_pixels'][1]} pixels"
                           if r.get("tiles") else "") + ".</p>")
         out.append("<table><tr><th>setting</th><th>size</th><th>p50 ms</th><th>p95 ms</th><th>p99 ms</th>"
-                   "<th>max ms</th><th>mean ms: " + " / ".join(STAGE_COLUMNS) + "</th><th>GPU p50 ms</th>"
+                   "<th>max ms</th><th>first frame ms (warm-up, in the figures before)</th><th>runs</th>"
+                   "<th>mean ms: " + " / ".join(STAGE_COLUMNS) + "</th><th>GPU p50 ms</th>"
                    "<th>triangles/frame</th><th>points/frame</th><th>PSNR dB</th><th>SSIM</th><th>FLIP</th>"
                    "<th>PSNR dB vs aliased full detail</th>"
                    "<th>flicker</th>"
@@ -122,6 +123,8 @@ def render_html(data: dict) -> str:
             stages = " / ".join(f"{s['stage_ms'].get(k, 0.0):.2f}" for k in STAGE_COLUMNS)
             out.append(f"<tr class='setting'><td>{e(s['label'])}</td><td>{s['size'][0]}x{s['size'][1]}</td>"
                        + "".join(f"<td class='n'>{fm[q]:.2f}</td>" for q in ("p50", "p95", "p99", "max"))
+                       + f"<td class='n'>{_num(s.get('first_frame_ms'))}</td>"
+                       + f"<td class='n'>{len(s.get('repeat_medians_ms') or []) or 1}</td>"
                        + f"<td class='n'>{stages}</td><td class='n'>{_num(s['gpu_ms'])}</td>"
                        f"<td class='n'>{s['triangles']:,.0f}</td><td class='n'>{s['points']:,.0f}</td>"
                        f"<td class='n'>{_num(a['psnr'])}</td><td class='n'>{_num(a['ssim'], '{:.4f}')}</td>"
