@@ -204,7 +204,7 @@ class _Parser:
         if any(e.name == "routing" for e in effects):  # walkable area, walls, waypoints; routing installed first
             from crowd.scene_routing import apply_routing
 
-            apply_routing(effects, characters, self.fail)
+            apply_routing(effects, characters, self.fail, self.base)
         from crowd.scene_journeys import parse_journeys
 
         effects = parse_journeys(doc, effects, placements, characters, self.fail)  # [[stages]], [[journeys]], ...

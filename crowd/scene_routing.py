@@ -3,8 +3,10 @@ are parsed: everything is checked before anything is built, every problem one li
 
 With ``routing`` listed:
 
-- exactly one of ``walkable`` (polygons with holes) and ``bounds``; the area minus the obstacles (and the
-  footprints of ``obstacle = true`` props, already added to ``obstacles``) must not be empty;
+- exactly one of ``walkable`` (polygons with holes), ``bounds`` and ``walkable_file`` (a floor plan, WKT or
+  GeoJSON, relative to the scene file: read by ``sim.routing.floor_plan`` into ``walkable`` and checked as typed
+  polygons are); the area minus the obstacles (and the footprints of ``obstacle = true`` props, already added to
+  ``obstacles``) must not be empty;
 - ``clearance = 0`` becomes the largest body radius the scene states (the ``avoidance`` radius, else the largest
   ``[[characters]] radius`` times its scale, else 0.25 m, the generated humanoid's footprint), and at least the
   ``obstacles`` effect's ``agent_radius`` (its hard projection keeps agents that far from walls: a route through a
@@ -51,9 +53,9 @@ def walkable_of(effects: list):
     return _walkable(effects[at].params, effects[ob].params if ob is not None else None)
 
 
-def apply_routing(effects: list, characters: list, fail) -> None:
+def apply_routing(effects: list, characters: list, fail, base=None) -> None:
     """The checks and changes of the module docstring, in place on ``effects`` (a list of ``EffectSpec``);
-    problems go to ``fail(key, message)``."""
+    problems go to ``fail(key, message)``; ``base``: the scene file's folder (``walkable_file`` is relative to it)."""
     at = _find(effects, "routing")
     if at is None:
         return
@@ -66,8 +68,25 @@ def apply_routing(effects: list, characters: list, fail) -> None:
     r = effects[at]
     where = f"effects[{r.index}]"
     cfg = dict(r.params)
-    if (cfg.get("walkable") is None) == (cfg.get("bounds") is None):
-        fail(where, "expected exactly one of `walkable` (polygons with holes) or `bounds` ([x0, z0, x1, z1])")
+    given = [k for k in ("walkable", "bounds", "walkable_file") if cfg.get(k) is not None]
+    if len(given) != 1:
+        fail(where, "expected exactly one of `walkable` (polygons with holes), `bounds` ([x0, z0, x1, z1]) or "
+                    "`walkable_file` (a floor plan: .wkt, .geojson)" + (f"; got {', '.join(given)}" if given else ""))
+    if cfg.get("walkable_file") is not None:  # the polygons from the file, checked as typed ones are
+        from pathlib import Path
+
+        from sim.params import ParamError
+        from sim.routing.effect import PARAMS as ROUTING_PARAMS
+        from sim.routing.floor_plan import FloorPlanError, load_walkable
+
+        path = (Path(base or ".") / cfg["walkable_file"]).resolve()
+        try:
+            cfg["walkable"] = ROUTING_PARAMS["walkable"].check(f"{where}.walkable_file", load_walkable(path))
+        except FloorPlanError as e:
+            fail(f"{where}.walkable_file", str(e))
+        except ParamError as e:
+            fail(e.key, f"{path}: {e.message}")
+        cfg["walkable_file"] = str(path)
     ob = _find(effects, "obstacles")
     body = body_radius(effects, characters)
     if ob is None:

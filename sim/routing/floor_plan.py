@@ -1,0 +1,144 @@
+"""Floor plans from files: the walkable area of the ``routing`` effect read from the drawings the field keeps.
+
+Pedestrian experiments and simulators keep their geometry as files (PedPy's walkable areas as WKT, GIS exports as
+GeoJSON); a scene names one with ``walkable_file`` in place of typing the polygons (``walkable``). The file's plane
+coordinates (x, y), metres, are the scene's floor (x, z), as PedPy's trajectories are (``crowd.trajectories``).
+
+Formats, by the file's suffix:
+
+- ``.wkt``: one WKT geometry (shapely): a POLYGON, a MULTIPOLYGON or a GEOMETRYCOLLECTION of them;
+- ``.geojson`` / ``.json``: a GeoJSON geometry, Feature or FeatureCollection (shapely.geometry.shape of each
+  geometry), its Polygon / MultiPolygon parts.
+
+The polygons are united (touching pieces become one area) and returned as the ``walkable`` list the routing effect
+takes: ``[{"points": [[x, z], ...], "holes": [[[x, z], ...], ...]}, ...]``, outer rings counter-clockwise. A file that
+is missing, empty, unreadable, of another format, not a closed area (lines, points) or not a simple area
+(self-intersecting rings) raises :class:`FloorPlanError`, one sentence naming the file and what is wrong.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+#: suffixes read as WKT and as GeoJSON
+WKT_SUFFIXES = (".wkt",)
+GEOJSON_SUFFIXES = (".geojson", ".json")
+
+
+class FloorPlanError(ValueError):
+    """A floor-plan file the code cannot take; the message names the file and what is wrong."""
+
+
+def _fail(path: Path, what: str):
+    raise FloorPlanError(f"{path}: {what}")
+
+
+def _geometries_of_geojson(path: Path, doc) -> list:
+    from shapely.geometry import shape
+
+    if not isinstance(doc, dict) or "type" not in doc:
+        _fail(path, "expected a GeoJSON object (a geometry, Feature or FeatureCollection)")
+    kind = doc["type"]
+    if kind == "FeatureCollection":
+        feats = doc.get("features")
+        if not isinstance(feats, list):
+            _fail(path, "FeatureCollection without a `features` list")
+        out = []
+        for i, f in enumerate(feats):
+            if not isinstance(f, dict) or f.get("geometry") is None:
+                _fail(path, f"feature {i} has no geometry")
+            out.append((f"feature {i}", f["geometry"]))
+    elif kind == "Feature":
+        if doc.get("geometry") is None:
+            _fail(path, "Feature without a geometry")
+        out = [("the feature", doc["geometry"])]
+    else:
+        out = [("the geometry", doc)]
+    geoms = []
+    for what, g in out:
+        try:
+            geoms.append((what, shape(g)))
+        except Exception as e:  # shapely raises several kinds for malformed input
+            _fail(path, f"{what} is not a valid GeoJSON geometry ({type(e).__name__}: {str(e)[:80]})")
+    return geoms
+
+
+def read_geometries(path) -> list:
+    """[(what, shapely geometry)] of a floor-plan file (module docstring: formats)."""
+    import shapely
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in WKT_SUFFIXES + GEOJSON_SUFFIXES:
+        _fail(path, f"unknown floor-plan format {suffix or '(no suffix)'!r}; expected one of "
+                    f"{', '.join(WKT_SUFFIXES + GEOJSON_SUFFIXES)}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        _fail(path, "file not found")
+    except (OSError, UnicodeDecodeError) as e:
+        _fail(path, f"cannot read it ({type(e).__name__})")
+    if not text.strip():
+        _fail(path, "the file is empty")
+    if suffix in WKT_SUFFIXES:
+        try:
+            return [("the geometry", shapely.from_wkt(text.strip()))]
+        except Exception as e:  # shapely.errors.GEOSException and kin
+            _fail(path, f"not valid WKT ({str(e).splitlines()[0][:100]})")
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        _fail(path, f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})")
+    return _geometries_of_geojson(path, doc)
+
+
+def _ring(coords) -> list:
+    """[[x, z], ...] of a closed shapely ring, its closing point left out."""
+    pts = [[float(x), float(y)] for x, y, *_ in coords]
+    return pts[:-1] if len(pts) > 1 and pts[0] == pts[-1] else pts
+
+
+def load_walkable(path) -> list:
+    """The ``walkable`` list of the routing effect (module docstring) from the floor-plan file ``path``.
+
+    Raises
+    ------
+    FloorPlanError
+        One sentence naming the file and what is wrong (format, emptiness, not a closed or not a simple area).
+    """
+    import shapely
+    from shapely.geometry import Polygon
+    from shapely.geometry.polygon import orient
+
+    path = Path(path)
+    polys = []
+    for what, g in read_geometries(path):
+        if g.is_empty:
+            _fail(path, f"{what} is empty")
+        parts, todo = [], [g]
+        while todo:  # collections and multi-polygons flattened to their pieces
+            q = todo.pop(0)
+            if hasattr(q, "geoms") and not isinstance(q, Polygon):
+                todo[:0] = list(q.geoms)
+            else:
+                parts.append(q)
+        for k, p in enumerate(parts):
+            name = what if len(parts) == 1 else f"{what}, part {k}"
+            if not isinstance(p, Polygon):
+                closed = getattr(p, "is_closed", False)
+                _fail(path, f"{name} is a {p.geom_type}, not an area" + (
+                    " (a closed line: write it as a POLYGON)" if closed else " (not closed)"))
+            if not p.is_valid:
+                why = shapely.is_valid_reason(p)
+                _fail(path, f"{name} is not a simple area: {why}")
+            if p.area <= 0.0:
+                _fail(path, f"{name} has no area")
+            polys.append(p)
+    if not polys:
+        _fail(path, "no polygon in the file")
+    union = shapely.union_all(polys)
+    out = []
+    for p in getattr(union, "geoms", [union]):
+        p = orient(p, 1.0)
+        out.append({"points": _ring(p.exterior.coords), "holes": [_ring(h.coords) for h in p.interiors]})
+    return out

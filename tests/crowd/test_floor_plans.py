@@ -1,0 +1,109 @@
+"""Floor plans from files (issue 47, item 1 in part: WKT and GeoJSON): ``[[effects]] name = "routing"`` with
+``walkable_file`` gives the walkable area the typed polygons give, the formats agree with each other, and a file
+that is empty, not closed, self-intersecting or of an unknown format is one sentence naming the file, exit 2."""
+import json
+from pathlib import Path
+
+import pytest
+from crowd_testutil import REPO, run_cli, tiny_scene
+
+from crowd.errors import SceneError
+from crowd.scene import load_scene
+from sim.routing.floor_plan import FloorPlanError, load_walkable
+
+#: a room 8 x 6 m with a pillar (hole) and a side room joined by a door
+WKT = ("MULTIPOLYGON (((-2 -2, 6 -2, 6 4, -2 4, -2 -2), (2 0, 3 0, 3 1, 2 1, 2 0)), "
+       "((6 0.5, 9 0.5, 9 3, 6 3, 6 0.5)))")
+#: the same area typed as the scene file takes it (the side room is joined to the room: one polygon)
+TYPED = ('walkable = [{ points = [[-2.0, -2.0], [6.0, -2.0], [6.0, 0.5], [9.0, 0.5], [9.0, 3.0], [6.0, 3.0], '
+         '[6.0, 4.0], [-2.0, 4.0]], holes = [[[2.0, 0.0], [3.0, 0.0], [3.0, 1.0], [2.0, 1.0]]] }]')
+BOTTLENECK = REPO.parent / "shared" / "data" / "pedestrian" / "bottleneck" / "walkable_area.wkt"
+
+
+def _geojson(wkt: str, feature: bool) -> str:
+    import shapely
+    from shapely.geometry import mapping
+
+    g = mapping(shapely.from_wkt(wkt))
+    if feature:
+        g = {"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {}, "geometry": g}]}
+    return json.dumps(g)
+
+
+def _area(walkable: list) -> float:
+    from shapely.geometry import Polygon
+
+    return sum(Polygon(p["points"], p["holes"]).area for p in walkable)
+
+
+def _scene(file_line: str) -> str:
+    return tiny_scene(effects='[{ name = "routing", ' + file_line + ' }]')
+
+
+def test_wkt_and_geojson_give_the_typed_area(write_scene, tmp_path):
+    (tmp_path / "plan.wkt").write_text(WKT)
+    (tmp_path / "plan.geojson").write_text(_geojson(WKT, feature=True))
+    (tmp_path / "plan.json").write_text(_geojson(WKT, feature=False))
+    typed = load_scene(write_scene(_scene(TYPED), "typed.toml"))
+    want = _area(next(e for e in typed.effects if e.name == "routing").params["walkable"])
+    assert want == pytest.approx(8 * 6 - 1 + 3 * 2.5)
+    for name in ("plan.wkt", "plan.geojson", "plan.json"):
+        sc = load_scene(write_scene(_scene(f'walkable_file = "{name}"'), f"{name}.toml"))
+        r = next(e for e in sc.effects if e.name == "routing").params
+        assert r["walkable_file"] == str((tmp_path / name).resolve())
+        assert len(r["walkable"]) == 1 and len(r["walkable"][0]["holes"]) == 1  # the side room joined on
+        assert _area(r["walkable"]) == pytest.approx(want, rel=1e-9), name
+        # the walls follow the file's outline: the obstacles effect got them, as with typed polygons
+        obs = next(e for e in sc.effects if e.name == "obstacles").params
+        assert len(obs["polygons"]) == len(next(e for e in typed.effects if e.name == "obstacles").params["polygons"])
+
+
+def test_a_scene_with_a_floor_plan_runs(write_scene, tmp_path):
+    (tmp_path / "plan.wkt").write_text(WKT)
+    path = write_scene(_scene('walkable_file = "plan.wkt"'))
+    r = run_cli("run", path, "--out", tmp_path / "out", "--quiet")
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.skipif(not BOTTLENECK.is_file(), reason=f"no shared pedestrian data at {BOTTLENECK}")
+def test_the_bottleneck_experiment_in_wkt_and_geojson_gives_one_area(tmp_path):
+    from shapely import from_wkt
+
+    ref = from_wkt(BOTTLENECK.read_text())
+    (tmp_path / "b.geojson").write_text(_geojson(BOTTLENECK.read_text(), feature=True))
+    a, b = load_walkable(BOTTLENECK), load_walkable(tmp_path / "b.geojson")
+    assert _area(a) == pytest.approx(ref.area, rel=1e-3) and _area(b) == pytest.approx(ref.area, rel=1e-3)
+    assert len(a) == 1 and len(a[0]["holes"]) == 2  # the room and the two barriers of the bottleneck
+
+
+@pytest.mark.parametrize("name, content, what", [
+    ("empty.wkt", "", "the file is empty"),
+    ("blank.geojson", "  \n", "the file is empty"),
+    ("line.wkt", "LINESTRING (0 0, 4 0, 4 3)", "is a LineString, not an area (not closed)"),
+    ("ring.wkt", "LINESTRING (0 0, 4 0, 4 3, 0 0)", "(a closed line: write it as a POLYGON)"),
+    ("bowtie.wkt", "POLYGON ((0 0, 4 3, 4 0, 0 3, 0 0))", "is not a simple area: Self-intersection"),
+    ("bad.wkt", "POLYGON ((0 0, 1 0", "not valid WKT"),
+    ("bad.json", "{ nope", "not valid JSON"),
+    ("point.geojson", json.dumps({"type": "Point", "coordinates": [1, 2]}), "is a Point, not an area"),
+    ("plan.dwg", "x", "unknown floor-plan format '.dwg'"),
+])
+def test_bad_floor_plans_are_one_sentence_naming_the_file(write_scene, tmp_path, name, content, what):
+    f = tmp_path / name
+    f.write_text(content)
+    with pytest.raises(FloorPlanError) as e:
+        load_walkable(f)
+    assert str(e.value).startswith(f"{f}: ") and what in str(e.value) and "\n" not in str(e.value)
+    path = write_scene(_scene(f'walkable_file = "{name}"'))
+    r = run_cli("validate", path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "Traceback" not in r.stderr
+    assert f"{path}: effects[0].walkable_file: {f}: " in lines[0] and what in lines[0], lines[0]
+
+
+def test_a_missing_file_and_two_sources_of_the_area_are_refused(write_scene, tmp_path):
+    with pytest.raises(SceneError, match=r"walkable_file: .*nowhere\.wkt: file not found"):
+        load_scene(write_scene(_scene('walkable_file = "nowhere.wkt"')))
+    (tmp_path / "plan.wkt").write_text(WKT)
+    with pytest.raises(SceneError, match="exactly one of .*; got bounds, walkable_file"):
+        load_scene(write_scene(_scene('bounds = [0.0, 0.0, 5.0, 5.0], walkable_file = "plan.wkt"'), "two.toml"))
+    assert not Path("nowhere.wkt").exists()
