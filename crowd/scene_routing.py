@@ -72,6 +72,8 @@ def apply_routing(effects: list, characters: list, fail, base=None) -> None:
     if len(given) != 1:
         fail(where, "expected exactly one of `walkable` (polygons with holes), `bounds` ([x0, z0, x1, z1]) or "
                     "`walkable_file` (a floor plan: .wkt, .geojson)" + (f"; got {', '.join(given)}" if given else ""))
+    if cfg.get("walkable_layer") is not None and cfg.get("walkable_file") is None:
+        fail(f"{where}.walkable_layer", "only with `walkable_file` (a DXF drawing's layer)")
     if cfg.get("walkable_file") is not None:  # the polygons from the file, checked as typed ones are
         from pathlib import Path
 
@@ -81,7 +83,8 @@ def apply_routing(effects: list, characters: list, fail, base=None) -> None:
 
         path = (Path(base or ".") / cfg["walkable_file"]).resolve()
         try:
-            cfg["walkable"] = ROUTING_PARAMS["walkable"].check(f"{where}.walkable_file", load_walkable(path))
+            cfg["walkable"] = ROUTING_PARAMS["walkable"].check(f"{where}.walkable_file",
+                                                               load_walkable(path, cfg.get("walkable_layer")))
         except FloorPlanError as e:
             fail(f"{where}.walkable_file", str(e))
         except ParamError as e:

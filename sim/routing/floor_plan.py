@@ -8,7 +8,12 @@ Formats, by the file's suffix:
 
 - ``.wkt``: one WKT geometry (shapely): a POLYGON, a MULTIPOLYGON or a GEOMETRYCOLLECTION of them;
 - ``.geojson`` / ``.json``: a GeoJSON geometry, Feature or FeatureCollection (shapely.geometry.shape of each
-  geometry), its Polygon / MultiPolygon parts.
+  geometry), its Polygon / MultiPolygon parts;
+- ``.dxf``: a drawing (ezdxf): the closed LWPOLYLINE / POLYLINE / CIRCLE / ELLIPSE / SPLINE entities and the
+  boundary paths of HATCH entities of its model space, on every layer or on the ``layer`` asked for, curves
+  flattened to :data:`DXF_FLATTENING` metres; rings nested in rings are holes (even-odd: the area is the symmetric
+  difference of every ring's polygon, as a hatch's boundaries are read). An open polyline or a self-intersecting
+  ring is named by layer, entity type and handle. LINE, ARC and text entities are not areas and are left out.
 
 The polygons are united (touching pieces become one area) and returned as the ``walkable`` list the routing effect
 takes: ``[{"points": [[x, z], ...], "holes": [[[x, z], ...], ...]}, ...]``, outer rings counter-clockwise. A file that
@@ -20,9 +25,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-#: suffixes read as WKT and as GeoJSON
+#: suffixes read as WKT, as GeoJSON and as DXF
 WKT_SUFFIXES = (".wkt",)
 GEOJSON_SUFFIXES = (".geojson", ".json")
+DXF_SUFFIXES = (".dxf",)
+#: largest distance (metres) between a DXF curve (arc, circle, spline) and the polygon that stands for it
+DXF_FLATTENING = 0.01
+#: DXF entities whose closed outlines are rings of the area
+DXF_AREAS = ("LWPOLYLINE", "POLYLINE", "CIRCLE", "ELLIPSE", "SPLINE", "HATCH")
 
 
 class FloorPlanError(ValueError):
@@ -63,15 +73,67 @@ def _geometries_of_geojson(path: Path, doc) -> list:
     return geoms
 
 
-def read_geometries(path) -> list:
-    """[(what, shapely geometry)] of a floor-plan file (module docstring: formats)."""
+def _dxf_geometries(path: Path, layer: str | None) -> list:
+    """[(what, polygon)]: the DXF's area as the symmetric difference of its closed rings (module docstring)."""
+    import ezdxf
+    import shapely
+    from ezdxf import path as ezpath
+    from shapely.geometry import Polygon
+
+    try:
+        doc = ezdxf.readfile(str(path))
+    except (OSError, ezdxf.DXFError) as e:
+        _fail(path, f"not a readable DXF drawing ({type(e).__name__}: {str(e).splitlines()[0][:100] if str(e) else ''})")
+    rings, layers = [], set()
+    for e in doc.modelspace():
+        kind = e.dxftype()
+        lay = str(e.dxf.get("layer", "0"))
+        layers.add(lay)
+        if kind not in DXF_AREAS or (layer is not None and lay != layer):
+            continue
+        name = f"layer {lay!r}, {kind} (handle {e.dxf.handle})"
+        try:
+            paths = list(ezpath.from_hatch(e)) if kind == "HATCH" else [ezpath.make_path(e)]
+        except Exception as err:  # ezdxf's own errors for entities it cannot make a path of
+            _fail(path, f"{name}: cannot read its outline ({type(err).__name__})")
+        for k, p in enumerate(paths):
+            what = name if len(paths) == 1 else f"{name}, boundary {k}"
+            pts = [(float(v.x), float(v.y)) for v in p.flattening(DXF_FLATTENING)]
+            closed = p.is_closed or (kind == "LWPOLYLINE" and bool(e.closed)) or \
+                (kind == "POLYLINE" and bool(e.is_closed))
+            if not closed:
+                _fail(path, f"{what} is an open polyline, not an area (close it)")
+            ring = Polygon(pts)
+            if not ring.is_valid:
+                _fail(path, f"{what} is not a simple area: {shapely.is_valid_reason(ring)}")
+            if ring.area > 0.0:
+                rings.append(ring)
+    if not rings:
+        where = f" on layer {layer!r}" if layer is not None else ""
+        _fail(path, f"no closed polyline or hatch{where} (layers: {', '.join(sorted(layers)) or 'none'})")
+    area = rings[0]
+    for r in rings[1:]:  # even-odd: a ring inside another is a hole of it
+        area = area.symmetric_difference(r)
+    return [(f"the drawing{' on layer ' + repr(layer) if layer else ''}", area)]
+
+
+def read_geometries(path, layer: str | None = None) -> list:
+    """[(what, shapely geometry)] of a floor-plan file (module docstring: formats); ``layer``: a DXF layer."""
     import shapely
 
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix not in WKT_SUFFIXES + GEOJSON_SUFFIXES:
-        _fail(path, f"unknown floor-plan format {suffix or '(no suffix)'!r}; expected one of "
-                    f"{', '.join(WKT_SUFFIXES + GEOJSON_SUFFIXES)}")
+    known = WKT_SUFFIXES + GEOJSON_SUFFIXES + DXF_SUFFIXES
+    if suffix not in known:
+        _fail(path, f"unknown floor-plan format {suffix or '(no suffix)'!r}; expected one of {', '.join(known)}")
+    if layer is not None and suffix not in DXF_SUFFIXES:
+        _fail(path, f"a layer ({layer!r}) is asked for, but only a DXF drawing has layers")
+    if suffix in DXF_SUFFIXES:
+        if not path.is_file():
+            _fail(path, "file not found")
+        if path.stat().st_size == 0:
+            _fail(path, "the file is empty")
+        return _dxf_geometries(path, layer)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -98,8 +160,9 @@ def _ring(coords) -> list:
     return pts[:-1] if len(pts) > 1 and pts[0] == pts[-1] else pts
 
 
-def load_walkable(path) -> list:
-    """The ``walkable`` list of the routing effect (module docstring) from the floor-plan file ``path``.
+def load_walkable(path, layer: str | None = None) -> list:
+    """The ``walkable`` list of the routing effect (module docstring) from the floor-plan file ``path`` (a DXF:
+    the entities on ``layer`` only, when given).
 
     Raises
     ------
@@ -112,7 +175,7 @@ def load_walkable(path) -> list:
 
     path = Path(path)
     polys = []
-    for what, g in read_geometries(path):
+    for what, g in read_geometries(path, layer):
         if g.is_empty:
             _fail(path, f"{what} is empty")
         parts, todo = [], [g]

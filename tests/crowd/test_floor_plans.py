@@ -107,3 +107,87 @@ def test_a_missing_file_and_two_sources_of_the_area_are_refused(write_scene, tmp
     with pytest.raises(SceneError, match="exactly one of .*; got bounds, walkable_file"):
         load_scene(write_scene(_scene('bounds = [0.0, 0.0, 5.0, 5.0], walkable_file = "plan.wkt"'), "two.toml"))
     assert not Path("nowhere.wkt").exists()
+
+
+# ---------------------------------------------------------------------------------------------------- DXF
+def _dxf(path: Path, wkt: str, layer: str = "walkable", hatch: bool = False, extra=()) -> Path:
+    """The area of ``wkt`` drawn as closed polylines (outer rings and holes) or as one hatch per polygon."""
+    import ezdxf
+    import shapely
+
+    doc = ezdxf.new()
+    msp = doc.modelspace()
+    g = shapely.from_wkt(wkt)
+    for poly in getattr(g, "geoms", [g]):
+        rings = [list(poly.exterior.coords)] + [list(h.coords) for h in poly.interiors]
+        if hatch:
+            h = msp.add_hatch(dxfattribs={"layer": layer})
+            for r in rings:
+                h.paths.add_polyline_path([(x, y) for x, y in r[:-1]], is_closed=True)
+        else:
+            for r in rings:
+                msp.add_lwpolyline([(x, y) for x, y in r[:-1]], close=True, dxfattribs={"layer": layer})
+    msp.add_line((0, 0), (50, 50), dxfattribs={"layer": layer})  # not an area: left out
+    msp.add_lwpolyline([(100, 100), (104, 100), (104, 103), (100, 103)], close=True, dxfattribs={"layer": "furniture"})
+    for pts, closed, lay in extra:
+        msp.add_lwpolyline(pts, close=closed, dxfattribs={"layer": lay})
+    doc.saveas(path)
+    return path
+
+
+@pytest.mark.parametrize("hatch", [False, True])
+def test_dxf_polylines_and_hatches_give_the_wkts_area(tmp_path, hatch):
+    from shapely import from_wkt
+
+    f = _dxf(tmp_path / "plan.dxf", WKT, hatch=hatch)
+    got = load_walkable(f, layer="walkable")
+    assert _area(got) == pytest.approx(from_wkt(WKT).area, rel=1e-9)
+    assert len(got) == 1 and len(got[0]["holes"]) == 1
+    every = load_walkable(f)  # every layer: the furniture layer's closed outline is an area too
+    assert _area(every) == pytest.approx(from_wkt(WKT).area + 12.0, rel=1e-9)
+
+
+@pytest.mark.skipif(not BOTTLENECK.is_file(), reason=f"no shared pedestrian data at {BOTTLENECK}")
+def test_the_bottleneck_in_dxf_wkt_and_geojson_gives_one_area_within_a_thousandth(tmp_path):
+    from shapely import from_wkt
+
+    ref = from_wkt(BOTTLENECK.read_text())
+    (tmp_path / "b.geojson").write_text(_geojson(BOTTLENECK.read_text(), feature=True))
+    areas = [_area(load_walkable(BOTTLENECK)), _area(load_walkable(tmp_path / "b.geojson")),
+             _area(load_walkable(_dxf(tmp_path / "b.dxf", BOTTLENECK.read_text()), layer="walkable")),
+             _area(load_walkable(_dxf(tmp_path / "h.dxf", BOTTLENECK.read_text(), hatch=True), layer="walkable"))]
+    for a in areas:
+        assert a == pytest.approx(ref.area, rel=1e-3)
+
+
+def test_a_dxf_with_an_open_polyline_or_a_self_intersection_names_layer_and_entity(write_scene, tmp_path):
+    f = _dxf(tmp_path / "open.dxf", WKT, extra=[([(20, 0), (24, 0), (24, 3)], False, "walls")])
+    with pytest.raises(FloorPlanError, match=r"open\.dxf: layer 'walls', LWPOLYLINE \(handle \w+\) is an open "
+                                             r"polyline, not an area"):
+        load_walkable(f)
+    assert _area(load_walkable(f, layer="walkable")) > 0  # the open one is on another layer
+    g = _dxf(tmp_path / "bow.dxf", WKT, extra=[([(20, 0), (24, 3), (24, 0), (20, 3)], True, "walls")])
+    with pytest.raises(FloorPlanError, match=r"layer 'walls', LWPOLYLINE \(handle \w+\) is not a simple area: "
+                                             r"Self-intersection"):
+        load_walkable(g)
+    path = write_scene(_scene('walkable_file = "bow.dxf"'))
+    r = run_cli("validate", path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "layer 'walls', LWPOLYLINE" in lines[0], r.stderr
+    with pytest.raises(FloorPlanError, match="no closed polyline or hatch on layer 'nope' \\(layers: "):
+        load_walkable(f, layer="nope")
+    (tmp_path / "junk.dxf").write_text("this is not a drawing\n")
+    with pytest.raises(FloorPlanError, match="junk.dxf: not a readable DXF drawing"):
+        load_walkable(tmp_path / "junk.dxf")
+    (tmp_path / "plan.wkt").write_text(WKT)
+    with pytest.raises(SceneError, match="only a DXF drawing has layers"):
+        load_scene(write_scene(_scene('walkable_file = "plan.wkt", walkable_layer = "a"'), "lay.toml"))
+    with pytest.raises(SceneError, match="walkable_layer: only with `walkable_file`"):
+        load_scene(write_scene(_scene('bounds = [0.0, 0.0, 5.0, 5.0], walkable_layer = "a"'), "lay2.toml"))
+
+
+def test_a_scene_runs_on_a_dxf_floor_plan(write_scene, tmp_path):
+    _dxf(tmp_path / "plan.dxf", WKT)
+    path = write_scene(_scene('walkable_file = "plan.dxf", walkable_layer = "walkable"'))
+    r = run_cli("run", path, "--out", tmp_path / "out", "--quiet")
+    assert r.returncode == 0, r.stderr
