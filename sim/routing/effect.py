@@ -72,7 +72,8 @@ PARAMS: dict[str, Param] = {
                                             "exactly one of walkable / bounds / walkable_file"),
     "bounds": _Bounds("list", None, doc="the walkable area as the rectangle [x0, z0, x1, z1], metres"),
     "walkable_file": Param("str", None, doc="the walkable area from a floor-plan file, relative to the scene file: "
-                                            "WKT (.wkt), GeoJSON (.geojson, .json) or DXF (.dxf), its (x, y) the "
+                                            "WKT (.wkt), GeoJSON (.geojson, .json), DXF (.dxf), or the geometry "
+                                            "of a recording (JuPedSim .sqlite, Vadere .scenario), its (x, y) the "
                                             "floor's (x, z) (sim.routing.floor_plan); in place of walkable / bounds"),
     "walkable_layer": Param("str", None, doc="walkable_file a DXF: read the entities of this layer only; default "
                                              "every layer"),

@@ -13,7 +13,10 @@ Formats, by the file's suffix:
   boundary paths of HATCH entities of its model space, on every layer or on the ``layer`` asked for, curves
   flattened to :data:`DXF_FLATTENING` metres; rings nested in rings are holes (even-odd: the area is the symmetric
   difference of every ring's polygon, as a hatch's boundaries are read). An open polyline or a self-intersecting
-  ring is named by layer, entity type and handle. LINE, ARC and text entities are not areas and are left out.
+  ring is named by layer, entity type and handle. LINE, ARC and text entities are not areas and are left out;
+- the geometry a recording stores with it, read by PedPy's loaders: ``.sqlite`` a JuPedSim trajectory file,
+  ``.scenario`` a Vadere scenario (obstacles touching its bounding box: the box grown by 1 micrometre, as PedPy
+  asks).
 
 The polygons are united (touching pieces become one area) and returned as the ``walkable`` list the routing effect
 takes: ``[{"points": [[x, z], ...], "holes": [[[x, z], ...], ...]}, ...]``, outer rings counter-clockwise. A file that
@@ -29,6 +32,8 @@ from pathlib import Path
 WKT_SUFFIXES = (".wkt",)
 GEOJSON_SUFFIXES = (".geojson", ".json")
 DXF_SUFFIXES = (".dxf",)
+#: suffixes of recordings whose geometry PedPy reads: JuPedSim SQLite, Vadere scenario
+RECORDING_SUFFIXES = (".sqlite", ".scenario")
 #: largest distance (metres) between a DXF curve (arc, circle, spline) and the polygon that stands for it
 DXF_FLATTENING = 0.01
 #: DXF entities whose closed outlines are rings of the area
@@ -117,23 +122,44 @@ def _dxf_geometries(path: Path, layer: str | None) -> list:
     return [(f"the drawing{' on layer ' + repr(layer) if layer else ''}", area)]
 
 
+def _recording_geometry(path: Path, suffix: str) -> list:
+    """[(what, polygon)]: the walkable area a JuPedSim or Vadere file stores (PedPy's loaders)."""
+    try:
+        import pedpy
+    except ImportError:
+        _fail(path, "reading a recording's geometry needs PedPy (the report extra: pip install -e '.[report]')")
+    try:
+        if suffix == ".sqlite":
+            area = pedpy.load_walkable_area_from_jupedsim_sqlite(trajectory_file=path)
+        else:
+            try:
+                area = pedpy.load_walkable_area_from_vadere_scenario(vadere_scenario_file=path)
+            except pedpy.errors.LoadTrajectoryError as e:
+                if "touch the bound" not in str(e):
+                    raise
+                area = pedpy.load_walkable_area_from_vadere_scenario(vadere_scenario_file=path, margin=1e-6)
+    except Exception as e:  # PedPy's loader errors, sqlite3 and JSON errors of a broken file
+        _fail(path, f"no walkable area in it ({type(e).__name__}: {str(e).splitlines()[0][:120] if str(e) else ''})")
+    return [("the recording's walkable area", area.polygon)]
+
+
 def read_geometries(path, layer: str | None = None) -> list:
     """[(what, shapely geometry)] of a floor-plan file (module docstring: formats); ``layer``: a DXF layer."""
     import shapely
 
     path = Path(path)
     suffix = path.suffix.lower()
-    known = WKT_SUFFIXES + GEOJSON_SUFFIXES + DXF_SUFFIXES
+    known = WKT_SUFFIXES + GEOJSON_SUFFIXES + DXF_SUFFIXES + RECORDING_SUFFIXES
     if suffix not in known:
         _fail(path, f"unknown floor-plan format {suffix or '(no suffix)'!r}; expected one of {', '.join(known)}")
     if layer is not None and suffix not in DXF_SUFFIXES:
         _fail(path, f"a layer ({layer!r}) is asked for, but only a DXF drawing has layers")
-    if suffix in DXF_SUFFIXES:
+    if suffix in DXF_SUFFIXES + RECORDING_SUFFIXES:
         if not path.is_file():
             _fail(path, "file not found")
         if path.stat().st_size == 0:
             _fail(path, "the file is empty")
-        return _dxf_geometries(path, layer)
+        return _dxf_geometries(path, layer) if suffix in DXF_SUFFIXES else _recording_geometry(path, suffix)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

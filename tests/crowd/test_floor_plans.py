@@ -191,3 +191,25 @@ def test_a_scene_runs_on_a_dxf_floor_plan(write_scene, tmp_path):
     path = write_scene(_scene('walkable_file = "plan.dxf", walkable_layer = "walkable"'))
     r = run_cli("run", path, "--out", tmp_path / "out", "--quiet")
     assert r.returncode == 0, r.stderr
+
+
+PEDESTRIAN = REPO.parent / "shared" / "data" / "pedestrian"
+
+
+@pytest.mark.skipif(not (PEDESTRIAN / "jupedsim").is_dir(), reason=f"no shared pedestrian data at {PEDESTRIAN}")
+@pytest.mark.parametrize("rel, area", [("jupedsim/trajectories.sqlite", 104.0),
+                                       ("vadere/vadere_bottleneck.scenario", 59.5)])
+def test_the_geometry_stored_with_a_recording(rel, area):
+    got = load_walkable(PEDESTRIAN / rel)
+    assert _area(got) == pytest.approx(area, rel=1e-3)
+
+
+def test_a_broken_recording_is_one_sentence(tmp_path):
+    f = tmp_path / "run.sqlite"
+    f.write_bytes(b"not a database at all" * 10)
+    with pytest.raises(FloorPlanError, match=r"run\.sqlite: no walkable area in it \("):
+        load_walkable(f)
+    g = tmp_path / "s.scenario"
+    g.write_text("{}")
+    with pytest.raises(FloorPlanError, match=r"s\.scenario: no walkable area in it \("):
+        load_walkable(g)
