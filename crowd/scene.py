@@ -200,6 +200,10 @@ class _Parser:
         characters = self.characters(top["seed"])
         placements = self.placements(characters)
         effects = self.effects()
+        if any(e.name == "obstacles" and (e.params.get("file") or e.params.get("layer")) for e in effects):
+            from crowd.scene_routing import apply_obstacle_file
+
+            apply_obstacle_file(effects, self.fail, self.base)  # the obstacles' floor-plan file
         props = parse_props(self.array_of_tables("props", False), effects, self.base, self.fail)
         if any(e.name == "routing" for e in effects):  # walkable area, walls, waypoints; routing installed first
             from crowd.scene_routing import apply_routing

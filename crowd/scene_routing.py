@@ -53,6 +53,44 @@ def walkable_of(effects: list):
     return _walkable(effects[at].params, effects[ob].params if ob is not None else None)
 
 
+def apply_obstacle_file(effects: list, fail, base=None) -> None:
+    """The ``obstacles`` effect's ``file`` (a floor plan relative to the scene's folder ``base``): its areas join
+    the effect's ``polygons`` (each outer ring a solid; an area with a hole is refused: its hole would be a
+    walkable pocket inside a solid), in place on ``effects``; problems go to ``fail(key, message)``."""
+    at = _find(effects, "obstacles")
+    if at is None:
+        return
+    ob = effects[at]
+    cfg = dict(ob.params)
+    where = f"effects[{ob.index}]"
+    if cfg.get("layer") is not None and cfg.get("file") is None:
+        fail(f"{where}.layer", "only with `file` (a DXF drawing's layer)")
+    if cfg.get("file") is None:
+        return
+    from pathlib import Path
+
+    from sim.obstacles import PARAMS as OBSTACLE_PARAMS
+    from sim.params import ParamError
+    from sim.routing.floor_plan import FloorPlanError, load_walkable
+
+    path = (Path(base or ".") / cfg["file"]).resolve()
+    try:
+        areas = load_walkable(path, cfg.get("layer"))
+    except FloorPlanError as e:
+        fail(f"{where}.file", str(e))
+    for k, a in enumerate(areas):
+        if a["holes"]:
+            fail(f"{where}.file", f"{path}: area {k} has a hole; an obstacle is solid (draw the hole's inside as "
+                                  f"walkable area instead)")
+    try:
+        extra = OBSTACLE_PARAMS["polygons"].check(f"{where}.file", [{"points": a["points"]} for a in areas])
+    except ParamError as e:
+        fail(e.key, f"{path}: {e.message}")
+    cfg["polygons"] = list(cfg.get("polygons", [])) + extra
+    cfg["file"] = str(path)
+    effects[at] = dataclasses.replace(ob, params=cfg)
+
+
 def apply_routing(effects: list, characters: list, fail, base=None) -> None:
     """The checks and changes of the module docstring, in place on ``effects`` (a list of ``EffectSpec``);
     problems go to ``fail(key, message)``; ``base``: the scene file's folder (``walkable_file`` is relative to it)."""

@@ -97,6 +97,9 @@ PARAMS: dict[str, Param] = {
     "boxes": _TableList(_BOX, "[{center = [x, z], size = [sx, sz], yaw = deg}, ...]"),
     "polygons": _Polygons("list", [], doc="[{points = [[x, z], ...]}, ...] simple polygons, either winding "
                                           "(each shape also takes height = metres, visible = bool: its drawn solid)"),
+    "file": Param("str", None, doc="more polygons: the areas of a floor-plan file (WKT, GeoJSON, DXF; "
+                                   "sim.routing.floor_plan), relative to the scene file, each a solid of height 1 m"),
+    "layer": Param("str", None, doc="file a DXF: read the entities of this layer only"),
     "agent_radius": Param("float", 0.4, min=0.0, max=100.0, doc="agent body radius kept clear of obstacles, m"),
     "margin": Param("float", 2.0, min=1e-3, max=1000.0, doc="force-field reach beyond agent_radius, m"),
     "lookahead": Param("float", 1.0, min=0.0, max=60.0, doc="look-ahead time of the second probe, s"),

@@ -213,3 +213,27 @@ def test_a_broken_recording_is_one_sentence(tmp_path):
     g.write_text("{}")
     with pytest.raises(FloorPlanError, match=r"s\.scenario: no walkable area in it \("):
         load_walkable(g)
+
+
+def test_obstacles_from_a_floor_plan_file(write_scene, tmp_path):
+    """The obstacles effect's ``file``: its areas become solid polygons; the agents keep out of them."""
+    import numpy as np
+
+    from crowd.engine import Engine
+
+    (tmp_path / "pillars.wkt").write_text("MULTIPOLYGON (((3 -1, 4 -1, 4 3, 3 3, 3 -1)), ((6 0, 7 0, 7 1, 6 1, 6 0)))")
+    text = tiny_scene(effects='["animation", { name = "obstacles", file = "pillars.wkt", agent_radius = 0.2 }]')
+    sc = load_scene(write_scene(text))
+    obs = next(e for e in sc.effects if e.name == "obstacles").params
+    assert len(obs["polygons"]) == 2 and obs["file"] == str((tmp_path / "pillars.wkt").resolve())
+    with Engine(sc, quiet=True) as eng:
+        o = eng.world.resources["obstacles"]
+        d, _, _ = o.sdf(np.array([3.5, 6.5, 0.0]), np.array([1.0, 0.5, 0.0]))
+        assert d[0] < 0 and d[1] < 0 and d[2] > 0  # inside each pillar, outside at the origin
+    (tmp_path / "ring.wkt").write_text(WKT)
+    with pytest.raises(SceneError, match="area 0 has a hole; an obstacle is solid"):
+        load_scene(write_scene(tiny_scene(effects='[{ name = "obstacles", file = "ring.wkt" }]'), "ring.toml"))
+    with pytest.raises(SceneError, match=r"effects\[0\]\.layer: only with `file`"):
+        load_scene(write_scene(tiny_scene(effects='[{ name = "obstacles", layer = "x" }]'), "lay.toml"))
+    with pytest.raises(SceneError, match=r"effects\[0\]\.file: .*nope\.wkt: file not found"):
+        load_scene(write_scene(tiny_scene(effects='[{ name = "obstacles", file = "nope.wkt" }]'), "nope.toml"))
