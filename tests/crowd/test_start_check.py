@@ -1,29 +1,12 @@
 """Agents that start inside an obstacle or outside the walkable area: ``crowd validate`` warns (one line per
 placement, with counts, exit 0) and ``crowd run`` says it once (crowd/start_check.py, issue 48)."""
-from crowd_testutil import run_cli
+from crowd_testutil import run_cli, tiny_scene
 
 from crowd.plan import plan
 from crowd.scene import load_scene
 from crowd.start_check import start_warnings
 
-BASE = """\
-name = "walls"
-seed = 3
-dt = 0.05
-frames = 2
-
-[[characters]]
-name = "walker"
-generator = "humanoid"
-triangles = 600
-
-[[placement]]
-kind = "grid"
-character = "walker"
-rows = 4
-cols = 5
-spacing = [1.0, 1.0]
-
+SECOND = """
 [[placement]]
 kind = "grid"
 character = "walker"
@@ -31,39 +14,23 @@ rows = 2
 cols = 2
 spacing = [1.0, 1.0]
 origin = [20.0, 0.0, 20.0]
-
-[[effects]]
-name = "animation"
-
-[camera]
-position = [2.0, 6.0, 10.0]
-target = [2.0, 0.0, 1.5]
-
-[render]
-size = [64, 48]
-png_every = 0
-
-[lod]
-mode = "none"
 """
+
+
+def _scene(effects: str) -> str:
+    """tiny_scene with a 4 x 5 grid at 1 m (x 0..4, z 0..3), a second 2 x 2 grid far away, and ``effects``."""
+    return tiny_scene(effects=effects, replace={"rows = 2": "rows = 4", "cols = 2": "cols = 5",
+                                                "spacing = [1.5, 1.5]": "spacing = [1.0, 1.0]"}, append=SECOND)
+
 
 # a box over columns 1..2 of rows 0..3 of the first grid (x 0.5..2.5): 8 agents inside; the second grid is clear
-OBSTACLE = BASE + """
-[[effects]]
-name = "obstacles"
-boxes = [{ center = [1.5, 1.5], size = [2.0, 10.0], yaw = 0.0 }]
-"""
+OBSTACLE = _scene('["animation", { name = "obstacles", boxes = [{ center = [1.5, 1.5], size = [2.0, 10.0], '
+                  'yaw = 0.0 }] }]')
 
 # a room of x 0..10, z -1..2.5 (rows 0..2 of the first grid inside, row 3 at z = 3 outside: 5 agents), the second
 # grid far outside: with routing an error of the scene, at validate as at run
-ROOM = BASE + """
-[[effects]]
-name = "routing"
-walkable = [{ points = [[-1.0, -1.0], [10.0, -1.0], [10.0, 2.5], [-1.0, 2.5]] }]
-
-[[effects]]
-name = "obstacles"
-"""
+ROOM = _scene('["animation", { name = "routing", walkable = [{ points = [[-1.0, -1.0], [10.0, -1.0], [10.0, 2.5], '
+              '[-1.0, 2.5]] }] }, "obstacles"]')
 
 
 def test_validate_warns_of_agents_inside_an_obstacle(write_scene):
@@ -86,8 +53,7 @@ def test_run_says_it_once_and_a_clear_scene_says_nothing(write_scene, tmp_path):
     assert r.returncode == 0, r.stderr
     assert [x for x in r.stderr.splitlines() if "warning:" in x] == [line]  # once, not per frame
     assert run_cli("run", path, "--out", tmp_path / "q", "--quiet").stderr.strip() == ""
-    clear = write_scene(BASE + OBSTACLE[len(BASE):].replace("center = [1.5, 1.5]", "center = [1.5, -8.0]"),
-                        "clear.toml")
+    clear = write_scene(OBSTACLE.replace("center = [1.5, 1.5]", "center = [1.5, -8.0]"), "clear.toml")
     s = load_scene(clear)
     q = plan(s)
     assert start_warnings(s, q.state, q.agents_per_placement) == []
