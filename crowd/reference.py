@@ -222,8 +222,10 @@ def draw_tiles(renderer, drawlist, plan: TilePlan, background) -> np.ndarray:
 class TileRenderer:
     """A renderer of a reference's tiles beside one already drawing (the benchmarks: the same context, ``ctx``,
     never a second one current at once), ``reps`` uploaded; :meth:`draw` takes a DrawList selected at
-    :attr:`big` and returns the filtered frame. Each copy is skinned at its own animation time (no pose table:
-    the pose cache's shared, quantised poses are an error the reference does not make).
+    :attr:`big` and returns the filtered frame. The DrawList's pose table is not used (each copy is skinned with
+    its own palette at the frame coordinate its instance row holds): exact animation times when the selection made
+    none (``lod.poses`` with ``pose_rate = 0``, or a selector called without pose sharing), else the quantised ones
+    it wrote.
 
     Parameters
     ----------

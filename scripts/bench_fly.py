@@ -7,8 +7,8 @@ it, the simulation running. Printed per scene: the median frame rate over frames
 clock from one frame's start to the next, blit, HUD and swap included: what the person sees), the median and the
 slowest frame of that span, the mode drawn at the end (``auto*``: auto in place of the scene's mode, which missed
 the budget), auto's error bound, and the PSNR of the last frame against the true reference of the same state and
-view (full detail with 4 x 4 samples per pixel, box-filtered: ``crowd.reference``) and against aliased full detail
-(mode ``none``, one sample per pixel).
+view (full detail with 4 x 4 samples per pixel, box-filtered: ``crowd.reference``; at the scene's pose rate) and
+against aliased full detail (mode ``none``, one sample per pixel).
 
 Run:  .venv/bin/python scripts/bench_fly.py [--scenes exhibition stadium] [--frames 110] [--from 10]
       [--size 1280 720] [--budget MS] [--md scripts/bench_fly.md]
