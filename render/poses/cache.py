@@ -10,9 +10,8 @@ DrawList's :class:`lod.poses.PoseTable` and
   character's slot ``s`` starts at texel ``base + s * 3J``). The skinned, cluster and chain programs read it
   with the copy's slot (``i_anim.y``, the ``POSE_SLOT`` variants of ``shaders/poses/skinning.glsl``) instead of a
   per-copy palette built by the transform-feedback pre-pass;
-- on request (:meth:`PoseCache.posed`: the full-detail drawer, the compute rasteriser) and where it pays (a group
-  drawing at least :data:`POSED_MIN_SHARING` copies per distinct pose) skins the vertices of a mesh in every
-  distinct pose once (:class:`PosedVertices`): morph targets blended first, normals through the
+- on request (:meth:`PoseCache.posed`: the full-detail drawer, the compute rasteriser) skins the vertices of a
+  mesh in every distinct pose once (:class:`PosedVertices`): morph targets blended first, normals through the
   inverse transpose of the blended matrix. The skinning pass is a compute shader (``shaders/poses/pose_skin.comp``,
   every core on llvmpipe) or numba over both cores (:attr:`PoseCache.skinning`; the faster one is the
   default, scripts/bench_full_detail.md). Copies then draw from the buffer with only their instance transform
@@ -64,11 +63,6 @@ POSED_VERTEX_BYTES = 4 * POSED_FLOATS
 POSED_WINDOW_BYTES = 128 * 1024 * 1024
 #: most bytes of posed vertices of one mesh in one frame (beyond: the copies skin from the palettes)
 POSED_BUDGET_BYTES = 1024 * 1024 * 1024
-#: posed vertices pay when the copies drawn share poses: a group's mesh is posed only when it draws at least this
-#: many copies per distinct pose; below, its copies are skinned in the vertex stage from the pose palettes (the same
-#: pixels). With one pose per copy (``pose_rate = 0``) posing every copy's mesh in a pass first cost 1,024 Foxes
-#: 470 ms a frame against 192 ms from the palettes (issue 44's none-exact regression; measured loaded, same run)
-POSED_MIN_SHARING = 2.0
 #: skinning passes: "compute" (shaders/poses/pose_skin.comp) or "numba" (render/poses/skin.py)
 SKINNING_PASSES = ("compute", "numba")
 #: default skinning pass (scripts/bench_full_detail.md "pose skinning": compute vs numba)
@@ -219,10 +213,8 @@ class PoseCache:
     skinning : "compute" or "numba", the posed-vertex pass
     window_bytes : most bytes per window, both textures (and at most GL_MAX_TEXTURE_SIZE rows)
     budget_bytes : most posed bytes of one mesh per frame
-    min_sharing : copies per distinct pose below which a group is not posed (:data:`POSED_MIN_SHARING`)
     last_stats : dict of the last frame: "poses", "posed_vertices", "palette_ms", "skin_ms", "windows",
-        "fallback" (meshes skinned per copy from the palettes because their poses exceed the budget),
-        "unshared" (groups skinned per copy from the palettes because they share too few poses)
+        "fallback" (meshes skinned per copy from the palettes because their poses exceed the budget)
     """
 
     def __init__(self, renderer):
@@ -231,7 +223,6 @@ class PoseCache:
         self.skinning = SKINNING_PASS
         self.window_bytes = POSED_WINDOW_BYTES
         self.budget_bytes = POSED_BUDGET_BYTES
-        self.min_sharing = POSED_MIN_SHARING
         self.available = int(getattr(self.ctx, "version_code", 0)) >= 430  # compute shaders, storage buffers
         self._objects: list = []
         self._palette = Palette(self.ctx, self._track, self._untrack)
@@ -290,7 +281,7 @@ class PoseCache:
         t0 = time.perf_counter()
         self._table, self._pal, self._posed = None, {}, {}
         self.last_stats = {"poses": 0, "posed_vertices": 0, "palette_ms": 0.0, "skin_ms": 0.0, "windows": 0,
-                           "fallback": 0, "unshared": 0}
+                           "fallback": 0}
         if table is None or not self.available or not table.sets:
             return
         blocks, base = [], 0
@@ -344,12 +335,7 @@ class PoseCache:
             return None
         key = (g, d)
         if key not in self._posed:
-            ps = self._table.sets.get(g)
-            if ps is not None and ps.instances < self.min_sharing * ps.n_poses:  # posing would not pay
-                self.last_stats["unshared"] += 1
-                self._posed[key] = None
-            else:
-                self._posed[key] = self._skin(g, self._meshes[d])
+            self._posed[key] = self._skin(g, self._meshes[d])
         return self._posed[key]
 
     def _limit(self) -> int:

@@ -40,7 +40,6 @@ def frames(tmp_path_factory):
     out = {}
     with Engine(_scene(tmp), overrides={"size": (W, H)}, quiet=True) as e:
         r = e._open_renderer()
-        r.poses.min_sharing = 0.0  # the walkers' few copies share no pose: posed anyway, so compute can take them
         e.step()
         cam = e.camera_at(e.world.time)
         for m in MODES:

@@ -85,7 +85,6 @@ def test_posed_vertices_are_the_cpu_reference_skinning(gl_ctx, request, which, s
     rep = request.getfixturevalue(which)
     r = Renderer(SIZE, ctx=gl_ctx, debug=True)
     r.poses.skinning = skinning
-    r.poses.min_sharing = 0.0  # every distinct pose posed, however few copies share it
     r.upload(rep)
     dl = _drawlist([rep], _crowd(rep), 0)  # exact: every copy its own fractional frame
     r.draw(dl)
@@ -117,30 +116,6 @@ def test_exact_rate_draws_every_mode_as_per_copy_skinning(gl_ctx, morphed, mode)
     after = _image(r, dl)
     assert dl.stats["poses"] == 12 and (before.max(axis=2) > 40).sum() > 2000
     assert np.abs(before.astype(int) - after).max() <= 2, mode
-    r.release()
-
-
-def test_a_group_that_shares_no_pose_is_drawn_from_its_palettes(gl_ctx, morphed):
-    """Posed vertices where they pay (render.poses.cache.POSED_MIN_SHARING): exact times, one pose per copy, are not
-    posed (every copy skinned from its pose's palette, the same pixels); copies sharing their poses are."""
-    reps, sel = mode_module("none").build([tiny_morphed()], ["tinymorph"], [30], {})
-    r = Renderer(SIZE, ctx=gl_ctx, debug=True)
-    for rep in reps:
-        r.upload(rep)
-    st = _crowd(morphed)
-    dl = _drawlist(reps, st, 0, sel)  # exact: as many poses as copies
-    palettes = _image(r, dl)
-    assert r.poses.last_stats["unshared"] == 1 and r.poses.last_stats["posed_vertices"] == 0
-    r.poses.min_sharing = 0.0  # posed all the same
-    posed = _image(r, _drawlist(reps, st, 0, sel))
-    assert r.poses.last_stats["unshared"] == 0 and r.poses.last_stats["posed_vertices"] > 0
-    assert np.abs(palettes.astype(int) - posed).max() <= 2
-    r.poses.min_sharing = 2.0
-    st.anim_time[:] = 0.5  # every copy at one time: a pose per clip, shared by the copies
-    shared = _drawlist(reps, st, "key", sel)
-    _image(r, shared)
-    ps = shared.poses.set_of(reps[0].key)
-    assert ps.instances >= 2 * ps.n_poses and r.poses.last_stats["posed_vertices"] > 0
     r.release()
 
 

@@ -96,7 +96,6 @@ def _both_paths(ctx, rep, dl):
     """(hardware image, compute image, the compute path's counts) of one frame, every copy routed to compute."""
     with Renderer(SIZE, ctx=ctx, debug=True) as r:
         r.upload(rep)
-        r.poses.min_sharing = 0.0  # posed vertices however few copies share a pose: the compute path takes them
         r.compute_raster = False
         r.draw(dl)
         hw = r.read_pixels().copy()
@@ -346,7 +345,6 @@ def test_skinned_copies_with_morph_targets_match_the_hardware_path(gl_ctx):
     dl = _drawlist(rep, rows)
     with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
         r.upload(rep)
-        r.poses.min_sharing = 0.0
         r.raster.route_all, r.raster_threshold = True, 64.0
         r.raster.share_poses = False
         r.draw(dl)
