@@ -62,8 +62,10 @@ def run_scene(path: Path, size, frame: int, k: int, modes) -> dict:
     full = reference_scene(base)
     t0 = time.perf_counter()
     ref = reference_task(full, [frame], k)
-    if "error" in ref:
-        raise SystemExit(f"{path}: {ref['error']}")
+    if "error" in ref:  # bad input the reference met (an asset, memory): one line, exit 2 (main)
+        from crowd.errors import CrowdError
+
+        raise CrowdError(ref["error"])
     from crowd.images import read_png
     import io
 
