@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
-from render.context import create_context, track
+from render.context import create_context, release_all, track
 from render.clusters.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.poses.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
                                   joint_texture, plan_chunks)
@@ -678,12 +678,7 @@ class Renderer:
             self._raster.release()
         self._plugin_reps.clear()
         self.poses.release()
-        for o in reversed(self._objects):
-            try:
-                o.release()
-            except Exception:  # pragma: no cover - already released by the context owner
-                pass
-        self._objects.clear()
+        release_all(self._objects)  # render.context: reverse order, each once
         self._reps.clear()
         self._programs.clear()
         if self._own_ctx:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.context import REQUIRED_GL, ContextError, track
+from render.context import REQUIRED_GL, ContextError, release_all, track
 from render.shaders import program_sources
 
 #: context versions requested, in order (major, minor), all core profile
@@ -257,12 +257,7 @@ class Hud:
         if self._released:
             return
         self._released = True
-        for o in reversed(self._objects):
-            try:
-                o.release()
-            except Exception:  # pragma: no cover
-                pass
-        self._objects.clear()
+        release_all(self._objects)  # render.context: reverse order, each once
 
 
 # ---------------------------------------------------------------------------------------------------------------------

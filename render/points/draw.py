@@ -47,7 +47,7 @@ import numpy as np
 from lod.drawlist import fade_uniform
 from render.points import occlusion as occ
 from render.points import pack
-from render.context import track
+from render.context import release_all, track
 from render.points.follow import FollowFrame
 from render.points.follow import upload as upload_follow
 from render.points.frame import instance_windows
@@ -314,12 +314,7 @@ class Drawer:
             self._release_rep(g)
         self._reps.clear()
         self._follow.clear()
-        for o in reversed(self._objects):
-            try:
-                o.release()
-            except Exception:  # pragma: no cover
-                pass
-        self._objects.clear()
+        release_all(self._objects)  # render.context: reverse order, each once
         self._bufs.clear()
         self._points = None
         self._points_used = 0

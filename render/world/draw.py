@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS
-from render.context import track
+from render.context import release_all, track
 
 #: bytes per instance in the world's instance buffer
 _INSTANCE_BYTES = INSTANCE_FLOATS * 4
@@ -175,11 +175,6 @@ class Drawer:
             offset += b.n_instances * _INSTANCE_BYTES
 
     def release(self) -> None:
-        for o in reversed(self._objects):
-            try:
-                o.release()
-            except Exception:  # pragma: no cover
-                pass
-        self._objects.clear()
+        release_all(self._objects)  # render.context: reverse order, each once
         self._reps.clear()
         self.ground_vao, self._buf, self._cap = None, None, 0

@@ -45,7 +45,7 @@ import moderngl
 import numpy as np
 
 from render.world.blobs import blob_rows, covering
-from render.context import track
+from render.context import release_all, track
 from render.world.light import DEFAULT_SHADOWS, SHADOW_MODES, Light, apply_light  # noqa: F401  (re-exported)
 
 #: default side of the shadow map, texels
@@ -263,12 +263,7 @@ class Lighting:
 
     def release(self) -> None:
         """Release every GL object (reverse creation order; safe twice)."""
-        for o in reversed(self._objects):
-            try:
-                o.release()
-            except Exception:  # pragma: no cover - released with the context
-                pass
-        self._objects.clear()
+        release_all(self._objects)  # render.context: reverse order, each once
         self._dummy = self._map = self._map_fbo = self._blob = None
 
     # ------------------------------------------------------------------ uniforms
