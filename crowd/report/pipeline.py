@@ -68,10 +68,10 @@ DEFAULT_SAMPLES = 4
 
 class _Lines:
     """Progress where stderr is no terminal (a pipe, a log, CI): one line per finished timed run and reference,
-    the steps between (as a tqdm bar's ``update``/``set_postfix_str``, plus :meth:`line`)."""
+    the steps between (as a tqdm bar's ``update``/``set_postfix_str``, plus :meth:`line`); nothing when ``quiet``."""
 
-    def __init__(self, total: int):
-        self.total, self.n = total, 0
+    def __init__(self, total: int, quiet: bool = False):
+        self.total, self.n, self.quiet = total, 0, quiet
 
     def update(self, k: int = 1) -> None:
         self.n += k
@@ -80,7 +80,8 @@ class _Lines:
         self.line(text)
 
     def line(self, text: str) -> None:
-        print(f"report [{self.n}/{self.total}]: {text}", file=sys.stderr, flush=True)
+        if not self.quiet:
+            print(f"report [{self.n}/{self.total}]: {text}", file=sys.stderr, flush=True)
 
     def __enter__(self):
         return self
@@ -114,28 +115,9 @@ class _Bar:
         return False
 
 
-class _Silent:
-    def update(self, k: int = 1) -> None:
-        pass
-
-    def set_postfix_str(self, text: str) -> None:
-        pass
-
-    def line(self, text: str) -> None:
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-
 def _progress(total: int, quiet: bool):
     """The report's progress: nothing with ``quiet``, a bar on a terminal, else one line per step (stderr)."""
-    if quiet:
-        return _Silent()
-    return _Bar(total) if sys.stderr.isatty() else _Lines(total)
+    return _Bar(total) if sys.stderr.isatty() and not quiet else _Lines(total, quiet)
 
 
 def finite_or_none(x):

@@ -20,15 +20,15 @@ COLUMNS = ("scene", "setting", "size", "aliased_full_detail", "runs", "p50_ms", 
 def rows(data: dict) -> list:
     """One dict per scene and setting of report.json's ``data`` (keys :data:`COLUMNS`; None where absent;
     an image error of identical images is ``inf``)."""
+    def db(acc):
+        p = acc.get("psnr")
+        return math.inf if p is None and acc.get("identical") else p
+
     out = []
     for sc in data["scenes"]:
         for s in sc["settings"]:
             a, al, fm = s["accuracy"], s.get("accuracy_aliased") or {}, s["frame_ms"]
             meds = s.get("repeat_medians_ms") or []
-
-            def db(acc):
-                p = acc.get("psnr")
-                return math.inf if p is None and acc.get("identical") else p
 
             out.append({"scene": sc["name"], "setting": s["label"], "size": f"{s['size'][0]}x{s['size'][1]}",
                         "aliased_full_detail": bool(s.get("aliased_full_detail")), "runs": len(meds) or 1,
