@@ -34,6 +34,8 @@ from crowd.fly_budget import DEFAULT_BUDGET_MS, parse_budget  # noqa: E402
 NAMED_ONLY = ("million",)
 #: frames per second the issue asks of every shipped scene's fly-through
 TARGET_FPS = 10.0
+#: the fly-through's stages (crowd.fly.FlyFrame.stages) whose medians are printed, in frame order
+STAGES = ("simulate", "select", "upload", "draw", "finish", "blit", "hud")
 
 
 def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -> dict:
@@ -51,6 +53,7 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -
         engine = Engine(scene, quiet=True)
         app = FlyApp(engine, window, Path("/tmp") / "bench_fly", echo=lambda _: None, budget_ms=budget)
         ratios = []  # frames of mode auto: its predicted rendering time over the measured one
+        stages = []  # per measured frame: its stages' seconds (FlyFrame.stages)
         real = app.frame
 
         def frame(dt):
@@ -59,6 +62,8 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -
             render = sum(out.stages.get(k, 0.0) for k in ("upload", "draw", "finish"))
             if app.frames > start and isinstance(a, dict) and a.get("predicted_ms") and render > 0:
                 ratios.append(float(a["predicted_ms"]) / (1e3 * render))
+            if app.frames > start:
+                stages.append(dict(out.stages))
             return out
 
         app.frame = frame
@@ -92,6 +97,8 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -
                 "max_ms": 1e3 * float(periods.max()) if periods.size else float("nan"), "mode": mode, "bound": bound,
                 "psnr": psnr(drawn, true), "psnr_aliased": psnr(drawn, full), "full_psnr": psnr(full, true),
                 "wall_s": wall, "frames": frames,
+                "stages": {k: 1e3 * float(np.median([st.get(k, 0.0) for st in stages])) for k in STAGES} if stages
+                else {k: float("nan") for k in STAGES},
                 "pred": float(np.median(ratios)) if ratios else float("nan"),
                 "pred25": float(np.mean(np.abs(np.asarray(ratios) - 1.0) <= 0.25)) if ratios else float("nan")}
     finally:
@@ -164,6 +171,10 @@ def main(argv=None) -> int:
     summary = (f"{met} of {len(results)} scenes at >= {TARGET_FPS:g} fps; slowest frame over 2x the budget "
                f"({2 * a.budget:g} ms) on: {', '.join(over) or 'none'}")
     print(summary)
+    stage_rows = ["| scene | " + " | ".join(f"{k} ms" for k in STAGES) + " |",
+                  "| --- |" + " ---: |" * len(STAGES)]
+    stage_rows += [f"| {r['scene']} | " + " | ".join(f"{r['stages'][k]:.1f}" for k in STAGES) + " |" for r in results]
+    print("\n".join(["", f"median of each stage over frames {a.start}-{a.frames}:", *stage_rows]))
     if a.md:
         from sim.atomic_io import write_atomic
 
@@ -173,6 +184,8 @@ def main(argv=None) -> int:
                 f"{time.strftime('%Y-%m-%d')}, {platform.node()} ({os.cpu_count()} cores, Mesa llvmpipe under "
                 f"Xvfb), {a.size[0]}x{a.size[1]}, budget {a.budget:g} ms, load before the run "
                 f"{load[0]:.1f}.\n\n" + "\n".join(rows) + f"\n\n{summary}\n\n"
+                f"Median of each stage over frames {a.start}-{a.frames} (crowd.fly.FlyFrame.stages; upload, draw and "
+                "finish are the renderer's):\n\n" + "\n".join(stage_rows) + "\n\n"
                 "`auto*`: mode auto drawn in place of the scene's mode, which missed the budget. Frame time is the "
                 "wall clock from one frame's start to the next (simulation, selection, rendering, blit, HUD, swap); "
                 "the budget covers selection and rendering only. The last two columns: over the measured frames drawn by "

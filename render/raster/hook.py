@@ -69,12 +69,14 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         if getattr(b, "morph", None) is not None or getattr(b, "fade", None) is not None:
             continue
         m = raster.mesh(g.source, g.cull, g)
-        if m is None or (g.kind == "skinned" and renderer.poses.posed(b.rep) is None):
-            continue  # a skinned copy reads its pose from the pose cache (none this frame: the hardware path)
+        if m is None:
+            continue
         data = np.asarray(b.instance_data, np.float32).reshape(-1, 16)
         first, count = triangle_range(g, b)
         mask = _mask(raster, m, data, route, m.extent_of(first, count))
-        if not mask.any():
+        # a skinned copy reads its pose from the pose cache (none this frame: the hardware path); asked only when
+        # the compute path takes a copy, since asking poses the mesh in every distinct pose
+        if not mask.any() or (g.kind == "skinned" and renderer.poses.posed(b.rep) is None):
             continue
         ids = np.asarray(b.instance_ids)
         order = np.concatenate([np.flatnonzero(~mask), np.flatnonzero(mask)])
@@ -183,14 +185,16 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
         g = it.st.skin
         src = getattr(g, "source", None)
         if (it.program != "clusters" or tuple(it.fade) != (0.0, 0.0) or it.st.occlusion or src is None
-                or getattr(it, "slots", None) is None or renderer.poses.posed(it.key, src.key) is None):
+                or getattr(it, "slots", None) is None or renderer.poses.palette(it.key) is None):
             out.append(it)  # the compute path reads poses from the pose cache: none this frame, hardware path
             continue
         m = raster.mesh(src, g.cull, g)
         # each copy routed by its own cut's triangles (a coarse cut's are larger than the mesh's: routed by the
         # mesh's, coarse cuts of a far crowd went to the compute path, ~100x slower there than drawn by hardware)
         mask = _mask(raster, m, it.data, route, cut_extents(it.offsets, it.clusters, cluster_extents(it.st, m)))
-        if not mask.any():
+        # the full mesh is posed in every distinct pose for the compute path only when it takes a copy (asked
+        # first, the hardware path's coarse cuts paid a full-mesh pose pass: 4 M vertices a frame on the office)
+        if not mask.any() or renderer.poses.posed(it.key, src.key) is None:
             out.append(it)
             continue
         sub = np.flatnonzero(mask)

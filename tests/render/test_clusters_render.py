@@ -443,3 +443,28 @@ def test_geomorph_shader_constants_match_python():
     assert int(re.search(r"const int MAX_CHAIN = (\d+);", src).group(1)) == cm.MAX_CHAIN
     w = MORPH_TEXTURE_WIDTH
     assert f"t & {w - 1}" in src and f"t >> {w.bit_length() - 1}" in src
+
+
+def test_the_full_mesh_is_posed_only_for_copies_the_compute_path_takes(scene):
+    """The compute rasteriser draws a cut from the pose cache's posed full mesh; a frame whose cuts all go to
+    the hardware path (large on screen) must not pay that pose pass (it did: 4 M vertices a frame on the
+    office scene), one whose copies are small must (render/raster/hook.py split_clusters)."""
+    from lod.poses import PoseSharing
+
+    ps = PoseSharing(rate=0.0)  # exact poses, as the engine attaches them
+    ps.register([*scene.reps, *scene.full])
+    scene.sel.poe = 0.5
+
+    def draw(state, cam):
+        dl = scene.sel.select(state, cam, SIZE)
+        ps.assign(dl)
+        assert dl.poses is not None and dl.stats["clusters"] > 0
+        scene.r.draw(dl, background=BG)
+        return dl
+
+    dl = draw(_state([[0, 0, 0]], [0.0], [0.3]), Camera.look_at((0, 1.0, 2.5), (0, 0.9, 0)))
+    assert dl.stats["raster_triangles"] == 0
+    assert scene.r.poses.last_stats["posed_vertices"] == 0
+    dl = draw(_state([[0, 0, 0], [0.8, 0, 0]], [0.0, 1.0], [0.3, 0.6]), Camera.look_at((0, 1.0, 60.0), (0, 0.9, 0)))
+    assert dl.stats["raster_triangles"] > 0
+    assert scene.r.poses.last_stats["posed_vertices"] == 2 * scene.c.mesh.n_vertices
