@@ -431,7 +431,8 @@ class FlyFrame:
     """What one fly-through frame did.
 
     drawlist : lod.drawlist.DrawList drawn
-    stages : dict of seconds: simulate, select, upload, draw, finish, blit, hud, total
+    stages : dict of seconds: simulate, select, upload, draw, finish, observe (mode auto and the budget learn
+        the frame's cost), blit, hud, total
     stepped : bool, the simulation advanced this frame
     screenshot : Path or None
     """
@@ -557,10 +558,12 @@ class FlyApp:
         # mode auto learns its costs (and holds its budget) from the frames drawn here too; another mode that
         # misses the budget gives way to auto (crowd.fly_budget)
         self.budget.observe(e.observe(dl, t2 - t1, r), dl)
+        t_obs = time.perf_counter()
         self.window.blit(self.renderer.fbo)
         t4 = time.perf_counter()
         stages = {"simulate": t1 - t0, "select": t2 - t1, "upload": float(r.get("upload") or 0.0),
-                  "draw": float(r.get("draw") or 0.0), "finish": float(r.get("finish") or 0.0), "blit": t4 - t3}
+                  "draw": float(r.get("draw") or 0.0), "finish": float(r.get("finish") or 0.0),
+                  "observe": t_obs - t3, "blit": t4 - t_obs}
         result = FlyFrame(dl, stages, stepped)
         self.last = result
         if c.hud_visible:

@@ -35,7 +35,7 @@ NAMED_ONLY = ("million",)
 #: frames per second the issue asks of every shipped scene's fly-through
 TARGET_FPS = 10.0
 #: the fly-through's stages (crowd.fly.FlyFrame.stages) whose medians are printed, in frame order
-STAGES = ("simulate", "select", "upload", "draw", "finish", "blit", "hud")
+STAGES = ("simulate", "select", "upload", "draw", "finish", "observe", "blit", "hud")
 
 
 def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -> dict:

@@ -57,9 +57,12 @@ DEFAULT_SSBO_LIMIT = 1 << 27
 class _Mesh:
     """An uploaded mesh: where its records and triangles start in the shared tables."""
 
-    def __init__(self, rep, kind, record, verts, tri, tris, cull):
-        self.rep, self.kind, self.record, self.verts, self.tri, self.tris, self.cull = \
-            rep, kind, record, verts, tri, tris, cull
+    def __init__(self, rep, kind, verts, tris, cull):
+        self.rep, self.kind, self.verts, self.tris, self.cull = rep, kind, verts, tris, cull
+        # rows in the shared tables, placed when the mesh is first drawn (Raster._place): first record and
+        # triangle row, and how many of each the slot holds (a replaced rep of the same key reuses its slot)
+        self.record = self.tri = None
+        self.record_cap = self.tri_cap = 0
         pos = rep.positions0 if kind == tb.KEYFRAMED else rep.positions
         self.extent, self.radius, self.centre = triangle_extent(pos, rep.indices)
         self._ranges: dict = {}  # (first triangle, count) -> (first vertex, vertices) used
@@ -110,6 +113,7 @@ class Raster:
         self._bufs: dict = {}
         self._records = np.zeros((0, 4 * tb.RECORD_TEXELS), np.uint32)
         self._tris = np.zeros((0, 4), np.uint32)
+        self._dead = 0  # table rows (records + triangles) of replaced meshes not reused yet
         self._dirty = True
         mk = lambda dt, label: tb.Table(self.ctx, dt, f"raster.{label}", self._track, self._forget)  # noqa: E731
         self.mesh_table, self.tri_table = mk("u4", "mesh"), mk("u4", "tris")
@@ -189,11 +193,11 @@ class Raster:
 
     # ------------------------------------------------------------------ meshes
     def mesh(self, rep, cull: bool, g=None) -> _Mesh | None:
-        """The uploaded mesh of representation ``rep`` (back faces culled or not; a skinned one needs the
-        renderer's ``_GpuRep`` ``g`` for its joint table), registered on first use; None for a kind the compute
-        path does not draw. Props and obstacle solids (kind "world", lod.props) are static meshes. A skinned
-        mesh's posed vertices come from the pose cache each frame (:func:`render.raster.hook.split` routes its
-        copies here only when the cache has them)."""
+        """The mesh of representation ``rep`` (back faces culled or not; a skinned one needs the renderer's
+        ``_GpuRep`` ``g`` for its joint table): its routing summary at once, its table rows when first drawn
+        (:meth:`_place`); None for a kind the compute path does not draw. Props and obstacle solids (kind
+        "world", lod.props) are static meshes. A skinned mesh's posed vertices come from the pose cache each
+        frame (:func:`render.raster.hook.split` routes its copies here only when the cache has them)."""
         m = self._meshes.get(rep.key)
         if m is not None and m.rep is rep:
             return m
@@ -201,20 +205,66 @@ class Raster:
                 "world": tb.STATIC}.get(getattr(rep, "kind", ""))
         if kind is None or (kind == tb.POSED and g is None):
             return None
-        if kind == tb.KEYFRAMED:
+        verts = int(np.asarray(rep.positions0 if kind == tb.KEYFRAMED else rep.positions).shape[0])
+        new = _Mesh(rep, kind, verts, int(np.asarray(rep.indices).size // 3), bool(cull))
+        if m is not None and m.record is not None:  # a rep replaced under its key (a view-dependent terrain)
+            new.record, new.record_cap, new.tri, new.tri_cap = m.record, m.record_cap, m.tri, m.tri_cap
+            new._stale = True
+        self._meshes[rep.key] = new
+        return new
+
+    @staticmethod
+    def _rows(m: _Mesh) -> tuple:
+        """(vertex records, triangle rows) of mesh ``m`` in the tables' layout."""
+        rep = m.rep
+        if m.kind == tb.KEYFRAMED:
             recs = np.concatenate([tb.vertex_records(rep.positions0, rep.normals0, rep.colors0),
                                    tb.vertex_records(rep.positions1, rep.normals1, rep.colors1)])
-            verts = int(np.asarray(rep.positions0).shape[0])
         else:
             recs = tb.vertex_records(rep.positions, rep.normals, rep.colors)
-            verts = int(np.asarray(rep.positions).shape[0])
-        tris = tb.triangle_rows(rep.indices)
-        m = _Mesh(rep, kind, self._records.shape[0], verts, self._tris.shape[0], tris.shape[0], bool(cull))
-        self._records = np.concatenate([self._records, recs])
-        self._tris = np.concatenate([self._tris, tris])
+        return recs, tb.triangle_rows(rep.indices)
+
+    def _place(self, m: _Mesh) -> None:
+        """Give mesh ``m`` its rows in the shared tables: a rep replaced under its key (a view-dependent
+        terrain, every frame) overwrites its predecessor's slot when it fits, else takes a new slot with a
+        quarter of headroom and leaves the old one dead; the tables are compacted once dead rows outnumber
+        live ones, so they never grow with the number of replacements."""
+        if m.record is not None and not getattr(m, "_stale", False):
+            return
+        recs, tris = self._rows(m)
+        if m.record is not None and recs.shape[0] <= m.record_cap and tris.shape[0] <= m.tri_cap:
+            self._records[m.record:m.record + recs.shape[0]] = recs
+            self._tris[m.tri:m.tri + tris.shape[0]] = tris
+        else:
+            if m.record is not None:
+                self._dead += m.record_cap + m.tri_cap
+            grow = 1.25 if m.record is not None else 1.0
+            m.record_cap, m.tri_cap = int(recs.shape[0] * grow), int(tris.shape[0] * grow)
+            m.record, m.tri = self._records.shape[0], self._tris.shape[0]
+            pad = lambda a, n: np.concatenate([a, np.zeros((n - a.shape[0], a.shape[1]), a.dtype)])  # noqa: E731
+            self._records = np.concatenate([self._records, pad(recs, m.record_cap)])
+            self._tris = np.concatenate([self._tris, pad(tris, m.tri_cap)])
+        m._stale = False
         self._dirty = True
-        self._meshes[rep.key] = m
-        return m
+        if self._dead > self._records.shape[0] + self._tris.shape[0] - self._dead:
+            self._compact()
+
+    def _compact(self) -> None:
+        """The tables rebuilt from the placed meshes only (replaced meshes' slots dropped)."""
+        live = [m for m in self._meshes.values() if m.record is not None]
+        recs, tris = [], []
+        r = t = 0
+        for m in live:
+            a = self._records[m.record:m.record + m.record_cap]
+            b = self._tris[m.tri:m.tri + m.tri_cap]
+            m.record, m.tri = r, t
+            recs.append(a)
+            tris.append(b)
+            r, t = r + a.shape[0], t + b.shape[0]
+        self._records = np.concatenate(recs) if recs else self._records[:0]
+        self._tris = np.concatenate(tris) if tris else self._tris[:0]
+        self._dead = 0
+        self._dirty = True
 
     def _frame_triangles(self, work: list) -> None:
         """Place the explicit triangles of this frame's work (cluster cuts) after the meshes' in the triangle
@@ -275,6 +325,8 @@ class Raster:
 
             self.ctx.finish()
             self.last_passes, self._t = {}, (time.perf_counter(), time.process_time())
+        for w in work:
+            self._place(w.mesh)
         self._upload_meshes()
         self._frame_triangles(work)
         # one row per instance: batch index, rows, tints

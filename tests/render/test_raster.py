@@ -410,3 +410,36 @@ def test_a_cluster_cut_is_routed_by_its_own_triangles():
     proj = _camera().projection(SIZE[0] / SIZE[1])
     mask = compute_mask(rows, cut[:2], 1.8, np.zeros(3), proj, SIZE[1], 2.0, 0.1)
     assert mask.tolist() == [True, False]
+
+
+def test_a_rep_replaced_every_frame_reuses_its_rows(gl_ctx):
+    """A representation uploaded again under its key each frame (the view-dependent terrain) draws the new
+    mesh, like a fresh renderer does, and the shared tables stay bounded: a replacement reuses its
+    predecessor's rows when it fits and dead rows are compacted away (each frame used to append its mesh)."""
+    rng = np.random.default_rng(5)
+    other = _rep(*_soup(np.random.default_rng(9), 40, size=0.05), key="other")
+    with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
+        r.upload(other)
+        r.compute_raster = True
+        r.raster.route_all = True
+        r.raster_threshold = 64.0
+        sizes = []
+        for frame in range(12):
+            n = int(rng.integers(30, 120))  # the mesh grows and shrinks
+            rep = _rep(*_soup(rng, n, size=0.05), key="soup")
+            r.upload(rep)
+            dl = _drawlist(rep)
+            dl.batches.append(_drawlist(other).batches[0])
+            r.draw(dl)
+            got = r.read_pixels().copy()
+            sizes.append(r.raster._tris.shape[0])
+            with Renderer(SIZE, ctx=gl_ctx, debug=True) as fresh:
+                fresh.upload(other)
+                fresh.upload(rep)
+                fresh.raster.route_all = True
+                fresh.raster_threshold = 64.0
+                fresh.draw(dl)
+                assert np.array_equal(got, fresh.read_pixels())
+        live = 40 + 120
+        assert max(sizes) <= 2 * 1.25 * live + 40  # bounded by the live meshes, not by the frames drawn
+        assert r.raster.last_counts["triangles"] == 40 + n
