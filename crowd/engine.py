@@ -265,16 +265,36 @@ class Engine:
         mode = common.get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
         return KeyframedSelector(selector, int(n), mode, geomorph=bool(common.get("keyframe_geomorph", True)))
 
-    def _build_terrain_lod(self):
+    def _build_terrain_lod(self, lod: str | None = None):
         """The view-dependent bisection terrain (Friedrich et al.), when the
-        scene's [terrain] asks for ``lod = "bisection"``; else None (the
+        scene's [terrain] asks for ``lod = "bisection"`` (or ``lod`` does); else None (the
         full-resolution terrain mesh is drawn as a static rep)."""
         terrain = self.world.resources.get("terrain")
         if terrain is None:
             return None
         from lod.temporal.terrain_keyframes import terrain_lod_from_params
 
-        return terrain_lod_from_params(terrain, self.scene.render.size, dict(self.scene.terrain_lod), self.scene.dt)
+        params = dict(self.scene.terrain_lod)
+        if lod is not None:
+            params["lod"] = lod
+        return terrain_lod_from_params(terrain, self.scene.render.size, params, self.scene.dt)
+
+    def set_terrain_lod(self, on: bool) -> bool:
+        """Draw a full-resolution terrain view-dependently (``on``: the bisection hierarchy at the scene's
+        ``lod_tau``, as ``[terrain] lod = "bisection"`` would) or as the scene wrote it (the fly-through's
+        budget: mode auto covers the ground too). A scene whose terrain is already view-dependent, or without
+        a terrain, is left as it is. Returns whether the terrain is drawn view-dependently now."""
+        if self.world.resources.get("terrain") is None or dict(self.scene.terrain_lod).get("lod") == "bisection":
+            return self.terrain_lod is not None
+        if on and self.terrain_lod is None:
+            self.terrain_lod = self._build_terrain_lod("bisection")
+        elif not on and self.terrain_lod is not None:
+            self.terrain_lod = None
+            if self.renderer is not None:  # the full-resolution mesh back in place of the last selected one
+                for rep in self.statics:
+                    if rep.key == "static:terrain":
+                        self.renderer.upload(rep)
+        return self.terrain_lod is not None
 
     def terrain_frame(self, camera, renderer) -> tuple:
         """Select (or interpolate) this frame's terrain and upload it in place of

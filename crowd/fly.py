@@ -543,9 +543,9 @@ class FlyApp:
         t1 = time.perf_counter()
         camera = c.camera()
         size = self.renderer.size
-        camera, _ = e.terrain_frame(camera, self.renderer)
         if self.frames == 0:  # a scene's mode hopeless under the budget starts in auto (crowd.fly_budget)
             self.budget.before_first_frame(camera, size)
+        camera, _ = e.terrain_frame(camera, self.renderer)  # after: auto under the budget draws it view-dependently
         if e.settings.freeze and self._frozen is not None:
             dl = reframe(self._frozen, camera, size)
         else:
