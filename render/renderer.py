@@ -173,6 +173,8 @@ class Renderer:
         self._objects: list = []
         self._reps: dict[str, _GpuRep] = {}
         self._plugin_reps: dict[str, str] = {}  # rep key -> kind drawn by a plug-in drawer
+        self._sources: dict = {}  # rep key -> the representation uploaded under it (Renderer.reprogram)
+        self._uploading = 0
         self._drawers: dict = {}  # kind -> Drawer (created on first upload of that kind)
         self._programs: dict = {}
         self._released = False
@@ -248,6 +250,7 @@ class Renderer:
         vertex-only transform-feedback variant recording those outputs; with
         ``defines`` the variant compiled with those preprocessor names."""
         defines = tuple(defines) + (("PIXEL_RAY",) if self.pixel_ray and not varyings else ())  # render/screen.py
+        defines += self.shadow_defines() if not varyings else ()
         key = (name, tuple(varyings), tuple(defines))
         if key not in self._programs:
             src = program_sources(name, fragment=not varyings, defines=tuple(defines))
@@ -289,9 +292,31 @@ class Renderer:
         return [[(items[d][0], items[d][1], items[d][2] + f * INSTANCE_BYTES, n, d, f) for d, f, n in ch]
                 for ch in plan]
 
+    def shadow_defines(self) -> tuple:
+        """Defines of the lit programs: ``SHADOW_MAP`` when shadow maps are on (shaders/world/shadow.glsl
+        compiles its lookup only then; render.world.shadows.Lighting.configure re-uploads what was compiled
+        without it when the mode changes)."""
+        return ("SHADOW_MAP",) if self.lighting.mode == "map" else ()
+
+    def reprogram(self) -> None:
+        """Every uploaded representation uploaded again (in upload order), its programs and vertex arrays made
+        for the current :meth:`shadow_defines`."""
+        for rep in list(self._sources.values()):
+            self.upload(rep)
+
     def upload(self, rep) -> None:
         """Create the GPU resources of a representation (``lod.full.mode`` rep);
         re-uploading a key replaces the old resources."""
+        if not self._uploading:  # a drawer's own upload of a part (a clusters rep's skinned mesh) is not a source
+            self._sources.pop(rep.key, None)
+            self._sources[rep.key] = rep  # (re-)uploaded last: reprogram keeps the order
+        self._uploading += 1
+        try:
+            self._upload(rep)
+        finally:
+            self._uploading -= 1
+
+    def _upload(self, rep) -> None:
         if rep.key in self._reps:
             self._release_rep(self._reps.pop(rep.key))
         kind = rep.kind

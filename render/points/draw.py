@@ -206,6 +206,7 @@ class Drawer:
         return track(self._objects, obj, label)  # render.context.track
 
     def _program(self, name, defines=()):
+        defines = tuple(defines) + self.r.shadow_defines()  # points_gl, points_tri: lit.frag (shadow.glsl)
         k = (name, tuple(defines)) if defines else name
         if k not in self._progs:
             self._progs[k] = self._track(self.ctx.program(**program_sources(name, defines=tuple(defines))),
@@ -581,7 +582,8 @@ class Drawer:
                 (g.verts if placed is None else placed[0]).bind_to_storage_buffer(5)
                 ibo = self._buffer("tri_index", index)
                 vao = self._vao_of("tri_vao" if placed is None else "tri_vao_placed", ibo,
-                                   lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo, index_element_size=4))
+                                   lambda: self.ctx.vertex_array(tprog, [], index_buffer=ibo, index_element_size=4),
+                                   tprog)
                 vao.render(moderngl.TRIANGLES, vertices=int(index.shape[0]))
             self.last_counts["triangles"] += int(jobs[-1, 1]) + int(jobs[-1, 3])
 
@@ -642,12 +644,12 @@ class Drawer:
             self._dispatch(clear, int(dirty.shape[0]), TILES_PER_GROUP)
         self._dirty = np.zeros(0, np.uint32)
 
-    def _vao_of(self, kind: str, buffer, make):
-        """The vertex array ``make()`` reading the per-frame ``buffer``: kept
-        while that buffer object is the current one; when the buffer was
-        outgrown (replaced), the old vertex array is released."""
+    def _vao_of(self, kind: str, buffer, make, prog=None):
+        """The vertex array ``make()`` reading the per-frame ``buffer`` (with program ``prog``): kept
+        while that buffer object is the current one (and ``prog`` its program); when the buffer was
+        outgrown (replaced), or the program recompiled, the old vertex array is released."""
         entry = self._vaos.get(kind)
-        if entry is None or entry[0] is not buffer:
+        if entry is None or entry[0] is not buffer or (prog is not None and entry[1].program is not prog):
             if entry is not None:
                 self._objects.remove(entry[1])
                 entry[1].release()

@@ -519,7 +519,7 @@ class Raster:
 
     def _lit_program(self, name: str, vertex: str, fragment: str, extra=()):
         """A draw program of ``vertex`` and ``fragment`` files with the renderer's PIXEL_RAY choice."""
-        defines = tuple(extra) + (("PIXEL_RAY",) if self.r.pixel_ray and not extra else ())
+        defines = tuple(extra) + (("PIXEL_RAY",) if self.r.pixel_ray and not extra else ()) + self.r.shadow_defines()
         k = (name, defines)
         if k not in self._progs:
             prog = self.ctx.program(vertex_shader=with_defines(load_source(vertex), defines),

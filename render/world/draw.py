@@ -68,9 +68,13 @@ class Drawer:
         ctx = self.ctx
         if not hasattr(rep, "indices"):  # the ground
             prog = self.r.program("world_ground")
-            if self.ground_vao is None:
+            if self.ground_vao is None or self.ground_vao.program is not prog:  # new, or its program recompiled
+                if self.ground_vao is not None:  # (render.renderer.Renderer.reprogram)
+                    for o in (self.ground_vao, self._ground_vbo):
+                        o.release()
+                        self._objects.remove(o)
                 quad = np.array([[-1, -1], [1, -1], [-1, 1], [1, 1]], np.float32)
-                vbo = self._track(ctx.buffer(quad.tobytes()), "world.ground.vbo")
+                self._ground_vbo = vbo = self._track(ctx.buffer(quad.tobytes()), "world.ground.vbo")
                 self.ground_vao = self._track(ctx.vertex_array(prog, [(vbo, "2f", "in_corner")]), "world.ground.vao")
             self._reps[rep.key] = {"ground": rep}
             return

@@ -212,7 +212,10 @@ class Lighting:
         if mode is not None:
             if mode not in SHADOW_MODES:
                 raise ValueError(f"shadows: expected one of {SHADOW_MODES}, got {mode!r}")
+            was = self.r.shadow_defines()
             self.mode = mode
+            if self.r.shadow_defines() != was:  # the lit programs compile the map's lookup only in mode "map"
+                self.r.reprogram()
         if distance is not None:
             if not (math.isfinite(distance) and distance > 0):
                 raise ValueError(f"shadow_distance: expected a finite number > 0, got {distance!r}")

@@ -218,3 +218,23 @@ def test_shadow_map_darkens_the_ground_where_the_occluders_shadow_falls(gl_ctx, 
     assert np.abs(at(images["map"], cam, lit) - at(images["none"], cam, lit)).max() <= 2
     # mirror symmetry without shadows: the two sides of the box are alike
     assert np.abs(at(images["none"], cam, shadow[:3]) - at(images["none"], cam, lit[:3])).max() <= 2
+
+
+def test_lit_programs_compile_the_map_lookup_only_with_shadow_maps(gl_ctx):
+    """llvmpipe runs a uniform branch both ways, so a renderer without shadow maps compiles no lookup (the
+    ground's pixels cost half as much); switching to mode "map" after the upload re-uploads what was drawn,
+    its programs with the lookup, and back (render.renderer.Renderer.reprogram)."""
+    box = box_rep("static:box", (-0.5, 0.0, -0.5), (0.5, 1.0, 0.5))
+    with Renderer(SIZE, ctx=gl_ctx) as r:
+        r.upload(ground_rep())
+        r.upload(box)
+        assert r.lighting.mode == "none" and "u_shadow_map" not in r._reps["static:box"].vao.program
+        first = r._reps["static:box"]
+        r.lighting.configure(mode="map")
+        assert "u_shadow_map" in r._reps["static:box"].vao.program and r._reps["static:box"] is not first
+        assert list(r._sources) == ["static:ground", "static:box"]  # re-uploaded in upload order
+        kept = r._reps["static:box"]
+        r.lighting.configure(mode="map", map_size=512)  # no change of the lookup: nothing re-uploaded
+        assert r._reps["static:box"] is kept
+        r.lighting.configure(mode="blob")
+        assert "u_shadow_map" not in r._reps["static:box"].vao.program

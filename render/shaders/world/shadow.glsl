@@ -12,6 +12,12 @@ uniform float u_shadow_on;      // 1: sample the map; 0: everything lit (no map,
 uniform vec3 u_shadow_params;   // (texel size in uv, depth bias, normal offset in metres)
 
 float shadow_visibility(vec3 world, vec3 normal) {
+#ifndef SHADOW_MAP
+    // a renderer without shadow maps ([render] shadows other than "map") compiles no lookup: llvmpipe runs a
+    // branch on a uniform under a lane mask, both ways, so the nine lookups below cost every lit pixel ~1 ms
+    // each a 1280x720 frame even with u_shadow_on = 0 (render.renderer.Renderer.program)
+    return 1.0;
+#else
     if (u_shadow_on < 0.5) return 1.0;
     float ln = dot(normal, normal);
     vec3 n = ln > 1e-20 ? normal * inversesqrt(ln) : u_light_dir;
@@ -26,4 +32,5 @@ float shadow_visibility(vec3 world, vec3 normal) {
         for (int x = -1; x <= 1; ++x)
             s += texture(u_shadow_map, vec3(p.xy + vec2(x, y) * u_shadow_params.x, ref));
     return s / 9.0;
+#endif
 }
