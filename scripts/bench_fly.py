@@ -93,10 +93,14 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -
             apply_tints(big, engine.settings.color_by, statics=engine.static_keys)
             true = tiles.draw(big, scene.render.background).astype(np.float64) / 255.0
         med = float(np.median(periods)) if periods.size else float("nan")
+        # the slowest frame (periods[i] is frame start - 1 + i's) and its stages, when recorded
+        slow = start - 1 + int(np.argmax(periods)) if periods.size else -1
+        slow_st = stages[slow - start] if 0 <= slow - start < len(stages) else {}
         return {"scene": path.stem, "scene_mode": app.budget.scene_mode, "fps": 1.0 / med, "median_ms": 1e3 * med,
                 "max_ms": 1e3 * float(periods.max()) if periods.size else float("nan"), "mode": mode, "bound": bound,
                 "psnr": psnr(drawn, true), "psnr_aliased": psnr(drawn, full), "full_psnr": psnr(full, true),
-                "wall_s": wall, "frames": frames,
+                "wall_s": wall, "frames": frames, "slowest": (slow, {k: 1e3 * float(v) for k, v in slow_st.items()
+                                                                    if k in STAGES}),
                 "stages": {k: 1e3 * float(np.median([st.get(k, 0.0) for st in stages])) for k in STAGES} if stages
                 else {k: float("nan") for k in STAGES},
                 "pred": float(np.median(ratios)) if ratios else float("nan"),
@@ -162,7 +166,9 @@ def main(argv=None) -> int:
                    f"{r['mode']} | {r['bound']:.3g} | {r['psnr']:.1f} / {r['full_psnr']:.1f} | {r['psnr_aliased']:.1f} | "
                    f"{r['pred']:.2f} | {100 * r['pred25']:.0f} % |")
             rows.append(row)
-            print(row + f"  ({r['wall_s']:.0f} s)", flush=True)
+            f, st = r["slowest"]
+            top = ", ".join(f"{k} {v:.0f}" for k, v in sorted(st.items(), key=lambda kv: -kv[1])[:3])
+            print(row + f"  ({r['wall_s']:.0f} s; slowest: frame {f}{': ' + top + ' ms' if top else ''})", flush=True)
     finally:
         if display is not None:
             display.stop()

@@ -63,6 +63,7 @@ class _Mesh:
         # triangle row, and how many of each the slot holds (a replaced rep of the same key reuses its slot)
         self.record = self.tri = None
         self.record_cap = self.tri_cap = 0
+        self._stale = False  # holds its predecessor's slot, rows not written yet
         pos = rep.positions0 if kind == tb.KEYFRAMED else rep.positions
         self.extent, self.radius, self.centre = triangle_extent(pos, rep.indices)
         self._ranges: dict = {}  # (first triangle, count) -> (first vertex, vertices) used
@@ -230,7 +231,7 @@ class Raster:
         terrain, every frame) overwrites its predecessor's slot when it fits, else takes a new slot with a
         quarter of headroom and leaves the old one dead; the tables are compacted once dead rows outnumber
         live ones, so they never grow with the number of replacements."""
-        if m.record is not None and not getattr(m, "_stale", False):
+        if m.record is not None and not m._stale:
             return
         recs, tris = self._rows(m)
         if m.record is not None and recs.shape[0] <= m.record_cap and tris.shape[0] <= m.tri_cap:
