@@ -38,8 +38,9 @@ TARGET_FPS = 10.0
 STAGES = ("simulate", "select", "upload", "draw", "finish", "observe", "blit", "hud")
 
 
-def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -> dict:
-    """Fly ``path`` for ``frames`` frames; its figures (module docstring)."""
+def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, log: Path | None = None) -> dict:
+    """Fly ``path`` for ``frames`` frames; its figures (module docstring). ``log``: a JSON-lines file of every
+    frame (its stages in ms, the drawn counts, auto's plan, state and predicted ms), written atomically."""
     from crowd.engine import Engine
     from crowd.fly import FlyApp
     from crowd.image_metrics import psnr
@@ -64,12 +65,27 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float) -
                 ratios.append(float(a["predicted_ms"]) / (1e3 * render))
             if app.frames > start:
                 stages.append(dict(out.stages))
+            if log is not None:
+                counts = {k: v for k, v in out.drawlist.stats.items() if isinstance(v, (int, float))}
+                rows.append({"frame": app.frames - 1, "mode": engine.settings.lod_mode,
+                             "stages_ms": {k: round(1e3 * v, 2) for k, v in out.stages.items()}, "counts": counts,
+                             "auto": {k: a.get(k) for k in ("plan", "state", "predicted_ms", "bound", "unmeetable")}
+                             if isinstance(a, dict) else None})
             return out
 
         app.frame = frame
+        rows: list = []
         t0 = time.perf_counter()
         app.run(max_frames=frames)
         wall = time.perf_counter() - t0
+        if log is not None:
+            import json
+
+            from sim.atomic_io import write_atomic
+
+            for row, period in zip(rows, app.periods):
+                row["period_ms"] = round(1e3 * period, 2)
+            write_atomic(log, "".join(json.dumps(r) + "\n" for r in rows))
         periods = np.asarray(app.periods[max(0, start - 1):], np.float64)  # from frame `start`'s start on
         sel = app.budget.auto()
         mode = engine.settings.lod_mode + ("*" if app.budget.switched else "")
@@ -126,9 +142,16 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=(1280, 720))
     ap.add_argument("--budget", type=_budget, default=DEFAULT_BUDGET_MS, help="ms (crowd fly --budget); 0: off")
     ap.add_argument("--md", default=None, help="also write the table to this markdown file")
+    ap.add_argument("--log", default=None, metavar="DIR",
+                    help="write every frame of each scene (stages, counts, auto's plan) to DIR/<scene>.jsonl")
     a = ap.parse_args(argv)
     if not 1 <= a.start < a.frames:
         ap.error("--from must be at least 1 and below --frames")
+    if a.log is not None:
+        try:
+            Path(a.log).mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            ap.error(f"--log: cannot make folder {a.log}: {e.strerror or e}")
     from crowd.scene import SIZE_RANGE
 
     if not all(SIZE_RANGE[0] <= v <= SIZE_RANGE[1] for v in a.size):
@@ -157,7 +180,8 @@ def main(argv=None) -> int:
     try:
         for s in scenes:
             try:
-                r = fly_scene(s, a.frames, a.start, tuple(a.size), a.budget)
+                r = fly_scene(s, a.frames, a.start, tuple(a.size), a.budget,
+                              None if a.log is None else Path(a.log) / f"{s.stem}.jsonl")
             except (*user_errors(), WindowError) as e:  # a scene or asset the code cannot handle: one sentence, exit 2
                 print(f"bench_fly: {s.name}: {str(e).splitlines()[0]}", file=sys.stderr)
                 return 2

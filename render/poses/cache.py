@@ -338,6 +338,18 @@ class PoseCache:
             self._posed[key] = self._skin(g, self._meshes[d])
         return self._posed[key]
 
+    def posing_cost(self, rep_key: str, mesh_key: str | None = None) -> int | None:
+        """Vertices :meth:`posed` would skin for this request now: 0 when this frame's posed vertices exist
+        already, None when it would give None (no pose table, a mesh the cache does not know). Skins nothing:
+        a caller weighing a route prices the pass before asking for it."""
+        g = self.group_of(rep_key)
+        d = self._rep_mesh.get(rep_key if mesh_key is None else mesh_key)
+        if g is None or d is None or g not in self._pal:
+            return None
+        if (g, d) in self._posed:
+            return 0
+        return int(self._pal[g].n_poses) * int(self._meshes[d].n_vertices)
+
     def _limit(self) -> int:
         """Most vertices of one window: :attr:`window_bytes` and the texture's rows."""
         rows = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)

@@ -167,6 +167,26 @@ def cut_extents(offsets, clusters, ext) -> np.ndarray:
     return out
 
 
+#: the compute path's cluster copies must draw at least this many triangles per vertex the pose cache would skin
+#: for them (a full mesh in every distinct pose): skinning a vertex costs about as much as drawing a triangle
+#: on the hardware path on llvmpipe (~10 M vertices/s against ~8 M triangles/s), so fewer triangles are cheaper
+#: drawn where they are
+POSE_PAYS_TRIANGLES = 1.0
+
+
+def _pose_pays(renderer, it, mesh_key: str, mask) -> bool:
+    """Whether posing ``it``'s full mesh for the compute path (nothing when it is posed this frame already)
+    costs no more than drawing its masked copies' cut triangles on the hardware path."""
+    cost = renderer.poses.posing_cost(it.key, mesh_key)
+    if cost is None or cost == 0:
+        return cost == 0
+    from lod.clusters.cut import cut_triangle_count
+    from render.clusters.cuts import _sub_csr
+
+    tris = int(cut_triangle_count(it.st.hierarchy, *_sub_csr(it.offsets, it.clusters, np.flatnonzero(mask))).sum())
+    return tris >= POSE_PAYS_TRIANGLES * cost
+
+
 def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
     """VDR-AM cluster cuts (the clusters drawer's collected items, ``render/clusters/draw.py``): (the items the
     hardware draws, their compute rows removed; the compute work: per distinct cut of the compute rows, its
@@ -192,9 +212,11 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
         # each copy routed by its own cut's triangles (a coarse cut's are larger than the mesh's: routed by the
         # mesh's, coarse cuts of a far crowd went to the compute path, ~100x slower there than drawn by hardware)
         mask = _mask(raster, m, it.data, route, cut_extents(it.offsets, it.clusters, cluster_extents(it.st, m)))
-        # the full mesh is posed in every distinct pose for the compute path only when it takes a copy (asked
-        # first, the hardware path's coarse cuts paid a full-mesh pose pass: 4 M vertices a frame on the office)
-        if not mask.any() or renderer.poses.posed(it.key, src.key) is None:
+        # the compute path draws a cut from the full mesh posed in every distinct pose: a pass priced before it
+        # is asked for (asked first, the coarse cuts the hardware draws paid it: 4 M vertices a frame on the
+        # office; a few far copies routed here paid 30-50 ms on the stampede for a hundred triangles each)
+        if not mask.any() or not _pose_pays(renderer, it, src.key, mask) \
+                or renderer.poses.posed(it.key, src.key) is None:
             out.append(it)
             continue
         sub = np.flatnonzero(mask)

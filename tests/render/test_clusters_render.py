@@ -445,15 +445,20 @@ def test_geomorph_shader_constants_match_python():
     assert f"t & {w - 1}" in src and f"t >> {w.bit_length() - 1}" in src
 
 
-def test_the_full_mesh_is_posed_only_for_copies_the_compute_path_takes(scene):
-    """The compute rasteriser draws a cut from the pose cache's posed full mesh; a frame whose cuts all go to
-    the hardware path (large on screen) must not pay that pose pass (it did: 4 M vertices a frame on the
-    office scene), one whose copies are small must (render/raster/hook.py split_clusters)."""
+def test_the_full_mesh_is_posed_only_when_the_compute_path_pays_for_it(scene):
+    """The compute rasteriser draws a cut from the pose cache's full mesh posed in every distinct pose; a frame
+    whose cuts all go to the hardware path (large on screen) must not pay that pass (it did: 4 M vertices a frame
+    on the office scene), nor one routing too few triangles there to pay for it (a few far steers cost the
+    stampede 30-50 ms); a far crowd whose cuts draw more triangles than the pass skins vertices takes it
+    (render/raster/hook.py split_clusters, POSE_PAYS_TRIANGLES)."""
+    from lod.clusters.cut import cut_triangle_count
     from lod.poses import PoseSharing
+    from render.raster.hook import POSE_PAYS_TRIANGLES
 
-    ps = PoseSharing(rate=0.0)  # exact poses, as the engine attaches them
+    ps = PoseSharing()  # copies in one pose share it, as the engine attaches them
     ps.register([*scene.reps, *scene.full])
     scene.sel.poe = 0.5
+    far = Camera.look_at((0, 1.0, 60.0), (0, 0.9, 0))
 
     def draw(state, cam):
         dl = scene.sel.select(state, cam, SIZE)
@@ -462,9 +467,18 @@ def test_the_full_mesh_is_posed_only_for_copies_the_compute_path_takes(scene):
         scene.r.draw(dl, background=BG)
         return dl
 
+    def crowd(n):  # n copies in one pose (one posed mesh), side by side
+        return _state([[0.8 * (i % 10) - 4.0, 0, -1.0 * (i // 10)] for i in range(n)], [0.0] * n, [0.3] * n)
+
     dl = draw(_state([[0, 0, 0]], [0.0], [0.3]), Camera.look_at((0, 1.0, 2.5), (0, 0.9, 0)))
-    assert dl.stats["raster_triangles"] == 0
-    assert scene.r.poses.last_stats["posed_vertices"] == 0
-    dl = draw(_state([[0, 0, 0], [0.8, 0, 0]], [0.0, 1.0], [0.3, 0.6]), Camera.look_at((0, 1.0, 60.0), (0, 0.9, 0)))
+    assert dl.stats["raster_triangles"] == 0 and scene.r.poses.last_stats["posed_vertices"] == 0
+    dl = draw(crowd(1), far)  # one small copy: its cut is far cheaper drawn than the mesh posed
+    assert dl.stats["raster_triangles"] == 0 and scene.r.poses.last_stats["posed_vertices"] == 0
+    n = 60
+    dl = scene.sel.select(crowd(n), far, SIZE)
+    b = next(b for b in dl.batches if getattr(b, "clusters", None) is not None)
+    per = int(cut_triangle_count(scene.reps[0].hierarchy, b.offsets, b.clusters).sum())
+    assert per >= POSE_PAYS_TRIANGLES * scene.c.mesh.n_vertices  # the crowd pays for its pose pass
+    dl = draw(crowd(n), far)
     assert dl.stats["raster_triangles"] > 0
-    assert scene.r.poses.last_stats["posed_vertices"] == 2 * scene.c.mesh.n_vertices
+    assert scene.r.poses.last_stats["posed_vertices"] == scene.c.mesh.n_vertices  # one pose
