@@ -86,7 +86,8 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
             for row, period in zip(rows, app.periods):
                 row["period_ms"] = round(1e3 * period, 2)
             write_atomic(log, "".join(json.dumps(r) + "\n" for r in rows))
-        periods = np.asarray(app.periods[max(0, start - 1):], np.float64)  # from frame `start`'s start on
+        # app.periods[i]: frame i's wall clock, its start to the next frame's start
+        periods = np.asarray(app.periods[start:], np.float64)
         sel = app.budget.auto()
         mode = engine.settings.lod_mode + ("*" if app.budget.switched else "")
         bound = float(sel.bound) if sel is not None else float("nan")
@@ -109,8 +110,8 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
             apply_tints(big, engine.settings.color_by, statics=engine.static_keys)
             true = tiles.draw(big, scene.render.background).astype(np.float64) / 255.0
         med = float(np.median(periods)) if periods.size else float("nan")
-        # the slowest frame (periods[i] is frame start - 1 + i's) and its stages, when recorded
-        slow = start - 1 + int(np.argmax(periods)) if periods.size else -1
+        # the slowest frame (periods[i] is frame start + i's) and its stages
+        slow = start + int(np.argmax(periods)) if periods.size else -1
         slow_st = stages[slow - start] if 0 <= slow - start < len(stages) else {}
         return {"scene": path.stem, "scene_mode": app.budget.scene_mode, "fps": 1.0 / med, "median_ms": 1e3 * med,
                 "max_ms": 1e3 * float(periods.max()) if periods.size else float("nan"), "mode": mode, "bound": bound,
