@@ -189,3 +189,41 @@ def test_a_budget_no_plan_can_meet_is_said_and_the_cheapest_is_drawn():
     assert ch.unmeetable and ch.explorations == 0
     cheapest = min(PLANS, key=lambda p: float(_true().predict_counts(*PLANS[p])))
     assert out[-1][0].plan == cheapest
+
+
+def test_under_a_budget_a_change_fades_only_when_both_plans_fit_together():
+    """A fade draws the changed instances in both plans. With a budget that every plan fits alone, even
+    priced pessimistically as never drawn, but no two together, the explorations and their returns happen at
+    once, where without a budget the same run fades (the rule can fail)."""
+    def setting():
+        true = _true(pts_factor=0.6)
+        return OnlineCostModel(cm.CostModel(true.coefficients, key="calibrated")), true
+
+    fit, true = setting()
+    pred = sorted(float(fit.predict(x)[0]) for x in PLANS.values())
+    budget = 1.01 * ctl.UNMEASURED_FACTOR * pred[-1]
+    assert ctl.PESSIMISM * (pred[0] + pred[1]) > budget  # no two fit together, even measured
+    ch = ctl.PlanChooser(switch_frames=3)
+    out = _run_budget(ch, fit, true, 120, budget)
+    assert ch.explorations >= 2 and all(d.fade_from is None for d, _ in out)
+    assert max(y for _, y in out) <= budget
+    free = ctl.PlanChooser(switch_frames=3)
+    fit, true = setting()
+    assert any(d.fade_from is not None for d, _ in _run_budget(free, fit, true, 120, None))
+
+
+def test_a_pullback_goes_to_a_plan_priced_within_the_budget_now(monkeypatch):
+    """Triangles and mixed were explored and measured within the budget; from frame 30 the points drawn cost 6x
+    and the triangles' content grows 4x (a plan's content follows the bound, its name stays): the pullback goes
+    to mixed, not to the triangles their old measurement names the cheapest."""
+    true = _true(pts_factor=0.6)
+    fit = OnlineCostModel(cm.CostModel(true.coefficients, key="calibrated"))
+    budget = 1.01 * ctl.UNMEASURED_FACTOR * max(float(fit.predict(x)[0]) for x in PLANS.values())
+    ch = ctl.PlanChooser(switch_frames=3)
+    out = _run_budget(ch, fit, true, 30, budget)
+    assert out[-1][0].incumbent == "points" and {d.plan for d, _ in out} >= {"triangles", "mixed"}
+    monkeypatch.setitem(PLANS, "triangles", PLANS["triangles"] * 4.0)
+    assert ctl.PESSIMISM * float(fit.predict(PLANS["triangles"])[0]) > budget
+    out = _run_budget(ch, fit, true, 3, budget, slow=lambda f, d: 6.0 if d.plan == "points" else 1.0)
+    d = next(d for d, _ in out if d.state == "pullback")
+    assert d.plan == "mixed"
