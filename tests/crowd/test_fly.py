@@ -456,10 +456,10 @@ def test_live_keyframe_interval_and_occlusion_keys_are_applied(app):
 def budget_app(display, scene_file, tmp_path):
     made = []
 
-    def make(budget_ms):
+    def make(budget_ms, path=None):
         window = Window(SIZE, title="test_fly_budget")
-        a = FlyApp(Engine(load_scene(scene_file), quiet=True), window, tmp_path / "fly-out", echo=lambda _: None,
-                   budget_ms=budget_ms)
+        a = FlyApp(Engine(load_scene(path or scene_file), quiet=True), window, tmp_path / "fly-out",
+                   echo=lambda _: None, budget_ms=budget_ms)
         made.append((a, window))
         return a
 
@@ -564,7 +564,7 @@ def test_cli_bad_budget_is_one_line_and_exit_2(scene_file, value):
     assert len(err) == 1 and "--budget" in err[0] and value in err[0] and "Traceback" not in r.stderr
 
 
-def test_auto_under_the_budget_draws_a_full_resolution_terrain_view_dependently(display, tmp_path):
+def test_auto_under_the_budget_draws_a_full_resolution_terrain_view_dependently(budget_app, tmp_path):
     """While auto draws under the budget, a terrain the scene draws at full resolution is drawn by the
     bisection hierarchy (fewer triangles, said on the HUD); a mode picked by hand draws it as written again
     (the full-resolution mesh back in the renderer); ``--budget 0`` leaves it alone."""
@@ -572,33 +572,20 @@ def test_auto_under_the_budget_draws_a_full_resolution_terrain_view_dependently(
     p.write_text(tiny_scene(replace={"size = [64, 48]": f"size = [{SIZE[0]}, {SIZE[1]}]"},
                             append="\n[terrain]\nsize = [60.0, 60.0]\norigin = [-30.0, 0.0, -30.0]\n"
                                    "resolution = 65\nheight_scale = 3.0\n"))
-    made = []
-
-    def make(budget_ms):
-        window = Window(SIZE, title="test_fly_terrain")
-        a = FlyApp(Engine(load_scene(p), quiet=True), window, tmp_path / "fly-out", echo=lambda _: None,
-                   budget_ms=budget_ms)
-        made.append((a, window))
-        return a
 
     def terrain_triangles(app):
         return int(app.renderer._reps["static:terrain"].n_indices) // 3
 
-    try:
-        app = make(0.01)  # no mode fits: auto from the first frame
-        full = 2 * 64 * 64
-        app.frame(0.0)
-        assert app.engine.settings.lod_mode == "auto" and app.budget.terrain_lod
-        assert 0 < terrain_triangles(app) < full
-        assert "terrain bisection" in app.budget.hud()
-        press(app, glfw.KEY_M)  # by hand: the mode after auto, drawn as picked, the terrain as written
-        app.frame(0.0)
-        assert app.engine.settings.lod_mode != "auto" and not app.budget.terrain_lod
-        assert terrain_triangles(app) == full and "terrain" not in app.budget.hud()
-        off = make(0.0)
-        off.frame(0.0)
-        assert off.engine.terrain_lod is None and terrain_triangles(off) == full
-    finally:
-        for a, window in made:
-            a.close()
-            window.close()
+    app = budget_app(0.01, p)  # no mode fits: auto from the first frame
+    full = 2 * 64 * 64
+    app.frame(0.0)
+    assert app.engine.settings.lod_mode == "auto" and app.budget.terrain_lod
+    assert 0 < terrain_triangles(app) < full
+    assert "terrain bisection" in app.budget.hud()
+    press(app, glfw.KEY_M)  # by hand: the mode after auto, drawn as picked, the terrain as written
+    app.frame(0.0)
+    assert app.engine.settings.lod_mode != "auto" and not app.budget.terrain_lod
+    assert terrain_triangles(app) == full and "terrain" not in app.budget.hud()
+    off = budget_app(0.0, p)
+    off.frame(0.0)
+    assert off.engine.terrain_lod is None and terrain_triangles(off) == full
