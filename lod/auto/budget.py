@@ -8,7 +8,8 @@ multiplied by ``step`` when the cost exceeds the budget by more than
 ``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
 ``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
 square-rooted at every change of direction (a damped, bisection-like
-search) down to ``MIN_STEP``; a reversal from over- to under-budget at the
+search) down to ``MIN_STEP``; a lowered bound whose selection is predicted to pass the budget is refused before
+it is drawn and the bound before held (:meth:`BudgetController.refuse`, from :mod:`lod.auto.mode`); a reversal from over- to under-budget at the
 smallest step holds the bound (the cost jumps across the band between two
 neighbouring bounds: the under-budget one is kept) until the cost at the
 held bound changes by more than ``HOLD_RELEASE`` (30 %: the view changed). The
@@ -84,12 +85,25 @@ class BudgetController:
         self._run = 0
         self._held_cost = None
         self._pending = 0
+        self._last_cost = None  # the cost of the last frame reported (at the bound before the last move)
+
+    def refuse(self, bound: float) -> None:
+        """The bound just lowered from ``bound`` is predicted to pass the budget: back to ``bound``, held there
+        until the cost at it changes by more than :data:`HOLD_RELEASE` (the view changed), as a reversal at the
+        smallest step is held; the next probe starts from :data:`MAX_STEP`."""
+        self.bound = float(min(max(bound, BOUND_MIN), BOUND_MAX))
+        self._held_cost = self._last_cost
+        self.step = MAX_STEP
+        self._last_dir = 0
+        self._run = 0
+        self._pending = 0
 
     def update(self, cost: float) -> float:
         """Adapt the bound to a frame's ``cost`` (seconds); returns the new bound."""
         cost = float(cost)
         if not math.isfinite(cost) or cost < 0.0:
             return self.bound
+        self._last_cost = cost
         if self._held_cost is not None:
             if abs(cost - self._held_cost) <= HOLD_RELEASE * max(self._held_cost, 1e-12):
                 return self.bound

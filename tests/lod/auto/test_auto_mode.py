@@ -845,3 +845,31 @@ def test_held_pure_plan_is_drawn_by_the_single_modes_selector(built):
             assert seen["delegated"] == seen["held"] and sel.delegates.delegated >= 5
         else:  # the held plan may be another one (the chain's, which mode triangles draws alike), never points
             assert sel.delegates.verified.get("points") is not True and ("points", "delegated") not in plans
+
+
+def test_a_lowered_bound_predicted_over_the_budget_is_refused(built):
+    """Frames measured far under the budget lower the bound; when the selection at the lowered bound is
+    predicted to pass the budget (points have a cliff there: a 210 ms frame under 70 on the horses), the frame is
+    selected again at the bound before and that bound is held while the measured cost stays (BudgetController
+    .refuse); the test can fail: the finer bound does cost more than the budget."""
+    st = _crowd(150, 11, depth=60.0)
+    slow = cost_model.CostModel({k: 1e3 * v for k, v in cost_model.DEFAULTS.items()})  # seconds, not ms
+
+    def make(poe, budget_ms=0.0):
+        return am.AutoSelector(built.tri_reps, poe=poe, budget_ms=budget_ms, model=slow, adapt=False,
+                               explore=False, candidates=built.sel.candidates[1:])
+
+    at = make(2.0).select(st, CAM, SIZE).stats["auto"]["predicted_ms"]
+    finer = make(2.0 / am_budget.MAX_STEP).select(st, CAM, SIZE).stats["auto"]["predicted_ms"]
+    assert finer > 1.02 * at
+    sel = make(2.0, budget_ms=1.01 * at)
+    assert sel.select(st, CAM, SIZE).stats["auto"]["bound"] == 2.0
+    for _ in range(6):  # measured at a third of the budget: urgent, lower the bound
+        sel.observe(0.3e-3 * sel.budget_ms, select_seconds=0.0)
+        a = sel.select(st, CAM, SIZE).stats["auto"]
+        assert a["bound"] == 2.0 and a["predicted_ms"] <= sel.budget_ms
+    assert a.get("refused_bound") is None  # held: the lowered bound is not tried again while nothing changes
+    first = make(2.0, budget_ms=1.01 * at)
+    first.select(st, CAM, SIZE)
+    first.observe(0.3e-3 * first.budget_ms, select_seconds=0.0)
+    assert first.select(st, CAM, SIZE).stats["auto"]["refused_bound"] == pytest.approx(2.0 / am_budget.MAX_STEP)
