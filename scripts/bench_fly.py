@@ -69,7 +69,8 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
                 counts = {k: v for k, v in out.drawlist.stats.items() if isinstance(v, (int, float))}
                 rows.append({"frame": app.frames - 1, "mode": engine.settings.lod_mode,
                              "stages_ms": {k: round(1e3 * v, 2) for k, v in out.stages.items()}, "counts": counts,
-                             "auto": {k: a.get(k) for k in ("plan", "state", "predicted_ms", "bound", "unmeetable")}
+                             "auto": {k: a.get(k) for k in ("plan", "state", "incumbent", "fade_from", "predicted_ms", "plans_ms", "bound",
+                                                         "refused_bound", "unmeetable")}
                              if isinstance(a, dict) else None})
             return out
 
