@@ -60,13 +60,13 @@ import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
 from render.context import create_context, release_all, track
-from render.clusters.morph import MORPH_FLOAT_UNIT, MORPH_INT_UNIT, morph_textures
 from render.poses.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
                                   joint_texture, plan_chunks)
 from render.shaders import prog_name, program_sources
 from render.world.shadows import Lighting
 from render.poses.targets import TARGETS_DEFINE, target_textures, use_targets
 from render.poses import draw as posed_draw
+from render.poses.draw import morph_vao
 from render.screen import write_pixel_ray
 from render.poses.cache import PoseCache
 from render.raster.hook import hardware_pieces
@@ -406,33 +406,6 @@ class Renderer:
         self._objects.extend(objs)
         self._reps[rep.key] = g
 
-    def _morph_of(self, g: _GpuRep, extra: tuple = ()) -> tuple:
-        """(vertex array, instance locations) of the geomorph program of a LOD chain rep (compiled with the
-        ``extra`` defines too), its collapse tables bound to their texture units (made on first use)."""
-        if extra not in g.morph:
-            if g.morph_source is None:
-                raise ValueError(f"DrawBatch of {g.key!r} asks for a geomorph, but the representation has no "
-                                 f"vertex collapses (a lod.chains.mode chain built with them)")
-            r = g.morph_source
-            prog = self.program("skinned_direct_morph" if self.skinning == "direct" else "skinned_morph",
-                                defines=g.defines + tuple(extra))
-            vao = self.ctx.vertex_array(prog, [c for c in g.content if c[2] in prog], index_buffer=g.vao.index_buffer,
-                                        index_element_size=4)
-            vao.label = f"{g.key}.morph_vao"
-            have = next(iter(g.morph.values()), None)
-            tex = have[2] if have is not None else morph_textures(self.ctx, r.collapse_next, r.collapse_level, r,
-                                                                  g.key, self.packed_vertices)
-            new = [vao] if have is not None else [vao, *tex]
-            g.objects.extend(new)
-            self._objects.extend(new)
-            g.morph[extra] = (vao, {a: prog[a].location for a in _DRAW_ATTRS if a in prog}, tex)
-        vao, locs, (ti, tf) = g.morph[extra]
-        ti.use(MORPH_INT_UNIT)
-        tf.use(MORPH_FLOAT_UNIT)
-        vao.program["u_morph_i"].value = MORPH_INT_UNIT
-        vao.program["u_morph_f"].value = MORPH_FLOAT_UNIT
-        return vao, locs
-
     def _release_rep(self, g: _GpuRep) -> None:
         for o in reversed(g.objects):
             o.release()
@@ -513,7 +486,7 @@ class Renderer:
         if shared is not None:
             vao, locs = posed_draw.pose_vao(self, g, shared[0], morph is not None)  # render/poses/draw.py
         else:
-            vao, locs = self._morph_of(g) if morph is not None else (g.vao, g.locations)
+            vao, locs = morph_vao(self, g) if morph is not None else (g.vao, g.locations)
         prog = vao.program
         if id(prog) not in used:
             self._set_uniforms(prog, view_proj)
