@@ -8,10 +8,12 @@ multiplied by ``step`` when the cost exceeds the budget by more than
 ``UP_TOLERANCE`` (5 %), divided by ``step`` when it is below by more than
 ``DOWN_TOLERANCE`` (15 %), and left alone inside that band. ``step`` is
 square-rooted at every change of direction (a damped, bisection-like
-search) down to ``MIN_STEP``; a lowered bound whose selection is predicted to pass the budget is refused before
-it is drawn and the bound before held (:meth:`BudgetController.refuse`, from :mod:`lod.auto.mode`); a reversal from over- to under-budget at the
-smallest step holds the bound (the cost jumps across the band between two
-neighbouring bounds: the under-budget one is kept) until the cost at the
+search) down to ``MIN_STEP``; a lowered bound whose selection is predicted
+to pass the budget is refused before it is drawn and the bound before held
+(:meth:`BudgetController.refuse`, from :mod:`lod.auto.mode`); a reversal
+from over- to under-budget at the smallest step holds the bound (the cost
+jumps across the band between two neighbouring bounds: the under-budget one
+is kept) until the cost at the
 held bound changes by more than ``HOLD_RELEASE`` (30 %: the view changed). The
 bound is clamped to ``[BOUND_MIN, BOUND_MAX]`` pixels. A cost outside the
 band moves the bound only after ``PERSIST`` consecutive frames on the same
