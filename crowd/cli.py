@@ -357,15 +357,15 @@ COMMANDS["inspect"] = cmd_inspect
 COMMANDS["build"] = cmd_build
 
 
-def _sigterm(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(argv=None) -> int:
     """Entry point of the ``crowd`` console script and ``python -m crowd``; returns the exit code."""
     args = build_parser().parse_args(argv)  # argparse errors exit 2
+    from crowd.errors import on_interrupt
+
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, _sigterm)  # so temporary outputs are cleaned up
+        signal.signal(signal.SIGTERM, on_interrupt)  # so temporary outputs are cleaned up
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, on_interrupt)  # latched: a frame loop stops even if a library swallowed it
     try:
         return COMMANDS[args.command](args)
     except user_errors() as e:

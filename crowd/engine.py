@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from crowd.characters import scene_asset_error
-from crowd.errors import SceneError, SimulationError
+from crowd.errors import SceneError, SimulationError, check_interrupt
 from crowd.plan import plan, progress_bar
 from crowd.scene import Scene
 from lod.debug_colors import COLOR_BY  # noqa: F401  (the fly-through's colour-by modes)
@@ -544,6 +544,7 @@ class Engine:
                 (tmp / "frames").mkdir()
             run_start = time.perf_counter()
             for f in progress_bar(range(frames), sc.name, disable=self.quiet, total=frames):
+                check_interrupt()  # an interrupt another library swallowed stops the run here (crowd.errors)
                 t_frame = time.perf_counter()
                 stages, systems = {}, {}
                 self.step(systems)

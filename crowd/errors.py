@@ -43,3 +43,22 @@ def user_errors() -> tuple:
     from sim.params import ParamError
 
     return CrowdError, SimAssetError, ParamError, ContextError
+
+
+#: an interrupt (Ctrl-C, SIGTERM) arrived in this process: latched, because a KeyboardInterrupt raised inside
+#: third-party code can be swallowed there (a `crowd run` went on drawing for a minute after SIGINT in CI)
+_interrupted = False
+
+
+def on_interrupt(signum, frame):
+    """Signal handler of ``crowd`` (SIGINT, SIGTERM): latch the interrupt and raise KeyboardInterrupt."""
+    global _interrupted
+    _interrupted = True
+    raise KeyboardInterrupt
+
+
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt when an interrupt was latched (:func:`on_interrupt`): a long loop calls this once
+    per step, so an interrupt lost inside another library's code still stops it at the next one."""
+    if _interrupted:
+        raise KeyboardInterrupt

@@ -158,6 +158,32 @@ def test_interrupt_mid_run_writes_nothing(tmp_path, write_scene):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.toml"]
 
 
+def test_an_interrupt_swallowed_elsewhere_still_stops_the_run(tmp_path, write_scene, monkeypatch):
+    """The signal handler latches the interrupt (crowd.errors.on_interrupt): a KeyboardInterrupt caught inside
+    another library's code (CI saw a run go on drawing for a minute after SIGINT) stops the run at the next frame,
+    writing nothing."""
+    import crowd.errors
+    from crowd.engine import Engine
+
+    scene = load_scene(write_scene(tiny_scene(effects="[]")))
+    seen = []
+
+    def swallowed(world, dt):
+        seen.append(world.frame)
+        if world.frame == 2:
+            try:
+                crowd.errors.on_interrupt(2, None)
+            except KeyboardInterrupt:
+                pass  # as a library might
+
+    with Engine(scene, quiet=True) as e:
+        monkeypatch.setattr(crowd.errors, "_interrupted", False)
+        e.world.schedule.add_step("swallowed", swallowed)
+        with pytest.raises(KeyboardInterrupt):
+            e.run(frames=6, out_dir=tmp_path / "out")
+    assert max(seen) == 2 and not (tmp_path / "out").exists()
+
+
 def test_placement_builder_error_names_the_key(tmp_path, write_scene):
     from crowd.plan import plan
 
