@@ -307,8 +307,16 @@ def test_signal_during_run_leaves_nothing(tmp_path, write_scene, sig):
     scene = write_scene(tiny_scene(replace={"frames = 3": "frames = 100000"}))
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(REPO))
+
+    def deliverable():  # the child as a shell starts it: the signal neither ignored nor blocked, whatever this
+        # test process inherited (in CI the run never saw SIGINT: no handler ran, the frame loop went on)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
     proc = subprocess.Popen([sys.executable, "-m", "crowd", "run", str(scene), "--out", str(out), "--quiet"],
-                            cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=deliverable)
     try:
         deadline = time.monotonic() + 120
         while not any(p.name.startswith(".out.tmp-") for p in tmp_path.iterdir()):
