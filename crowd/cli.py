@@ -360,8 +360,9 @@ COMMANDS["build"] = cmd_build
 def main(argv=None) -> int:
     """Entry point of the ``crowd`` console script and ``python -m crowd``; returns the exit code."""
     args = build_parser().parse_args(argv)  # argparse errors exit 2
-    from crowd.errors import on_interrupt
+    from crowd.errors import on_interrupt, reset_interrupt
 
+    reset_interrupt()  # an interrupt of an earlier command in this process was handled there
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, on_interrupt)  # so temporary outputs are cleaned up
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:

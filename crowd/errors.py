@@ -57,6 +57,12 @@ def on_interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+def reset_interrupt() -> None:
+    """Forget a latched interrupt (a command starting: one interrupted earlier in this process is handled)."""
+    global _interrupted
+    _interrupted = False
+
+
 def check_interrupt() -> None:
     """Raise KeyboardInterrupt when an interrupt was latched (:func:`on_interrupt`): a long loop calls this once
     per step, so an interrupt lost inside another library's code still stops it at the next one."""

@@ -381,3 +381,14 @@ def test_the_run_summary_names_what_was_drawn(tmp_path):
     line = result(125000.0).report()
     assert "3,000 instances, 0 triangles, 125,000 points per frame" in line
     assert "points" not in result(0.0).report()
+
+
+def test_a_handled_interrupt_does_not_stop_the_next_command(tmp_path, write_scene, monkeypatch):
+    """The latch is reset when a command starts: a run after an interrupted one in the same process runs."""
+    import crowd.errors
+    from crowd.cli import main
+
+    scene = write_scene(tiny_scene(effects="[]"))
+    monkeypatch.setattr(crowd.errors, "_interrupted", True)  # an earlier command was interrupted
+    assert main(["run", str(scene), "--frames", "2", "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert (tmp_path / "out" / "frames.csv").is_file()
