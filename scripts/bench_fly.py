@@ -17,6 +17,7 @@ Needs Xvfb (Debian package xvfb). Take the figures with nothing else running.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import platform
 import sys
@@ -50,6 +51,16 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
     scene = load_scene(path).with_overrides(size=size)
     window = Window(scene.render.size, title=f"bench_fly {scene.name}")
     app = None
+    gc_s = [0.0, None]  # the garbage collector's seconds this frame, the start of a collection running
+
+    def collected(phase, info):
+        if phase == "start":
+            gc_s[1] = time.perf_counter()
+        elif gc_s[1] is not None:
+            gc_s[0] += time.perf_counter() - gc_s[1]
+            gc_s[1] = None
+
+    gc.callbacks.append(collected)
     try:
         engine = Engine(scene, quiet=True)
         app = FlyApp(engine, window, Path("/tmp") / "bench_fly", echo=lambda _: None, budget_ms=budget)
@@ -58,6 +69,7 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
         real = app.frame
 
         def frame(dt):
+            gc_s[0] = 0.0
             out = real(dt)
             a = out.drawlist.stats.get("auto")
             render = sum(out.stages.get(k, 0.0) for k in ("upload", "draw", "finish"))
@@ -69,6 +81,7 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
                 counts = {k: v for k, v in out.drawlist.stats.items() if isinstance(v, (int, float))}
                 rows.append({"frame": app.frames - 1, "mode": engine.settings.lod_mode,
                              "stages_ms": {k: round(1e3 * v, 2) for k, v in out.stages.items()}, "counts": counts,
+                             "gc_ms": round(1e3 * gc_s[0], 2),
                              "auto": {k: a.get(k) for k in ("plan", "state", "incumbent", "fade_from", "predicted_ms", "plans_ms", "bound",
                                                          "refused_bound", "unmeetable")}
                              if isinstance(a, dict) else None})
@@ -124,6 +137,7 @@ def fly_scene(path: Path, frames: int, start: int, size: tuple, budget: float, l
                 "pred": float(np.median(ratios)) if ratios else float("nan"),
                 "pred25": float(np.mean(np.abs(np.asarray(ratios) - 1.0) <= 0.25)) if ratios else float("nan")}
     finally:
+        gc.callbacks.remove(collected)
         if app is not None:
             app.close()
         window.close()

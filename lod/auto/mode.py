@@ -132,7 +132,7 @@ from lod.auto import flat, flat_plans
 from lod.auto.budget import BudgetController
 from lod.auto.control import SWITCH_FRAMES, Decision, PlanChooser
 from lod.auto.delegate import Delegates, delegated_stats
-from lod.auto.online import OnlineCostModel
+from lod.auto.online import OnlineCostModel, RouteShare
 from lod.auto.plans import _Block, price_plans, price_plans_loop
 from lod.chains import chain as tm_chain
 from lod.chains import mode as tm
@@ -242,6 +242,8 @@ class AutoSelector:
         self.adapt = bool(adapt)
         #: the online fit of the per-unit costs (:mod:`lod.auto.online`; None without ``adapt``)
         self.fit = OnlineCostModel(self.prior) if self.adapt else None
+        #: the share of the triangles the renderer rasterises in compute, as drawn (lod.auto.online.RouteShare)
+        self.route = RouteShare()
         #: the costs the options and plans are priced with: the fit's posterior mean (the prior without ``adapt``)
         self.model = self.fit.cost_model() if self.fit is not None else self.prior
         #: the plan decision (:mod:`lod.auto.control`; None without ``adapt``: the cheapest plan is drawn)
@@ -341,6 +343,7 @@ class AutoSelector:
         if own:  # under a budget: the plan's last measurement, and a pull-back after a frame far over it
             self.chooser.measured(last["plans"], render, last["clean"])
         if drawlist is not None:
+            self.route.observe(drawlist.stats)
             x = cost_model.features(drawlist, extended=True)  # as drawn: scenery and other counts included
         elif last is not None:
             x = last["x"]
@@ -349,7 +352,7 @@ class AutoSelector:
         if self.fit.update(x, render) is not None and own:
             for n in last["plans"]:  # the row as the fit took it (load-free)
                 self.chooser.observed(n, self.fit.last_z, self.fit.last_u, last["clean"])
-        self.model = self.fit.cost_model()
+        self.model = self.fit.cost_model(self.route.share)
 
     def _options(self, frame, g, bound):
         """Every candidate's options for group ``g``: a list of :class:`_Block` (module docstring,
@@ -668,7 +671,7 @@ class AutoSelector:
         if self.fit is None:
             v = self.model.vector
             return float(v[0] + v[1:] @ x[:len(cost_model.FEATURES)]), 0.0
-        m, sd = self.fit.predict(x)
+        m, sd = self.fit.predict(self.route.split(x))
         if clean and self.chooser is not None:
             m *= math.exp(self.chooser.bias(plan, self.fit)[0])
         return m, math.sqrt(sd ** 2 + (self.fit.noise * m) ** 2)

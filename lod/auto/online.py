@@ -259,11 +259,15 @@ class OnlineCostModel:
         d = np.sqrt(np.maximum(np.diag(self._Pinv), 0.0))
         return {n: float(v) for n, v in zip(self.names, self.load * self.scale * d)}
 
-    def cost_model(self):
+    def cost_model(self, raster_share: float = 0.0):
         """The posterior mean as a :class:`lod.auto.cost_model.CostModel` (the coefficients the candidates
-        price options with), keyed as the prior."""
+        price options with), keyed as the prior. ``raster_share``: the share of the triangles the renderer
+        rasterises in compute (:class:`RouteShare`); a triangle is priced at the two paths' costs mixed so."""
         c = self.coefficients
-        return cm.CostModel({k: c[k] for k in cm.COEFFICIENTS}, key=self.prior.key, samples=self.frames)
+        out = {k: c[k] for k in cm.COEFFICIENTS}
+        s = min(1.0, max(0.0, float(raster_share)))
+        out["triangles"] = (1.0 - s) * c["triangles"] + s * c.get("raster_triangles", c["triangles"])
+        return cm.CostModel(out, key=self.prior.key, samples=self.frames)
 
 
 
@@ -275,4 +279,48 @@ class OnlineCostModel:
                 "noise": float(self.noise), "load": float(self.load), "frames": int(self.frames)}
 
 
-__all__ = ["OnlineCostModel", "FORGET", "LOAD_FRAMES", "SCALE_SD", "UNIT_SD", "NEUTRAL_SD", "NOISE_FRAMES", "HUBER_K"]
+class RouteShare:
+    """The share of a frame's triangles the renderer rasterises in compute (``render/raster/``, routed per copy by
+    :mod:`lod.raster_route`), as the frames drawn measured it (``DrawList.stats["raster_triangles"]`` after the
+    draw, of ``stats["triangles"]``), smoothed over frames by :data:`ROUTE_SMOOTHING`.
+
+    The selection counts every triangle as a triangle; the renderer then sends the small ones to the compute
+    path, and the fit learns each path's cost from the frames as drawn. Without the share, a plan's triangles
+    were priced at the hardware path's cost alone: on a view whose triangles all go to compute, that cost is
+    never measured, the fit may hold it at 0, and auto then took full detail for free (a frame 4.6x its
+    prediction, tests/crowd/test_fly_settle.py). With it, options and plans price a triangle at the two paths'
+    costs in the proportion drawn (:meth:`OnlineCostModel.cost_model`), and a selection's counts are split so
+    before they are predicted (:meth:`split`)."""
+
+    def __init__(self):
+        self.share = 0.0
+        self._seen = False
+
+    def observe(self, stats) -> None:
+        """A drawn frame's ``DrawList.stats`` (after the renderer's draw)."""
+        try:
+            tri = float(stats.get("triangles", 0) or 0)
+            ras = float(stats.get("raster_triangles", 0) or 0)
+        except (AttributeError, TypeError, ValueError):
+            return
+        if not (math.isfinite(tri) and math.isfinite(ras) and tri > 0.0):
+            return
+        s = min(1.0, max(0.0, ras / tri))
+        self.share = s if not self._seen else ROUTE_SMOOTHING * self.share + (1.0 - ROUTE_SMOOTHING) * s
+        self._seen = True
+
+    def split(self, x) -> np.ndarray:
+        """Extended counts (:func:`lod.auto.cost_model.features`) of a selection not drawn yet, its triangles
+        divided between the paths by the share (a list that already names its compute triangles is left)."""
+        x = np.asarray(x, np.float64).copy()
+        i = len(cm.FEATURES) + cm.EXTRA_FEATURES.index("raster_triangles")
+        if x.shape[0] > i and x[i] == 0.0 and self.share > 0.0:
+            x[i] = self.share * x[0]
+            x[0] -= x[i]
+        return x
+
+
+#: weight of the share so far against the last frame's (per frame)
+ROUTE_SMOOTHING = 0.5
+
+__all__ = ["OnlineCostModel", "RouteShare", "FORGET", "LOAD_FRAMES", "SCALE_SD", "UNIT_SD", "NEUTRAL_SD", "NOISE_FRAMES", "HUBER_K"]

@@ -124,3 +124,32 @@ def test_extended_features_are_priced_once_they_vary():
             + TRUE["instances"] * x[names.index("instances")]
         m.update(x, y)
     assert m.coefficients["raster_triangles"] == pytest.approx(TRUE["triangles"] / 4, rel=0.05)
+
+
+def test_the_route_share_prices_a_triangle_at_the_path_it_takes():
+    """The renderer sent 3/4 of the triangles to the compute rasteriser: options are priced at the two paths'
+    costs mixed 1:3 and a selection's counts are split 1:3 before they are predicted; a list that names its
+    compute triangles already, a frame without triangles and bad counts are left as they are."""
+    from lod.auto.online import ROUTE_SMOOTHING, RouteShare
+
+    fit = OnlineCostModel(cm.CostModel())
+    r = RouteShare()
+    assert r.share == 0.0 and fit.cost_model(r.share).coefficients["triangles"] == fit.coefficients["triangles"]
+    r.observe({"triangles": 4000, "raster_triangles": 3000})
+    assert r.share == pytest.approx(0.75)
+    for bad in ({"triangles": 0, "raster_triangles": 10}, {"triangles": float("nan")}, None, {"triangles": "x"}):
+        r.observe(bad)
+    assert r.share == pytest.approx(0.75)
+    c = fit.coefficients
+    want = 0.25 * c["triangles"] + 0.75 * c["raster_triangles"]
+    assert fit.cost_model(r.share).coefficients["triangles"] == pytest.approx(want)
+    x = np.zeros(len(cm.ONLINE_FEATURES))
+    x[0] = 4000.0
+    i = cm.ONLINE_FEATURES.index("raster_triangles")
+    y = r.split(x)
+    assert y[0] == pytest.approx(1000.0) and y[i] == pytest.approx(3000.0) and x[0] == 4000.0
+    assert fit.predict(y)[0] == pytest.approx(fit.predict(x)[0] - 3000 * c["triangles"] + 3000 * c["raster_triangles"])
+    x[i] = 10.0  # counted by the renderer: left
+    assert np.array_equal(r.split(x), x)
+    r.observe({"triangles": 1000, "raster_triangles": 0})  # smoothed towards the new share
+    assert r.share == pytest.approx(ROUTE_SMOOTHING * 0.75)
