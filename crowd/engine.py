@@ -336,6 +336,22 @@ class Engine:
                 self.renderer.upload(rep)
         return selector
 
+    def warm_up(self, mode: str, camera, size) -> int:
+        """Draw each representation of the prepared ``mode`` once, coarse, into the open renderer (the image is
+        drawn over by the next frame): the first frame that draws one of them then costs what later ones do
+        (:meth:`lod.auto.delegate.Delegates.warm_lists`; mode auto only). Returns the lists drawn."""
+        built = self._modes.get(mode)
+        sel = getattr(built[1], "inner", built[1]) if built is not None else None
+        delegates = getattr(sel, "delegates", None)
+        if delegates is None or self.renderer is None:
+            return 0
+        statics = [(r.key, np.eye(4)) for r in self.statics]
+        lists = delegates.warm_lists(self.world.state, camera, size, statics, sel.candidates)
+        for dl in lists:
+            self.pose_sharing.assign(dl)
+            self.renderer.draw(dl, self.scene.render.background)
+        return len(lists)
+
     def _build_selector(self):
         return self._selector
 

@@ -26,8 +26,10 @@ passes :data:`START_FACTOR` times the budget (a full-detail crowd of tens of mil
 frame) the fly-through starts in auto. Anything closer is judged by measured frames, as above.
 
 Mode auto's representations are built (or read from the disk cache) and uploaded when the fly-through starts
-with a budget, not when the scene's mode misses it: a switch in flight is then one frame like the others, not a
-build of seconds.
+with a budget, not when the scene's mode misses it, and each is drawn once, coarse, before the first frame
+(:meth:`crowd.engine.Engine.warm_up`: its programs compiled, its buffers made): a switch in flight is then one
+frame like the others, not a build of seconds, and the first frame a plan draws clusters or points is not one
+of 100-300 ms more.
 
 ``--budget 0`` draws the scene's mode exactly as written (as ``crowd run`` does). ``crowd run`` and ``crowd
 report`` keep the scene's mode: their job is to measure it.
@@ -118,9 +120,13 @@ class FlyBudget:
         self.terrain_lod = self.engine.set_terrain_lod(a is not None and self.budget_ms > 0.0)
 
     def before_first_frame(self, camera, size) -> None:
-        """Price the scene's mode's first selection with auto's cost model; start in auto when it is hopeless
-        (module docstring). Costs one selection."""
-        if self.budget_ms <= 0.0 or self.auto() is not None or self.manual or "auto" not in self.engine.lod_modes:
+        """Draw auto's representations once, coarse (:meth:`crowd.engine.Engine.warm_up`), and price the scene's
+        mode's first selection with auto's cost model; start in auto when it is hopeless (module docstring).
+        Costs one selection and a coarse draw per representation."""
+        if self.budget_ms <= 0.0 or self.manual or "auto" not in self.engine.lod_modes:
+            return
+        self.engine.warm_up("auto", camera, size)
+        if self.auto() is not None:
             return
         from lod.auto.cost_model import FEATURES, features
 

@@ -84,6 +84,18 @@ class Delegates:
         self.delegated += 1
         return self.selectors[name].select(state, camera, size, statics)
 
+    def warm_lists(self, state, camera, size, statics, candidates, bound: float = 64.0) -> list:
+        """One DrawList per single mode, each selected at the coarse ``bound`` (cheap to draw whatever the view):
+        drawn once before the first frame, they compile the drawers' programs and create their buffers, so that
+        the first frame a plan draws a representation is not one of 200-300 ms more (the exhibition's first
+        cluster draw, 462 ms against 173 ms after; issue 49). The selectors' bound is set again before each
+        use (:meth:`configure`)."""
+        out = []
+        for name in self.selectors:
+            if self.configure(name, bound, candidates):
+                out.append(self.selectors[name].select(state, camera, size, statics))
+        return out
+
 
 def delegated_stats(dl, plan: str, predicted: float, sd: float, bound: float, sel) -> dict:
     """``stats["auto"]`` of a delegated frame (the keys of :mod:`lod.auto.mode`'s telemetry)."""

@@ -99,3 +99,28 @@ def test_a_scene_that_fits_the_budget_is_drawn_in_its_own_mode(heavy):
     assert all(mode == "none" for mode, _ in frames) and max(ms for _, ms in frames) < 100.0
     hud = app.hud_lines()[0]
     assert "budget 100 ms" in hud and "auto" not in hud
+
+
+def test_auto_s_representations_are_drawn_once_coarse_before_the_first_frame(display, tmp_path, monkeypatch):
+    """With a budget, each of auto's representations (triangle chains, clusters, points) is drawn once before
+    the first frame, coarse (its programs and buffers made then, not on the first frame a plan draws it:
+    crowd.engine.Engine.warm_up); --budget 0 draws nothing extra."""
+    p = tmp_path / "s.toml"
+    p.write_text(tiny_scene(replace={"size = [64, 48]": f"size = [{SIZE[0]}, {SIZE[1]}]"}))
+    for budget, want in ((70.0, {"triangles", "clusters", "points"}), (0.0, set())):
+        window = Window(SIZE, title="test_fly_warm")
+        engine = Engine(load_scene(p), quiet=True)
+        app = FlyApp(engine, window, tmp_path / "fly-out", echo=lambda _: None, budget_ms=budget)
+        drawn = []
+        real = app.renderer.draw
+        monkeypatch.setattr(app.renderer, "draw", lambda dl, *a, **k: (drawn.append(dl), real(dl, *a, **k))[1])
+        try:
+            app.frame(0.05)
+        finally:
+            app.close()
+            window.close()
+        warm = drawn[:-1]  # the last list is the frame's own
+        kinds = {b.rep.split(":")[0] for dl in warm for b in dl.batches if b.n_instances}
+        assert kinds >= want and len(warm) == len(want), (budget, kinds, len(warm))
+        # coarse: no list draws more than the frame's own full detail
+        assert all(dl.stats.get("triangles", 0) <= drawn[-1].stats.get("triangles", 0) for dl in warm)
