@@ -30,10 +30,12 @@ above :data:`ASSIGN_PARALLEL_MIN` instances, then a serial first-appearance pass
 :data:`FRAME_FLOAT` (``i_anim.x``), so whatever reads a copy's animation -- the posed vertices, a skinning
 palette, the morph-target weights, a point placement -- sees one and the same pose; :class:`PoseTable` (``DrawList.poses``) lists each group's
 distinct frame coordinates in slot order, and ``DrawList.stats`` gains ``"poses"`` (distinct poses) and
-``"posed_vertices"`` (vertices the pose cache skins for the meshes drawn from it).
+``"posed_vertices"`` (vertices the pose cache skins for the meshes drawn from it: each in the slots its copies
+draw).
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -54,6 +56,20 @@ RATE_MAX = 1000.0
 ASSIGN_PARALLEL_MIN = 200_000
 #: tolerance (frames) of the loop wrap and of the grid's end
 _EPS = 1e-6
+
+
+def mesh_digest(rep) -> str:
+    """Content key of a skinned rep's posed mesh: reps with equal vertices, skin and targets share it."""
+    h = hashlib.sha1()
+    for a in (rep.positions, rep.normals, rep.joints, rep.weights):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    t = getattr(rep, "targets", None)
+    if t is not None:
+        for a in (t.first, t.count, t.column, t.dpos, t.dnrm, t.weights):
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
 
 
 class PoseRate(Param):
@@ -368,7 +384,7 @@ class PoseSharing:
         self.use_kernel = bool(use_kernel)
         self.groups: dict = {}  # group key -> PoseGroup
         self._rep_group: dict = {}  # rep key -> group key
-        self._rep_mesh: dict = {}  # rep key -> vertices when its batches draw the mesh from the posed buffer
+        self._rep_mesh: dict = {}  # rep key -> (mesh digest, vertices) when its batches draw from posed vertices
         self._clips = None
 
     @property
@@ -397,8 +413,8 @@ class PoseSharing:
                 self._clips = None
             g.reps.append(r.key)
             self._rep_group[r.key] = name
-            if getattr(r, "kind", None) == "skinned":
-                self._rep_mesh[r.key] = int(np.asarray(r.positions).shape[0])
+            if getattr(r, "kind", None) == "skinned":  # (the posed mesh it draws from, its vertices)
+                self._rep_mesh[r.key] = (mesh_digest(r), int(np.asarray(r.positions).shape[0]))
 
     def group_of(self, rep_key: str):
         return self._rep_group.get(rep_key)
@@ -450,13 +466,22 @@ class PoseSharing:
         sets = {g.key: PoseSet(g, pf[cut[g.index]:cut[g.index + 1]].copy(), int(counts[g.index]))
                 for g in groups if counts[g.index]}
         table = PoseTable(self._rate, sets, dict(self._rep_group))
-        meshes = {(self._rep_group[b.rep], self._rep_mesh[b.rep]) for b in bs if b.rep in self._rep_mesh}
+        # the pose cache skins a mesh in the slots its copies draw only (render.poses.cache.PoseCache.posed)
+        # (reps of one mesh -- a chain drawn from the full mesh's vertices -- share its posed vertices)
+        used: dict = {}
+        a = 0
+        for b in bs:
+            m = self._rep_mesh.get(b.rep)
+            if m is not None:
+                used.setdefault((self._rep_group[b.rep], m), []).append(slot[a:a + b.n_instances])
+            a += b.n_instances
         drawlist.poses = table
         drawlist.stats["poses"] = table.n_poses
-        drawlist.stats["posed_vertices"] = int(sum(sets[g].n_poses * v for g, v in meshes if g in sets))
+        drawlist.stats["posed_vertices"] = int(sum(np.unique(np.concatenate(v)).size * m[1]
+                                                   for (_, m), v in used.items()))
         return table
 
 
 __all__ = ["ASSIGN_PARALLEL_MIN", "KEY_RATE", "POSE_PARAMS", "RATE_MAX", "SLOT_FLOAT", "PoseGroup", "PoseRate",
            "PoseSet", "PoseSharing", "PoseTable", "assign_slots", "assign_slots_numpy", "check_rate", "group_name",
-           "pose_source"]
+           "mesh_digest", "pose_source"]

@@ -378,10 +378,10 @@ class Raster:
         self._samplers(cs)
         for b in np.unique(wi[reps]):
             w = work[b]
-            pv = self.r.poses.posed(w.pose_key, w.mesh.rep.key)
+            sel = reps[wi[reps] == b]
+            pv = self.r.poses.posed(w.pose_key, w.mesh.rep.key, slots=slots[sel])
             if pv is None:  # routing keeps such copies on the hardware path (render.raster.hook)
                 raise RuntimeError(f"compute raster: no posed vertices of {w.mesh.rep.key!r} in the pose cache")
-            sel = reps[wi[reps] == b]
             win = pv.window_of(slots[sel])
             for wn in np.unique(win):
                 part = sel[win == wn]

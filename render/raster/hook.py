@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from render.raster.frame import Work
+from lod.poses.table import SLOT_FLOAT
 from lod.raster_route import MAX_THRESHOLD, compute_mask, near_distance
 from render.tint import batch_words
 
@@ -76,7 +77,8 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         mask = _mask(raster, m, data, route, m.extent_of(first, count))
         # a skinned copy reads its pose from the pose cache (none this frame: the hardware path); asked only when
         # the compute path takes a copy, since asking poses the mesh in every distinct pose
-        if not mask.any() or (g.kind == "skinned" and renderer.poses.posed(b.rep) is None):
+        if not mask.any() or (g.kind == "skinned"
+                              and renderer.poses.posed(b.rep, slots=data[mask, SLOT_FLOAT]) is None):
             continue
         ids = np.asarray(b.instance_ids)
         order = np.concatenate([np.flatnonzero(~mask), np.flatnonzero(mask)])
@@ -177,7 +179,7 @@ POSE_PAYS_TRIANGLES = 1.0
 def _pose_pays(renderer, it, mesh_key: str, mask) -> bool:
     """Whether posing ``it``'s full mesh for the compute path (nothing when it is posed this frame already)
     costs no more than drawing its masked copies' cut triangles on the hardware path."""
-    cost = renderer.poses.posing_cost(it.key, mesh_key)
+    cost = renderer.poses.posing_cost(it.key, mesh_key, slots=np.asarray(it.slots)[mask])
     if cost is None or cost == 0:
         return cost == 0
     from lod.clusters.cut import cut_triangle_count
@@ -216,7 +218,7 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
         # is asked for (asked first, the coarse cuts the hardware draws paid it: 4 M vertices a frame on the
         # office; a few far copies routed here paid 30-50 ms on the stampede for a hundred triangles each)
         if not mask.any() or not _pose_pays(renderer, it, src.key, mask) \
-                or renderer.poses.posed(it.key, src.key) is None:
+                or renderer.poses.posed(it.key, src.key, slots=np.asarray(it.slots)[mask]) is None:
             out.append(it)
             continue
         sub = np.flatnonzero(mask)

@@ -144,6 +144,62 @@ def test_geomorphed_chain_levels_read_the_pose_palettes(gl_ctx, morphed):
     r.release()
 
 
+def test_a_mesh_is_skinned_only_in_the_slots_its_copies_draw(gl_ctx, morphed):
+    """Twelve copies of one character in twelve poses, eleven drawn at full detail and one by a chain level of
+    vertices of their own: the full mesh is skinned in its copies' eleven slots, the chain in its copy's one (not
+    in all twelve: issue 49's 140 ms frame), and the LOD side counts the same; the pixels are the per-copy
+    skinning's. A later request skins only the slots not skinned yet that frame; posing_cost prices exactly
+    that. A chain drawn from the full mesh's own vertices shares its posed vertices."""
+    reps, _ = mode_module("triangles").build([tiny_morphed()], ["tinymorph"], [30], {"poe": 0.0, "levels": 3},
+                                             cache=False)
+    shared_chain = reps[0]
+    # the same chain over vertices of its own (a copy of the mesh: another posed mesh)
+    trep = dataclasses.replace(shared_chain, key="triangles:tinymorph#own", positions=shared_chain.positions + 0.0,
+                               normals=-(-shared_chain.normals), weights=shared_chain.weights * 1.0)
+    assert pc.mesh_digest(trep) == pc.mesh_digest(shared_chain) == pc.mesh_digest(morphed)
+    trep = dataclasses.replace(trep, positions=trep.positions * np.float32(1.0001))
+    r = Renderer(SIZE, ctx=gl_ctx, debug=True)
+    for rep in (morphed, trep, shared_chain):
+        r.upload(rep)
+    st = _crowd(morphed)
+
+    def drawlist(rate, chain):
+        dl = NoLodSelector([morphed]).select(st, CAM, SIZE)
+        *others, b = dl.batches  # one batch per clip
+        last = np.arange(b.n_instances) == b.n_instances - 1
+        dl.batches = others + [
+            dataclasses.replace(b, instance_ids=b.instance_ids[~last], instance_data=b.instance_data[~last]),
+            tm_chain.TriangleDrawBatch(chain.key, b.part, b.instance_ids[last], b.instance_data[last], level=1,
+                                       index_range=(3 * int(chain.level_first[1]), 3 * int(chain.level_count[1])))]
+        if rate is not None:
+            ps = PoseSharing(rate)
+            ps.register([morphed, trep, shared_chain])
+            ps.assign(dl)
+        return dl
+
+    V = morphed.positions.shape[0]
+    for chain, want in ((trep, 11 * V + V), (shared_chain, 12 * V)):
+        before = _image(r, drawlist(None, chain), sharing=False)
+        dl = drawlist(0, chain)
+        after = _image(r, dl)
+        assert dl.stats["poses"] == 12 and (before.max(axis=2) > 40).sum() > 2000
+        assert r.poses.last_stats["posed_vertices"] == dl.stats["posed_vertices"] == want
+        assert np.abs(before.astype(int) - after).max() <= 2
+    _image(r, drawlist(0, trep))
+    assert r.poses.posing_cost(trep.key, slots=[0, 11, 11, 3.0]) == 2 * V  # slot 11 is skinned already
+    assert r.poses.posing_cost(morphed.key, slots=[11, -1, 12, np.nan]) == V  # out of range: nothing
+    posed = r.poses.posed(trep.key, slots=[0, 3])
+    assert r.poses.last_stats["posed_vertices"] == 11 * V + 3 * V and posed.done.sum() == 3
+    assert r.poses.posing_cost(trep.key, slots=[0, 3, 11]) == 0
+    got = posed.read()[[0, 3, 11]]
+    frames = dl.poses.set_of(trep.key).frames
+    extent = float(np.ptp(trep.positions, axis=0).max())
+    for row, p in zip(got, (0, 3, 11)):
+        want_p, _ = _reference(trep, frames[p])
+        assert np.abs(row[:, :3] - want_p).max() <= 2e-5 * extent, p
+    r.release()
+
+
 def test_key_rate_frames_are_exact_on_keys_and_within_the_quantisation_between(gl_ctx, morphed):
     r = Renderer(SIZE, ctx=gl_ctx, debug=True)
     r.upload(morphed)
