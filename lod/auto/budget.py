@@ -10,7 +10,9 @@ multiplied by ``step`` when the cost exceeds the budget by more than
 square-rooted at every change of direction (a damped, bisection-like
 search) down to ``MIN_STEP``; a lowered bound whose selection is predicted
 to pass the budget is refused before it is drawn and the bound before held
-(:meth:`BudgetController.refuse`, from :mod:`lod.auto.mode`); a reversal
+(:meth:`BudgetController.refuse`, from :mod:`lod.auto.mode`), and the bound is not lowered again for
+``REFUSE_HOLD`` frames, doubled at every refusal in a row (a back-off: the cliff is still there while the view
+stays); a reversal
 from over- to under-budget at the smallest step holds the bound (the cost
 jumps across the band between two neighbouring bounds: the under-budget one
 is kept) until the cost at the
@@ -41,6 +43,12 @@ URGENT = 1.5
 #: a held bound is released when the cost at it changes by more than this fraction (the view changed: a frame
 #: time on llvmpipe swings 10-15 % from frame to frame, which must not restart the search)
 HOLD_RELEASE = 0.30
+#: after a refused bound, frames the bound is not lowered again whatever the cost does (doubled at each refusal
+#: in a row, up to REFUSE_HOLD_MAX): a refused frame selects twice, and its measured cost, ~40 % above its
+#: neighbours' on the stadium, released the hold and the refusal came back every third frame (13 ms of
+#: selection each time, issue 49)
+REFUSE_HOLD = 8
+REFUSE_HOLD_MAX = 32
 #: clamp of the adaptive bound, pixels
 BOUND_MIN = 0.25
 BOUND_MAX = 1000.0
@@ -88,6 +96,9 @@ class BudgetController:
         self._held_cost = None
         self._pending = 0
         self._last_cost = None  # the cost of the last frame reported (at the bound before the last move)
+        self._backoff = 0  # frames of the current refusal hold (0: no refusal in a row)
+        self._no_lower = 0  # frames left in which the bound is not lowered
+        self._probing = False  # the last move lowered the bound (a refusal follows in the same frame, if any)
 
     def refuse(self, bound: float) -> None:
         """The bound just lowered from ``bound`` is predicted to pass the budget: back to ``bound``, held there
@@ -99,6 +110,9 @@ class BudgetController:
         self._last_dir = 0
         self._run = 0
         self._pending = 0
+        self._backoff = min(REFUSE_HOLD_MAX, 2 * self._backoff) if self._backoff else REFUSE_HOLD
+        self._no_lower = self._backoff
+        self._probing = False
 
     def update(self, cost: float) -> float:
         """Adapt the bound to a frame's ``cost`` (seconds); returns the new bound."""
@@ -106,6 +120,11 @@ class BudgetController:
         if not math.isfinite(cost) or cost < 0.0:
             return self.bound
         self._last_cost = cost
+        if self._probing:  # the bound lowered last frame was drawn: the refusals in a row end
+            self._probing = False
+            self._backoff = 0
+        held_back = self._no_lower > 0  # within a refusal's back-off
+        self._no_lower = max(0, self._no_lower - 1)
         if self._held_cost is not None:
             if abs(cost - self._held_cost) <= HOLD_RELEASE * max(self._held_cost, 1e-12):
                 return self.bound
@@ -118,6 +137,9 @@ class BudgetController:
             d = -1
         else:
             self._run = 0
+            self._pending = 0
+            return self.bound
+        if d < 0 and held_back:
             self._pending = 0
             return self.bound
         urgent = cost > self.budget * URGENT or cost < self.budget / URGENT
@@ -138,6 +160,7 @@ class BudgetController:
             if self._run >= 3:  # a long run in one direction: the view changed, speed up again
                 self.step = min(MAX_STEP, self.step * self.step)
         self._last_dir = d
+        self._probing = d < 0
         self.bound = float(min(max(self.bound * (self.step if d > 0 else 1.0 / self.step), BOUND_MIN), BOUND_MAX))
         return self.bound
 

@@ -873,3 +873,32 @@ def test_a_lowered_bound_predicted_over_the_budget_is_refused(built):
     first.select(st, CAM, SIZE)
     first.observe(0.3e-3 * first.budget_ms, select_seconds=0.0)
     assert first.select(st, CAM, SIZE).stats["auto"]["refused_bound"] == pytest.approx(2.0 / am_budget.MAX_STEP)
+
+
+def test_a_refused_bound_backs_off_before_it_is_tried_again():
+    """After a refusal the bound is not lowered for REFUSE_HOLD frames, however the measured cost swings (a
+    refused frame selects twice: its cost alone released the old hold, and the stadium refused every third
+    frame), then tried again; each refusal in a row doubles the hold up to REFUSE_HOLD_MAX, and a lowered bound
+    that is drawn ends the run."""
+    c = am_budget.BudgetController(0.1, bound=2.0)
+
+    def frames_until_lowered(limit=200):
+        for i in range(limit):
+            before = c.bound
+            if c.update(0.02 if i % 2 else 0.035) < before:  # far under the budget, swinging by 75 %
+                return i + 1, before
+        raise AssertionError("never lowered")
+
+    n, before = frames_until_lowered()
+    assert n == 1
+    holds = []
+    for _ in range(4):
+        c.refuse(before)
+        assert c.bound == before
+        n, before = frames_until_lowered()
+        holds.append(n)
+    h, hmax = am_budget.REFUSE_HOLD, am_budget.REFUSE_HOLD_MAX
+    assert holds == [min(hmax, h * 2 ** k) + 1 for k in range(4)], holds
+    c.update(0.05)  # the lowered bound was drawn: the run of refusals ends
+    c.refuse(c.bound * am_budget.MAX_STEP)
+    assert frames_until_lowered()[0] == h + 1
