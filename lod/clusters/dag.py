@@ -75,6 +75,7 @@ pixels; otherwise its children are examined.
 """
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -469,7 +470,10 @@ def build_cluster_hierarchy(character, clips=None, *, samples: int = CLUSTERS_PO
         raise ValueError(f"build_cluster_hierarchy: ratio must be in (0, 1), got {ratio}")
     names = list(character.clips) if clips is None else list(clips)
     show = True if progress is None else bool(progress)  # with progress=None tqdm appears only after 1 s
-    bar = tqdm(total=_STAGES, desc=f"clusters {character.name}", unit="step", disable=not show,
+    # on a terminal's stderr only, and cleared when the build ends (as crowd's other bars): a bar left on the
+    # line was overwritten by the next line only as far as that line reached (issue 48's "frozen" bar)
+    bar = tqdm(total=_STAGES, desc=f"clusters {character.name}", unit="step",
+               disable=not show or not _is_terminal(sys.stderr), leave=False, file=sys.stderr, dynamic_ncols=True,
                delay=CLUSTERS_PROGRESS_SECONDS if progress is None else 0.0)
     try:
         return _build(character, names, samples, d_fraction, s, tolerance, clustering_method, ratio, pose_indices,
@@ -479,6 +483,13 @@ def build_cluster_hierarchy(character, clips=None, *, samples: int = CLUSTERS_PO
 
 
 _STAGES = 4  # poses + skinning, deformation, leaf clusters, topology; then one step per cluster
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no such method, or a closed stream
+        return False
 
 
 def _build(character, names, samples, d_fraction, s, tolerance, clustering_method, ratio, pose_indices, bar,

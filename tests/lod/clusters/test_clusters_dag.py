@@ -305,3 +305,35 @@ def test_errors_are_measured_against_the_original_surface(human):
         if d > 1e-4:
             ratios.append(h.error[i] / d)
     assert np.median(ratios) < 1.5
+
+
+class _Stream:
+    """A text stream that says whether it is a terminal (tqdm writes to it)."""
+
+    def __init__(self, tty: bool):
+        self.tty, self.text = tty, ""
+
+    def isatty(self):
+        return self.tty
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+
+@pytest.mark.parametrize("tty", [True, False])
+def test_the_build_bar_is_cleared_when_the_build_ends_and_absent_off_a_terminal(human, monkeypatch, tty):
+    """On a terminal the bar shows and is cleared at the end: the line after it starts clean (issue 48: a bar left
+    behind at "3% | 4/129" with the next line's text over its start); off a terminal (a pipe, a log) nothing."""
+    c, _ = human
+    err = _Stream(tty)
+    monkeypatch.setattr(sys, "stderr", err)
+    cluster_dag.build_cluster_hierarchy(c, ["walk"], samples=4, s=60, progress=True)
+    if not tty:
+        assert err.text == ""
+        return
+    assert f"clusters {c.name}" in err.text
+    last = err.text.rsplit("\r", 2)  # the close: "\r" + blanks over the bar + "\r"
+    assert err.text.endswith("\r") and last[-2].strip() == "" and len(last[-2]) > 0
