@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from crowd.engine import COLOR_BY
+from crowd.errors import check_interrupt
 from lod.debug_colors import apply_tints
 
 #: default movement speed, metres per second
@@ -622,6 +623,7 @@ class FlyApp:
             self.frame(dt)
             w.swap()
             n += 1
+            check_interrupt()  # an interrupt another library swallowed stops the fly-through here (crowd.errors)
         return n
 
     def close(self) -> None:

@@ -380,6 +380,29 @@ def test_hud_rate_is_the_wall_clock_rate_over_20_frames(app, monkeypatch):
     assert len(app.periods) == 49 and app.summary().startswith("50 frames, median frame ")
 
 
+def test_an_interrupt_swallowed_elsewhere_stops_the_fly_through(app, monkeypatch):
+    """As crowd run (crowd.errors): a KeyboardInterrupt caught inside another library's code during a frame still
+    stops the loop after that frame."""
+    import crowd.errors
+
+    monkeypatch.setattr(crowd.errors, "_interrupted", False)
+    real = app.frame
+
+    def frame(dt):
+        out = real(dt)
+        if app.frames == 2:
+            try:
+                crowd.errors.on_interrupt(2, None)
+            except KeyboardInterrupt:
+                pass  # as a library might
+        return out
+
+    app.frame = frame
+    with pytest.raises(KeyboardInterrupt):
+        app.run(max_frames=6)
+    assert app.frames == 2
+
+
 def test_cli_fly_without_display_suggests_run_or_xvfb(scene_file, monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
