@@ -637,6 +637,10 @@ class Renderer:
         }
         self.last_timings = timings
         drawlist.stats["pose_passes"] = int(self.pose_evaluations)
+        if getattr(drawlist, "poses", None) is not None:  # what the pose cache skinned (the LOD side counted what
+            # its copies read; the compute rasteriser's cluster copies also pose the full mesh): frames.csv and
+            # auto's fit take the work done
+            drawlist.stats["posed_vertices"] = int(self.poses.last_stats.get("posed_vertices", 0))
         return timings
 
     def _raster_pass(self, view_proj) -> dict:

@@ -482,3 +482,4 @@ def test_the_full_mesh_is_posed_only_when_the_compute_path_pays_for_it(scene):
     dl = draw(crowd(n), far)
     assert dl.stats["raster_triangles"] > 0
     assert scene.r.poses.last_stats["posed_vertices"] == scene.c.mesh.n_vertices  # one pose
+    assert dl.stats["posed_vertices"] == scene.c.mesh.n_vertices  # the drawn list counts the pass (frames.csv)
