@@ -1,5 +1,5 @@
 """Pose sharing, render side: per frame and character the joint palette of each distinct pose and, on request,
-the posed vertices of a mesh for every distinct pose (issue 29; the LOD side is ``lod/poses``).
+the posed vertices of a mesh in the distinct poses its copies draw (issue 29; the LOD side is ``lod/poses``).
 
 One :class:`PoseCache` per renderer (``Renderer.poses``). Each frame, :meth:`PoseCache.begin` takes the
 DrawList's :class:`lod.poses.PoseTable` and
@@ -11,7 +11,9 @@ DrawList's :class:`lod.poses.PoseTable` and
   with the copy's slot (``i_anim.y``, the ``POSE_SLOT`` variants of ``shaders/poses/skinning.glsl``) instead of a
   per-copy palette built by the transform-feedback pre-pass;
 - on request (:meth:`PoseCache.posed`: the full-detail drawer, the compute rasteriser) skins the vertices of a
-  mesh in every distinct pose once (:class:`PosedVertices`): morph targets blended first, normals through the
+  mesh once in each pose slot the requesting copies read (:class:`PosedVertices`; a slot no copy of that mesh
+  reads is not skinned: one agent drawn by a chain level costs one pose, not its character's all): morph
+  targets blended first, normals through the
   inverse transpose of the blended matrix. The skinning pass is a compute shader (``shaders/poses/pose_skin.comp``,
   every core on llvmpipe) or numba over both cores (:attr:`PoseCache.skinning`; the faster one is the
   default, scripts/bench_full_detail.md). Copies then draw from the buffer with only their instance transform

@@ -76,7 +76,7 @@ def split(renderer, batches: list, drawlist) -> tuple[list, dict, list]:
         first, count = triangle_range(g, b)
         mask = _mask(raster, m, data, route, m.extent_of(first, count))
         # a skinned copy reads its pose from the pose cache (none this frame: the hardware path); asked only when
-        # the compute path takes a copy, since asking poses the mesh in every distinct pose
+        # the compute path takes a copy, and for those copies' slots only, since asking poses the mesh in them
         if not mask.any() or (g.kind == "skinned"
                               and renderer.poses.posed(b.rep, slots=data[mask, SLOT_FLOAT]) is None):
             continue
@@ -170,7 +170,7 @@ def cut_extents(offsets, clusters, ext) -> np.ndarray:
 
 
 #: the compute path's cluster copies must draw at least this many triangles per vertex the pose cache would skin
-#: for them (a full mesh in every distinct pose): skinning a vertex costs about as much as drawing a triangle
+#: for them (a full mesh in each pose they read): skinning a vertex costs about as much as drawing a triangle
 #: on the hardware path on llvmpipe (~10 M vertices/s against ~8 M triangles/s), so fewer triangles are cheaper
 #: drawn where they are
 POSE_PAYS_TRIANGLES = 1.0
@@ -214,7 +214,7 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
         # each copy routed by its own cut's triangles (a coarse cut's are larger than the mesh's: routed by the
         # mesh's, coarse cuts of a far crowd went to the compute path, ~100x slower there than drawn by hardware)
         mask = _mask(raster, m, it.data, route, cut_extents(it.offsets, it.clusters, cluster_extents(it.st, m)))
-        # the compute path draws a cut from the full mesh posed in every distinct pose: a pass priced before it
+        # the compute path draws a cut from the full mesh posed in its copies' poses: a pass priced before it
         # is asked for (asked first, the coarse cuts the hardware draws paid it: 4 M vertices a frame on the
         # office; a few far copies routed here paid 30-50 ms on the stampede for a hundred triangles each)
         if not mask.any() or not _pose_pays(renderer, it, src.key, mask) \
