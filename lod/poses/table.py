@@ -468,17 +468,20 @@ class PoseSharing:
         table = PoseTable(self._rate, sets, dict(self._rep_group))
         # the pose cache skins a mesh in the slots its copies draw only (render.poses.cache.PoseCache.posed)
         # (reps of one mesh -- a chain drawn from the full mesh's vertices -- share its posed vertices)
-        used: dict = {}
+        used: dict = {}  # (group, mesh) -> (poses,) bool: the slots its copies read (a mask: no sort of a million)
         a = 0
         for b in bs:
             m = self._rep_mesh.get(b.rep)
             if m is not None:
-                used.setdefault((self._rep_group[b.rep], m), []).append(slot[a:a + b.n_instances])
+                g = self._rep_group[b.rep]
+                mask = used.get((g, m))
+                if mask is None:
+                    mask = used[(g, m)] = np.zeros(sets[g].n_poses, np.bool_)
+                mask[slot[a:a + b.n_instances]] = True
             a += b.n_instances
         drawlist.poses = table
         drawlist.stats["poses"] = table.n_poses
-        drawlist.stats["posed_vertices"] = int(sum(np.unique(np.concatenate(v)).size * m[1]
-                                                   for (_, m), v in used.items()))
+        drawlist.stats["posed_vertices"] = int(sum(int(mask.sum()) * m[1] for (_, m), mask in used.items()))
         return table
 
 
