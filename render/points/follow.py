@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lod.poses.table import SLOT_FLOAT
-from render.points.jobs import indexed_triangle_jobs
+from render.points.jobs import indexed_triangle_jobs, posed_job_table
 
 #: bytes per placed sample or posed vertex (points_placed.glsl)
 PLACED_BYTES = 16
@@ -362,22 +362,9 @@ class FollowFrame:
         """(J, 4) uint32 splat jobs (first placed sample, count, instance row, prefix) of round r's poses among
         ``batches_of_fade``."""
         _, sb, _ = self._layout(r)
-        parts = []
         mine = {id(x) for x in batches_of_fade}
-        for bi, b in enumerate(self.batches):
-            if id(b) not in mine:
-                continue
-            j = np.asarray(b.point_jobs, np.int64).reshape(-1, 3)
-            j = j[j[:, 2] > 0]
-            if not j.shape[0]:
-                continue
-            base = sb[bi][np.asarray(b.slot, np.int64)[j[:, 0]]]
-            keep = base >= 0
-            if keep.any():
-                parts.append(np.stack([base[keep] + j[keep, 1], j[keep, 2], self.offs[id(b)] + j[keep, 0]], 1))
-        if not parts:
-            return np.zeros((0, 4), np.uint32)
-        return _with_prefix(np.concatenate(parts))
+        return posed_job_table([(b.point_jobs, b.slot, sb[bi], self.offs[id(b)])
+                                for bi, b in enumerate(self.batches) if id(b) in mine], add_base=True)
 
     def triangle_jobs(self, r: int, fol_fade: dict) -> tuple[list, np.ndarray]:
         """Round r's triangle job tables [(fade, key, FollowGpu, jobs (first triangle, count, instance row,
@@ -394,14 +381,13 @@ class FollowFrame:
                 if id(b) not in mine:
                     continue
                 o = self.offs[id(b)]
-                base = vb[bi][np.asarray(b.slot, np.int64)]
-                shift[o:o + b.n_instances] = base
-                j = np.asarray(b.tri_jobs, np.int64).reshape(-1, 3)
-                j = j[(j[:, 2] > 0) & (base[j[:, 0]] >= 0)]
-                if j.shape[0]:
-                    per_key.setdefault(b.rep, []).append(np.stack([j[:, 1], j[:, 2], o + j[:, 0]], 1))
-            for key, parts in per_key.items():
-                out.append((fade, key, self.d._follow[key], _with_prefix(np.concatenate(parts))))
+                slot = np.asarray(b.slot, np.int64)
+                shift[o:o + b.n_instances] = vb[bi][slot]
+                per_key.setdefault(b.rep, []).append((b.tri_jobs, slot, vb[bi], o))
+            for key, items in per_key.items():
+                jobs = posed_job_table(items, add_base=False)
+                if jobs.shape[0]:
+                    out.append((fade, key, self.d._follow[key], jobs))
         return out, shift
 
     def placed_buffer(self):

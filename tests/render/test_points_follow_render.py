@@ -212,3 +212,43 @@ def test_gl_points_reference_path_draws_the_placed_samples(gl_ctx, walker, cache
         return np.abs(img.astype(int) - np.round(np.asarray(BG) * 255).astype(int)).max(axis=2) > 2
 
     assert mask(a).sum() > 200 and silhouette_error(mask(a), mask(b)) <= 2.0
+
+
+def _posed_jobs_reference(items, add_base):
+    """The numpy form posed_job_table replaced (render/points/follow.py before): filter, gather, stack, prefix."""
+    parts = []
+    for jobs, slot, base_of_pose, row0 in items:
+        j = np.asarray(jobs, np.int64).reshape(-1, 3)
+        base = np.asarray(base_of_pose, np.int64)[np.asarray(slot, np.int64)[j[:, 0]]]
+        keep = (j[:, 2] > 0) & (base >= 0)
+        first = j[keep, 1] + (base[keep] if add_base else 0)
+        parts.append(np.stack([first, j[keep, 2], row0 + j[keep, 0]], 1))
+    j = np.concatenate(parts) if parts else np.zeros((0, 3), np.int64)
+    pre = np.concatenate([[0], np.cumsum(j[:, 1])[:-1]]) if j.shape[0] else np.zeros(0, np.int64)
+    return np.concatenate([j, pre[:, None]], axis=1).astype(np.uint32)
+
+
+@pytest.mark.parametrize("add_base", [True, False])
+def test_posed_job_table_is_the_numpy_form(add_base):
+    """The follow points' job tables (numba, render.points.jobs.posed_job_table) equal the numpy form they
+    replaced: jobs with no items and jobs whose pose is not placed this round left out, the rest in order with
+    the pose's base (point jobs), the batch's first row and the exclusive prefix; empty inputs give (0, 4); more
+    than 2**32 items is refused."""
+    from render.points.jobs import posed_job_table
+
+    rng = np.random.default_rng(5)
+    items = []
+    for b in range(3):
+        n, P, k = 50 + 10 * b, 7, 200
+        jobs = np.stack([rng.integers(0, n, k), rng.integers(0, 1000, k), rng.integers(0, 4, k)], 1)
+        items.append((jobs.astype([np.uint32, np.int64, np.int32][b]), rng.integers(0, P, n),
+                      np.where(rng.random(P) < 0.3, -1, rng.integers(0, 10_000, P)), 1000 * b))
+    got = posed_job_table(items, add_base)
+    want = _posed_jobs_reference(items, add_base)
+    assert got.dtype == np.uint32 and got.shape == want.shape and 0 < got.shape[0] < 600
+    np.testing.assert_array_equal(got, want)
+    assert posed_job_table([], add_base).shape == (0, 4)
+    assert posed_job_table([(np.zeros((0, 3), np.int64), np.zeros(0), np.zeros(1), 0)], add_base).shape == (0, 4)
+    big = (np.array([[0, 0, 2 ** 31], [0, 0, 2 ** 31]], np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64), 0)
+    with pytest.raises(ValueError, match="2\\*\\*32"):
+        posed_job_table([big], add_base)
