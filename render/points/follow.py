@@ -168,7 +168,7 @@ def cache_slots(pal, b) -> np.ndarray | None:
     first[slot[::-1]] = np.arange(slot.shape[0], dtype=np.int64)[::-1]
     if (first < 0).any():
         return None
-    cs = np.asarray(b.instance_data, np.float64)[first, SLOT_FLOAT]
+    cs = np.asarray(b.instance_data)[first, SLOT_FLOAT].astype(np.float64)  # P rows (not all n as float64 first)
     if not np.isfinite(cs).all():
         return None
     cs = np.rint(cs).astype(np.int64)
