@@ -539,3 +539,24 @@ def test_keyframed_paths():
     n = max(1.0, round(dur * 30.0))  # about 30 poses a second: the segment cut in n equal steps
     q = quantise_u(kf, 0, np.array([0.01, 0.5]))
     assert np.allclose(q * n, np.round(q * n)) and np.abs(q - [0.01, 0.5]).max() <= 0.5 / n + 1e-12
+
+
+def test_distinct_poses_are_np_unique_of_them():
+    """follow_batch's distinct poses (a presence table over whole numbers or float32 bit patterns) equal
+    np.unique's values and inverse, on quantised frames, exact frames, zeros, one value, and inputs that take the
+    sort (negative, NaN, -0, values beyond the table)."""
+    from lod.points.follow_select import DISTINCT_TABLE, _distinct
+
+    rng = np.random.default_rng(2)
+    cases = [np.floor(rng.uniform(0, 300, 5000)).astype(np.float32), rng.uniform(0, 40, 3000).astype(np.float32),
+             np.zeros(7, np.float32), np.array([3.5], np.float32), np.zeros(0, np.float32),
+             np.array([-1.0, 2.0, -1.0], np.float32), np.array([1.0, np.nan, 1.0], np.float32),
+             np.array([1e-30, 1e30, 1e-30], np.float32), np.array([0.0, 1000.0, 12.0, 0.0], np.float32),
+             np.array([0.0, -0.0, 2.0], np.float32), (np.arange(10) * 0.25 + 100.0).astype(np.float32)]
+    for c in cases:
+        q = c.astype(np.float64)
+        pose, slot = _distinct(q)
+        want_pose, want_slot = np.unique(q, return_inverse=True)
+        np.testing.assert_array_equal(pose, want_pose)
+        np.testing.assert_array_equal(slot, want_slot.reshape(-1))
+    assert DISTINCT_TABLE >= 1 << 16
