@@ -103,7 +103,8 @@ class BudgetController:
     def refuse(self, bound: float) -> None:
         """The bound just lowered from ``bound`` is predicted to pass the budget: back to ``bound``, held there
         until the cost at it changes by more than :data:`HOLD_RELEASE` (the view changed), as a reversal at the
-        smallest step is held; the next probe starts from :data:`MAX_STEP`."""
+        smallest step is held, and in any case not lowered for :data:`REFUSE_HOLD` frames, doubled at each
+        refusal in a row up to :data:`REFUSE_HOLD_MAX`; the next probe starts from :data:`MAX_STEP`."""
         self.bound = float(min(max(bound, BOUND_MIN), BOUND_MAX))
         self._held_cost = self._last_cost
         self.step = MAX_STEP
