@@ -451,15 +451,20 @@ class AutoSelector:
         before = c.bound if c is not None else None
         dl = self._select(state, camera, size, statics)
         a = dl.stats.get("auto")
-        b = self.budget_ms * 1e-3
-        limit = b - min(self.last_select_seconds, 0.5 * b)  # the rendering seconds the budget leaves
-        if (c is not None and b > 0 and isinstance(a, dict) and float(a["bound"]) < before
+        limit = self._render_budget()
+        if (c is not None and limit is not None and isinstance(a, dict) and float(a["bound"]) < before
                 and 1e-3 * float(a["predicted_ms"]) > limit):
             refused = float(a["bound"])
             c.refuse(before)
             dl = self._select(state, camera, size, statics)
             dl.stats["auto"]["refused_bound"] = refused
         return dl
+
+    def _render_budget(self) -> float | None:
+        """The rendering seconds the budget leaves after the last selection (at most half of it), or None
+        without a budget."""
+        b = self.budget_ms * 1e-3
+        return b - min(self.last_select_seconds, 0.5 * b) if b > 0 else None
 
     def _select(self, state, camera, size, statics=()) -> DrawList:
         t_start = time.perf_counter()
@@ -469,9 +474,8 @@ class AutoSelector:
         bound = float(self.bound)
         if not (np.isfinite(bound) and bound >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {bound}")
-        if self.chooser is not None:  # the rendering seconds the budget leaves (lod.auto.control, issue 49)
-            b = self.budget_ms * 1e-3
-            self.chooser.budget = b - min(self.last_select_seconds, 0.5 * b) if b > 0 else None
+        if self.chooser is not None:  # (lod.auto.control, issue 49)
+            self.chooser.budget = self._render_budget()
         held = self._held()  # steady on a pure plan: the others are not priced (lod.auto.control)
         if held is not None and self.delegates.ready(held):  # or the single mode's own selector
             dl = self.delegates.select(held, state, camera, size, statics, bound, self.candidates)

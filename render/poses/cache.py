@@ -336,7 +336,7 @@ class PoseCache:
         if g is None or d is None or g not in self._pal:
             return None
         have = self._posed.get((g, d), False)
-        if have is None:
+        if have is None or (have is not False and have.done.all()):
             return 0
         P = int(self._pal[g].n_poses)
         need = self._need(P, have.done if have is not False else None, slots)
@@ -369,6 +369,8 @@ class PoseCache:
         posed = self._posed.get(key, False)
         if posed is None:
             return None
+        if posed is not False and posed.done.all():  # every slot skinned: each later request of the frame is free
+            return posed
         if posed is False:
             if V == 0 or V > self._limit() or P * V * POSED_VERTEX_BYTES > self.budget_bytes:
                 self.last_stats["fallback"] += 1

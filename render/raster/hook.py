@@ -176,10 +176,10 @@ def cut_extents(offsets, clusters, ext) -> np.ndarray:
 POSE_PAYS_TRIANGLES = 1.0
 
 
-def _pose_pays(renderer, it, mesh_key: str, mask) -> bool:
-    """Whether posing ``it``'s full mesh for the compute path (nothing when it is posed this frame already)
-    costs no more than drawing its masked copies' cut triangles on the hardware path."""
-    cost = renderer.poses.posing_cost(it.key, mesh_key, slots=np.asarray(it.slots)[mask])
+def _pose_pays(renderer, it, mesh_key: str, mask, slots) -> bool:
+    """Whether posing ``it``'s full mesh for the compute path in ``slots`` (its masked copies'; nothing when
+    posed this frame already) costs no more than drawing those copies' cut triangles on the hardware path."""
+    cost = renderer.poses.posing_cost(it.key, mesh_key, slots=slots)
     if cost is None or cost == 0:
         return cost == 0
     from lod.clusters.cut import cut_triangle_count
@@ -217,8 +217,9 @@ def split_clusters(renderer, items: list, drawlist) -> tuple[list, list]:
         # the compute path draws a cut from the full mesh posed in its copies' poses: a pass priced before it
         # is asked for (asked first, the coarse cuts the hardware draws paid it: 4 M vertices a frame on the
         # office; a few far copies routed here paid 30-50 ms on the stampede for a hundred triangles each)
-        if not mask.any() or not _pose_pays(renderer, it, src.key, mask) \
-                or renderer.poses.posed(it.key, src.key, slots=np.asarray(it.slots)[mask]) is None:
+        slots = np.asarray(it.slots)[mask]
+        if not mask.any() or not _pose_pays(renderer, it, src.key, mask, slots) \
+                or renderer.poses.posed(it.key, src.key, slots=slots) is None:
             out.append(it)
             continue
         sub = np.flatnonzero(mask)
