@@ -201,6 +201,9 @@ class Engine:
             if "clips" in inspect.signature(module.build).parameters:
                 # build only what the scene can play (point hierarchies of unplayed clips are most of grid's data)
                 extra["clips"] = self._played_clips()
+            if "variation" in inspect.signature(module.build).parameters:
+                # nodes that stand for many agents carry each one's colour variation (lod.points.instancing)
+                extra["variation"] = self.tint_table
             built = module.build(
                 self.plan.characters, [c.name for c in sc.characters], [c.fps for c in sc.characters],
                 params, static_reps=self.statics, progress=progress, **extra)
@@ -401,10 +404,10 @@ class Engine:
 
     @property
     def tint_table(self):
-        """(n agents,) uint32 colour-variation words (``render.tint.variation_table``: from the scene
+        """(n agents,) uint32 colour-variation words (``sim.variation.variation_table``: from the scene
         seed and each agent's stable id and character), or None when no character varies."""
         if not hasattr(self, "_tint_table"):
-            from render.tint import variation_table
+            from sim.variation import variation_table
 
             vs = [dict(c.variation) if c.variation else None for c in self.scene.characters]
             st = self.world.state

@@ -9,7 +9,7 @@ from lod.chains import mode as tm
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True, model=None,
-          points_params=None, instancing=None, clips=None):
+          points_params=None, instancing=None, clips=None, variation=None):
     """Mode "auto" for ``lod.modes``: the "triangles" mode's reps (full-detail
     reps for non-skinned characters), the cluster hierarchies and point
     hierarchies of the characters when those candidates are asked for, and
@@ -28,6 +28,8 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         super-hierarchies (Wand & Straßer §3.6), as mode "points" does
     clips : the clips the scene can play per character (see
         ``lod.points.mode.build``): point hierarchies only for those
+    variation : the agents' colour-variation words (``sim.variation``) or None: the
+        super-hierarchies carry them (see ``lod.points.mode.build_instancing``)
 
     Returns
     -------
@@ -58,7 +60,7 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         pp = {**dict(points_params or {}),
               **{k: params.get(k, PARAMS[k].default) for k in ("keyframes", "pose_error", "max_keyframes")}}
         preps, psel = points_mode.build(characters, names, fps, pp, static_reps=static_reps, progress=progress,
-                                        instancing=instancing, clips=clips)
+                                        instancing=instancing, clips=clips, variation=variation)
         strict = str(params.get("points_error", PARAMS["points_error"].default)) == "splat+keyframes"
         # the pose error of the poses the hierarchies were built over (lod.points.poses; loop jumps excluded)
         dev = [max((cp.error for cp in r.poses.values()), default=0.0) if strict else 0.0

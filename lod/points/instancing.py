@@ -21,6 +21,10 @@ Build (:func:`build_super`), per depth d = 1 .. depth:
    of the character (§3.4.1 sampling, barycentric, so they follow the
    animation), ``k`` chosen so that the source spacing is a quarter of the
    finest spacing the super-hierarchy needs; weight = instance area / k (§3.6).
+   Each source takes its instance's colours under that agent's colour-variation
+   word (``sim.variation``; the words of the group's first node), so a node's
+   filtered colour is the mean of the agents it stands for (§3.5 over every
+   instance), not the colours of the one agent whose word its draw would carry.
 2. Time. The node's pattern is periodic with the group's period P (a multiple
    of the clip's duration). It is cut into S super-segments (S = the clip's
    keyframe segments times P / duration); at the super-keyframe times
@@ -76,6 +80,7 @@ from lod.points.filter import gaussian_filter
 from lod.points.octree import ATTR_DTYPE, PointHierarchy
 from lod.points.sampling import candidate_count, max_area, sample_triangles, triangle_vertices
 from lod.points.stratify import interval_times, stratify
+from sim.variation import vary
 
 #: version of the super-hierarchy build (part of its cache key)
 SUPER_FORMAT = 2
@@ -388,8 +393,8 @@ def empty_keyframed(key: str, parts: int) -> KeyframedRep:
 
 
 def super_key(surface: ClipSurface, levels, depth: int, period: float, segments: int, r_stop: float,
-              params: dict) -> str:
-    """sha256 content key of one super-hierarchy (inputs and parameters)."""
+              params: dict, variation=None) -> str:
+    """sha256 content key of one super-hierarchy (inputs, parameters and the instances' variation words)."""
     h = hashlib.sha256()
     h.update(f"points-super/{SUPER_FORMAT}".encode())
     kf = surface.kf
@@ -403,13 +408,16 @@ def super_key(surface: ClipSurface, levels, depth: int, period: float, segments:
             h.update(np.ascontiguousarray(a, np.float64).tobytes())
     h.update(json.dumps(dict(params, clip=surface.clip, depth=depth, period=period, segments=segments,
                              r_stop=float(r_stop)), sort_keys=True).encode())
+    if variation is not None:
+        h.update(b"variation")
+        h.update(np.ascontiguousarray(variation, np.uint32).tobytes())
     return h.hexdigest()
 
 
 def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop: float, *, group: int = 0,
                 name: str = "crowd", intervals: int = SUPER_INTERVALS,
                 spacing_fraction: float = C.POINTS_SPACING_FRACTION, segments: int | None = None, cache=None,
-                seed: int = 0, splat_size: int = 2, renderer: str = "compute") -> SuperHierarchy:
+                seed: int = 0, splat_size: int = 2, renderer: str = "compute", variation=None) -> SuperHierarchy:
     """Super-hierarchy of the nodes at ``depth`` of a tree (§3.6; see the module docstring).
 
     Parameters
@@ -426,6 +434,10 @@ def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop:
     segments : super-segments per period (default: the clip's segments x period / duration)
     cache : lod.points.rep.HierarchyCache or None
     seed : int
+    variation : None or (n,) uint32, the colour-variation word (``sim.variation``) of each of a node's
+        n instances: every source point takes its instance's varied colour (and a variation mask of 0),
+        so a node's filtered colours are the mean of the agents it stands for, not one agent's
+        (its draws get no word of their own: ``render.tint.PREVARIED``)
 
     Returns
     -------
@@ -441,15 +453,21 @@ def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop:
     S = max(1, int(segments))
     params = dict(intervals=int(intervals), spacing_fraction=float(spacing_fraction), seed=int(seed),
                   source_fraction=SOURCE_FRACTION)
-    key = super_key(surface, levels, depth, period, S, r_stop, params)
+    t, yaw, sc, off = _sub_transforms(levels, depth, period)
+    n_inst = t.shape[0]
+    if variation is not None:
+        variation = np.ascontiguousarray(variation, np.uint32).reshape(-1)
+        if variation.shape[0] != n_inst:
+            raise ValueError(f"build_super: variation holds {variation.shape[0]} words for {n_inst} instances")
+        if not variation.any():
+            variation = None
+    key = super_key(surface, levels, depth, period, S, r_stop, params, variation)
     hs = None
     if cache is not None:
         got = [cache.load(f"{key}-{s}") for s in range(S)]
         if all(g is not None for g in got):
             hs = got
             cache.hits += 1
-    t, yaw, sc, off = _sub_transforms(levels, depth, period)
-    n_inst = t.shape[0]
     s_src = SOURCE_FRACTION * r_stop
     k = int(np.clip(np.ceil(surface.area / (s_src * s_src)), 1, MAX_SOURCE_PER_INSTANCE))
     k = int(max(1, min(k, MAX_SOURCE_POINTS // max(1, n_inst))))
@@ -470,6 +488,8 @@ def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop:
             p = np.stack([c * x + s_ * z, p[:, 1], -s_ * x + c * z], 1) * sc[inst][:, None] + t[inst]
             nx, nz = nrm[:, 0].copy(), nrm[:, 2].copy()
             nrm = np.stack([c * nx + s_ * nz, nrm[:, 1], -s_ * nx + c * nz], 1)
+            if variation is not None:  # each source in its own agent's colours, varied once (mask 0 after)
+                col = np.concatenate([vary(col, variation[inst]), np.zeros((col.shape[0], 1))], 1)
             frames.append((p, nrm, col))
         hs = []
         for q in range(S):

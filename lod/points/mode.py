@@ -191,12 +191,24 @@ def group_keyframes(rep, clip: int, params: dict) -> tuple:
     return kf, short.index(names[int(clip)])
 
 
-def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None):
+def _node_words(variation, first: int, m: int):
+    """(m,) uint32 variation words of agents ``first .. first + m - 1``, or None (no table, or none varies)."""
+    if variation is None:
+        return None
+    w = np.asarray(variation, np.uint32).reshape(-1)[int(first):int(first) + int(m)]
+    return np.ascontiguousarray(w) if w.shape[0] == int(m) and w.any() else None
+
+
+def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCache | None = None, progress=None,
+                     variation=None):
     """Super-hierarchies (§3.6) of every instancing group, as an
     :class:`lod.points.instancing.InstancingPlan`, or None without groups.
 
     instancing : sim.instancing.Instancing or None; reps : the characters'
     PointsReps (index = CrowdState.character); names : their names.
+    variation : None or (n agents,) uint32 colour-variation words (``sim.variation``): a super-hierarchy
+    of depth d takes the words of the group's first node (agents ``first .. first + m_d - 1``), so every
+    node shows that mix of colours.
     A group is left to the per-instance path (and named in the plan's
     ``skipped``) when its clip does not loop, changes triangles between
     segments, or its period is not a multiple of the clip's duration.
@@ -238,14 +250,16 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
         supers = []
         r_stop = r_root * float(np.abs(h.levels[0].scale).max())
         for d in range(1, h.depth + 1):
+            words = _node_words(variation, first, h.instances_per_node(d))
             key = (h.character, h.clip, d,
                    tuple((lv.translation.tobytes(), lv.yaw.tobytes(), lv.scale.tobytes(), lv.time_offset.tobytes())
-                         for lv in h.levels[:d]), h.period, r_stop)
+                         for lv in h.levels[:d]), h.period, r_stop, None if words is None else words.tobytes())
             sup = memo.get(key)
             if sup is None:
                 sup = pi.build_super(surf, h.levels, d, h.period, r_stop, group=gi, name=names[h.character],
                                      spacing_fraction=float(p["spacing_fraction"]),
-                                     cache=cache, splat_size=int(p["splat_size"]), renderer=str(p["renderer"]))
+                                     cache=cache, splat_size=int(p["splat_size"]), renderer=str(p["renderer"]),
+                                     variation=words)
                 memo[key] = sup
                 if bool(p.get("coarse", True)):  # a far tree node coarser than its root too (lod.points.coarse)
                     for sh in sup.rep.hierarchies:
@@ -260,7 +274,7 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: HierarchyCache | None = None,
-          instancing=None, clips=None):
+          instancing=None, clips=None, variation=None):
     """Mode "points" for ``lod.modes``: a :class:`PointsRep` per character
     (then one per super-hierarchy, §3.6, when ``instancing`` holds groups)
     and a :class:`PointsSelector`.
@@ -269,6 +283,8 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         sequence aligned with ``characters``, each None (all clips) or the
         clip indices / names the scene can play (see :func:`build_points_rep`;
         the clips of ``instancing`` groups are always added).
+    variation : None or the agents' colour-variation words (``sim.variation``), which the
+        super-hierarchies carry (:func:`build_instancing`)
     """
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)
     p.pop("mode", None)
@@ -298,7 +314,7 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         else:
             r = build_points_rep(ch, n, p, cache, progress, clips=c)
         reps.append(r)
-    plan = build_instancing(instancing, reps, list(names), p, cache, progress)
+    plan = build_instancing(instancing, reps, list(names), p, cache, progress, variation=variation)
     sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan)
     return reps + (plan.reps if plan is not None else []), sel
 

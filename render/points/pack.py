@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from render.tint import TINT_WORDS, UNVARIED, debug_word
+from render.tint import TINT_WORDS, debug_word, takes_variation
 
 
 @njit(cache=True, fastmath={"contract"})
@@ -81,7 +81,7 @@ def batch_words(batches, table) -> np.ndarray:
         ids = np.asarray(b.instance_ids).reshape(-1)
         if ids.dtype.kind not in "iu":
             ids = ids.astype(np.int64)
-        use = table is not None and b.rep.split(":", 1)[0] not in UNVARIED
+        use = table is not None and takes_variation(b.rep)
         _words_kernel(ids, t, use, np.uint32(debug_word(getattr(b, "tint", None))), out, at)
         at += ids.shape[0]
     return out

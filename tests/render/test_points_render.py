@@ -325,6 +325,51 @@ def test_hierarchical_instantiation_renders_a_block_within_the_flat_instances_er
         r.release()
 
 
+def test_a_super_hierarchy_node_carries_the_mean_colour_of_the_agents_it_stands_for(gl_ctx, tmp_path):
+    """Issue 43 (pre-filtered coarse nodes): a 10 x 10 block whose agents each wear red or blue (palette
+    variation words, sim.variation) drawn from its super-hierarchy has the block's mean colour, as full detail
+    has it, not one agent's colour (a node drawn with its first agent's word was all red or all blue)."""
+    from sim.instancing import Hierarchy, Instancing, parse_levels
+    from sim.variation import variation_words
+
+    levels = parse_levels([{"layout": "grid", "nx": 10, "nz": 10, "spacing": [2.0, 2.0], "phase_step": 0.13}])
+    h = Hierarchy(levels, character=0, clip=0, period=1.2)
+    words = variation_words(5, np.arange(h.n_instances), palette=[(0.9, 0.1, 0.1), (0.1, 0.1, 0.9)])
+    reds = int((words & 0xFF == round(0.9 * 255)).sum())
+    assert 30 <= reds <= 70  # a mix of both colours (seed 5)
+    reps, sel = pm.build([_walker()], ["w"], [30], {"splat_size": 1, "coarse": False}, progress=False,
+                         cache=pm_rep.HierarchyCache(tmp_path / "c"), instancing=Instancing([(0, h)]),
+                         variation=words)
+    ref = dataclasses.replace(reps[0].keyframed, key="none:w")
+    r = Renderer((320, 240), ctx=gl_ctx)
+    try:
+        r.tint_table = words
+        for rep in (*reps, ref):
+            r.upload(rep)
+        st = h.flatten(copy=True)
+        cam = Camera.look_at((0.0, 60.0, 120.0), (0.0, 0.5, 0.0), fov_y=40.0, far=1000.0)
+        dl = sel.select(st, cam, r.size)
+        assert dl.stats.get("super_nodes") == 1
+        imgs = [_render(r, d) for d in (dl, NoLodSelector([ref]).select(st, cam, r.size))]
+        bg = imgs[1][0, 0]
+        means = []
+        for img in imgs:
+            m = _mask(img, bg)
+            assert m.sum() > 200
+            means.append(img[m].astype(float).mean(0))
+        red_share = [mu[0] / (mu[0] + mu[2]) for mu in means]
+        assert 0.3 < red_share[1] < 0.7
+        assert abs(red_share[0] - red_share[1]) < 0.05, (means, red_share)
+        assert np.abs(means[0] - means[1]).max() < 12.0
+        # the node's draw gets no word of its own (render.tint.PREVARIED): its colours already carry them
+        from render.tint import batch_words
+
+        sup = [b for b in dl.batches if b.rep.startswith("points:super:")]
+        assert sup and (batch_words(sup, words)[:, 0] == 0).all()
+    finally:
+        r.release()
+
+
 @pytest.mark.parametrize("per_group", [3, 16])
 def test_several_jobs_per_work_group_splat_the_same_image(renderer, ball, monkeypatch, per_group):
     import render.points.draw as rp
