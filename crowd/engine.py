@@ -404,10 +404,10 @@ class Engine:
 
     @property
     def tint_table(self):
-        """(n agents,) uint32 colour-variation words (``sim.variation.variation_table``: from the scene
+        """(n agents,) uint32 colour-variation words (``lod.variation.variation_table``: from the scene
         seed and each agent's stable id and character), or None when no character varies."""
         if not hasattr(self, "_tint_table"):
-            from sim.variation import variation_table
+            from lod.variation import variation_table
 
             vs = [dict(c.variation) if c.variation else None for c in self.scene.characters]
             st = self.world.state

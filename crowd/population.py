@@ -3,7 +3,7 @@ entered after each frame's simulation, and the counts telemetry writes.
 
 - selectors with per-instance memory (``remap_agents(src, state)``, e.g. the keyframed selection) keep it for
   the agents that stayed;
-- the colour-variation words are by stable id (``sim.variation.variation_table(..., ids=)``), so an agent keeps
+- the colour-variation words are by stable id (``lod.variation.variation_table(..., ids=)``), so an agent keeps
   its colour whatever its index;
 - frames.csv counts ``agents`` (alive this frame), ``entered`` (added by a source in it), ``exited`` (reached an
   exit in it: the frame PedPy sees them cross an exit line), ``left`` (removed at its start: they reached an exit
@@ -48,7 +48,7 @@ def after_step(engine) -> None:
         if callable(f):
             f(src, st)
     if getattr(engine, "_tint_table", None) is not None:
-        from sim.variation import variation_table
+        from lod.variation import variation_table
 
         vs = [dict(c.variation) if c.variation else None for c in engine.scene.characters]
         engine._tint_table = variation_table(engine.scene.seed, st.character, vs, ids=st.ids)

@@ -1,4 +1,5 @@
-"""``[[characters]] variation``: the per-agent colour variation keys of a scene file (sim/variation.py makes the words, render/tint.py applies them).
+"""``[[characters]] variation``: the per-agent colour variation keys of a scene file (lod/variation.py makes the
+words, render/tint.py applies them).
 
 Parsed by :func:`parse_variation` for :mod:`crowd.scene`; an invalid value is reported through the parser's
 ``fail(key, message)`` as one line naming the key.
@@ -9,7 +10,7 @@ import re
 
 from sim.params import Param, validate
 
-#: keys of ``[[characters]] variation`` (sim/variation.py): per-agent hue/saturation/value shifts, or a palette
+#: keys of ``[[characters]] variation`` (lod/variation.py): per-agent hue/saturation/value shifts, or a palette
 VARIATION_SCHEMA = {
     "hue": Param("float", 0.0, min=0.0, max=0.5, doc="largest hue shift, turns (each agent: uniform in +-hue)"),
     "saturation": Param("float", 0.0, min=0.0, max=0.95, doc="largest relative saturation change"),

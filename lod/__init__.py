@@ -14,6 +14,8 @@ Shared core, in data-flow order (scene ``[lod]`` -> mode -> selection -> DrawLis
 - ``lod.poses``: pose sharing: each frame's distinct poses per skinned character and every drawn copy's pose
   slot (``[lod] pose_rate``; ``DrawList.poses``), which the renderer's pose cache animates once per pose.
 - ``lod.debug_colors``: tints of a DrawList by representation or level (VDR-AM Fig. 11).
+- ``lod.variation``: the agents' colour-variation words and their arithmetic (the renderer applies them per
+  instance; representations that stand for many agents bake them in).
 
 Representation families (each package's docstring lists its modules):
 

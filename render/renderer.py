@@ -191,7 +191,7 @@ class Renderer:
         self._instance_capacity = 0
         self._instances = None
         self._grow_instances(INITIAL_INSTANCES)
-        #: (n agents,) uint32 variation words (sim.variation.variation_table) or None; the app sets it
+        #: (n agents,) uint32 variation words (lod.variation.variation_table) or None; the app sets it
         self.tint_table = None
         self._tint = self._track(TintStream(ctx), "crowd.instance_tints")
         self._palette = Palette(ctx, self._track, self._objects.remove)  # render/poses/palette.py

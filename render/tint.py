@@ -5,7 +5,7 @@ Every drawn instance carries two uint32 words, ``(variation, debug)``
 splat's colour pass, so full detail, LOD chains, clusters and points give an
 instance the same colour and a LOD switch never changes one):
 
-- variation: the agent's colour-variation word (``sim.variation``: its bytes,
+- variation: the agent's colour-variation word (``lod.variation``: its bytes,
   its table by stable id, its arithmetic in numpy), weighted by the vertex
   colour's alpha, the character's variation mask (its regions: 1 varies, 0 is kept).
 - debug: RGBA8 ``(r, g, b, weight)`` mixed in afterwards (``DrawBatch.tint``,
@@ -16,7 +16,7 @@ variation of an agent depends on its character's settings (amounts, palette,
 on or off), which a shader would need as per-representation uniforms, while
 the point drawer splats the instances of all representations in one dispatch;
 a word per instance carries any setting through every path alike. The words
-come from a per-agent table made once (``sim.variation.variation_table``, 4 bytes
+come from a per-agent table made once (``lod.variation.variation_table``, 4 bytes
 per agent) and are gathered per frame by the batches' agent ids (8 bytes per
 instance uploaded beside the 64 of the instance data). Representations whose
 colours already carry their agents' variation (the super-hierarchy nodes of
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.variation import pack_rgba8, vary
+from lod.variation import pack_rgba8, vary
 
 #: uint32 words per instance: (variation, debug)
 TINT_WORDS = 2

@@ -6,7 +6,6 @@ Modules in data-flow order (asset -> character -> world -> systems stepping the 
   hierarchies, forward kinematics), ``sim.clip`` (skeletal clips, morph weights), ``sim.skin_weights``
   (weights checked and repaired), ``sim.keyframes`` (keyframe animations of meshes, Wand & Straßer §3),
   ``sim.character`` (skinned or keyframed), ``sim.procedural`` (generated humanoids and quadrupeds),
-  ``sim.variation`` (per-agent colour-variation words),
   ``sim.gltf`` (glTF 2.0 import and export, a package), ``sim.skinning`` (CPU linear-blend skinning and
   skin ∘ morph, the GPU path's reference), ``sim.describe`` (``crowd info``).
 - World: ``sim.state`` (``CrowdState``, structure of arrays), ``sim.placement`` (``[[placement]]`` groups),

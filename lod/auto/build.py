@@ -28,7 +28,7 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         super-hierarchies (Wand & Straßer §3.6), as mode "points" does
     clips : the clips the scene can play per character (see
         ``lod.points.mode.build``): point hierarchies only for those
-    variation : the agents' colour-variation words (``sim.variation``) or None: the
+    variation : the agents' colour-variation words (``lod.variation``) or None: the
         super-hierarchies carry them (see ``lod.points.mode.build_instancing``)
 
     Returns

@@ -22,7 +22,7 @@ Build (:func:`build_super`), per depth d = 1 .. depth:
    animation), ``k`` chosen so that the source spacing is a quarter of the
    finest spacing the super-hierarchy needs; weight = instance area / k (§3.6).
    Each source takes its instance's colours under that agent's colour-variation
-   word (``sim.variation``; the words of the group's first node), so a node's
+   word (``lod.variation``; the words of the group's first node), so a node's
    filtered colour is the mean of the agents it stands for (§3.5 over every
    instance), not the colours of the one agent whose word its draw would carry.
 2. Time. The node's pattern is periodic with the group's period P (a multiple
@@ -80,10 +80,10 @@ from lod.points.filter import gaussian_filter
 from lod.points.octree import ATTR_DTYPE, PointHierarchy
 from lod.points.sampling import candidate_count, max_area, sample_triangles, triangle_vertices
 from lod.points.stratify import interval_times, stratify
-from sim.variation import vary
+from lod.variation import vary
 
 #: version of the super-hierarchy build (part of its cache key)
-SUPER_FORMAT = 2
+SUPER_FORMAT = 3  # 3: source colours under their agents' variation words; principal-axis normals
 #: a super-octree node with at most this many source points is a leaf keeping them all
 LEAF_POINTS = 8
 #: a super-octree node with spacing r <= LEAF_SLACK * r_stop is a leaf (a level more would go below r_stop)
@@ -434,7 +434,7 @@ def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop:
     segments : super-segments per period (default: the clip's segments x period / duration)
     cache : lod.points.rep.HierarchyCache or None
     seed : int
-    variation : None or (n,) uint32, the colour-variation word (``sim.variation``) of each of a node's
+    variation : None or (n,) uint32, the colour-variation word (``lod.variation``) of each of a node's
         n instances: every source point takes its instance's varied colour (and a variation mask of 0),
         so a node's filtered colours are the mean of the agents it stands for, not one agent's
         (its draws get no word of their own: ``render.tint.PREVARIED``)

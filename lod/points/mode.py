@@ -206,7 +206,7 @@ def build_instancing(instancing, reps, names, params: dict, cache: HierarchyCach
 
     instancing : sim.instancing.Instancing or None; reps : the characters'
     PointsReps (index = CrowdState.character); names : their names.
-    variation : None or (n agents,) uint32 colour-variation words (``sim.variation``): a super-hierarchy
+    variation : None or (n agents,) uint32 colour-variation words (``lod.variation``): a super-hierarchy
     of depth d takes the words of the group's first node (agents ``first .. first + m_d - 1``), so every
     node shows that mix of colours.
     A group is left to the per-instance path (and named in the plan's
@@ -283,7 +283,7 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
         sequence aligned with ``characters``, each None (all clips) or the
         clip indices / names the scene can play (see :func:`build_points_rep`;
         the clips of ``instancing`` groups are always added).
-    variation : None or the agents' colour-variation words (``sim.variation``), which the
+    variation : None or the agents' colour-variation words (``lod.variation``), which the
         super-hierarchies carry (:func:`build_instancing`)
     """
     p = {k: v.default for k, v in PARAMS.items()} | dict(params)

@@ -31,7 +31,8 @@ PARAMS: dict = {
                                       "farthest-point prefix of the root's points whose spacing projects within "
                                       "the splat size, down to one splat per agent (lod.points.coarse)"),
     "renderer": Param("str", "compute", choices=RENDERERS,
-                      doc="point splat path: compute-shader atomicMin splats or the GL_POINTS reference"),
+                      doc="point splat path: compute-shader splats (the points nearest the surface blended by projected "
+                      "area) or the GL_POINTS reference (the nearest point per pixel)"),
     "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
                                           "likely occluders (render.points.occlusion; not in Wand & Strasser)"),
     "animation": Param("str", "auto", choices=ANIMATION_PATHS,

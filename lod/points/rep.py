@@ -19,7 +19,7 @@ from lod.full.reps import KeyframedRep
 from lod.points.octree import PointHierarchy, build_hierarchy, load_hierarchy, save_hierarchy
 
 #: version of the cached hierarchy format and build; bump when either changes
-CACHE_FORMAT = 3  # 3: intervals stratify candidates thinned to their own density (points_sampling.interval_thinning)
+CACHE_FORMAT = 4  # 4: normals filtered as the principal axis of their second moment (lod.points.filter)
 #: environment variable naming the cache folder (default ``~/.cache/crowd``)
 CACHE_ENV = "CROWD_CACHE_DIR"
 # ---------------------------------------------------------------------------- representation

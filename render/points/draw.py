@@ -24,13 +24,19 @@ Drawing, after the built-in triangle batches:
    transformed by its model matrix) and doing ``atomicMin`` of its window
    depth into the anchor slot of its s x s pixel footprint (s = splat size
    1..3; the footprint is the GL point rule's); the first point of an anchor
-   marks its TILE x TILE tile. A second pass where the point that won an
-   anchor loads its normal and colour and writes its lit colour there. Then a
-   resolve over the pixels the marked tiles reach (merged into runs per tile
-   row, or one full-screen triangle when they cover most of the screen)
-   takes per pixel the nearest of the s x s anchors whose footprints cover it
-   (the same result as scattering into every footprint pixel, with one atomic
-   per point instead of s * s) and writes colour and ``gl_FragDepth``, so the
+   marks its TILE x TILE tile. A second pass where the points within a depth
+   tolerance of an anchor's nearest (:data:`BLEND_FOOTPRINTS` splat
+   footprints; Schütz, Kerbl and Wimmer 2021's high-quality splatting) load
+   their normal and colour and add their lit colour times their projected area
+   ``|n . v|``, and that weight, into the anchor's accumulators (``Drawer.blend``
+   False: the nearest point alone writes its colour, the rule before issue 43:
+   a far crowd took one random point's colour per pixel, and edge-on points as
+   often as facing ones). Then a resolve over the pixels the marked tiles reach
+   (merged into runs per tile row, or one full-screen triangle when they cover
+   most of the screen) takes per pixel the nearest of the s x s anchors whose
+   footprints cover it and the weighted mean of those within the tolerance of
+   it (the same result as scattering into every footprint pixel, with one
+   atomic per point, four when blending, instead of s * s) and writes colour and ``gl_FragDepth``, so the
    fixed-function depth test compares points with the triangles already in
    the depth buffer (no depth texture needed). The next frame's clear resets
    only the marked tiles. llvmpipe offers no 64-bit atomics, hence two passes
@@ -99,6 +105,15 @@ WINDOW_ROWS = 32
 MAX_GROUPS_X = 65535
 #: point splat paths
 PATHS = ("compute", "gl_points")
+#: the compute splat blends the points within this many splat footprints (in eye depth, at the anchor's
+#: nearest point) behind an anchor's nearest (Drawer.blend; points_splat.glsl): one footprint spans
+#: ``s * w / f`` metres at eye depth w (s the splat size, f the pixels per metre at depth 1). Measured
+#: (scripts/bench_splat_quality.md, frame 0 against the 4 x 4 reference): 0.5, 1, 2, 4 footprints gain
+#: +1.07, +1.43, +2.21, +2.72 dB over the nearest point alone on the stadium, +0.58 .. +1.06 on the grid,
+#: +0.42 .. +0.88 on the exhibition, +0.95 .. +1.19 on the horses; 2 is within 0.5 dB of the best everywhere
+#: and blends across less than 4 does. Cost: the colour pass loads every point within the tolerance
+#: (x1.1 .. x1.7 the splat's time, the most on the grid's far view)
+BLEND_FOOTPRINTS = 2.0
 #: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
 #: culling left out with their points and triangles, and 1 when the culling was paused this frame
 COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
@@ -175,6 +190,15 @@ class Drawer:
             raise RuntimeError(f"[lod] mode 'points' needs OpenGL 4.3 (compute shaders and storage buffers); this "
                                f"context offers {self.ctx.version_code // 100}.{self.ctx.version_code % 100 // 10}")
         self.path = None
+        #: the compute splat's colour rule: True, the weighted mean of the points within BLEND_FOOTPRINTS of an
+        #: anchor's nearest (weights: projected area); False, the nearest point alone (points_splat.glsl NEAREST)
+        self.blend = True
+        #: blend tolerance, splat footprints (BLEND_FOOTPRINTS)
+        self.blend_footprints = BLEND_FOOTPRINTS
+        #: blend weights: "area" (a point's projected area, |n . v|) or "flat" (every point alike)
+        self.blend_weight = "area"
+        self._blend_uniforms = {}
+        self._rule_cleared = ()  # the colour rule the anchors were last reset for
         #: bytes one storage-buffer binding may address (None: the context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE)
         self.ssbo_limit = None
         self._reps: dict[str, _GpuPoints] = {}
@@ -199,7 +223,8 @@ class Drawer:
         self._points = None  # the samples of every uploaded rep (upload, _append_points)
         self._points_used = 0
         self._append_points(np.zeros((1, SAMPLE_WORDS), np.uint32))  # never empty
-        self._color = self._track(self.ctx.buffer(reserve=4 * self._pixels), "points.colors")
+        # per anchor slot: four accumulators (blend) or one packed colour (the nearest; points_splat.glsl)
+        self._color = self._track(self.ctx.buffer(reserve=16 * self._pixels), "points.colors")
 
     # ------------------------------------------------------------------ resources
     def _track(self, obj, label: str):
@@ -384,6 +409,7 @@ class Drawer:
         # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
         # the [lod] splat_size
         splat = int(drawlist.options.get("splat_size", first.splat))
+        self._set_blend(drawlist.proj, splat)
         # samples that follow the animation: their poses placed this frame (render/points/follow.py)
         fol = None
         if fol_fade:
@@ -481,11 +507,13 @@ class Drawer:
             verts = np.array([[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0]], np.float32)
         else:
             verts = rect_vertices(rects, (w, h))
-        rprog = self._program("points_resolve")
+        rprog = self._program("points_resolve", self._rule())
         rprog["u_size"].value = (w, h)
         rprog["u_splat"].value = splat
+        for k, v in self._blend_uniforms.items():
+            rprog[k].value = v
         vbo = self._buffer("resolve_vertices", verts)
-        vao = self._vao_of("resolve_vao", vbo, lambda: self.ctx.vertex_array(rprog, [(vbo, "2f", "in_pos")]))
+        vao = self._vao_of("resolve_vao", vbo, lambda: self.ctx.vertex_array(rprog, [(vbo, "2f", "in_pos")]), rprog)
         self.r.fbo.use()
         vao.render(moderngl.TRIANGLES, vertices=verts.shape[0])
 
@@ -606,9 +634,10 @@ class Drawer:
                 if not sel.any():
                     continue
                 t = jobs if sel.all() else np.ascontiguousarray(jobs[sel])
-                cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common
+                cs = self._compute("points_splat", (("COLOR_PASS",) if color else ()) + common + self._rule()
                                    + (("THREAD_PER_JOB",) if thread else ()) + (("PLACED",) if placed else ()))
-                self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat)
+                self._uniforms(cs, vp, u_size=(w, h), u_tiles_x=self._slot_tiles[0], u_splat=splat,
+                               **self._blend_uniforms)
                 if "u_fade" in cs:
                     cs["u_fade"].value = fade
                 for first, piece in instance_windows(t, rows, window, limit // 16):
@@ -622,6 +651,27 @@ class Drawer:
         """render.points.occlusion.split_first over this frame's job tables (the nearest share drawn first)."""
         return occ.split_first(self._reps, self._pvs, by_fade, tris, groups, vp, self.r.size, splat)
 
+    def _rule(self) -> tuple:
+        """Shader defines of the colour rule (points_splat.glsl, points_resolve.frag, points_clear.glsl)."""
+        if not self.blend:
+            return ("NEAREST",)
+        return ("FLAT_WEIGHT",) if self.blend_weight == "flat" else ()
+
+    def _set_blend(self, proj, splat: int) -> None:
+        """This frame's blend uniforms from the projection ``proj`` (4 x 4, row-major): the eye depth of a window
+        depth d is ``B / (A - (2 d - 1))`` with A = -P[2, 2], B = -P[2, 3] (a perspective projection; an
+        orthographic one blends only ties), and the tolerance ``BLEND_FOOTPRINTS * s / f`` relative to it."""
+        P = np.asarray(proj, np.float64).reshape(4, 4)
+        a, b = -P[2, 2], -P[2, 3]
+        f = abs(P[1, 1]) * 0.5 * self.r.size[1]  # pixels per metre at eye depth 1
+        ok = np.isfinite([a, b, f]).all() and abs(P[3, 2]) > 0.0 and f > 0.0
+        tol = float(self.blend_footprints) * splat / f if ok else -1.0  # -1: nothing but the nearest's ties
+        self._blend_uniforms = {"u_depth_ab": (float(a), float(b)) if ok else (1.0, 1.0),
+                                "u_tol": max(float(tol), -1.0) if np.isfinite(tol) else -1.0} if self.blend else {}
+        if self._rule() != self._rule_cleared:  # the anchors hold the other rule's colours: reset them all
+            self._dirty = None
+            self._rule_cleared = self._rule()
+
     def _clear(self) -> None:
         """Reset the anchor slots (and tile flags) the last frame filled: all
         of them on the first frame or when most were filled, else one work
@@ -631,12 +681,13 @@ class Drawer:
         if dirty is not None and not dirty.shape[0]:
             return
         if dirty is None or dirty.shape[0] > FULL_CLEAR_SHARE * tx * ty:
-            clear = self._compute("points_clear")
+            clear = self._compute("points_clear", self._rule())
             clear["u_pixels"].value = self._pixels
             clear["u_ntiles"].value = tx * ty
             self._dispatch(clear, max(self._pixels, tx * ty), CLEAR_GROUP)
         else:
-            clear = self._compute("points_clear", ("TILE_LIST", f"TILE {TILE}", f"TILES_PER_GROUP {TILES_PER_GROUP}"))
+            clear = self._compute("points_clear", ("TILE_LIST", f"TILE {TILE}", f"TILES_PER_GROUP {TILES_PER_GROUP}")
+                                  + self._rule())
             self._buffer("dirty_tiles", dirty).bind_to_storage_buffer(10)
             clear["u_count"].value = int(dirty.shape[0])
             clear["u_slots"].value = (self.r.size[0] + MARGIN, self.r.size[1] + MARGIN)

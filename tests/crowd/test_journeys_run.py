@@ -153,7 +153,7 @@ def test_pedpy_counts_the_exits(flow_run):
 
 
 def test_left_agents_are_not_drawn_and_entered_keep_their_colour(tmp_path):
-    from sim.variation import variation_table
+    from lod.variation import variation_table
 
     sc = _scene(tmp_path)
     with Engine(sc, quiet=True) as e:

@@ -327,10 +327,10 @@ def test_hierarchical_instantiation_renders_a_block_within_the_flat_instances_er
 
 def test_a_super_hierarchy_node_carries_the_mean_colour_of_the_agents_it_stands_for(gl_ctx, tmp_path):
     """Issue 43 (pre-filtered coarse nodes): a 10 x 10 block whose agents each wear red or blue (palette
-    variation words, sim.variation) drawn from its super-hierarchy has the block's mean colour, as full detail
+    variation words, lod.variation) drawn from its super-hierarchy has the block's mean colour, as full detail
     has it, not one agent's colour (a node drawn with its first agent's word was all red or all blue)."""
     from sim.instancing import Hierarchy, Instancing, parse_levels
-    from sim.variation import variation_words
+    from lod.variation import variation_words
 
     levels = parse_levels([{"layout": "grid", "nx": 10, "nz": 10, "spacing": [2.0, 2.0], "phase_step": 0.13}])
     h = Hierarchy(levels, character=0, clip=0, period=1.2)
@@ -360,7 +360,10 @@ def test_a_super_hierarchy_node_carries_the_mean_colour_of_the_agents_it_stands_
         red_share = [mu[0] / (mu[0] + mu[2]) for mu in means]
         assert 0.3 < red_share[1] < 0.7
         assert abs(red_share[0] - red_share[1]) < 0.05, (means, red_share)
-        assert np.abs(means[0] - means[1]).max() < 12.0
+        chroma = [mu / mu.sum() for mu in means]
+        assert np.abs(chroma[0] - chroma[1]).max() < 0.03, (means, chroma)
+        # (brightness: the splats are fatter than the mesh, their extra pixels lit at grazing angles)
+        assert 0.8 < means[0].sum() / means[1].sum() < 1.25, means
         # the node's draw gets no word of its own (render.tint.PREVARIED): its colours already carry them
         from render.tint import batch_words
 
@@ -511,11 +514,13 @@ def test_indexed_triangle_jobs_give_every_jobs_triangles_in_order():
     assert e_items.shape == (0, 2) and e_index.shape == (0,)
 
 
-def test_points_tied_in_depth_splat_the_same_image_every_time(gl_ctx, tmp_path):
+@pytest.mark.parametrize("blend", [True, False])
+def test_points_tied_in_depth_splat_the_same_image_every_time(gl_ctx, tmp_path, blend):
     """Two spheres of different colours at the same place: every point of one ties in depth with a point of the
-    other. The colour pass keeps the smallest packed colour (atomicMin), so the image does not depend on the order
-    llvmpipe's threads run in: five renderers, five identical images, every covered pixel one sphere's colour or
-    the other's (found by scripts/frame_digests.py: grid in mode points drew 4 pixels differently run to run)."""
+    other. The colour pass adds integer colour x weight sums (blend) or keeps the smallest packed colour
+    (atomicMin, the nearest rule), so the image does not depend on the order llvmpipe's threads run in: five
+    renderers, five identical images (found by scripts/frame_digests.py: grid in mode points drew 4 pixels
+    differently run to run)."""
     red = sphere_character(40, 60, name="red")
     blue = dataclasses.replace(red, name="blue", animations={
         "swell": dataclasses.replace(red.animations["swell"], keyframes=[
@@ -540,6 +545,7 @@ def test_points_tied_in_depth_splat_the_same_image_every_time(gl_ctx, tmp_path):
                 r.upload(rep)
             dl = sel.select(st, cam, r.size)
             assert dl.stats["points"] > 100 and dl.stats["triangles"] == 0  # splats only: coincident
+            r.drawer("points").blend = blend
             images.append(_render(r, dl))  # triangles would z-fight by draw order, as GL's depth test does
         finally:
             r.release()

@@ -62,7 +62,7 @@ def test_level_tint_is_the_level_colour_and_unknown_mode_is_refused(setup):
 # ------------------------------------------------------------------ per-instance colour words (render/tint.py)
 from render.shaders import load_source  # noqa: E402
 from render.tint import apply_tint, batch_words, debug_word  # noqa: E402
-from sim.variation import (MODE_HSV, MODE_PALETTE, hsv_to_rgb, pack_hsv, rgb_to_hsv, variation_table,  # noqa: E402
+from lod.variation import (MODE_HSV, MODE_PALETTE, hsv_to_rgb, pack_hsv, rgb_to_hsv, variation_table,  # noqa: E402
                            variation_words)
 
 _TINT_VS = """#version 330 core

@@ -10,11 +10,19 @@
 // s x s footprint, on a grid with a MARGIN-pixel border below and left); the
 // first point of an anchor marks the anchor's TILE x TILE tile
 // (render/points/draw.py clears and resolves only marked tiles).
-// COLOR_PASS: the point whose depth won its anchor loads its normal and
-// colour (only then) and writes its lit RGBA8 colour there (atomicMin: of
-// points tied in depth the smallest colour, deterministically). The resolve pass takes, per pixel, the nearest of the s x s
-// anchors whose footprints cover it: the same minimum as scattering into the
-// whole footprint, with one atomic per point instead of s * s.
+// COLOR_PASS: every point within the depth tolerance of its anchor's nearest
+// (eye depth w <= w_min (1 + u_tol): the nearest surface, Schuetz, Kerbl and
+// Wimmer 2021's high-quality splatting) loads its normal and colour and adds
+// its lit colour times its weight, and the weight, into the anchor's four
+// accumulators (integer atomicAdd: the sums do not depend on the order the
+// threads run in). The weight is the point's projected area, |n . v| (a
+// splat seen edge-on covers little of the surface it stands for), quantised
+// to 1..16 (FLAT_WEIGHT: 16 for every point). NEAREST: the winner alone writes its colour (atomicMin of the
+// packed colour: of points tied in depth the smallest), the old rule. The
+// resolve pass takes, per pixel, the nearest of the s x s anchors whose
+// footprints cover it and the anchors within the tolerance of it: the same
+// as scattering into the whole footprint, with one atomic per point (four
+// when blending) instead of s * s.
 // (llvmpipe has no 64-bit atomics, so depth and index cannot be packed into
 // one 64-bit atomicMin.)
 #ifndef MARGIN
@@ -37,6 +45,7 @@ layout(std430, binding = 0) readonly buffer Placed { uvec4 placed[]; };
 layout(std430, binding = 0) readonly buffer Points { Sample pts[]; };
 #endif
 layout(std430, binding = 3) buffer Depth { uint depth[]; };
+// per anchor: NEAREST one packed colour; else (sum r w, sum g w, sum b w, sum w), colours in 0..255
 layout(std430, binding = 4) buffer Color { uint color[]; };
 #ifndef COLOR_PASS
 // filled-tile flags, one per TILE x TILE anchor slots
@@ -47,12 +56,34 @@ uniform mat4 u_view_proj;
 uniform ivec2 u_size;
 uniform int u_splat;
 uniform int u_tiles_x;  // slot tiles per row: ceil((width + MARGIN) / TILE)
+#if defined(COLOR_PASS) && !defined(NEAREST)
+uniform vec2 u_depth_ab;  // eye depth of window depth d: w = u_depth_ab.y / (u_depth_ab.x - (2 d - 1))
+uniform float u_tol;      // relative eye-depth tolerance of the blend
+#endif
 
 #ifndef JOBS_PER_GROUP
 #define JOBS_PER_GROUP 1
 #endif
 
 void splat_job(uint j, uint k0, uint stride);
+
+#if defined(COLOR_PASS) && !defined(NEAREST)
+float eye_depth(float d) {
+    return u_depth_ab.y / (u_depth_ab.x - (2.0 * d - 1.0));
+}
+
+// the blend weight of a point: its projected area |n . v| (n and the view ray normalised; a zero normal
+// counts as facing the camera), quantised to 1..16 so that a point seen edge-on still counts a little
+uint splat_weight(vec3 world, vec3 nw) {
+#ifdef FLAT_WEIGHT
+    return 16u;
+#endif
+    float ln = dot(nw, nw);
+    float lv = dot(world, world);
+    float f = (ln > 1e-20 && lv > 1e-20) ? abs(dot(nw, world)) * inversesqrt(ln * lv) : 1.0;
+    return 1u + uint(round(15.0 * clamp(f, 0.0, 1.0)));
+}
+#endif
 
 void main() {
     uint g = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
@@ -110,7 +141,14 @@ void splat_job(uint j, uint k0, uint stride) {
         uint slot = uint(sy * (u_size.x + MARGIN) + sx);
         uint key = floatBitsToUint(ndc.z * 0.5 + 0.5);
 #ifdef COLOR_PASS
-        if (depth[slot] == key) {
+#ifdef NEAREST
+        bool take = depth[slot] == key;
+#else
+        uint near_key = depth[slot];
+        bool take = near_key == key || (near_key != 0xFFFFFFFFu
+            && clip.w <= eye_depth(uintBitsToFloat(near_key)) * (1.0 + u_tol));
+#endif
+        if (take) {
             vec3 n;
             vec4 c;
 #ifdef PLACED
@@ -121,10 +159,20 @@ void splat_job(uint j, uint k0, uint stride) {
             vec4 h = vec4(p, 1.0);
             vec3 world = vec3(dot(m0, h), dot(m1, h), dot(m2, h));
             vec3 nw = vec3(dot(m0.xyz, n), dot(m1.xyz, n), dot(m2.xyz, n));
+            vec3 lit = shade(world, nw, tint_color(c, tints[i]).rgb);
+#ifdef NEAREST
             // points at the same depth (a tie) all pass the test above: the
             // smallest packed colour wins, so the image does not depend on the
             // order the threads run in (a plain store did)
-            atomicMin(color[slot], packUnorm4x8(vec4(shade(world, nw, tint_color(c, tints[i]).rgb), 1.0)));
+            atomicMin(color[slot], packUnorm4x8(vec4(lit, 1.0)));
+#else
+            uint q = splat_weight(world, nw);
+            uvec3 c8 = uvec3(round(clamp(lit, 0.0, 1.0) * 255.0)) * q;
+            atomicAdd(color[4u * slot], c8.r);
+            atomicAdd(color[4u * slot + 1u], c8.g);
+            atomicAdd(color[4u * slot + 2u], c8.b);
+            atomicAdd(color[4u * slot + 3u], q);
+#endif
         }
 #else
         // the first point of an anchor marks its tile (every writer stores the

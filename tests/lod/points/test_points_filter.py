@@ -23,7 +23,7 @@ def test_kernel_matches_reference():
         assert np.allclose(c1, c2, atol=1e-12) and np.allclose(n1, n2, atol=1e-12)
 
 
-def test_fallbacks_without_neighbours_and_for_cancelling_normals():
+def test_fallbacks_without_neighbours_and_for_opposite_normals():
     rep = np.array([[0.0, 0, 0], [5.0, 5, 5]])
     fp = np.array([[0.0, 0, 0.001], [0.0, 0, -0.001]])
     fn = np.array([[0.0, 0, 1], [0.0, 0, -1]])  # a thin sheet seen from both sides
@@ -32,7 +32,8 @@ def test_fallbacks_without_neighbours_and_for_cancelling_normals():
     fbn = np.array([[1.0, 0, 0], [0.0, 0, 0]])
     c, n = gaussian_filter(rep, fp, fc, fn, np.ones(2), 0.1, fbc, fbn)
     assert np.allclose(c[0], [0.5, 0, 0.5, 1])  # averaged colour
-    assert np.allclose(n[0], [1, 0, 0])  # normals cancel: own normal
+    # the normals' mean cancels; their principal axis is the sheet's (lit alike from both sides)
+    assert np.allclose(np.abs(n[0]), [0, 0, 1])
     assert np.allclose(c[1], fbc[1])  # nobody within 2 sigma: own colour
     assert np.allclose(n[1], [0, 1, 0])  # own normal is zero too: +Y
     assert np.isfinite(c).all() and np.isfinite(n).all()
@@ -75,3 +76,34 @@ def test_filtered_attributes_of_a_two_coloured_strip():
     mixed = fc0[near]
     assert np.all((mixed[:, 0] > 0.0) & (mixed[:, 2] > 0.0))  # edge points blend both sides
     assert np.allclose(mixed[:, 0] + mixed[:, 2], 1.0)
+
+
+def test_principal_normal_keeps_the_axis_the_light_sees():
+    """Issue 43: a coarse node's normal is the principal axis of its normals' second moment. A slab's front
+    and back (the torso in one far node) keep their axis where the renormalised mean was the sideways remnant;
+    one normal is kept as it is; a spread cone keeps its axis; degenerate inputs give finite unit normals."""
+    from lod.points.filter import principal_normal
+
+    def moments(n, w):
+        n = np.asarray(n, float)
+        return np.array([[(w * n[:, i] * n[:, j]).sum() for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))]])
+
+    # front (+z, 48 % of the area) and back (-z, 47 %) of a slab, a little side (+x, 5 %)
+    n = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]])
+    w = np.array([0.48, 0.47, 0.05])
+    mean = (w[:, None] * n).sum(0, keepdims=True)
+    got = principal_normal(moments(n, w), mean, np.array([[0, 1.0, 0]]))
+    assert np.allclose(got, [[0, 0, 1]], atol=1e-9)
+    renorm = mean / np.linalg.norm(mean)
+    assert abs(renorm[0, 0]) > 0.7  # the mean's remnant leans sideways: lit as seen edge-on
+    # one normal: itself
+    one = np.array([[0.48, 0.6, 0.64]])
+    assert np.allclose(principal_normal(moments(one, np.ones(1)), one, one), one)
+    # a cone of normals around +y (half-angle 30 deg)
+    a = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    cone = np.c_[0.5 * np.cos(a), np.full(12, np.sqrt(0.75)), 0.5 * np.sin(a)]
+    assert np.allclose(principal_normal(moments(cone, np.ones(12)), cone.sum(0, keepdims=True), one), [[0, 1, 0]],
+                       atol=1e-9)
+    # nothing, NaN, zero fallbacks: finite unit vectors
+    bad = principal_normal(np.array([[0.0] * 6, [np.nan] * 6]), np.zeros((2, 3)), np.zeros((2, 3)))
+    assert np.isfinite(bad).all() and np.allclose(np.linalg.norm(bad, axis=1), 1.0)
