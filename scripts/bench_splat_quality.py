@@ -1,7 +1,7 @@
 """What the compute splat's colour rule buys and costs (issue 43): frame 0 of shipped scenes in mode points, each
 colour rule's PSNR against the true reference and its draw time.
 
-The rules (render/points/draw.py, points_splat.glsl): ``nearest`` (each anchor takes its nearest point's colour,
+The rules (``[lod] splat_blend``; render/points/draw.py, points_splat.glsl): ``nearest`` (each anchor takes its nearest point's colour,
 the rule before issue 43) and ``blend`` (the weighted mean of the points within a depth tolerance of an anchor's
 nearest, at tolerances of 0.5, 1, 2 and 4 splat footprints; weights ``area``, the point's projected area |n . v|, or
 ``flat``, every point alike). The reference is :mod:`crowd.reference`'s (full detail, K x K samples per pixel,
@@ -62,7 +62,8 @@ def run_scene(path: Path, size, k: int, repeats: int) -> dict:
         times = {name: [] for name, *_ in RULES}
         for rep in range(repeats + 1):
             for name, blend, tol, weight in RULES:
-                d.blend, d.blend_footprints, d.blend_weight = blend, tol, weight
+                dl.options["splat_blend"] = tol if blend else 0.0  # as [lod] splat_blend names it
+                d.blend_weight = weight
                 r.draw(dl, bg)  # first draw of a rule: compiles; not timed
                 r.ctx.finish()
                 t0 = time.perf_counter()

@@ -83,3 +83,14 @@ POINTS_SEGMENT_BYTES_EXP = 0.487
 #: Segments assumed per generated character before it is built (two clips of
 #: about 15 poses each at the default pose_error)
 GENERATOR_SEGMENTS = 30
+
+#: The compute splat blends the points within this many splat footprints (in eye depth, at an anchor's
+#: nearest point) behind an anchor's nearest (``[lod] splat_blend``; render/points/draw.py,
+#: points_splat.glsl; 0 = the nearest point alone): one footprint spans ``s * w / f`` metres at eye depth w
+#: (s the splat size, f the pixels per metre at depth 1). Measured (scripts/bench_splat_quality.md, frame 0
+#: against the 4 x 4 reference): 0.5, 1, 2, 4 footprints gain +1.07, +1.43, +2.21, +2.72 dB over the nearest
+#: point alone on the stadium, +0.58 .. +1.06 on the grid, +0.42 .. +0.88 on the exhibition, +0.95 .. +1.19
+#: on the horses; 2 is within 0.5 dB of the best everywhere and blends across less than 4 does. Cost: the
+#: colour pass loads every point within the tolerance (x1.1 .. x1.7 the splat's time, the most on the grid's
+#: far view).
+POINTS_SPLAT_BLEND = 2.0

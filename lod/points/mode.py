@@ -315,7 +315,8 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
             r = build_points_rep(ch, n, p, cache, progress, clips=c)
         reps.append(r)
     plan = build_instancing(instancing, reps, list(names), p, cache, progress, variation=variation)
-    sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan)
+    sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan,
+                         splat_blend=float(p["splat_blend"]))
     return reps + (plan.reps if plan is not None else []), sel
 
 
@@ -346,13 +347,17 @@ class PointsSelector:
     reps : list of PointsRep aligned with ``CrowdState.character``
     static_reps : StaticRep scenery drawn through ``statics``
     splat_size : pixels (1..3)
+    splat_blend : splat footprints the drawer blends within (``[lod] splat_blend``), or None
     """
 
-    def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None, pose_rate="key"):
+    def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None, pose_rate="key",
+                 splat_blend: float | None = None):
         if not 1 <= int(splat_size) <= 3:
             raise ValueError(f"[lod] splat_size: expected 1, 2 or 3 pixels, got {splat_size}")
         self.reps = list(reps)
         self.splat_size = int(splat_size)
+        #: the splat's blend tolerance the DrawList names (``[lod] splat_blend``; None: the drawer's own)
+        self.splat_blend = None if splat_blend is None else float(splat_blend)
         #: pose sharing of the representations that follow the animation (lod.points.follow_select)
         self.pose_rate = pose_rate
         self._base = NoLodSelector([r.base if getattr(r, "follow", False) else r.keyframed for r in self.reps],
@@ -416,6 +421,8 @@ class PointsSelector:
             dl.stats["placed_points"] = int(placed)
             dl.stats["point_poses"] = int(poses)
         dl.options["splat_size"] = self.splat_size  # the drawer splats at the size the traversal assumed
+        if self.splat_blend is not None:
+            dl.options["splat_blend"] = self.splat_blend
         dl.stats["triangles"] = int(tris) + sum(b.triangles for b in out if not isinstance(b, PointsBatch))
         dl.stats["batches"] = len(out)
         return dl

@@ -30,9 +30,13 @@ PARAMS: dict = {
     "coarse": Param("bool", True, doc="representations coarser than a hierarchy's root: the smallest "
                                       "farthest-point prefix of the root's points whose spacing projects within "
                                       "the splat size, down to one splat per agent (lod.points.coarse)"),
+    "splat_blend": Param("float", C.POINTS_SPLAT_BLEND, min=0.0, max=8.0,
+                         doc="the compute splat's colour: the mean of the points within this many splat "
+                             "footprints (depth) of a pixel's nearest, weighted by projected area; 0 = the "
+                             "nearest point alone (cheaper, noisier; scripts/bench_splat_quality.md)"),
     "renderer": Param("str", "compute", choices=RENDERERS,
-                      doc="point splat path: compute-shader splats (the points nearest the surface blended by projected "
-                      "area) or the GL_POINTS reference (the nearest point per pixel)"),
+                      doc="point splat path: compute-shader splats (the points nearest the surface blended by "
+                          "projected area, splat_blend) or the GL_POINTS reference (the nearest point per pixel)"),
     "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
                                           "likely occluders (render.points.occlusion; not in Wand & Strasser)"),
     "animation": Param("str", "auto", choices=ANIMATION_PATHS,

@@ -51,6 +51,7 @@ import moderngl
 import numpy as np
 
 from lod.drawlist import fade_uniform
+from lod.points import config as C
 from render.points import occlusion as occ
 from render.points import pack
 from render.context import release_all, track
@@ -105,15 +106,10 @@ WINDOW_ROWS = 32
 MAX_GROUPS_X = 65535
 #: point splat paths
 PATHS = ("compute", "gl_points")
-#: the compute splat blends the points within this many splat footprints (in eye depth, at the anchor's
-#: nearest point) behind an anchor's nearest (Drawer.blend; points_splat.glsl): one footprint spans
-#: ``s * w / f`` metres at eye depth w (s the splat size, f the pixels per metre at depth 1). Measured
-#: (scripts/bench_splat_quality.md, frame 0 against the 4 x 4 reference): 0.5, 1, 2, 4 footprints gain
-#: +1.07, +1.43, +2.21, +2.72 dB over the nearest point alone on the stadium, +0.58 .. +1.06 on the grid,
-#: +0.42 .. +0.88 on the exhibition, +0.95 .. +1.19 on the horses; 2 is within 0.5 dB of the best everywhere
-#: and blends across less than 4 does. Cost: the colour pass loads every point within the tolerance
-#: (x1.1 .. x1.7 the splat's time, the most on the grid's far view)
-BLEND_FOOTPRINTS = 2.0
+#: the compute splat blends the points within this many splat footprints of an anchor's nearest, unless the
+#: DrawList names its own (``options["splat_blend"]``, ``[lod] splat_blend``; 0: the nearest alone);
+#: lod.points.config.POINTS_SPLAT_BLEND has the measurements
+BLEND_FOOTPRINTS = C.POINTS_SPLAT_BLEND
 #: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
 #: culling left out with their points and triangles, and 1 when the culling was paused this frame
 COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
@@ -198,6 +194,7 @@ class Drawer:
         #: blend weights: "area" (a point's projected area, |n . v|) or "flat" (every point alike)
         self.blend_weight = "area"
         self._blend_uniforms = {}
+        self._on = True  # this frame's rule: blend (_set_blend)
         self._rule_cleared = ()  # the colour rule the anchors were last reset for
         #: bytes one storage-buffer binding may address (None: the context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE)
         self.ssbo_limit = None
@@ -409,7 +406,7 @@ class Drawer:
         # one splat size per frame (the resolve gathers s x s anchors); all reps of a scene share
         # the [lod] splat_size
         splat = int(drawlist.options.get("splat_size", first.splat))
-        self._set_blend(drawlist.proj, splat)
+        self._set_blend(drawlist.proj, splat, drawlist.options.get("splat_blend"))
         # samples that follow the animation: their poses placed this frame (render/points/follow.py)
         fol = None
         if fol_fade:
@@ -653,21 +650,28 @@ class Drawer:
 
     def _rule(self) -> tuple:
         """Shader defines of the colour rule (points_splat.glsl, points_resolve.frag, points_clear.glsl)."""
-        if not self.blend:
+        if not self._on:
             return ("NEAREST",)
         return ("FLAT_WEIGHT",) if self.blend_weight == "flat" else ()
 
-    def _set_blend(self, proj, splat: int) -> None:
-        """This frame's blend uniforms from the projection ``proj`` (4 x 4, row-major): the eye depth of a window
-        depth d is ``B / (A - (2 d - 1))`` with A = -P[2, 2], B = -P[2, 3] (a perspective projection; an
-        orthographic one blends only ties), and the tolerance ``BLEND_FOOTPRINTS * s / f`` relative to it."""
+    def _set_blend(self, proj, splat: int, footprints=None) -> None:
+        """This frame's colour rule and blend uniforms: ``footprints`` (the DrawList's ``splat_blend``; None:
+        this drawer's ``blend`` and ``blend_footprints``; 0: the nearest point alone) and, from the projection
+        ``proj`` (4 x 4, row-major), the eye depth of a window depth d, ``B / (A - (2 d - 1))`` with
+        A = -P[2, 2], B = -P[2, 3] (a perspective projection; an orthographic one blends only ties), and the
+        tolerance ``footprints * s / f`` relative to it."""
+        if footprints is None:
+            self._on, fp = bool(self.blend), float(self.blend_footprints)
+        else:
+            fp = float(footprints) if np.isfinite(footprints) else 0.0
+            self._on = fp > 0.0
         P = np.asarray(proj, np.float64).reshape(4, 4)
         a, b = -P[2, 2], -P[2, 3]
         f = abs(P[1, 1]) * 0.5 * self.r.size[1]  # pixels per metre at eye depth 1
         ok = np.isfinite([a, b, f]).all() and abs(P[3, 2]) > 0.0 and f > 0.0
-        tol = float(self.blend_footprints) * splat / f if ok else -1.0  # -1: nothing but the nearest's ties
+        tol = fp * splat / f if ok else -1.0  # -1: nothing but the nearest's ties
         self._blend_uniforms = {"u_depth_ab": (float(a), float(b)) if ok else (1.0, 1.0),
-                                "u_tol": max(float(tol), -1.0) if np.isfinite(tol) else -1.0} if self.blend else {}
+                                "u_tol": max(float(tol), -1.0) if np.isfinite(tol) else -1.0} if self._on else {}
         if self._rule() != self._rule_cleared:  # the anchors hold the other rule's colours: reset them all
             self._dirty = None
             self._rule_cleared = self._rule()

@@ -250,9 +250,9 @@ def test_sample_packing_and_job_tables():
 
 
 # ---------------------------------------------------------------------------- hierarchical instantiation (§3.6)
-def _walker():
+def _walker(radii=(0.3, 0.9, 0.3)):
     """Looping 3-keyframe walker (an ellipsoid 1.8 m tall that sways; as in
-    tests/lod/points/test_points_instancing.py)."""
+    tests/lod/points/test_points_instancing.py); ``radii`` its half-axes."""
     from sim.keyframes import Keyframe as K
 
     n_lat, n_lon = 12, 16
@@ -264,7 +264,7 @@ def _walker():
                     for t in ([(i * n_lon + j, i * n_lon + (j + 1) % n_lon, (i + 1) * n_lon + (j + 1) % n_lon)]
                               if i > 0 else []) + ([(i * n_lon + j, (i + 1) * n_lon + (j + 1) % n_lon,
                                                       (i + 1) * n_lon + j)] if i < n_lat - 1 else [])], np.uint32)
-    base = nrm * [0.3, 0.9, 0.3] + [0, 0.9, 0]
+    base = nrm * list(radii) + [0, radii[1], 0]
     keys = []
     for sway, col in ((0.0, (0.8, 0.3, 0.2)), (0.35, (0.2, 0.6, 0.3)), (-0.35, (0.2, 0.3, 0.8))):
         p = base.copy()
@@ -545,7 +545,7 @@ def test_points_tied_in_depth_splat_the_same_image_every_time(gl_ctx, tmp_path, 
                 r.upload(rep)
             dl = sel.select(st, cam, r.size)
             assert dl.stats["points"] > 100 and dl.stats["triangles"] == 0  # splats only: coincident
-            r.drawer("points").blend = blend
+            dl.options["splat_blend"] = 2.0 if blend else 0.0  # [lod] splat_blend
             images.append(_render(r, dl))  # triangles would z-fight by draw order, as GL's depth test does
         finally:
             r.release()
@@ -554,3 +554,64 @@ def test_points_tied_in_depth_splat_the_same_image_every_time(gl_ctx, tmp_path, 
     bg = images[0][0, 0]
     covered = np.abs(images[0].astype(int) - bg.astype(int)).sum(-1) > 0
     assert covered.sum() > 80
+
+
+def test_an_instanced_group_turned_by_90_degrees_keeps_its_mean_colour(gl_ctx, tmp_path):
+    """Issue 43: every normal goes through the whole instance transform (Wand & Straßer §3.6). A 6 x 6 block
+    drawn from its super-hierarchy under a light from straight above, turned by 90 degrees about the vertical
+    with the camera turned alike, is the same picture: its mean colour within 1/255 on every channel (normals
+    left in the node's frame would be lit as if the camera had not turned: the headlight term |n . v| changes)."""
+    from lod.points.mode import build as points_build
+    from render.world.light import make_light
+    from sim.instancing import Hierarchy, Instancing, parse_levels
+
+    levels = parse_levels([{"layout": "grid", "nx": 6, "nz": 6, "spacing": [2.0, 2.0], "phase_step": 0.13}])
+    means = []
+    for yaw in (0.0, 0.5 * np.pi):
+        h = Hierarchy(levels, character=0, clip=0, period=1.2, yaw=yaw)
+        # a slab (0.6 m wide, 0.1 m thick): its normals turn with it
+        reps, sel = points_build([_walker((0.3, 0.9, 0.05))], ["w"], [30], {"splat_size": 2, "coarse": False},
+                                 progress=False, cache=pm_rep.HierarchyCache(tmp_path / "c"),
+                                 instancing=Instancing([(0, h)]))
+        r = Renderer((320, 240), ctx=gl_ctx)
+        try:
+            r.lighting.light = make_light(direction=(0.0, 1.0, 0.0))
+            for rep in reps:
+                r.upload(rep)
+            st = h.flatten(copy=True)
+            c, s = np.cos(yaw), np.sin(yaw)
+            eye = np.array([20.0, 20.0, 70.0])  # turned like the group (yaw about +y: x' = c x + s z, z' = -s x + c z)
+            eye = np.array([c * eye[0] + s * eye[2], eye[1], -s * eye[0] + c * eye[2]])
+            cam = Camera.look_at(eye, (0.0, 0.5, 0.0), fov_y=40.0, far=1000.0)
+            dl = sel.select(st, cam, r.size)
+            assert dl.stats.get("super_nodes") == 1
+            img = _render(r, dl)
+            m = _mask(img, img[0, 0])
+            assert m.sum() > 300
+            means.append(img[m].astype(float).mean(0))
+        finally:
+            r.release()
+    assert np.abs(means[0] - means[1]).max() <= 1.0, means
+
+
+def test_the_drawlist_names_the_splat_blend_and_zero_is_the_nearest_point(renderer, ball):
+    """``[lod] splat_blend`` reaches the drawer through the DrawList: 0 draws what the drawer's nearest rule
+    (``Drawer.blend = False``) draws; the default blend draws another picture of the same pixels."""
+    rep, _ = ball
+    sel = pm.PointsSelector([rep], splat_size=2, splat_blend=0.0)
+    cam = Camera.look_at((0.0, 1.0, 9.0), (0.0, 1.0, 0.0), fov_y=40.0)
+    dl = sel.select(_state(), cam, renderer.size)
+    assert dl.options["splat_blend"] == 0.0
+    nearest = _render(renderer, dl)
+    d = renderer.drawer("points")
+    del dl.options["splat_blend"]
+    try:
+        d.blend = False
+        assert np.array_equal(_render(renderer, dl), nearest)
+    finally:
+        d.blend = True
+    dl.options["splat_blend"] = 2.0
+    blended = _render(renderer, dl)
+    bg = _bg(renderer)
+    assert np.array_equal(_mask(blended, bg), _mask(nearest, bg))  # the same pixels covered
+    assert (np.abs(blended.astype(int) - nearest.astype(int)).sum(2) > 0).sum() > 20  # other colours
