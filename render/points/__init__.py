@@ -11,5 +11,7 @@ Modules in data-flow order:
 - ``render.points.frame``: the instance windows that keep every storage-buffer binding within the GL limit.
 - ``render.points.follow``: the GPU side of samples that follow the animation (``lod.points.follow``): their
   placement per pose from the pose cache's palettes.
+- ``render.points.blend``: the compute splat's colour rule (the points on the nearest surface blended, or the
+  nearest alone) and its uniforms.
 - ``render.points.draw``: the ``Drawer``: uploads, the splat passes (depth, colour, resolve), GL_POINTS.
 """

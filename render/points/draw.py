@@ -24,19 +24,15 @@ Drawing, after the built-in triangle batches:
    transformed by its model matrix) and doing ``atomicMin`` of its window
    depth into the anchor slot of its s x s pixel footprint (s = splat size
    1..3; the footprint is the GL point rule's); the first point of an anchor
-   marks its TILE x TILE tile. A second pass where the points within a depth
-   tolerance of an anchor's nearest (:data:`BLEND_FOOTPRINTS` splat
-   footprints; Schütz, Kerbl and Wimmer 2021's high-quality splatting) load
-   their normal and colour and add their lit colour times their projected area
-   ``|n . v|``, and that weight, into the anchor's accumulators (``Drawer.blend``
-   False: the nearest point alone writes its colour, the rule before issue 43:
-   a far crowd took one random point's colour per pixel, and edge-on points as
-   often as facing ones). Then a resolve over the pixels the marked tiles reach
+   marks its TILE x TILE tile. A second pass where the points on an anchor's
+   nearest surface add their lit colour, weighted, into the anchor's
+   accumulators (:mod:`render.points.blend`; ``[lod] splat_blend = 0``: the
+   nearest point alone). Then a resolve over the pixels the marked tiles reach
    (merged into runs per tile row, or one full-screen triangle when they cover
    most of the screen) takes per pixel the nearest of the s x s anchors whose
-   footprints cover it and the weighted mean of those within the tolerance of
-   it (the same result as scattering into every footprint pixel, with one
-   atomic per point, four when blending, instead of s * s) and writes colour and ``gl_FragDepth``, so the
+   footprints cover it and the weighted mean of those on its surface (the same
+   as scattering into every footprint pixel, with one atomic per point, four
+   when blending, instead of s * s) and writes colour and ``gl_FragDepth``, so the
    fixed-function depth test compares points with the triangles already in
    the depth buffer (no depth texture needed). The next frame's clear resets
    only the marked tiles. llvmpipe offers no 64-bit atomics, hence two passes
@@ -51,8 +47,8 @@ import moderngl
 import numpy as np
 
 from lod.drawlist import fade_uniform
-from lod.points import config as C
 from render.points import occlusion as occ
+from render.points.blend import BLEND_FOOTPRINTS, blend_uniforms, rule_defines
 from render.points import pack
 from render.context import release_all, track
 from render.points.follow import FollowFrame
@@ -106,10 +102,6 @@ WINDOW_ROWS = 32
 MAX_GROUPS_X = 65535
 #: point splat paths
 PATHS = ("compute", "gl_points")
-#: the compute splat blends the points within this many splat footprints of an anchor's nearest, unless the
-#: DrawList names its own (``options["splat_blend"]``, ``[lod] splat_blend``; 0: the nearest alone);
-#: lod.points.config.POINTS_SPLAT_BLEND has the measurements
-BLEND_FOOTPRINTS = C.POINTS_SPLAT_BLEND
 #: keys of ``Drawer.last_counts``: points and triangles drawn, the jobs (nodes of instances) occlusion
 #: culling left out with their points and triangles, and 1 when the culling was paused this frame
 COUNTS = ("points", "triangles", "occluded_point_jobs", "occluded_points", "occluded_tri_jobs",
@@ -186,8 +178,8 @@ class Drawer:
             raise RuntimeError(f"[lod] mode 'points' needs OpenGL 4.3 (compute shaders and storage buffers); this "
                                f"context offers {self.ctx.version_code // 100}.{self.ctx.version_code % 100 // 10}")
         self.path = None
-        #: the compute splat's colour rule: True, the weighted mean of the points within BLEND_FOOTPRINTS of an
-        #: anchor's nearest (weights: projected area); False, the nearest point alone (points_splat.glsl NEAREST)
+        #: the compute splat's colour rule when the DrawList names none (render.points.blend): True, the
+        #: weighted mean of the points within ``blend_footprints`` of an anchor's nearest; False, the nearest
         self.blend = True
         #: blend tolerance, splat footprints (BLEND_FOOTPRINTS)
         self.blend_footprints = BLEND_FOOTPRINTS
@@ -649,29 +641,17 @@ class Drawer:
         return occ.split_first(self._reps, self._pvs, by_fade, tris, groups, vp, self.r.size, splat)
 
     def _rule(self) -> tuple:
-        """Shader defines of the colour rule (points_splat.glsl, points_resolve.frag, points_clear.glsl)."""
-        if not self._on:
-            return ("NEAREST",)
-        return ("FLAT_WEIGHT",) if self.blend_weight == "flat" else ()
+        return rule_defines(self._on, self.blend_weight)
 
     def _set_blend(self, proj, splat: int, footprints=None) -> None:
-        """This frame's colour rule and blend uniforms: ``footprints`` (the DrawList's ``splat_blend``; None:
-        this drawer's ``blend`` and ``blend_footprints``; 0: the nearest point alone) and, from the projection
-        ``proj`` (4 x 4, row-major), the eye depth of a window depth d, ``B / (A - (2 d - 1))`` with
-        A = -P[2, 2], B = -P[2, 3] (a perspective projection; an orthographic one blends only ties), and the
-        tolerance ``footprints * s / f`` relative to it."""
+        """This frame's colour rule (render.points.blend): the DrawList's ``splat_blend`` footprints (None: this
+        drawer's ``blend`` and ``blend_footprints``; 0: the nearest point alone) and its uniforms."""
         if footprints is None:
             self._on, fp = bool(self.blend), float(self.blend_footprints)
         else:
             fp = float(footprints) if np.isfinite(footprints) else 0.0
             self._on = fp > 0.0
-        P = np.asarray(proj, np.float64).reshape(4, 4)
-        a, b = -P[2, 2], -P[2, 3]
-        f = abs(P[1, 1]) * 0.5 * self.r.size[1]  # pixels per metre at eye depth 1
-        ok = np.isfinite([a, b, f]).all() and abs(P[3, 2]) > 0.0 and f > 0.0
-        tol = fp * splat / f if ok else -1.0  # -1: nothing but the nearest's ties
-        self._blend_uniforms = {"u_depth_ab": (float(a), float(b)) if ok else (1.0, 1.0),
-                                "u_tol": max(float(tol), -1.0) if np.isfinite(tol) else -1.0} if self._on else {}
+        self._blend_uniforms = blend_uniforms(proj, self.r.size[1], splat, fp) if self._on else {}
         if self._rule() != self._rule_cleared:  # the anchors hold the other rule's colours: reset them all
             self._dirty = None
             self._rule_cleared = self._rule()
