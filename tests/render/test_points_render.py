@@ -615,3 +615,26 @@ def test_the_drawlist_names_the_splat_blend_and_zero_is_the_nearest_point(render
     bg = _bg(renderer)
     assert np.array_equal(_mask(blended, bg), _mask(nearest, bg))  # the same pixels covered
     assert (np.abs(blended.astype(int) - nearest.astype(int)).sum(2) > 0).sum() > 20  # other colours
+
+
+def test_every_filled_anchor_holds_a_weight_and_its_mean_is_a_colour(renderer, ball):
+    """The blend's resolve divides by an anchor's weight: every anchor the depth pass filled holds its nearest
+    point's weight (>= 1) and sums whose mean is a colour (each channel <= 255 x weight), near and far, three
+    coincident agents tying in depth; empty anchors hold nothing."""
+    rep, sel = ball
+    d = renderer.drawer("points")
+    checked = 0
+    for eye in ((0.0, 1.0, 4.0), (0.0, 1.0, 9.0), (0.0, 30.0, 200.0)):
+        dl = sel.select(_state(3), Camera.look_at(eye, (0.0, 1.0, 0.0), fov_y=60.0), renderer.size)
+        dl.options["splat_blend"] = 2.0
+        img = _render(renderer, dl)
+        assert img.dtype == np.uint8 and d.last_counts["points"] > 0  # (a frame of no points splats nothing)
+        keys = np.frombuffer(d._depth.read(), np.uint32)[:d._pixels]
+        acc = np.frombuffer(d._color.read(), np.uint32)[:4 * d._pixels].reshape(-1, 4).astype(np.int64)
+        filled = keys != 0xFFFFFFFF
+        assert filled.any()
+        checked += 1
+        assert (acc[filled, 3] >= 1).all()
+        assert (acc[filled, :3] <= 255 * acc[filled, 3:4]).all()
+        assert (acc[~filled] == 0).all()
+    assert checked == 3
