@@ -2,12 +2,13 @@
 colour rule's PSNR against the true reference and its draw time.
 
 The rules (``[lod] splat_blend``; render/points/blend.py, points_splat.glsl): ``nearest`` (each anchor takes its
-nearest point's colour, the rule before issue 43) and ``blend`` (the weighted mean of the points within a depth tolerance of an anchor's
-nearest, at tolerances of 0.5, 1, 2 and 4 splat footprints; weights ``area``, the point's projected area |n . v|, or
-``flat``, every point alike). The reference is :mod:`crowd.reference`'s (full detail, K x K samples per pixel,
-box-filtered; cached by content). Draw time: the median of ``--repeats`` draws of the same selection, each
-followed by ``ctx.finish()``, interleaved over the rules (ratios within one run; llvmpipe's timer queries are
-unreliable). Writes a Markdown table to ``--out`` (default ``scripts/bench_splat_quality.md``, atomically).
+nearest point's colour, the rule before issue 43) and ``blend`` (the weighted mean of the points within a depth
+tolerance of an anchor's nearest, at tolerances of 0.5, 1, 2 and 4 splat footprints; weights ``area``, the point's
+projected area |n . v|, or ``flat``, every point alike). The reference is :mod:`crowd.reference`'s (full detail,
+K x K samples per pixel, box-filtered; cached by content). Draw time: the median of ``--repeats`` draws of the
+same selection (each ``Renderer.draw`` ends with ``ctx.finish()``), interleaved over the rules (ratios within one
+run; llvmpipe's timer queries are unreliable). Writes a Markdown table to ``--out`` (default
+``scripts/bench_splat_quality.md``, atomically).
 
 ``--fox N`` adds N copies of ``../shared/assets/Fox.glb`` in ``scripts/bench_peer.py``'s view, with full detail on
 the hardware path drawn and timed beside the rules (issue 43's first acceptance figure: points against that).
@@ -40,16 +41,17 @@ LOD = {"keyframes": 3, "intervals": 1}
 DEFAULT_SCENES = ("stadium", "grid", "quickstart", "exhibition", "horses")
 
 
+def _draw_seconds(r, dl, bg) -> float:
+    """Seconds of one draw of ``dl`` (Renderer.draw ends with ``ctx.finish()``: the GPU's work included)."""
+    t0 = time.perf_counter()
+    r.draw(dl, bg)
+    return time.perf_counter() - t0
+
+
 def _timed(r, dl, bg, repeats: int) -> tuple:
     """(median seconds of ``repeats`` draws of ``dl``, the last image); one untimed draw first."""
-    r.draw(dl, bg)
-    r.ctx.finish()
-    t = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        r.draw(dl, bg)
-        r.ctx.finish()
-        t.append(time.perf_counter() - t0)
+    _draw_seconds(r, dl, bg)
+    t = [_draw_seconds(r, dl, bg) for _ in range(repeats)]
     return statistics.median(t), r.read_pixels()
 
 
@@ -84,19 +86,15 @@ def run_scene(path: Path, size, k: int, repeats: int, full: bool = False) -> dic
         bg = sc.render.background
         d = r.drawer("points")
         times = {name: [] for name, *_ in RULES}
-        for rep in range(repeats + 1):
+        for rep in range(repeats + 1):  # round 0: each rule's first draw (compiles; not timed) and its image
             for name, blend, tol, weight in RULES:
                 dl.options["splat_blend"] = tol if blend else 0.0  # as [lod] splat_blend names it
                 d.blend_weight = weight
-                r.draw(dl, bg)  # first draw of a rule: compiles; not timed
-                r.ctx.finish()
-                t0 = time.perf_counter()
-                r.draw(dl, bg)
-                r.ctx.finish()
-                if rep > 0:
-                    times[name].append(time.perf_counter() - t0)
+                sec = _draw_seconds(r, dl, bg)
                 if rep == 0:
                     out["psnr"][name] = psnr(r.read_pixels(), ref_img)
+                else:
+                    times[name].append(sec)
         out["ms"] = {n: 1e3 * statistics.median(t) for n, t in times.items()}
         out["points"] = int(d.last_counts.get("points", 0))
     if full:  # full detail on the hardware path (the acceptance's baseline), drawn and timed the same way
@@ -168,7 +166,7 @@ def main(argv=None) -> int:
              f"`.venv/bin/python {cmd}`: "
              f"frame 0 of each scene in mode points at {args.size[0]}x{args.size[1]}, PSNR (dB) against full detail "
              f"with {args.k} x {args.k} samples per pixel (crowd/reference.py), and the median of {args.repeats} "
-             "draws of the same selection (ms, interleaved over the rules, ctx.finish() after each). Rules: "
+             "draws of the same selection (ms, interleaved over the rules; each draw ends with ctx.finish()). Rules: "
              "`nearest`, an anchor's nearest point alone (before issue 43); `blend T W`, the weighted mean of the "
              "points within T splat footprints (eye depth) behind an anchor's nearest, weights `area` (projected "
              "area, |n . v|) or `flat`. Load average at the start "

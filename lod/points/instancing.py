@@ -481,6 +481,7 @@ def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop:
         inst = np.repeat(np.arange(n_inst), k)
         wts = surface.area * sc[inst] ** 2 / k
         c, s_ = np.cos(yaw[inst]), np.sin(yaw[inst])
+        src_words = None if variation is None else variation[inst]  # each source's agent's word
         frames = []
         for q in range(S + 1):
             p, nrm, col = surface.evaluate(q * period / S + off[inst], tri, bary)
@@ -488,8 +489,8 @@ def build_super(surface: ClipSurface, levels, depth: int, period: float, r_stop:
             p = np.stack([c * x + s_ * z, p[:, 1], -s_ * x + c * z], 1) * sc[inst][:, None] + t[inst]
             nx, nz = nrm[:, 0].copy(), nrm[:, 2].copy()
             nrm = np.stack([c * nx + s_ * nz, nrm[:, 1], -s_ * nx + c * nz], 1)
-            if variation is not None:  # each source in its own agent's colours, varied once (mask 0 after)
-                col = np.concatenate([vary(col, variation[inst]), np.zeros((col.shape[0], 1))], 1)
+            if src_words is not None:  # each source in its own agent's colours, varied once (mask 0 after)
+                col = np.concatenate([vary(col, src_words), np.zeros((col.shape[0], 1))], 1)
             frames.append((p, nrm, col))
         hs = []
         for q in range(S):
