@@ -155,6 +155,11 @@ class Engine:
                     raise SceneError(sc.path, err.key, err.message) from None
                 raise SceneError(sc.path, f"effects[{e.index}]", err.message if err.key.startswith("effects")
                                  else str(err)) from None
+        if getattr(world.state, "tracks", None):  # recorded people: moved by their recordings, after every effect
+            import sim.replay.effect
+
+            sim.replay.effect.install(world, {"dt": sc.dt})
+            world.effects.append("replay")
         return world
 
     def _build_camera(self):
@@ -513,11 +518,12 @@ class Engine:
 
         if not getattr(self.scene, "trajectories", False):
             return nullcontext(None)
+        from crowd.population import changing_count
         from crowd.trajectories import TRAJECTORY_FILE, TrajectoryWriter
 
         sc = self.scene
         return TrajectoryWriter(tmp / TRAJECTORY_FILE, sc.name, self.world.state.n, sc.dt, sc.substeps,
-                                changing="journeys" in self.world.resources)
+                                changing=changing_count(self.world))
 
     def _explain_writer(self, tmp: Path):
         """A :class:`crowd.explain.ExplainWriter` of ``tmp/explain_lod.jsonl`` when ``explain_lod`` is set (the

@@ -140,6 +140,9 @@ def placement_agents(kind: str, params: dict) -> int:
         return int(params["count"])
     if kind == "list":
         return len(params.get("positions") or [])
+    if kind == "trajectories":  # at most every recorded person at once
+        rec = params.get("recording")
+        return 0 if rec is None else int(rec.persons)
     if kind == "hierarchy":
         from sim.instancing import parse_levels
 

@@ -110,6 +110,8 @@ def plan(scene: Scene, quiet: bool = True) -> Plan:
         except ParamError as e:
             raise SceneError(scene.path, f"{where}.{e.key}", e.message) from None
         st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
+        for _, _, track, _ in getattr(st, "tracks", []):  # the people a recording adds later (sim.replay)
+            track.scale *= float(scene.characters[p.character].scale)
         states.append(st)
         counts.append(st.n)
     state = concat_states(states)

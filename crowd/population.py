@@ -56,27 +56,48 @@ def after_step(engine) -> None:
             engine.renderer.tint_table = engine._tint_table
 
 
+def changing_count(world) -> bool:
+    """Whether agents can leave and enter in this world (journeys' sources and exits, a replayed recording)."""
+    return "journeys" in world.resources or "replay" in world.resources
+
+
 def frame_counts(world) -> dict:
-    """{"agents", "entered", "exited", "left"} of the frame just simulated (telemetry counts)."""
+    """{"agents", "entered", "exited", "left"} of the frame just simulated (telemetry counts). Recorded people
+    (``sim.replay``) count as entered at their first recorded frame and as exited and left after their last."""
+    out = {"agents": world.state.n, "entered": 0, "exited": 0, "left": 0}
     j = world.resources.get("journeys")
-    c = j.take_frame_counts() if j is not None else {}
-    return {"agents": world.state.n, "entered": c.get("entered", 0), "exited": c.get("exited", 0),
-            "left": c.get("left", 0)}
+    for k, v in (j.take_frame_counts() if j is not None else {}).items():
+        out[k] = out.get(k, 0) + v
+    r = world.resources.get("replay")
+    if r is not None:
+        c = r.take_frame_counts()
+        out["entered"] += c["entered"]
+        out["exited"] += c["left"]
+        out["left"] += c["left"]
+    return out
 
 
 def summary(world) -> dict:
-    """summary.json entries of the agent count: ``agents_final`` and the journeys' totals (when it has some)."""
+    """summary.json entries of the agent count: ``agents_final``, the journeys' totals and the replay's (when the
+    scene has them)."""
     j = world.resources.get("journeys")
     out = {"agents_final": world.state.n}
     if j is not None:
         out["journeys"] = j.summary()
+    r = world.resources.get("replay")
+    if r is not None:
+        out["replay"] = r.summary()
     return out
 
 
 def entering_clips(world) -> dict:
-    """{character index: {clip index, ...}} the sources' agents enter with (LOD modes build what is played)."""
+    """{character index: {clip index, ...}} the agents that enter later play (journeys' sources, recorded
+    people; LOD modes build what is played)."""
     j = world.resources.get("journeys")
     out = {}
     for s in (j.sources if j is not None else []):
         out.setdefault(int(s.cfg["character"]), set()).add(int(s.cfg.get("clip_index", 0)))
+    r = world.resources.get("replay")
+    for t in (r.tracks if r is not None else []):
+        out.setdefault(int(t.character), set()).add(int(t.clip))
     return out

@@ -319,8 +319,21 @@ class _Parser:
                     accepted = sorted(set(schema) | set(PLACEMENT_COMMON))
                     raise SceneError(self.shown, e.key, "unknown key; accepted: " + ", ".join(accepted)) from None
                 raise
+            if kind == "trajectories":
+                params["recording"] = self.recording(params, where)
             out.append(PlacementSpec(kind=kind, character=names.index(char), clip=clip, params=params, index=i))
         return out
+
+    def recording(self, params: dict, where: str):
+        """The recording of a trajectories placement (``sim.replay.recording.load``), its file relative to the
+        scene; bad input as a SceneError naming the key and the file."""
+        from sim.replay.recording import load
+
+        try:
+            return load(self.base / params["file"], params["format"] or None, params["unit"] or None,
+                        params["frame_rate"] or None)
+        except ParamError as e:
+            self.fail(f"{where}.{e.key}", e.message)
 
     # -- effects -------------------------------------------------------------------------------------------------------
     def effects(self) -> list:

@@ -24,6 +24,9 @@ random
     ``center``, at least ``min_distance`` apart when that is feasible
     (dart throwing with a bounded number of tries; the rest fall back to
     uniform positions).
+trajectories
+    a recorded crowd (:mod:`sim.replay`): ``file`` read through PedPy (``format``, ``unit``,
+    ``frame_rate`` where the file does not say them); each recorded person is an agent while recorded.
 hierarchy
     hierarchical instantiation (:mod:`sim.instancing`): ``levels`` lists the
     layouts **innermost first** (``levels[0]`` arranges the single character,
@@ -45,6 +48,7 @@ from numba import njit
 
 from sim.config import PLACEMENT_RANDOM_PHASE_SPAN, PLACEMENT_RANDOM_TRIES
 from sim.params import Param, ParamError
+from sim.replay.recording import FORMATS as REPLAY_FORMATS
 from sim.state import CrowdState
 
 
@@ -300,11 +304,50 @@ def build_hierarchy(cfg: dict, character_index: int, clip_index: int, rng, clip_
     return st
 
 
+# ----------------------------------------------------------------------------------------- trajectories
+TRAJECTORIES_PARAMS = {
+    "kind": Param("str", choices=("trajectories",), doc="placement kind"),
+    "character": Param("str", doc="name of a [[characters]] entry"),
+    "clip": Param("str", "", doc="clip name (the walk); empty = the character's first clip"),
+    "phase": Param("str", "random", choices=("random", "zero"),
+                   doc="animation time of each entering person: uniform over the clip, or 0"),
+    "scale": Param("float", 1.0, min=1e-3, max=1e3, doc="uniform character scale"),
+    "scale_jitter": Param("float", 0.0, min=0.0, max=0.9, doc="relative uniform jitter of the scale, scale*(1±j)"),
+    "file": Param("str", doc="the recording, relative to the scene file (sim.replay.recording)"),
+    "format": Param("str", "", choices=("",) + REPLAY_FORMATS,
+                    doc="the recording's format; empty = from the file's suffix"),
+    "unit": Param("str", "", choices=("", "m", "cm"),
+                  doc="unit of the recorded coordinates where the file does not say it; empty = the file's"),
+    "frame_rate": Param("float", 0.0, min=0.0, max=1e4,
+                        doc="recorded frames per second where the file does not say it (0 = the file's)"),
+}
+
+
+def build_trajectories(cfg: dict, character_index: int, clip_index: int, rng, clip_duration=None) -> CrowdState:
+    """The people recorded at the recording's first frame (``cfg["recording"]``, a ``sim.replay.Recording`` the
+    scene loader read); the effect ``replay`` adds and moves the rest (``sim.replay``). The state's ``tracks``
+    attribute is ``[(0, n, Track, persons)]``."""
+    from sim.replay.track import Track
+
+    rec = cfg.get("recording")
+    if rec is None:
+        raise ParamError("file", "the recording was not loaded")
+    track = Track(recording=rec, character=int(character_index), clip=int(clip_index),
+                  scale=float(cfg.get("scale", 1.0)), scale_jitter=float(cfg.get("scale_jitter", 0.0)),
+                  phase=cfg.get("phase", "random"), clip_duration=float(clip_duration or 0.0), rng=rng)
+    f0 = track.frame_at(0.0)
+    persons = np.flatnonzero(rec.alive(f0))
+    st = track.agents(persons, f0)
+    st.tracks = [(0, st.n, track, persons)]
+    return st
+
+
 PLACEMENTS: dict[str, tuple[dict[str, Param], Callable]] = {
     "grid": (GRID_PARAMS, build_grid),
     "list": (LIST_PARAMS, build_list),
     "random": (RANDOM_PARAMS, build_random),
     "hierarchy": (HIERARCHY_PARAMS, build_hierarchy),
+    "trajectories": (TRAJECTORIES_PARAMS, build_trajectories),
 }
 
 
@@ -330,9 +373,11 @@ def concat_states(states: list) -> CrowdState:
         arrays = {name: np.concatenate([s.arrays()[name] for s in states], axis=0)
                   for name in out.arrays()}
         out = CrowdState(**arrays)
-    hier, groups, start = [], [], 0
+    hier, groups, tracks, start = [], [], [], 0
     for s in states:
         groups.append((start, s.n))
+        for off, count, t, persons in getattr(s, "tracks", []):
+            tracks.append((start + off, count, t, persons))
         for off, h in getattr(s, "hierarchies", []):
             hier.append((start + off, h))
         if getattr(s, "hierarchy", None) is not None:
@@ -340,4 +385,6 @@ def concat_states(states: list) -> CrowdState:
         start += s.n
     out.hierarchies = hier
     out.groups = groups
+    if tracks:
+        out.tracks = tracks
     return out

@@ -23,7 +23,7 @@ import numpy as np
 
 #: per-agent attributes of ``CrowdState`` other code may have attached and that compaction keeps consistent
 #: by dropping: placement groups and hierarchies describe contiguous index ranges of the initial crowd
-_RANGE_ATTRIBUTES = ("groups", "hierarchies")
+_RANGE_ATTRIBUTES = ("groups", "hierarchies", "tracks")
 
 
 def compose(first: np.ndarray | None, then: np.ndarray | None) -> np.ndarray | None:

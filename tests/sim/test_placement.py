@@ -1,4 +1,4 @@
-"""sim.placement: schemas, the four kinds, concat_states."""
+"""sim.placement: schemas, the kinds, concat_states (kind trajectories: tests/sim/test_replay.py)."""
 import math
 import os
 
@@ -21,6 +21,9 @@ def build(table, ci=2, clip=1, seed=0, dur=None):
 def test_every_kind_has_common_keys_and_defaults():
     for kind, (schema, fn) in PLACEMENTS.items():
         for key in ("kind", "character", "clip", "heading", "phase", "scale", "scale_jitter"):
+            if key == "heading" and kind == "trajectories":  # recorded people face where they walk (sim.replay)
+                assert key not in schema and "speed" not in schema
+                continue
             assert key in schema, (kind, key)
         assert schema["character"].required and not schema["clip"].required
         assert schema["clip"].default == ""

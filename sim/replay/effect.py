@@ -1,0 +1,160 @@
+"""Effect ``replay``: recorded people moved by their recording, entering at their first recorded frame and leaving
+after their last (issue 46). Installed by the engine when a scene has a ``[[placement]] kind = "trajectories"``
+(never listed in ``effects``).
+
+Each step (sub-step) ``replay`` computes the recording's time (``sim.replay.track``'s clock), removes the agents
+whose person's recording ended and adds those whose recording began (``sim.population.apply``: stable ids, the
+other agents' arrays follow), then sets every recorded agent's position (floor plane), velocity, heading and
+animation rate from its recording. It runs after every other step that moves agents and before ``animation`` and
+``terrain_follow``, so the scene's other effects never move recorded people (simulated agents still see them:
+avoidance avoids them), their clips advance by their ground speed and their height follows the terrain.
+
+Resource ``world.resources["replay"]``: the :class:`Replay` (its tracks, which agent is which recorded person,
+the frame's entered and left counts).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sim.params import Param, ParamError
+from sim.replay.track import HEADING_MIN_SPEED, Track
+
+#: the effect takes no scene-file keys (the placements carry the recordings)
+PARAMS: dict[str, Param] = {}
+
+
+class Replay:
+    """The scene's tracks and, per agent, its track (-1: not recorded) and person within it."""
+
+    def __init__(self, tracks: list, track: np.ndarray, person: np.ndarray, frame_dt: float):
+        self.tracks = tracks
+        self.track = np.asarray(track, np.int32)
+        self.person = np.asarray(person, np.int64)
+        self.frame_dt = float(frame_dt)
+        self.entered = 0  # this frame's counts (take_frame_counts)
+        self.left = 0
+        self.total_entered = 0
+        self.total_left = 0
+        # persons that entered so far per track: a person enters once
+        self.started = [np.zeros(t.recording.persons, bool) for t in tracks]
+        for k, t in enumerate(tracks):
+            self.started[k][self.person[self.track == k]] = True
+
+    def remap_agents(self, src, state=None) -> None:
+        src = np.asarray(src, np.int64)
+        ok = src >= 0
+        track = np.full(src.shape[0], -1, np.int32)
+        person = np.full(src.shape[0], -1, np.int64)
+        track[ok] = self.track[src[ok]]
+        person[ok] = self.person[src[ok]]
+        self.track, self.person = track, person
+
+    def take_frame_counts(self) -> dict:
+        out = {"entered": self.entered, "left": self.left}
+        self.entered = self.left = 0
+        return out
+
+    def summary(self) -> dict:
+        return {"sources": [t.recording.source for t in self.tracks], "entered": self.total_entered,
+                "left": self.total_left}
+
+    # -- the step ------------------------------------------------------------------------------------------------
+    def step(self, world, h: float) -> None:
+        from sim.population import apply
+        from sim.state import CrowdState
+
+        tau = world.time + h - self.frame_dt
+        frames = [t.frame_at(tau) for t in self.tracks]
+        keep = np.ones(world.state.n, bool)
+        new, new_track, new_person = [], [], []
+        for k, (t, f) in enumerate(zip(self.tracks, frames)):
+            alive = t.recording.alive(f)
+            mine = self.track == k
+            keep[mine] = alive[self.person[mine]]
+            enter = np.flatnonzero(alive & ~self.started[k])
+            if enter.size:
+                self.started[k][enter] = True
+                new.append(t.agents(enter, f))
+                new_track.append(np.full(enter.size, k, np.int32))
+                new_person.append(enter)
+        left = int((~keep).sum())
+        entered = sum(s.n for s in new)
+        if left or entered:
+            from sim.placement import concat_states
+
+            added = concat_states(new) if new else CrowdState.empty(0)
+            apply(world, None if not left else np.flatnonzero(keep), added)  # remaps track/person (-1 for new)
+            if entered:
+                self.track[-entered:] = np.concatenate(new_track)
+                self.person[-entered:] = np.concatenate(new_person)
+            self.left += left
+            self.entered += entered
+            self.total_left += left
+            self.total_entered += entered
+        self._move(world, frames)
+
+    def _move(self, world, frames: list) -> None:
+        st = world.state
+        speeds = _clip_speeds(world)
+        for k, (t, f) in enumerate(zip(self.tracks, frames)):
+            idx = np.flatnonzero(self.track == k)
+            if not idx.size:
+                continue
+            xy, v = t.kinematics(self.person[idx], f)
+            st.position[idx, 0] = xy[:, 0]
+            st.position[idx, 2] = xy[:, 1]
+            st.velocity[idx, 0] = v[:, 0]
+            st.velocity[idx, 1] = 0.0
+            st.velocity[idx, 2] = v[:, 1]
+            speed = np.hypot(v[:, 0], v[:, 1])
+            moving = speed > HEADING_MIN_SPEED
+            st.heading[idx[moving]] = np.arctan2(v[moving, 0], v[moving, 1])
+            natural = _natural_speed(speeds, st.character[idx], st.clip[idx])
+            rate = np.where(natural > 0, speed / np.where(natural > 0, natural, 1.0), 1.0)
+            st.anim_rate[idx] = rate.astype(np.float32)
+
+
+def _clip_speeds(world) -> np.ndarray:
+    """(C, M) natural ground speeds of the characters' clips (``sim.animation.ClipTable``)."""
+    from sim.animation import ClipTable
+
+    table = world.resources.get("animation")
+    if not isinstance(table, ClipTable) or table.n_characters != len(world.characters):
+        table = ClipTable(world.characters)
+    return table.speed
+
+
+def _natural_speed(speeds: np.ndarray, character, clip) -> np.ndarray:
+    ch = np.asarray(character, np.int64)
+    cl = np.asarray(clip, np.int64)
+    ok = (ch >= 0) & (ch < speeds.shape[0]) & (cl >= 0) & (cl < speeds.shape[1])
+    return np.where(ok, speeds[np.where(ok, ch, 0), np.where(ok, cl, 0)], 0.0)
+
+
+def install(world, cfg: dict) -> None:
+    """Effect ``replay``: adds step ``"replay"`` (after every step installed before it, before ``animation`` and
+    ``terrain_follow``) and ``world.resources["replay"]``.
+
+    cfg: ``dt`` (the frame's seconds: the recording's clock, ``sim.replay.track``). The tracks come from the
+    state: ``world.state.tracks`` = ``[(first agent, count, Track), ...]`` (``sim.placement.concat_states``).
+    """
+    entries = getattr(world.state, "tracks", None) or []
+    if not entries:
+        raise ParamError("effects", "effect 'replay' needs a [[placement]] of kind 'trajectories'")
+    dt = float(cfg.get("dt", 0.0))
+    if not dt > 0:
+        raise ParamError("effects", "effect 'replay' needs the scene's dt")
+    n = world.state.n
+    track = np.full(n, -1, np.int32)
+    person = np.full(n, -1, np.int64)
+    tracks = []
+    for k, (first, count, t, persons) in enumerate(entries):
+        if not isinstance(t, Track):
+            raise ParamError("effects", "effect 'replay': a track is not a sim.replay.Track")
+        tracks.append(t)
+        track[first:first + count] = k
+        person[first:first + count] = persons
+    replay = Replay(tracks, track, person, dt)
+    world.resources["replay"] = replay
+    others = tuple(s.name for s in world.schedule.steps if s.name not in ("animation", "terrain_follow"))
+    world.schedule.add_step("replay", replay.step, after=others, before=("animation", "terrain_follow"))

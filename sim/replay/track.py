@@ -1,0 +1,100 @@
+"""A ``[[placement]] kind = "trajectories"``: its recording, the character its people are drawn as, and how a
+recorded person becomes an agent at a frame (issue 46).
+
+Axes: a recording's floor plane (PedPy's x, y) is the sandbox's (x, z), as ``crowd run`` writes
+``trajectories.txt`` (``crowd.trajectories``), so a run's own file replays in place; heights are left to the
+scene (0, or the terrain's with ``terrain_follow``).
+
+Clock: the recording's time ``tau`` (seconds after its first frame) is the world's time at the end of the frame
+less one frame, so the first frame drawn (the state after the first step; ``trajectories.txt``'s frame 0) shows the
+recording's first frame, and frame ``k`` the recording at ``k dt`` (its frame ``k`` when the rates agree).
+
+Kinematics: the velocity is the central difference of the interpolated positions ``SMOOTHING_S`` seconds either
+side (clamped to the person's recorded span), which smooths PeTrack's frame-to-frame jitter; the heading follows
+it only above ``HEADING_MIN_SPEED`` (a person standing keeps the heading they had: no spin on the spot; one who
+enters standing faces the way they will go); the walk clip plays at the ground speed over the clip's natural
+speed (``sim.animation.ClipTable.speed``; a clip without one plays at its authored rate).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.replay.recording import Recording
+from sim.state import CrowdState
+
+#: seconds either side of a frame over which the velocity is measured
+SMOOTHING_S = 0.4
+#: ground speed (m/s) below which a person keeps their heading
+HEADING_MIN_SPEED = 0.2
+
+
+@dataclass
+class Track:
+    """One trajectories placement: ``recording`` drawn as ``character`` playing ``clip``; ``scale`` is the
+    agents' scale (the placement's, times the character's); ``phase`` "random" starts each entering person's clip
+    at a random time (``rng``), "zero" at 0; ``index`` is the placement's index in the scene."""
+
+    recording: Recording
+    character: int
+    clip: int
+    scale: float = 1.0
+    scale_jitter: float = 0.0
+    phase: str = "random"
+    clip_duration: float = 0.0
+    rng: np.random.Generator | None = None
+    index: int = 0
+
+    def frame_at(self, tau: float) -> float:
+        """The recorded frame at ``tau`` seconds after the recording's first frame."""
+        rec = self.recording
+        return rec.first_frame + float(tau) * rec.frame_rate
+
+    def kinematics(self, persons: np.ndarray, frame: float) -> tuple:
+        """``(xy (k, 2), velocity (k, 2))`` of ``persons`` at ``frame``, floor plane, metres and m/s."""
+        rec = self.recording
+        p = np.asarray(persons, np.int64)
+        xy = rec.at(p, frame)
+        w = SMOOTHING_S * rec.frame_rate
+        lo, hi = rec.first[p], rec.last[p]
+        fa = np.clip(frame - w, lo, hi)
+        fb = np.clip(frame + w, lo, hi)
+        span = (fb - fa) / rec.frame_rate
+        d = rec.at(p, fb) - rec.at(p, fa)
+        v = np.where(span[:, None] > 0, d / np.where(span > 0, span, 1.0)[:, None], 0.0)
+        return xy, v
+
+    def overall_heading(self, persons: np.ndarray) -> np.ndarray:
+        """(k,) yaw from each person's first to last recorded position (0 when they never moved)."""
+        rec = self.recording
+        p = np.asarray(persons, np.int64)
+        d = rec.xy[rec.start[p + 1] - 1] - rec.xy[rec.start[p]]
+        moved = np.hypot(d[:, 0], d[:, 1]) > 1e-6
+        return np.where(moved, np.arctan2(d[:, 0], d[:, 1]), 0.0)
+
+    def agents(self, persons: np.ndarray, frame: float) -> CrowdState:
+        """New agents standing for ``persons`` at ``frame`` (their positions, velocities, headings, clip and
+        scale); the replay step sets their animation rate."""
+        p = np.asarray(persons, np.int64)
+        n = p.shape[0]
+        st = CrowdState.empty(n)
+        xy, v = self.kinematics(p, frame)
+        st.position[:, 0] = xy[:, 0]
+        st.position[:, 2] = xy[:, 1]
+        st.velocity[:, 0] = v[:, 0]
+        st.velocity[:, 2] = v[:, 1]
+        moving = np.hypot(v[:, 0], v[:, 1]) > HEADING_MIN_SPEED
+        st.heading[:] = np.where(moving, np.arctan2(v[:, 0], v[:, 1]), self.overall_heading(p))
+        rng = self.rng if self.rng is not None else np.random.default_rng(0)
+        j = float(self.scale_jitter)
+        st.scale[:] = (self.scale * (1.0 + j * rng.uniform(-1.0, 1.0, n))) if j > 0 else self.scale
+        st.character[:] = int(self.character)
+        st.clip[:] = int(self.clip)
+        if self.phase == "random" and n:
+            span = self.clip_duration if self.clip_duration > 0 else 1.0
+            st.anim_time[:] = rng.uniform(0.0, span, n)
+        return st
+
+
+__all__ = ["HEADING_MIN_SPEED", "SMOOTHING_S", "Track"]
