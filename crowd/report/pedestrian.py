@@ -239,6 +239,9 @@ def html_section(entry: dict) -> str:
            "<th>classic density 1/m²</th><th>Voronoi density 1/m²</th><th>mean speed m/s</th>"
            "<th>specific flow ρ·v 1/(m·s)</th><th>line crossings</th><th>line flow 1/s</th>"
            "<th>line specific flow 1/(m·s)</th><th>windowed flow 1/s</th></tr>"]
+    for s in ped.get("sources") or []:  # a replayed recording: the data's source comes first
+        out.insert(1, f"<p class='source'>Data: replayed from {e(s['file'])} ({e(s['format'])}, {s['persons']:,} "
+                      f"people recorded over {s['seconds']:.1f} s at {s['frame_rate']:g} fps; sim/replay).</p>")
     for m in ped["measurements"]:
         a, ln = m["area"] or {}, m["line"] or {}
         out.append(f"<tr class='measurement'><td>{e(m['name'])}</td>"
@@ -260,9 +263,24 @@ def html_section(entry: dict) -> str:
     return "\n".join(out)
 
 
-def scene_measures(tmp: Path, slug: str, scene_name: str, run, measurements) -> dict | None:
+def replay_sources(scene) -> list:
+    """The recordings a scene replays (``[[placement]] kind = "trajectories"``, ``sim.replay``): per recording its
+    file's name, format, recorded people, frame rate and recorded seconds (what the measures are computed from)."""
+    out = []
+    for p in getattr(scene, "placements", []):
+        rec = p.params.get("recording") if p.kind == "trajectories" else None
+        if rec is not None:
+            out.append({"file": Path(rec.source).name, "format": rec.format, "persons": rec.persons,
+                        "frame_rate": rec.frame_rate,
+                        "seconds": (rec.last_frame - rec.first_frame) / rec.frame_rate})
+    return out
+
+
+def scene_measures(tmp: Path, slug: str, scene_name: str, run, measurements, sources: list | None = None
+                   ) -> dict | None:
     """The ``pedestrian`` entry of a scene in report.json (None when it has no measurement): analysis of ``run``'s
-    trajectories (a :class:`crowd.report.runs.RunData` whose folder holds trajectories.txt) and its plots."""
+    trajectories (a :class:`crowd.report.runs.RunData` whose folder holds trajectories.txt) and its plots;
+    ``sources``: the recordings the scene replays (:func:`replay_sources`), named on the page."""
     if not measurements:
         return None
     from crowd.trajectories import TRAJECTORY_FILE
@@ -272,4 +290,4 @@ def scene_measures(tmp: Path, slug: str, scene_name: str, run, measurements) -> 
         return {"error": "PedPy is not installed (pip install 'crowd-sandbox[report]'): no pedestrian measures"}
     results = analyse(traj, measurements)
     return {"trajectories": str(traj.relative_to(tmp)), "setting": run.setting.label, "measurements": results,
-            "plots": plots(tmp, slug, scene_name, results)}
+            "plots": plots(tmp, slug, scene_name, results), "sources": list(sources or [])}

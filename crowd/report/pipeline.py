@@ -45,7 +45,7 @@ from crowd.report.cluster import DEFAULT_CLUSTER, ClusterPool
 from crowd.report.compare import MAD_TO_SIGMA, MIN_REGRESSION, NOISE_K, compare_reports
 from crowd.report.metrics import aggregate, metrics_task
 from crowd.report.page import render_html
-from crowd.report.pedestrian import scene_measures
+from crowd.report.pedestrian import replay_sources, scene_measures
 from crowd.report.plots import _plots
 from crowd.report.population import scene_population
 from crowd.report.runs import (
@@ -307,7 +307,8 @@ def build_report(scene_paths: list, sweeps: list, frames: int | None = None, siz
                 if data["machine"] is None:
                     data["machine"] = run.summary.get("machine")
             _plots(tmp, scene_entry, runs_of[si])
-            ped = scene_measures(tmp, slug, names[si], runs_of[si][0], settings[0].scene.measurements)
+            ped = scene_measures(tmp, slug, names[si], runs_of[si][0], settings[0].scene.measurements,
+                                 replay_sources(settings[0].scene))
             if ped is not None:
                 scene_entry["pedestrian"] = ped
             pop = scene_population(tmp, slug, names[si], runs_of[si][0], settings[0].scene)

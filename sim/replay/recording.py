@@ -166,8 +166,11 @@ def format_of(path: Path, format: str | None) -> str:
     return fmt
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split()).rstrip(".")
+def _one_line(text: str, sentences: int = 2) -> str:
+    """``text`` on one line, cut after its first ``sentences`` sentences (PedPy's messages run on)."""
+    words = " ".join(str(text).split())
+    parts = words.split(". ")
+    return ". ".join(parts[:sentences]).rstrip(".")
 
 
 def load(path, format: str | None = None, unit: str | None = None, frame_rate: float | None = None) -> Recording:
