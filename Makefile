@@ -21,8 +21,10 @@ SYSTEM_PACKAGES := libegl1 libgl1-mesa-dri
 # and for the tests: a virtual X server (the fly-through's window tests) and the headless browser the report test
 # opens index.html in (tests/crowd/report/test_report_browser.py)
 TEST_PACKAGES   := xvfb chromium
-# benchmark scenes: every scene but the quick start (override: make bench BENCH_SCENES=scenes/office.toml)
-BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml,$(wildcard scenes/*.toml)))
+# benchmark scenes: every scene but the quick start, and the replays (scenes/replay_*.toml) only where their data
+# (../shared/data/pedestrian) are (override: make bench BENCH_SCENES=scenes/office.toml)
+REPLAY_DATA  := $(wildcard ../shared/data/pedestrian)
+BENCH_SCENES ?= $(sort $(filter-out scenes/quickstart.toml $(if $(REPLAY_DATA),,scenes/replay_%.toml),$(wildcard scenes/*.toml)))
 # short default runs: full-detail (lod "none") frames of the big scenes take seconds each on llvmpipe
 BENCH_FRAMES ?= 3
 BENCH_SIZE   ?= 1280x720

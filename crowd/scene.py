@@ -162,6 +162,30 @@ def load_scene(path: str | Path) -> Scene:
     return parse_scene(doc, path)
 
 
+#: keys of [[placement]] and [[effects]] tables that name a data file (a recording, a floor plan)
+DATA_FILE_KEYS = ("file", "walls_file", "walkable_file")
+
+
+def missing_data(path: str | Path) -> list:
+    """The data files a scene file names in its ``[[placement]]`` and ``[[effects]]`` tables (recordings, floor plans:
+    :data:`DATA_FILE_KEYS`) that do not exist, as resolved paths. Scenes that replay data kept beside the repository
+    (``../shared/data/pedestrian``) are left out of test and benchmark sweeps on a machine without it
+    (:func:`shipped_scenes`); an unreadable file names none (loading it says what is wrong)."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return []
+    tables = [t for key in ("placement", "effects") for t in (doc.get(key) or []) if isinstance(t, dict)]
+    named = [t[k] for t in tables for k in DATA_FILE_KEYS if isinstance(t.get(k), str)]
+    return [str((path.parent / f).resolve()) for f in named if not (path.parent / f).exists()]
+
+
+def shipped_scenes(folder: str | Path) -> list:
+    """The scene files of ``folder`` (sorted) whose data files exist (:func:`missing_data`)."""
+    return [p for p in sorted(Path(folder).glob("*.toml")) if not missing_data(p)]
+
+
 def parse_scene(doc: dict, path: str | Path) -> Scene:
     """Validate an already-parsed TOML document ``doc`` read from ``path``."""
     path = Path(path)
@@ -204,6 +228,10 @@ class _Parser:
             from crowd.scene_routing import apply_obstacle_file
 
             apply_obstacle_file(effects, self.fail, self.base)  # the obstacles' floor-plan file
+        if any(e.name == "obstacles" and (e.params.get("walls_file") or e.params.get("walls_layer")) for e in effects):
+            from crowd.scene_routing import apply_obstacle_walls
+
+            apply_obstacle_walls(effects, self.fail, self.base)  # walls around a floor plan's walkable area
         props = parse_props(self.array_of_tables("props", False), effects, self.base, self.fail)
         if any(e.name == "routing" for e in effects):  # walkable area, walls, waypoints; routing installed first
             from crowd.scene_routing import apply_routing

@@ -91,6 +91,41 @@ def apply_obstacle_file(effects: list, fail, base=None) -> None:
     effects[at] = dataclasses.replace(ob, params=cfg)
 
 
+def apply_obstacle_walls(effects: list, fail, base=None) -> None:
+    """The ``obstacles`` effect's ``walls_file`` (a floor plan relative to the scene's folder ``base``): walls
+    ``wall_thickness`` thick around its walkable area's outline and holes (``sim.routing.effect.with_walls``, as
+    routing's ``walkable_file`` gives them) join the effect's ``polygons``, in place on ``effects``; problems go to
+    ``fail(key, message)``."""
+    at = _find(effects, "obstacles")
+    if at is None:
+        return
+    ob = effects[at]
+    cfg = dict(ob.params)
+    where = f"effects[{ob.index}]"
+    if cfg.get("walls_layer") is not None and cfg.get("walls_file") is None:
+        fail(f"{where}.walls_layer", "only with `walls_file` (a DXF drawing's layer)")
+    if cfg.get("walls_file") is None:
+        return
+    from pathlib import Path
+
+    from sim.params import ParamError
+    from sim.routing.effect import PARAMS as ROUTING_PARAMS
+    from sim.routing.effect import with_walls
+    from sim.routing.floor_plan import FloorPlanError, load_walkable
+
+    path = (Path(base or ".") / cfg["walls_file"]).resolve()
+    try:
+        walkable = ROUTING_PARAMS["walkable"].check(f"{where}.walls_file", load_walkable(path, cfg.get("walls_layer")))
+    except FloorPlanError as e:
+        fail(f"{where}.walls_file", str(e))
+    except ParamError as e:
+        fail(e.key, f"{path}: {e.message}")
+    cfg = with_walls({"walkable": walkable, "wall_thickness": cfg["wall_thickness"],
+                      "wall_height": cfg["wall_height"]}, cfg)
+    cfg["walls_file"] = str(path)
+    effects[at] = dataclasses.replace(ob, params=cfg)
+
+
 def apply_routing(effects: list, characters: list, fail, base=None) -> None:
     """The checks and changes of the module docstring, in place on ``effects`` (a list of ``EffectSpec``);
     problems go to ``fail(key, message)``; ``base``: the scene file's folder (``walkable_file`` is relative to it)."""

@@ -62,7 +62,7 @@ sys.path.insert(0, str(ROOT))
 
 from crowd.engine import Engine  # noqa: E402
 from crowd.image_metrics import mse  # noqa: E402
-from crowd.scene import load_scene  # noqa: E402
+from crowd.scene import load_scene, shipped_scenes  # noqa: E402
 from sim.atomic_io import atomic_open  # noqa: E402
 from lod.auto import cost_model  # noqa: E402
 from lod.auto import build as auto_mode  # noqa: E402
@@ -356,7 +356,7 @@ def write_md(path: Path, header: list, sections: list) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    all_scenes = sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
+    all_scenes = [p.stem for p in shipped_scenes(ROOT / "scenes")]  # those whose data are here
     ap.add_argument("--scenes", nargs="+", default=all_scenes, help="scene names or .toml files (default: all)")
     ap.add_argument("--frames", type=int, default=20, help="measured frames per case (medians)")
     ap.add_argument("--warmup", type=int, default=30, help="frames before them, autos only (their warm-up)")

@@ -172,7 +172,9 @@ def main(argv=None) -> int:
 
     if not all(SIZE_RANGE[0] <= v <= SIZE_RANGE[1] for v in a.size):
         ap.error(f"--size: expected two integers in {SIZE_RANGE[0]} ..= {SIZE_RANGE[1]}, got {a.size[0]} {a.size[1]}")
-    scenes = sorted((ROOT / "scenes").glob("*.toml"))
+    from crowd.scene import shipped_scenes
+
+    scenes = shipped_scenes(ROOT / "scenes")  # those whose data are here
     if a.scenes:
         unknown = sorted(set(a.scenes) - {s.stem for s in scenes})
         if unknown:

@@ -314,7 +314,9 @@ Machine at the start: {start}; at the end: {end}.
     if args.frames < 1 or args.steps < 0:
         print("bench_raster.py: --frames must be >= 1 and --steps >= 0", file=sys.stderr)
         return 2
-    names = args.scenes or sorted(p.stem for p in (ROOT / "scenes").glob("*.toml") if p.stem not in NAMED_ONLY)
+    from crowd.scene import shipped_scenes
+
+    names = args.scenes or [p.stem for p in shipped_scenes(ROOT / "scenes") if p.stem not in NAMED_ONLY]
     paths = []
     for n in names:
         p = ROOT / "scenes" / f"{n}.toml"

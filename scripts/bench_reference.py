@@ -107,7 +107,9 @@ def main(argv=None) -> int:
         print(f"bench_reference: --frame {args.frame} --size {args.size}: expected a frame >= 0 and a positive size",
               file=sys.stderr)
         return 2
-    shipped = sorted(p for p in (ROOT / "scenes").glob("*.toml"))
+    from crowd.scene import shipped_scenes
+
+    shipped = shipped_scenes(ROOT / "scenes")  # those whose data are here
     if args.scenes:
         by = {p.stem: p for p in shipped}
         bad = [s for s in args.scenes if s not in by]

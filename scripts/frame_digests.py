@@ -140,7 +140,9 @@ def main(argv=None) -> int:
         except ValueError:
             ap.error(f"--lod {item!r}: expected MODE:KEY=VALUE")
         lod.setdefault(mode, {})[k] = _value(v)
-    scenes = sorted((ROOT / "scenes").glob("*.toml"))
+    from crowd.scene import shipped_scenes
+
+    scenes = shipped_scenes(ROOT / "scenes")  # those whose data are here
     if a.scenes:
         unknown = sorted(set(a.scenes) - {s.stem for s in scenes})
         if unknown:

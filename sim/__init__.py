@@ -13,7 +13,8 @@ Modules in data-flow order (asset -> character -> world -> systems stepping the 
 - Systems (effects, each imported only when a scene lists it): ``sim.systems`` (registry and fixed-step
   schedule), ``sim.params`` (their parameter schemas), ``sim.animation``, ``sim.boids``, ``sim.goals``,
   ``sim.obstacles``, ``sim.terrain_follow``, ``sim.instancing`` (hierarchical instantiation, Wand & Straßer
-  §3.6).
+  §3.6), ``sim.replay`` (recorded crowds: a recording read through PedPy, the people of a trajectories
+  placement as agents, the step that moves them; installed by a trajectories placement, a package).
 - ``sim.config`` (tunable constants), ``sim.errors``, ``sim.atomic_io`` (atomic file writes: every cache and
   output of the sandbox, from ``sim``'s own to ``crowd``'s, is written through it).
 """

@@ -100,6 +100,13 @@ PARAMS: dict[str, Param] = {
     "file": Param("str", None, doc="more polygons: the areas of a floor-plan file (WKT, GeoJSON, DXF; "
                                    "sim.routing.floor_plan), relative to the scene file, each a solid of height 1 m"),
     "layer": Param("str", None, doc="file a DXF: read the entities of this layer only"),
+    "walls_file": Param("str", None, doc="walls around the walkable area of a floor-plan file (WKT, GeoJSON, DXF; "
+                                         "its outline and holes, as routing's walkable_file draws them), relative "
+                                         "to the scene file: a recorded crowd's building (sim.replay)"),
+    "walls_layer": Param("str", None, doc="walls_file a DXF: read the entities of this layer only"),
+    "wall_thickness": Param("float", 0.3, min=0.01, max=100.0, doc="thickness of the walls_file walls, metres"),
+    "wall_height": Param("float", 1.0, min=0.0, max=1e4, doc="drawn height of the walls_file walls, metres; "
+                                                              "0 = not drawn"),
     "agent_radius": Param("float", 0.4, min=0.0, max=100.0, doc="agent body radius kept clear of obstacles, m"),
     "margin": Param("float", 2.0, min=1e-3, max=1000.0, doc="force-field reach beyond agent_radius, m"),
     "lookahead": Param("float", 1.0, min=0.0, max=60.0, doc="look-ahead time of the second probe, s"),
