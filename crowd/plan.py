@@ -105,18 +105,37 @@ def plan(scene: Scene, quiet: bool = True) -> Plan:
             raise SceneError(scene.path, f"{where}.clip", f"unknown clip {p.clip!r} of character "
                              f"{scene.characters[p.character].name!r}; accepted: {', '.join(map(repr, names))}")
         build = PLACEMENTS[p.kind][1]
+        params = p.params
+        if p.kind == "trajectories":  # each recorded person's character, clip and scale, chosen by weight
+            params = {**p.params, "choice_table": _choice_table(scene, chars, p, where)}
         try:
-            st = build(p.params, p.character, ci, np.random.default_rng(ss), clip_duration(ch, ci))
+            st = build(params, p.character, ci, np.random.default_rng(ss), clip_duration(ch, ci))
         except ParamError as e:
             raise SceneError(scene.path, f"{where}.{e.key}", e.message) from None
-        st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
-        for _, _, track, _ in getattr(st, "tracks", []):  # the people a recording adds later (sim.replay)
-            track.scale *= float(scene.characters[p.character].scale)
+        if p.kind != "trajectories":  # (a recording's agents carry their character's scale: sim.replay)
+            st.scale[:] = st.scale * np.float32(scene.characters[p.character].scale)
         states.append(st)
         counts.append(st.n)
     state = concat_states(states)
     check_walkable(scene, state)  # crowd validate refuses what crowd run would (crowd.start_check)
     return Plan(scene, chars, state, counts, big)
+
+
+def _choice_table(scene: Scene, chars: list, p, where: str) -> list:
+    """``[(character, clip, weight, character scale, clip duration), ...]`` of a trajectories placement's
+    character choice (``params["choices"]``): each character plays the placement's clip (its first without one)."""
+    out = []
+    for c, w in p.params.get("choices") or [(p.character, 1.0)]:
+        names = clip_names(chars[c])
+        if not names:
+            raise SceneError(scene.path, f"{where}.character",
+                             f"character {scene.characters[c].name!r} has no animation clip")
+        if p.clip is not None and p.clip not in names:
+            raise SceneError(scene.path, f"{where}.clip", f"unknown clip {p.clip!r} of character "
+                             f"{scene.characters[c].name!r}; accepted: {', '.join(map(repr, names))}")
+        k = names.index(p.clip) if p.clip is not None else 0
+        out.append((int(c), k, float(w), float(scene.characters[c].scale), float(clip_duration(chars[c], k) or 0.0)))
+    return out
 
 
 def progress_bar(it, desc: str, disable: bool, total: int | None = None):

@@ -99,5 +99,6 @@ def entering_clips(world) -> dict:
         out.setdefault(int(s.cfg["character"]), set()).add(int(s.cfg.get("clip_index", 0)))
     r = world.resources.get("replay")
     for t in (r.tracks if r is not None else []):
-        out.setdefault(int(t.character), set()).add(int(t.clip))
+        for c, k in t.played:
+            out.setdefault(c, set()).add(k)
     return out

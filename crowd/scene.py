@@ -329,9 +329,13 @@ class _Parser:
                 self.fail(f"{where}.kind", f"expected one of {', '.join(map(repr, PLACEMENTS))}, got {kind!r}"
                           if kind is not None else f"required, one of {', '.join(map(repr, PLACEMENTS))}")
             char = t.get("character")
+            choices = None
+            if kind == "trajectories" and isinstance(char, dict):  # recorded people drawn as characters by weight
+                choices = self.character_choices(char, names, f"{where}.character")
+                char = names[choices[0][0]]
             if char is None:
                 self.fail(f"{where}.character", f"required, one of {', '.join(map(repr, names))}")
-            if char not in names:
+            if not isinstance(char, str) or char not in names:
                 self.fail(f"{where}.character", f"unknown character {char!r}; defined: {', '.join(map(repr, names))}")
             clip = t.get("clip")
             if clip is not None and not isinstance(clip, str):
@@ -349,7 +353,21 @@ class _Parser:
                 raise
             if kind == "trajectories":
                 params["recording"] = self.recording(params, where)
+                params["choices"] = choices or [(names.index(char), 1.0)]
             out.append(PlacementSpec(kind=kind, character=names.index(char), clip=clip, params=params, index=i))
+        return out
+
+    def character_choices(self, table: dict, names: list, key: str) -> list:
+        """``[(character index, weight), ...]`` of a choice ``{name = weight, ...}`` (weights > 0)."""
+        if not table:
+            self.fail(key, "expected a character name or a table {name = weight, ...} with at least one entry")
+        out = []
+        for name, w in table.items():
+            if name not in names:
+                self.fail(f"{key}.{name}", f"unknown character {name!r}; defined: {', '.join(map(repr, names))}")
+            if isinstance(w, bool) or not isinstance(w, (int, float)) or not (w > 0 and w < float("inf")):
+                self.fail(f"{key}.{name}", f"expected a weight > 0, got {w!r}")
+            out.append((names.index(name), float(w)))
         return out
 
     def recording(self, params: dict, where: str):

@@ -305,9 +305,22 @@ def build_hierarchy(cfg: dict, character_index: int, clip_index: int, rng, clip_
 
 
 # ----------------------------------------------------------------------------------------- trajectories
+class _CharacterChoice(Param):
+    """A character name, or a choice ``{name = weight, ...}`` (the scene loader checks the names and weights)."""
+
+    def check(self, key, value):
+        if isinstance(value, dict):
+            return dict(value)
+        return Param("str").check(key, value)
+
+    def describe(self) -> str:
+        return "str or {name = weight, ...}"
+
+
 TRAJECTORIES_PARAMS = {
     "kind": Param("str", choices=("trajectories",), doc="placement kind"),
-    "character": Param("str", doc="name of a [[characters]] entry"),
+    "character": _CharacterChoice("str", doc="a [[characters]] name, or a choice {name = weight, ...}: each "
+                                             "recorded person draws one by weight"),
     "clip": Param("str", "", doc="clip name (the walk); empty = the character's first clip"),
     "phase": Param("str", "random", choices=("random", "zero"),
                    doc="animation time of each entering person: uniform over the clip, or 0"),
@@ -325,16 +338,17 @@ TRAJECTORIES_PARAMS = {
 
 def build_trajectories(cfg: dict, character_index: int, clip_index: int, rng, clip_duration=None) -> CrowdState:
     """The people recorded at the recording's first frame (``cfg["recording"]``, a ``sim.replay.Recording`` the
-    scene loader read); the effect ``replay`` adds and moves the rest (``sim.replay``). The state's ``tracks``
-    attribute is ``[(0, n, Track, persons)]``."""
+    scene loader read); the effect ``replay`` adds and moves the rest (``sim.replay``). ``cfg["choice_table"]``:
+    ``[(character, clip, weight, character scale, clip duration), ...]`` each person draws from (default: the
+    placement's character and clip, scale 1). The state's ``tracks`` attribute is ``[(0, n, Track, persons)]``."""
     from sim.replay.track import Track
 
     rec = cfg.get("recording")
     if rec is None:
         raise ParamError("file", "the recording was not loaded")
-    track = Track(recording=rec, character=int(character_index), clip=int(clip_index),
-                  scale=float(cfg.get("scale", 1.0)), scale_jitter=float(cfg.get("scale_jitter", 0.0)),
-                  phase=cfg.get("phase", "random"), clip_duration=float(clip_duration or 0.0), rng=rng)
+    table = cfg.get("choice_table") or [(character_index, clip_index, 1.0, 1.0, float(clip_duration or 0.0))]
+    track = Track(recording=rec, choices=np.array(table, np.float64), scale=float(cfg.get("scale", 1.0)),
+                  scale_jitter=float(cfg.get("scale_jitter", 0.0)), phase=cfg.get("phase", "random"), rng=rng)
     f0 = track.frame_at(0.0)
     persons = np.flatnonzero(rec.alive(f0))
     st = track.agents(persons, f0)

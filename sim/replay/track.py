@@ -32,19 +32,29 @@ HEADING_MIN_SPEED = 0.2
 
 @dataclass
 class Track:
-    """One trajectories placement: ``recording`` drawn as ``character`` playing ``clip``; ``scale`` is the
-    agents' scale (the placement's, times the character's); ``phase`` "random" starts each entering person's clip
-    at a random time (``rng``), "zero" at 0; ``index`` is the placement's index in the scene."""
+    """One trajectories placement: ``recording``, its people drawn as the characters of ``choices``, a (k, 5)
+    array of rows (character, clip, weight, character scale, clip duration): each person who enters draws a row by
+    weight (``rng``); ``scale`` (times the character's) and ``scale_jitter`` as the other placements' keys;
+    ``phase`` "random" starts each entering person's clip at a random time, "zero" at 0."""
 
     recording: Recording
-    character: int
-    clip: int
+    choices: np.ndarray
     scale: float = 1.0
     scale_jitter: float = 0.0
     phase: str = "random"
-    clip_duration: float = 0.0
     rng: np.random.Generator | None = None
-    index: int = 0
+
+    def __post_init__(self):
+        c = np.asarray(self.choices, np.float64).reshape(-1, 5)
+        if not c.shape[0] or not (c[:, 2] > 0).all():
+            raise ValueError("Track.choices: expected at least one row, every weight > 0")
+        self.choices = c
+        self._p = c[:, 2] / c[:, 2].sum()
+
+    @property
+    def played(self) -> list:
+        """``[(character, clip), ...]`` the people of this track can play."""
+        return [(int(a), int(b)) for a, b in self.choices[:, :2]]
 
     def frame_at(self, tau: float) -> float:
         """The recorded frame at ``tau`` seconds after the recording's first frame."""
@@ -87,13 +97,16 @@ class Track:
         moving = np.hypot(v[:, 0], v[:, 1]) > HEADING_MIN_SPEED
         st.heading[:] = np.where(moving, np.arctan2(v[:, 0], v[:, 1]), self.overall_heading(p))
         rng = self.rng if self.rng is not None else np.random.default_rng(0)
+        row = self.choices[rng.choice(self.choices.shape[0], size=n, p=self._p) if self.choices.shape[0] > 1
+                           else np.zeros(n, np.int64)]
         j = float(self.scale_jitter)
-        st.scale[:] = (self.scale * (1.0 + j * rng.uniform(-1.0, 1.0, n))) if j > 0 else self.scale
-        st.character[:] = int(self.character)
-        st.clip[:] = int(self.clip)
+        base = self.scale * row[:, 3]
+        st.scale[:] = (base * (1.0 + j * rng.uniform(-1.0, 1.0, n))) if j > 0 else base
+        st.character[:] = row[:, 0].astype(np.int32)
+        st.clip[:] = row[:, 1].astype(np.int16)
         if self.phase == "random" and n:
-            span = self.clip_duration if self.clip_duration > 0 else 1.0
-            st.anim_time[:] = rng.uniform(0.0, span, n)
+            span = np.where(row[:, 4] > 0, row[:, 4], 1.0)
+            st.anim_time[:] = rng.uniform(0.0, 1.0, n) * span
         return st
 
 

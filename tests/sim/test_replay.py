@@ -234,3 +234,79 @@ def test_real_recordings_replay_on_their_rows(tmp_path, name, file, kw):
         for a, p in enumerate(r.person):
             if int(p) in expect:
                 np.testing.assert_allclose(w.state.position[a, [0, 2]], expect[int(p)], atol=1e-3)
+
+
+TWO_CHARACTERS = """
+[[characters]]
+name = "tall"
+generator = "humanoid"
+triangles = 600
+scale = 1.5
+"""
+
+
+def many_people(path, n=400):
+    """``n`` people, each recorded for 5 frames from frame i // 20, walking +x."""
+    rows = [(i, i // 20 + k, 0.1 * k, 0.5 * i) for i in range(n) for k in range(5)]
+    return write_txt(path, rows)
+
+
+def test_people_draw_their_character_by_weight_and_keep_it(tmp_path):
+    from crowd.engine import Engine
+    from crowd.scene import load_scene
+
+    text = scene_text(many_people(tmp_path / "many.txt"), extra="").replace(
+        'character = "walker"\nclip = "walk"', 'character = { walker = 3, tall = 1 }\nclip = "walk"')
+    text = text.replace("[[placement]]", TWO_CHARACTERS + "\n[[placement]]")
+    (tmp_path / "scene.toml").write_text(text)
+    eng = Engine(load_scene(tmp_path / "scene.toml"), quiet=True)
+    w = eng.world
+    seen = {}
+    for _ in range(30):
+        eng.step()
+        st = w.state
+        for i, c, s in zip(st.ids.tolist(), st.character.tolist(), st.scale.tolist()):
+            assert seen.setdefault(i, (c, s)) == (c, s)  # a person keeps their character and scale
+            assert s == pytest.approx(1.5 if c == 1 else 1.0)
+    chars = np.array([c for c, _ in seen.values()])
+    assert len(seen) > 300 and abs((chars == 0).mean() - 0.75) < 0.06
+    assert set(np.unique(w.state.clip).tolist()) <= {0, 1}
+
+
+def test_other_effects_do_not_move_recorded_people(tmp_path):
+    rows = three_people()
+    file = write_txt(tmp_path / "three.txt", rows)
+    from crowd.engine import Engine
+    from crowd.scene import load_scene
+
+    text = scene_text(file).replace('effects = ["animation"]', 'effects = ["animation", "boids"]')
+    (tmp_path / "scene.toml").write_text(text)
+    eng = Engine(load_scene(tmp_path / "scene.toml"), quiet=True)
+    w = eng.world
+    rec = w.resources["replay"].tracks[0].recording
+    at = {(i, f): (x, y) for i, f, x, y in rows}
+    for k in range(40):
+        eng.step()
+        for a, p in enumerate(w.resources["replay"].person):
+            x, y = at[(int(rec.ids[p]), k)]
+            assert abs(w.state.position[a, 0] - x) < 1e-3 and abs(w.state.position[a, 2] - y) < 1e-3
+
+
+@pytest.mark.parametrize("choice, key, words", [
+    ("{ walker = 0 }", "placement[0].character.walker", ["weight > 0"]),
+    ("{ runner = 1 }", "placement[0].character.runner", ["unknown character 'runner'"]),
+    ("{}", "placement[0].character", ["at least one"]),
+])
+def test_bad_character_choice_is_one_line(tmp_path, choice, key, words):
+    from crowd.errors import SceneError
+    from crowd.scene import load_scene
+
+    file = write_txt(tmp_path / "three.txt", three_people())
+    (tmp_path / "scene.toml").write_text(scene_text(file).replace('character = "walker"\nclip',
+                                                                  f'character = {choice}\nclip'))
+    with pytest.raises(SceneError) as e:
+        load_scene(tmp_path / "scene.toml")
+    msg = str(e.value)
+    assert key in msg and "\n" not in msg, msg
+    for w in words:
+        assert w in msg, msg
