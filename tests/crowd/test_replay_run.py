@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from crowd_testutil import run_cli
+from crowd_testutil import REPO, run_cli
 
 from crowd.trajectories import read_trajectories
 
@@ -62,10 +62,24 @@ def test_a_runs_own_trajectories_replay_in_place(tmp_path):
     assert np.ptp(a[:, 3]) > 1.0  # they walked
 
 
+BOTTLENECK = REPO.parent / "shared" / "data" / "pedestrian" / "bottleneck" / "040_c_56_h-.txt"
+
+
+@pytest.mark.parametrize("data", ["synthetic", "bottleneck"])
 @pytest.mark.parametrize("mode", ["none", "points", "clusters", "triangles", "auto"])
-def test_positions_drawn_are_the_recordings_in_every_lod_mode(tmp_path, mode):
-    rows = three_people()
-    eng = engine_of(tmp_path, write_txt(tmp_path / "three.txt", rows))
+def test_positions_drawn_are_the_recordings_in_every_lod_mode(tmp_path, mode, data):
+    if data == "bottleneck":
+        if not BOTTLENECK.is_file():
+            pytest.skip(f"no shared pedestrian data at {BOTTLENECK}")
+        from sim.replay import load
+
+        r0 = load(BOTTLENECK)
+        rows = [(int(r0.ids[p]), int(f), x, y) for p, (f, (x, y)) in
+                zip(np.repeat(np.arange(r0.persons), np.diff(r0.start)), zip(r0.frames, r0.xy)) if f < 45]
+        eng = engine_of(tmp_path, BOTTLENECK)
+    else:
+        rows = three_people()
+        eng = engine_of(tmp_path, write_txt(tmp_path / "three.txt", rows))
     eng.set_lod_mode(mode)
     rec = eng.world.resources["replay"].tracks[0].recording
     at = {(i, f): (x, y) for i, f, x, y in rows}
