@@ -124,7 +124,9 @@ def obstacles_table(world) -> dict | None:
 
 
 def check_agents(walkable, state) -> None:
-    """ParamError naming the placement group and the first agent standing outside the walkable area."""
+    """ParamError naming the placement group and the first agent standing outside the walkable area. Recorded
+    people (a trajectories placement, ``sim.replay``) are replayed where they were recorded: not checked here
+    (``crowd.start_check`` reports a recording that leaves the area)."""
     import numpy as np
 
     from sim.routing.geometry import describe_where
@@ -132,6 +134,8 @@ def check_agents(walkable, state) -> None:
     if state.n == 0:
         return
     code = walkable.where(state.position[:, [0, 2]])
+    for first, count, *_ in getattr(state, "tracks", None) or []:
+        code[first:first + count] = 0
     bad = np.nonzero(code)[0]
     if bad.size == 0:
         return

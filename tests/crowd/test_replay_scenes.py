@@ -96,3 +96,37 @@ def test_bad_walls_file_is_one_line(tmp_path, write_scene, line, key, words):
     assert f"{scene}: effects[1].{key}" in r.stderr, r.stderr
     for w in words:
         assert w in r.stderr, r.stderr
+
+
+def test_a_recording_that_leaves_the_walkable_area_is_reported_and_replayed(tmp_path):
+    """Person 1 walks from inside the room (x in [-4, 4], z in [-3, 3]) out through its wall to x = 6; person 2
+    stays inside. With the room as routing's walkable area (and its walls drawn), validate says how many rows lie
+    outside and how far, and the run replays them where they were recorded."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "tests" / "sim"))
+    from test_replay import scene_text, write_txt
+
+    rows = [(1, f, -2.0 + 0.2 * f, 0.0) for f in range(41)] + [(2, f, 0.0, 1.0) for f in range(41)]
+    file = write_txt(tmp_path / "out.txt", rows)
+    (tmp_path / "room.wkt").write_text("POLYGON ((-4 -3, 4 -3, 4 3, -4 3, -4 -3))")
+    text = scene_text(file, frames=41).replace(
+        'effects = ["animation"]',
+        'effects = ["animation", { name = "routing", walkable_file = "room.wkt" }]')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text)
+    r = run_cli("validate", scene)
+    assert r.returncode == 0, r.stderr
+    notes = [ln for ln in r.stderr.splitlines() if "replayed as recorded" in ln]
+    # x > 4 from frame 31 on: 10 rows outside, the last 2 m out (6 - 4)
+    assert len(notes) == 1 and "placement[0]: 10 of the recording's 82 rows (1 of 2 people)" in notes[0], r.stderr
+    assert "up to 2.00 m" in notes[0]
+    from crowd.engine import Engine
+
+    eng = Engine(load_scene(scene), quiet=True)
+    for _ in range(41):
+        eng.step()
+    w = eng.world
+    x = {int(w.resources["replay"].tracks[0].recording.ids[p]): w.state.position[a, 0]
+         for a, p in enumerate(w.resources["replay"].person)}
+    assert x[1] == pytest.approx(6.0, abs=1e-9) and x[2] == pytest.approx(0.0)  # drawn where recorded
