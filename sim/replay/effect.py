@@ -7,7 +7,7 @@ whose person's recording ended and adds those whose recording began (``sim.popul
 other agents' arrays follow), then sets every recorded agent's position (floor plane), velocity, heading and
 animation rate from its recording. It runs after every other step that moves agents and before ``animation`` and
 ``terrain_follow``, so the scene's other effects never move recorded people (simulated agents still see them:
-avoidance avoids them), their clips advance by their ground speed and their height follows the terrain.
+avoidance avoids them), their clips advance by their walk along their heading and their height follows the terrain.
 
 Resource ``world.resources["replay"]``: the :class:`Replay` (its tracks, which agent is which recorded person,
 the frame's entered and left counts).
@@ -110,6 +110,8 @@ class Replay:
             moving = speed > HEADING_MIN_SPEED
             st.heading[idx[moving]] = np.arctan2(v[moving, 0], v[moving, 1])
             natural = _natural_speed(speeds, st.character[idx], st.clip[idx])
+            hd = st.heading[idx]  # the clip advances by the walk along the heading (a step back: backwards)
+            speed = v[:, 0] * np.sin(hd) + v[:, 1] * np.cos(hd)
             rate = np.where(natural > 0, speed / np.where(natural > 0, natural, 1.0), 1.0)
             st.anim_rate[idx] = rate.astype(np.float32)
 
