@@ -19,12 +19,13 @@ DrawList's :class:`lod.poses.PoseTable` and
   default, scripts/bench_full_detail.md). Copies then draw from the buffer with only their instance transform
   (``shaders/poses/posed.vert``).
 
-Posed-vertex layout (``shaders/poses/posed.glsl``): ``[slot][vertex]`` in two RGBA32F textures of
-:data:`POSED_WIDTH` texels per row, positions (x, y, z, 1) and unit normals (nx, ny, nz, 0), model space;
-texel ``t = slot * V + vertex`` at ``(t & 4095, t >> 12)`` (textures, not storage buffers: on llvmpipe
-``texelFetch`` is several times cheaper than per-lane storage-buffer loads, which it scalarises and
-bounds-checks; written by ``imageStore``). The slots are cut into *windows* of whole slots, one texture
-pair each, of at most :attr:`PoseCache.window_bytes` (default 128 MB for the pair, llvmpipe's storage-block
+Posed-vertex layout (``shaders/poses/posed.glsl``): ``[slot][vertex]`` in one RGBA32F texture of
+:data:`POSED_WIDTH` texels per row, two texels per vertex, ``(x, y, z, nx), (ny, nz, 0, 0)`` (position and unit
+normal, model space): the compute rasteriser's posed-table layout, so it reads a window in place
+(``render/raster/frame.py``); vertex ``v`` of slot ``s`` is texel ``t = 2 (s V + v)`` at ``(t & 4095, t >> 12)``
+(a texture, not a storage buffer: on llvmpipe ``texelFetch`` is several times cheaper than per-lane storage-buffer
+loads, which it scalarises and bounds-checks; written by ``imageStore``). The slots are cut into *windows* of whole
+slots, one texture each, of at most :attr:`PoseCache.window_bytes` (default 128 MB, llvmpipe's storage-block
 binding limit: a reader may copy a window into a storage buffer) and of at most ``GL_MAX_TEXTURE_SIZE`` rows;
 a reader binds the window of the slots it reads and sets ``u_posed_first`` to the window's first slot
 (:meth:`PosedVertices.bind`). Windows are never silently cut short: a pose larger than a window, or posed
@@ -51,15 +52,16 @@ from render.vertex_format import compact_influences
 
 #: texels per row of the posed-vertex and mesh textures (``shaders/poses/posed.glsl``: texel t at (t & 4095, t >> 12))
 POSED_WIDTH = 4096
-#: texture units the readers sample the posed positions and normals from (``u_posed_positions``/``_normals``)
-POSED_POSITION_UNIT = 8
-POSED_NORMAL_UNIT = 9
+#: texels per posed vertex: (x, y, z, nx), (ny, nz, 0, 0) (``shaders/poses/posed.glsl``, raster_common.glsl RS_POSED)
+POSED_TEXELS = 2
+#: texture unit the readers sample the posed vertices from (``u_posed``)
+POSED_UNIT = 8
 #: texture units of the skinning pass's mesh tables (``u_bind``, ``u_skin_joints``)
 BIND_UNIT = 10
 JOINTS_UNIT = 11
-#: bytes per posed vertex (position and normal texels)
-POSED_VERTEX_BYTES = 4 * POSED_FLOATS
-#: most bytes of one window (its two textures); llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE, so that a window
+#: bytes per posed vertex (its two texels)
+POSED_VERTEX_BYTES = 16 * POSED_TEXELS
+#: most bytes of one window (its texture); llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE, so that a window
 #: also fits one storage-buffer binding
 POSED_WINDOW_BYTES = 128 * 1024 * 1024
 #: most bytes of posed vertices of one mesh in one frame (beyond: the copies skin from the palettes)
@@ -109,13 +111,12 @@ class PosePalette:
 
 @dataclass
 class PosedWindow:
-    """Slots ``first .. first + count`` of a mesh's posed vertices: texel 0 of ``positions`` and ``normals``
-    (RGBA32F, :data:`POSED_WIDTH` wide, at least ``rows`` rows) is the first slot's vertex 0."""
+    """Slots ``first .. first + count`` of a mesh's posed vertices: texels 0 and 1 of ``texture`` (RGBA32F,
+    :data:`POSED_WIDTH` wide, at least ``rows`` rows) are the first slot's vertex 0."""
 
     first: int
     count: int
-    positions: object
-    normals: object
+    texture: object
     rows: int
 
 
@@ -150,15 +151,13 @@ class PosedVertices:
         cut = np.concatenate([[0], np.flatnonzero(np.diff(w)) + 1, [count]])
         return [(first + int(a), int(e - a), int(w[a])) for a, e in zip(cut[:-1], cut[1:])]
 
-    def bind(self, w: int, prog=None, units: tuple = (POSED_POSITION_UNIT, POSED_NORMAL_UNIT)) -> None:
-        """Bind window ``w``'s textures to ``units`` and set ``prog``'s samplers, ``u_posed_vertices`` and
-        ``u_posed_first`` (``shaders/poses/posed.glsl``)."""
+    def bind(self, w: int, prog=None, unit: int = POSED_UNIT) -> None:
+        """Bind window ``w``'s texture to ``unit`` and set ``prog``'s sampler ``u_posed``, ``u_posed_vertices``
+        and ``u_posed_first`` (``shaders/poses/posed.glsl``)."""
         win = self.windows[w]
-        win.positions.use(units[0])
-        win.normals.use(units[1])
+        win.texture.use(unit)
         if prog is not None:
-            for name, value in (("u_posed_positions", units[0]), ("u_posed_normals", units[1]),
-                                ("u_posed_vertices", self.vertices), ("u_posed_first", win.first)):
+            for name, value in (("u_posed", unit), ("u_posed_vertices", self.vertices), ("u_posed_first", win.first)):
                 if name in prog:
                     prog[name].value = value
 
@@ -167,9 +166,8 @@ class PosedVertices:
         out = np.zeros((self.poses, self.vertices, POSED_FLOATS), np.float32)
         for w in self.windows:
             n = w.count * self.vertices
-            for tex, c in ((w.positions, 0), (w.normals, 4)):
-                raw = np.frombuffer(tex.read(), np.float32).reshape(-1, 4)[:n]
-                out[w.first:w.first + w.count, :, c:c + 4] = raw.reshape(w.count, self.vertices, 4)
+            raw = np.frombuffer(w.texture.read(), np.float32).reshape(-1, 2 * 4)[:n].reshape(w.count, self.vertices, 8)
+            out[w.first:w.first + w.count] = from_texels(raw)
         return out
 
 
@@ -187,7 +185,7 @@ class _Mesh:
     joint_texture: object
     target_textures: object
     gpu: list = field(default_factory=list)  # the skinning pass's tables: bind (RGBA32F), joints (RGBA32UI)
-    windows: list = field(default_factory=list)  # (positions, normals) textures kept from frame to frame
+    windows: list = field(default_factory=list)  # window textures kept from frame to frame
 
     @property
     def n_vertices(self) -> int:
@@ -254,7 +252,7 @@ class PoseCache:
 
     def release(self) -> None:
         for m in self._meshes.values():
-            for b in m.gpu + [t for w in m.windows if w is not None for t in w]:
+            for b in m.gpu + [w for w in m.windows if w is not None]:
                 b.release()
             m.gpu, m.windows = [], []
         for o in reversed(self._objects):
@@ -357,7 +355,7 @@ class PoseCache:
     def _limit(self) -> int:
         """Most vertices of one window: :attr:`window_bytes` and the texture's rows."""
         rows = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 16384)
-        return max(1, min(int(self.window_bytes) // POSED_VERTEX_BYTES, POSED_WIDTH * rows))
+        return max(1, min(int(self.window_bytes) // POSED_VERTEX_BYTES, POSED_WIDTH * rows // POSED_TEXELS))
 
     def _skin(self, group: str, mesh: _Mesh, slots=None):
         """The frame's :class:`PosedVertices` of ``mesh`` in ``group``'s poses (made on the first request), with
@@ -380,8 +378,8 @@ class PoseCache:
             windows = []
             for i, first in enumerate(range(0, P, spw)):
                 n = min(spw, P - first)
-                rows = -(-n * V // POSED_WIDTH)
-                windows.append(PosedWindow(first, n, *self._window_textures(mesh, i, rows), rows))
+                rows = -(-n * V * POSED_TEXELS // POSED_WIDTH)
+                windows.append(PosedWindow(first, n, self._window_texture(mesh, i, rows), rows))
             posed = self._posed[key] = PosedVertices(group, V, windows, P, np.zeros(P, bool))
             self.last_stats["windows"] += len(windows)
         need = self._need(P, posed.done, slots)
@@ -392,12 +390,10 @@ class PoseCache:
             out = skin_poses(mesh.positions, mesh.normals, mesh.joints[:, :mesh.n_inf], mesh.weights[:, :mesh.n_inf],
                              pal.palettes, mesh.targets, pal.frames)
             for w in posed.windows:
-                full = np.zeros((2, w.rows * POSED_WIDTH, 4), np.float32)
-                part = out[w.first:w.first + w.count].reshape(-1, POSED_FLOATS)
-                full[0, :part.shape[0]] = part[:, :4]
-                full[1, :part.shape[0]] = part[:, 4:]
-                w.positions.write(full[0].tobytes(), viewport=(0, 0, POSED_WIDTH, w.rows))
-                w.normals.write(full[1].tobytes(), viewport=(0, 0, POSED_WIDTH, w.rows))
+                full = np.zeros((w.rows * POSED_WIDTH // POSED_TEXELS, 4 * POSED_TEXELS), np.float32)
+                part = to_texels(out[w.first:w.first + w.count].reshape(-1, POSED_FLOATS))
+                full[:part.shape[0]] = part
+                w.texture.write(full.tobytes(), viewport=(0, 0, POSED_WIDTH, w.rows))
         else:
             self._skin_compute(mesh, pal, posed, need)
         posed.done |= need
@@ -405,17 +401,16 @@ class PoseCache:
         self.last_stats["posed_vertices"] += int(need.sum()) * V
         return posed
 
-    def _window_textures(self, mesh: _Mesh, i: int, rows: int) -> tuple:
-        """(positions, normals) textures of window ``i`` of ``mesh`` with at least ``rows`` rows (kept across
-        frames, re-made when a frame needs more rows)."""
+    def _window_texture(self, mesh: _Mesh, i: int, rows: int):
+        """The texture of window ``i`` of ``mesh`` with at least ``rows`` rows (kept across frames, re-made when
+        a frame needs more rows)."""
         while len(mesh.windows) <= i:
             mesh.windows.append(None)
         have = mesh.windows[i]
-        if have is None or have[0].height < rows:
-            for t in have or ():
-                t.release()
-            have = tuple(self._texture((POSED_WIDTH, rows), 4, "f4", f"poses.{mesh.digest[:8]}.window{i}.{what}")
-                         for what in ("positions", "normals"))
+        if have is None or have.height < rows:
+            if have is not None:
+                have.release()
+            have = self._texture((POSED_WIDTH, rows), 4, "f4", f"poses.{mesh.digest[:8]}.window{i}")
             mesh.windows[i] = have
         return have
 
@@ -529,8 +524,7 @@ class PoseCache:
             if not idx.size:
                 continue
             prog["u_posed_first"].value = win.first
-            win.positions.bind_to_image(0, read=False, write=True)
-            win.normals.bind_to_image(1, read=False, write=True)
+            win.texture.bind_to_image(0, read=False, write=True)
             for y0, n in slot_runs(idx, step):
                 if per_block > 0:  # this dispatch's palettes as the uniform block (16-byte aligned offsets)
                     self._ubo.bind_to_uniform_block(0, offset=16 * (pal.base + y0 * pal.stride),
@@ -539,6 +533,23 @@ class PoseCache:
                 prog["u_slot_start"].value = y0
                 prog.run(gx, n, 1)
         ctx.memory_barrier()
+
+
+def to_texels(rows: np.ndarray) -> np.ndarray:
+    """(n, 8) rows position, 1, normal, 0 (``render.poses.skin``) -> (n, 8) texel pairs (x, y, z, nx, ny, nz, 0, 0)."""
+    out = np.zeros_like(rows, dtype=np.float32)
+    out[:, :3] = rows[:, :3]
+    out[:, 3:6] = rows[:, 4:7]
+    return out
+
+
+def from_texels(texels: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`to_texels` (any leading shape): position, 1, normal, 0."""
+    out = np.zeros_like(texels, dtype=np.float32)
+    out[..., :3] = texels[..., :3]
+    out[..., 3] = 1.0
+    out[..., 4:7] = texels[..., 3:6]
+    return out
 
 
 def slot_runs(idx, step: int) -> list:
@@ -555,5 +566,5 @@ def slot_runs(idx, step: int) -> list:
     return out
 
 
-__all__ = ["POSED_NORMAL_UNIT", "POSED_POSITION_UNIT", "POSED_WIDTH", "POSED_BUDGET_BYTES", "POSED_VERTEX_BYTES", "POSED_WINDOW_BYTES", "SKINNING_PASSES",
+__all__ = ["POSED_TEXELS", "POSED_UNIT", "POSED_WIDTH", "POSED_BUDGET_BYTES", "POSED_VERTEX_BYTES", "POSED_WINDOW_BYTES", "SKINNING_PASSES",
            "PoseCache", "PosePalette", "PosedVertices", "PosedWindow", "mesh_digest", "slot_runs"]

@@ -31,7 +31,9 @@ while ``texelFetch`` is vectorised; on 100 copies of a 60 K-triangle character t
 with storage buffers and 102 ms with textures (a vertex pass reading in order: 122 ms against 65 ms). Work groups
 sharing vertices through shared memory (Nanite's cluster layout) measured 5x slower on llvmpipe (its barriers are
 coroutine switches). Skinned copies read the pose cache's posed vertices (``render/poses/cache.py``: one slot per
-distinct pose, skinned once), gathered by slot into the rasteriser's own table (``shaders/raster/raster_gather.glsl``);
+distinct pose, skinned once): read in place from the cache's window when every skinned copy of a window draws one
+mesh from one window of the cache (its layout is the rasteriser's posed table's), else gathered by slot into the
+rasteriser's own table (``shaders/raster/raster_gather.glsl``);
 a copy whose mesh the cache cannot pose this frame stays on the hardware path. A frame above a texture's size or a storage buffer's binding limit (llvmpipe: 128 MB)
 is cut into windows of whole copies, each through all passes (``frame``). Not taken by the compute path: MSAA
 renderers, geomorphed LOD levels, screen-door transitions, occlusion-culled cluster cuts, point splats' triangles.

@@ -3,9 +3,10 @@
 A frame's compute work is a list of instances (camera-relative model rows, a representation part or a
 triangle range, colour words). Its passes (render/raster/__init__.py gives the design):
 
-1. poses: skinned instances' posed vertices gathered from the pose cache (``render/poses/cache.py``, the one
-   place a frame's poses are evaluated: each distinct pose skinned once) into the posed table, one copy per pose
-   slot and vertex range (``raster_gather.glsl``);
+1. poses: skinned instances' posed vertices from the pose cache (``render/poses/cache.py``, the one place a
+   frame's poses are evaluated: each distinct pose skinned once), read in place when the window's skinned
+   instances all read one window of the cache, else gathered into the posed table, one copy per pose slot and
+   vertex range (``raster_gather.glsl``);
 2. vertex pass (``raster_vertex.glsl``): every used vertex of every instance to fixed-point window
    coordinates, depth and clip outcodes;
 3. depth pass (``raster_tri.glsl``): a thread per triangle: cull, set aside for the hardware path (too large,
@@ -367,11 +368,33 @@ class Raster:
 
     _count_pass = False
 
+    def _in_place(self, work, wi, posed, slots, vfirst):
+        """``(texture, first posed vertex per instance)`` when every skinned instance of the window (``posed``
+        (k,) bool) draws one mesh in one character's poses held in one window of the pose cache: the vertex pass
+        then reads that window in place (its layout is the posed table's, ``shaders/poses/posed.glsl``), with no
+        gather; else None."""
+        sel = np.flatnonzero(posed)
+        keys = {(work[b].pose_key, work[b].mesh.rep.key) for b in np.unique(wi[sel]).tolist()}
+        if len(keys) != 1:
+            return None
+        pose_key, mesh_key = keys.pop()
+        s = np.asarray(slots[sel], np.float64).round().astype(np.int64)
+        pv = self.r.poses.posed(pose_key, mesh_key, slots=s)
+        if pv is None:  # routing keeps such copies on the hardware path (render.raster.hook)
+            raise RuntimeError(f"compute raster: no posed vertices of {mesh_key!r} in the pose cache")
+        win = np.unique(pv.window_of(s))
+        if win.shape[0] != 1:
+            return None
+        w = pv.windows[int(win[0])]
+        base = np.zeros(posed.shape[0], np.int64)
+        base[sel] = (s - w.first) * pv.vertices + np.asarray(vfirst, np.int64)[sel]
+        return w.texture, base
+
     def _gather(self, work, wi, slots, vcount, vfirst, reps) -> None:
         """Copy the window's pose slots (``reps``: the instance standing for each, its record naming where the
         copy goes) from the pose cache's posed vertices into the posed table: one dispatch per mesh and posed
         window of the cache."""
-        from render.poses.cache import POSED_NORMAL_UNIT, POSED_POSITION_UNIT
+        from render.poses.cache import POSED_UNIT
 
         self.posed_table.texture.bind_to_image(1, read=False, write=True)
         cs = self._compute("raster_gather", (f"RS_VERTS_PER_THREAD {VERTS_PER_THREAD}",))
@@ -388,7 +411,7 @@ class Raster:
                 jobs = _vertex_jobs(vcount[part], vfirst[part])
                 jobs[:, 3] = slots[part][jobs[:, 0]].astype(np.uint32)
                 jobs[:, 0] = part[jobs[:, 0]]
-                pv.bind(int(wn), cs, (POSED_POSITION_UNIT, POSED_NORMAL_UNIT))
+                pv.bind(int(wn), cs, POSED_UNIT)
                 cs["u_njobs"].value = int(jobs.shape[0])
                 self._buffer("pose_jobs", jobs).bind_to_storage_buffer(5)
                 self._dispatch(cs, int(jobs.shape[0]))
@@ -408,8 +431,13 @@ class Raster:
         verts = np.array([m.verts for m in meshes], np.int64)[wi]
         screen = np.zeros(k, np.int64)
         np.cumsum(vcount[:-1], out=screen[1:])
-        # one posed copy per distinct (mesh, pose slot, vertex range): copies in one pose are gathered once
-        posed, posed_n, reps = pose_slots(kind == tb.POSED, mesh_rec, slots, vfirst, vcount, self.share_poses)
+        # the posed vertices read in place from the pose cache's window when all come from one, else one posed copy
+        # per distinct (mesh, pose slot, vertex range) gathered into the posed table: copies in one pose once
+        in_place = self._in_place(work, wi, kind == tb.POSED, slots, vfirst) if (kind == tb.POSED).any() else None
+        if in_place is None:
+            posed, posed_n, reps = tb.pose_slots(kind == tb.POSED, mesh_rec, slots, vfirst, vcount, self.share_poses)
+        else:
+            posed = in_place[1]
         wrap = lambda x: (np.asarray(x, np.int64) % (1 << 32)).astype(np.uint32)  # noqa: E731 (GLSL uint wraps)
         u = rows[:, 12]
         recs = tb.instance_records(rows, np.where(kind == tb.KEYFRAMED, u, 0.0), kind, flags, mesh_rec,
@@ -431,13 +459,16 @@ class Raster:
         self.job_table.ensure(jobs.shape[0])
         self.job_table.write(jobs)
         self.screen_table.ensure(int(vcount.sum()))
-        self.posed_table.ensure(max(1, int(posed_n.sum()) * tb.POSED_TEXELS))
         for name, t in (("u_rs_tris", self.tri_table), ("u_rs_mesh", self.mesh_table),
-                        ("u_rs_posed", self.posed_table), ("u_rs_inst", self.inst_table),
-                        ("u_rs_jobs", self.job_table), ("u_screen", self.screen_table)):
+                        ("u_rs_inst", self.inst_table), ("u_rs_jobs", self.job_table), ("u_screen", self.screen_table)):
             t.texture.use(UNITS[name])
-        # 1. poses (skinned instances), gathered from the pose cache
-        if (kind == tb.POSED).any():
+        if in_place is not None:
+            in_place[0].use(UNITS["u_rs_posed"])
+        else:
+            self.posed_table.ensure(max(1, int(posed_n.sum()) * tb.POSED_TEXELS))
+            self.posed_table.texture.use(UNITS["u_rs_posed"])
+        # 1. poses (skinned instances), gathered from the pose cache (unless read in place)
+        if in_place is None and (kind == tb.POSED).any():
             self._mark("tables")
             self._gather(work, wi, slots, vcount, vfirst, reps)
             self._mark("poses")
@@ -657,30 +688,3 @@ def _vertex_jobs(vcount, vfirst) -> np.ndarray:
     out[:, 1] = vfirst[ji] + c * VERTEX_JOB
     out[:, 2] = np.minimum(VERTEX_JOB, vcount[ji] - c * VERTEX_JOB)
     return out
-
-
-def pose_slots(posed, mesh, slot, vfirst, vcount, share: bool = True) -> tuple:
-    """Pose slots of a window's instances: (first posed vertex of each instance (its slot's base: the slot
-    holds the instance's vertex range), posed vertices per slot (k,) with 0 for all but the first instance of a
-    slot, the instances that represent the slots). Instances of one mesh in the same pose-cache slot with the
-    same vertex range share a slot (``share`` False: every instance its own slot); ``posed`` (k,) bool marks the
-    skinned instances."""
-    k = posed.shape[0]
-    base = np.zeros(k, np.int64)
-    n = np.zeros(k, np.int64)
-    sel = np.flatnonzero(posed)
-    if not sel.shape[0]:
-        return base, n, sel
-    key = np.stack([np.asarray(mesh, np.int64)[sel], np.asarray(slot, np.int64)[sel],
-                    np.asarray(vfirst, np.int64)[sel], np.asarray(vcount, np.int64)[sel]]
-                   + ([] if share else [sel]), 1)
-    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inv = inv.reshape(-1)
-    reps = sel[np.sort(first)]
-    order = np.argsort(np.argsort(first))  # unique rows in order of first appearance
-    sizes = np.asarray(vcount, np.int64)[reps]
-    starts = np.zeros(reps.shape[0], np.int64)
-    np.cumsum(sizes[:-1], out=starts[1:])
-    base[sel] = starts[order[inv]]
-    n[reps] = sizes
-    return base, n, reps

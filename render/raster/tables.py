@@ -1,5 +1,6 @@
 """CPU side of the compute rasteriser's tables (``shaders/raster/raster_common.glsl``): vertex records, triangle rows,
-instance records, and the 4096-wide textures that hold them.
+instance records, the 4096-wide textures that hold them, and the slots of the gathered posed vertices
+(:func:`pose_slots`).
 
 Why textures: llvmpipe scalarises a storage-buffer load whose address differs per lane (a bounds-checked
 load per lane), while ``texelFetch`` runs through its vectorised texture path. Measured on 100 copies of a
@@ -121,3 +122,30 @@ class Table:
         rest = n - full * WIDTH
         if rest:
             self.texture.write(flat[full * WIDTH:].tobytes(), viewport=(0, row0 + full, rest, 1))
+
+
+def pose_slots(posed, mesh, slot, vfirst, vcount, share: bool = True) -> tuple:
+    """Pose slots of a window's instances: (first posed vertex of each instance (its slot's base: the slot
+    holds the instance's vertex range), posed vertices per slot (k,) with 0 for all but the first instance of a
+    slot, the instances that represent the slots). Instances of one mesh in the same pose-cache slot with the
+    same vertex range share a slot (``share`` False: every instance its own slot); ``posed`` (k,) bool marks the
+    skinned instances."""
+    k = posed.shape[0]
+    base = np.zeros(k, np.int64)
+    n = np.zeros(k, np.int64)
+    sel = np.flatnonzero(posed)
+    if not sel.shape[0]:
+        return base, n, sel
+    key = np.stack([np.asarray(mesh, np.int64)[sel], np.asarray(slot, np.int64)[sel],
+                    np.asarray(vfirst, np.int64)[sel], np.asarray(vcount, np.int64)[sel]]
+                   + ([] if share else [sel]), 1)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    reps = sel[np.sort(first)]
+    order = np.argsort(np.argsort(first))  # unique rows in order of first appearance
+    sizes = np.asarray(vcount, np.int64)[reps]
+    starts = np.zeros(reps.shape[0], np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    base[sel] = starts[order[inv]]
+    n[reps] = sizes
+    return base, n, reps

@@ -355,6 +355,42 @@ def test_skinned_copies_with_morph_targets_match_the_hardware_path(gl_ctx):
     assert _psnr(hw, shared) >= 45.0 and (shared == alone).all()
 
 
+def test_posed_vertices_read_in_place_give_the_gathered_image(gl_ctx, monkeypatch):
+    """Skinned copies of one mesh whose poses sit in one window of the pose cache are read in place by the vertex
+    pass (the cache's layout is the posed table's, no gather: issue 44's none-exact cost); the image is the one
+    the gather into the rasteriser's own table gives, bit for bit."""
+    from tiny_characters import tiny_morphed
+
+    from lod.full.reps import build_rep
+    from render.raster import frame as rf
+
+    rep = build_rep(tiny_morphed(), fps=30)
+    k = 6
+    rows = np.zeros((k, 16), np.float32)
+    rows[:, [0, 5, 10]] = 0.25
+    rows[:, 3] = np.linspace(-0.9, 0.9, k)
+    rows[:, 7] = -0.4
+    rows[:, 11] = -4.0
+    rows[:, 12] = rep.clip_offset[0] + np.array([0.0, 3.5, 7.25, 3.5, 3.5, 11.0])
+    dl = _drawlist(rep, rows)
+    images, used = {}, []
+    orig = rf.Raster._in_place
+    for how in ("in place", "gathered"):
+        def spy(self, *a, _how=how):
+            out = orig(self, *a) if _how == "in place" else None
+            used.append((_how, out is not None))
+            return out
+
+        monkeypatch.setattr(rf.Raster, "_in_place", spy)
+        with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
+            r.upload(rep)
+            r.raster.route_all, r.raster_threshold = True, 64.0
+            r.draw(dl)
+            images[how] = r.read_pixels().copy()
+    assert ("in place", True) in used and ("gathered", False) in used
+    assert images["in place"].std() > 3 and (images["in place"] == images["gathered"]).all()
+
+
 def test_keyframed_segments_match_the_hardware_path(gl_ctx):
     """Keyframed copies (Wand & Strasser segments: start and end records mixed by each copy's u) of two
     segments through the compute path: the frame is the hardware path's within 45 dB."""

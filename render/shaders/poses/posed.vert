@@ -15,8 +15,11 @@ out vec4 v_color;
 
 void main() {
     int slot = int(i_anim.y + 0.5);
-    v_world = instance_point(posed_position(slot, gl_VertexID));
-    v_normal = instance_dir(posed_normal(slot, gl_VertexID));
+    vec3 p;
+    vec3 n;
+    posed_vertex(slot, gl_VertexID, p, n);
+    v_world = instance_point(p);
+    v_normal = instance_dir(n);
     v_color = tint_color(in_color, i_tint);
     gl_Position = u_view_proj * vec4(v_world, 1.0);
 }

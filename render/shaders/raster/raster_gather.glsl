@@ -26,8 +26,9 @@ void main() {
         uint k = q * 8u + gl_LocalInvocationID.x;
         if (k >= job.z) return;
         uint v = job.y + k;
-        vec3 p = posed_position(slot, int(v));
-        vec3 n = posed_normal(slot, int(v));
+        vec3 p;
+        vec3 n;
+        posed_vertex(slot, int(v), p, n);
         uint t = (r.posed + v) * RS_POSED;
         imageStore(u_posed_out, rs_texel(t), vec4(p, n.x));
         imageStore(u_posed_out, rs_texel(t + 1u), vec4(n.yz, 0.0, 0.0));
