@@ -28,16 +28,10 @@ import numpy as np
 
 from render.context import release_all, track
 from render.raster import tables as tb
+from render.raster.tables import CHUNK, LOG_CHUNK, VERTS_PER_THREAD
 from lod.raster_route import ASIDE_FACTOR, DEFAULT_THRESHOLD, MAX_THRESHOLD, triangle_extent  # noqa: F401
 from render.shaders import load_source, with_defines
 
-#: triangles per job (raster_common.glsl RS_LOG_CHUNK): a triangle's id is job * CHUNK + index, so a window
-#: holds at most 2^32 / CHUNK jobs
-LOG_CHUNK = 10
-CHUNK = 1 << LOG_CHUNK
-#: vertices per thread of the vertex and pose passes (8 threads a work group)
-VERTS_PER_THREAD = 16
-VERTEX_JOB = 8 * VERTS_PER_THREAD
 #: texture units of the tables (0..7: the renderer's joints, palette, morph and target tables, shadow map;
 #: 8, 9: the pose cache's posed vertices, render/poses/cache.py)
 UNITS = {"u_rs_tris": 20, "u_rs_mesh": 21, "u_rs_posed": 22, "u_rs_inst": 23, "u_rs_jobs": 24, "u_screen": 25}
@@ -49,6 +43,8 @@ TILE = 8
 FULL_SHADE_SHARE = 0.6
 #: lists of set-aside triangles (raster_tri.glsl): characters with back faces culled, other characters, the world
 SPILL_LISTS = 3
+#: most windows added to read the pose cache's windows in place (Raster._pose_cuts)
+MAX_POSE_CUTS = 16
 #: work groups per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS = 65535
 #: bytes a storage-buffer binding may address when the context does not say
@@ -346,7 +342,8 @@ class Raster:
         posed = np.array([w.mesh.kind == tb.POSED for w in work])[wi]
         max_tris, max_texels = self.limits()
         # windows of whole instances: triangles, screen texels, posed texels, instance records
-        cuts = _windows(tcount, vcount, np.where(posed, vcount * tb.POSED_TEXELS, 0), max_tris, max_texels)
+        cuts = tb.instance_cuts(tcount, vcount, np.where(posed, vcount * tb.POSED_TEXELS, 0), max_tris, max_texels)
+        cuts = self._pose_cuts(work, wi, slots, posed, cuts)
         counts["instances"] = int(rows.shape[0])
         counts["triangles"] = int(tcount.sum())
         vp = np.asarray(view_proj, np.float64)
@@ -367,6 +364,29 @@ class Raster:
         return np.frombuffer(self._ids.read(), np.uint32)[:w * h].reshape(h, w).copy()
 
     _count_pass = False
+
+    def _pose_cuts(self, work, wi, slots, posed, cuts: list) -> list:
+        """``cuts`` with windows also cut where the skinned instances (``posed``) move to another mesh or window of
+        the pose cache (a character posed beyond one cache window: 100 copies of a 60 K-vertex mesh in their own
+        poses), so that each window reads its posed vertices in place (:meth:`_in_place`); at most
+        :data:`MAX_POSE_CUTS` more windows, else the windows gather."""
+        sel = np.flatnonzero(posed)
+        if sel.shape[0] < 2:
+            return cuts
+        src = np.full(wi.shape[0], -1, np.int64)
+        meshes: dict = {}
+        for b in np.unique(wi[sel]).tolist():
+            w = work[b]
+            mine = sel[wi[sel] == b]
+            pv = self.r.poses.posed(w.pose_key, w.mesh.rep.key, slots=slots[mine])
+            if pv is not None:
+                m = meshes.setdefault((w.pose_key, w.mesh.rep.key), len(meshes))
+                src[mine] = (m << 20) + pv.window_of(slots[mine])
+        s = src[sel]
+        new = sel[1:][s[1:] != s[:-1]].tolist()
+        if not new or len(new) > MAX_POSE_CUTS:
+            return cuts
+        return sorted(set(cuts) | set(new))
 
     def _in_place(self, work, wi, posed, slots, vfirst):
         """``(texture, first posed vertex per instance)`` when every skinned instance of the window (``posed``
@@ -408,7 +428,7 @@ class Raster:
             win = pv.window_of(slots[sel])
             for wn in np.unique(win):
                 part = sel[win == wn]
-                jobs = _vertex_jobs(vcount[part], vfirst[part])
+                jobs = tb.vertex_jobs(vcount[part], vfirst[part])
                 jobs[:, 3] = slots[part][jobs[:, 0]].astype(np.uint32)
                 jobs[:, 0] = part[jobs[:, 0]]
                 pv.bind(int(wn), cs, POSED_UNIT)
@@ -452,7 +472,7 @@ class Raster:
         jobs[:, 0] = mesh_tri[ji] + tfirst[ji] + c * CHUNK
         jobs[:, 1] = np.minimum(CHUNK, tcount[ji] - c * CHUNK)
         jobs[:, 2] = ji
-        vjobs = _vertex_jobs(vcount, vfirst)
+        vjobs = tb.vertex_jobs(vcount, vfirst)
         # tables
         self.inst_table.ensure(k * tb.INST_TEXELS)
         self.inst_table.write(recs)
@@ -655,36 +675,3 @@ class Work:
             self.first, self.count = 0, int(self.tris.shape[0])
             lo = int(self.tris.min()) if self.tris.size else 0
             self.vfirst, self.vcount = lo, (int(self.tris.max()) - lo + 1 if self.tris.size else 0)
-
-
-def _windows(tcount, vcount, posed_texels, max_tris: int, max_texels: int) -> list:
-    """Instance indices where the windows start (and the end): each window's triangles, screen texels, posed
-    texels and instance records stay within the limits (an instance above them alone is a window of its own,
-    checked by the tables)."""
-    cuts, a = [0], 0
-    k = tcount.shape[0]
-    t = v = p = 0
-    for i in range(k):
-        nt, nv, npz = int(tcount[i]), int(vcount[i]), int(posed_texels[i])
-        if i > a and (t + nt > max_tris or v + nv > max_texels or p + npz > max_texels
-                      or (i - a + 1) * tb.INST_TEXELS > max_texels or (t + nt) // CHUNK + (i - a + 1) >= (1 << 32) // CHUNK):
-            cuts.append(i)
-            a, t, v, p = i, 0, 0, 0
-        t, v, p = t + nt, v + nv, p + npz
-    cuts.append(k)
-    return cuts
-
-
-def _vertex_jobs(vcount, vfirst) -> np.ndarray:
-    """(J, 4) uint32 vertex jobs (instance, first vertex, vertices, 0): each instance's vertices in runs of
-    VERTEX_JOB."""
-    nj = -(-np.asarray(vcount, np.int64) // VERTEX_JOB)
-    ji = np.repeat(np.arange(nj.shape[0]), nj)
-    js = np.zeros(nj.shape[0], np.int64)
-    np.cumsum(nj[:-1], out=js[1:])
-    c = np.arange(ji.shape[0]) - js[ji]
-    out = np.zeros((ji.shape[0], 4), np.uint32)
-    out[:, 0] = ji
-    out[:, 1] = vfirst[ji] + c * VERTEX_JOB
-    out[:, 2] = np.minimum(VERTEX_JOB, vcount[ji] - c * VERTEX_JOB)
-    return out

@@ -12,6 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 
+#: triangles per job (raster_common.glsl RS_LOG_CHUNK): a triangle's id is job * CHUNK + index, so a window
+#: holds at most 2^32 / CHUNK jobs
+LOG_CHUNK = 10
+CHUNK = 1 << LOG_CHUNK
+#: vertices per thread of the vertex and pose passes (8 threads a work group)
+VERTS_PER_THREAD = 16
+VERTEX_JOB = 8 * VERTS_PER_THREAD
 #: texels per texture row (raster_common.glsl rs_texel: texel t at (t & 4095, t >> 12))
 WIDTH = 4096
 #: texels per vertex record, per posed vertex, per instance record (raster_common.glsl RS_RECORD, RS_POSED, RS_INST)
@@ -149,3 +156,36 @@ def pose_slots(posed, mesh, slot, vfirst, vcount, share: bool = True) -> tuple:
     base[sel] = starts[order[inv]]
     n[reps] = sizes
     return base, n, reps
+
+
+def instance_cuts(tcount, vcount, posed_texels, max_tris: int, max_texels: int) -> list:
+    """Instance indices where the windows start (and the end): each window's triangles, screen texels, posed
+    texels and instance records stay within the limits (an instance above them alone is a window of its own,
+    checked by the tables)."""
+    cuts, a = [0], 0
+    k = tcount.shape[0]
+    t = v = p = 0
+    for i in range(k):
+        nt, nv, npz = int(tcount[i]), int(vcount[i]), int(posed_texels[i])
+        if i > a and (t + nt > max_tris or v + nv > max_texels or p + npz > max_texels
+                      or (i - a + 1) * INST_TEXELS > max_texels or (t + nt) // CHUNK + (i - a + 1) >= (1 << 32) // CHUNK):
+            cuts.append(i)
+            a, t, v, p = i, 0, 0, 0
+        t, v, p = t + nt, v + nv, p + npz
+    cuts.append(k)
+    return cuts
+
+
+def vertex_jobs(vcount, vfirst) -> np.ndarray:
+    """(J, 4) uint32 vertex jobs (instance, first vertex, vertices, 0): each instance's vertices in runs of
+    VERTEX_JOB."""
+    nj = -(-np.asarray(vcount, np.int64) // VERTEX_JOB)
+    ji = np.repeat(np.arange(nj.shape[0]), nj)
+    js = np.zeros(nj.shape[0], np.int64)
+    np.cumsum(nj[:-1], out=js[1:])
+    c = np.arange(ji.shape[0]) - js[ji]
+    out = np.zeros((ji.shape[0], 4), np.uint32)
+    out[:, 0] = ji
+    out[:, 1] = vfirst[ji] + c * VERTEX_JOB
+    out[:, 2] = np.minimum(VERTEX_JOB, vcount[ji] - c * VERTEX_JOB)
+    return out

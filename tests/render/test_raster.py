@@ -355,10 +355,12 @@ def test_skinned_copies_with_morph_targets_match_the_hardware_path(gl_ctx):
     assert _psnr(hw, shared) >= 45.0 and (shared == alone).all()
 
 
-def test_posed_vertices_read_in_place_give_the_gathered_image(gl_ctx, monkeypatch):
+@pytest.mark.parametrize("cache_windows", [1, 3])
+def test_posed_vertices_read_in_place_give_the_gathered_image(gl_ctx, monkeypatch, cache_windows):
     """Skinned copies of one mesh whose poses sit in one window of the pose cache are read in place by the vertex
-    pass (the cache's layout is the posed table's, no gather: issue 44's none-exact cost); the image is the one
-    the gather into the rasteriser's own table gives, bit for bit."""
+    pass (the cache's layout is the posed table's, no gather: issue 44's none-exact cost); poses spread over several
+    cache windows cut the raster's windows there, each read in place; the image is the one the gather into the
+    rasteriser's own table gives, bit for bit."""
     from tiny_characters import tiny_morphed
 
     from lod.full.reps import build_rep
@@ -385,9 +387,15 @@ def test_posed_vertices_read_in_place_give_the_gathered_image(gl_ctx, monkeypatc
         with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
             r.upload(rep)
             r.raster.route_all, r.raster_threshold = True, 64.0
+            r.raster.share_poses = False
+            V = rep.positions.shape[0]
+            r.poses.window_bytes = -(-k // cache_windows) * V * 32  # slots of 2 (3 windows) or all 6 per window
             r.draw(dl)
             images[how] = r.read_pixels().copy()
-    assert ("in place", True) in used and ("gathered", False) in used
+            assert len(r.poses._posed[next(iter(r.poses._posed))].windows) == cache_windows
+            assert r.raster.last_counts["windows"] == cache_windows
+    assert used.count(("in place", True)) == cache_windows and ("in place", False) not in used
+    assert ("gathered", False) in used
     assert images["in place"].std() > 3 and (images["in place"] == images["gathered"]).all()
 
 
