@@ -28,6 +28,9 @@ Units: PedPy reads the text format's unit from its header (``x/m``, ``x/cm``) an
 names it for a text file whose header does not (and must agree with a header that does). The other formats are
 in metres; ``unit = "cm"`` scales one that is not.
 
+A recording is parsed once: its columns are cached by content and memory-mapped on later runs
+(:mod:`sim.replay.cache`).
+
 Bad input raises :class:`sim.params.ParamError` with one sentence naming the file: an unreadable or truncated
 file, a format PedPy cannot read, NaN or infinite coordinates, duplicate (id, frame) rows, no rows at all.
 """
@@ -64,6 +67,8 @@ class Recording:
     start: np.ndarray
     frames: np.ndarray
     xy: np.ndarray
+    #: (R,) float64 search keys of :meth:`at` (made from the other columns when not given: a cached entry has them)
+    keys: np.ndarray | None = None
 
     @property
     def persons(self) -> int:
@@ -104,7 +109,7 @@ class Recording:
         lo, hi = self.start[p], self.start[p + 1] - 1
         f = np.clip(f, self.frames[lo], self.frames[hi])
         # rows of person p are start[p] .. start[p+1]-1 with increasing frames: a global sorted key finds them
-        k = np.searchsorted(self._keys, p * self._span + (f - self._f0), side="right") - 1
+        k = np.searchsorted(self.keys, p * self._span + (f - self._f0), side="right") - 1
         k0 = np.clip(k, lo, hi)
         k1 = np.minimum(k0 + 1, hi)
         df = self.frames[k1] - self.frames[k0]
@@ -114,8 +119,9 @@ class Recording:
     def __post_init__(self):
         self._f0 = self.first_frame
         self._span = (self.last_frame - self._f0) + 2.0
-        owner = np.repeat(np.arange(self.persons, dtype=np.float64), np.diff(self.start))
-        self._keys = owner * self._span + (self.frames - self._f0)
+        if self.keys is None:  # person p's rows sorted by frame, people back to back: one increasing key
+            owner = np.repeat(np.arange(self.persons, dtype=np.float64), np.diff(self.start))
+            self.keys = owner * self._span + (self.frames - self._f0)
 
 
 def from_columns(ids, frames, xy, frame_rate: float, source: str = "recording", format: str = "txt") -> Recording:
@@ -174,7 +180,8 @@ def _one_line(text: str, sentences: int = 2) -> str:
 
 
 def load(path, format: str | None = None, unit: str | None = None, frame_rate: float | None = None) -> Recording:
-    """Read a recording through PedPy (module docstring). Raises ParamError with one sentence naming the file."""
+    """Read a recording through PedPy (module docstring), once: a file read before comes memory-mapped from the
+    content-addressed cache (``sim.replay.cache``). Raises ParamError with one sentence naming the file."""
     path = Path(path)
     fmt = format_of(path, format)
     if fmt not in FORMATS:
@@ -187,6 +194,25 @@ def load(path, format: str | None = None, unit: str | None = None, frame_rate: f
     if fmt == "vadere" and frame_rate is None:
         raise ParamError("frame_rate", f"{path.name}: a Vadere file needs frame_rate (frames per second to "
                                        "sample its event times at)")
+    from sim.replay import cache
+
+    try:
+        k = cache.key(path, fmt, unit, frame_rate)
+    except OSError as e:
+        raise ParamError("file", f"{path.name}: cannot read ({e.strerror or e})") from None
+    hit = cache.load(k)
+    if hit is not None:  # read before: the columns memory-mapped, no parse
+        cols, meta = hit
+        return Recording(source=str(path), format=fmt, frame_rate=float(meta["frame_rate"]), ids=cols["ids"],
+                         start=cols["start"], frames=cols["frames"], xy=cols["xy"], keys=cols["keys"])
+    rec = _read(path, fmt, unit, frame_rate)
+    cache.save(k, {"ids": rec.ids, "start": rec.start, "frames": rec.frames, "xy": rec.xy, "keys": rec.keys},
+               {"frame_rate": rec.frame_rate, "format": fmt, "source": path.name, "rows": rec.rows})
+    return rec
+
+
+def _read(path: Path, fmt: str, unit, frame_rate) -> Recording:
+    """Parse a recording through PedPy (:func:`load` checked the arguments)."""
     try:
         import pedpy
     except ImportError:  # pragma: no cover - pedpy is a dependency

@@ -310,3 +310,36 @@ def test_bad_character_choice_is_one_line(tmp_path, choice, key, words):
     assert key in msg and "\n" not in msg, msg
     for w in words:
         assert w in msg, msg
+
+
+def test_a_recording_is_parsed_once_then_memory_mapped_from_the_cache(tmp_path, monkeypatch):
+    import pedpy
+
+    from sim.replay import cache
+
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    file = write_txt(tmp_path / "three.txt", three_people())
+    first = load(file)
+    entries = sorted(p.name for p in cache.cache_dir().iterdir())
+    assert len(entries) == 1 and not entries[0].startswith(".")  # one whole entry, no temporary left
+
+    def no_parse(**kw):
+        raise AssertionError("parsed again")
+
+    monkeypatch.setattr(pedpy, "load_trajectory_from_txt", no_parse)
+    again = load(file)
+    assert isinstance(again.xy, np.memmap) and isinstance(again.keys, np.memmap)
+    for name in ("ids", "start", "frames", "xy", "keys"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
+    np.testing.assert_array_equal(again.at([0, 1, 2], 20.5), first.at([0, 1, 2], 20.5))
+    # another content is another entry (and is parsed); a broken entry is parsed and written again
+    monkeypatch.undo()
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    file.write_text(file.read_text().replace("\t1.7", "\t1.8", 1))
+    load(file)
+    assert len(list(cache.cache_dir().iterdir())) == 2
+    (cache.cache_dir() / entries[0] / "xy.npy").unlink()
+    file.write_text(file.read_text().replace("\t1.8", "\t1.7", 1))
+    assert cache.load(entries[0]) is None
+    np.testing.assert_array_equal(load(file).xy, first.xy)
+    assert cache.load(entries[0]) is not None
