@@ -53,31 +53,44 @@ def walkable_of(effects: list):
     return _walkable(effects[at].params, effects[ob].params if ob is not None else None)
 
 
+def _obstacles_file(effects: list, key: str, layer_key: str, fail, base):
+    """``(index, spec, cfg copy, where, path, areas)`` of the ``obstacles`` effect's floor-plan key ``key`` (read
+    with ``sim.routing.floor_plan.load_walkable``, relative to ``base``; ``layer_key`` its DXF layer), or None
+    when the effect or the key is absent; problems go to ``fail(key, message)``."""
+    at = _find(effects, "obstacles")
+    if at is None:
+        return None
+    ob = effects[at]
+    cfg = dict(ob.params)
+    where = f"effects[{ob.index}]"
+    if cfg.get(layer_key) is not None and cfg.get(key) is None:
+        fail(f"{where}.{layer_key}", f"only with `{key}` (a DXF drawing's layer)")
+    if cfg.get(key) is None:
+        return None
+    from pathlib import Path
+
+    from sim.routing.floor_plan import FloorPlanError, load_walkable
+
+    path = (Path(base or ".") / cfg[key]).resolve()
+    try:
+        areas = load_walkable(path, cfg.get(layer_key))
+    except FloorPlanError as e:
+        fail(f"{where}.{key}", str(e))
+    cfg[key] = str(path)
+    return at, ob, cfg, where, path, areas
+
+
 def apply_obstacle_file(effects: list, fail, base=None) -> None:
     """The ``obstacles`` effect's ``file`` (a floor plan relative to the scene's folder ``base``): its areas join
     the effect's ``polygons`` (each outer ring a solid; an area with a hole is refused: its hole would be a
     walkable pocket inside a solid), in place on ``effects``; problems go to ``fail(key, message)``."""
-    at = _find(effects, "obstacles")
-    if at is None:
+    got = _obstacles_file(effects, "file", "layer", fail, base)
+    if got is None:
         return
-    ob = effects[at]
-    cfg = dict(ob.params)
-    where = f"effects[{ob.index}]"
-    if cfg.get("layer") is not None and cfg.get("file") is None:
-        fail(f"{where}.layer", "only with `file` (a DXF drawing's layer)")
-    if cfg.get("file") is None:
-        return
-    from pathlib import Path
-
+    at, ob, cfg, where, path, areas = got
     from sim.obstacles import PARAMS as OBSTACLE_PARAMS
     from sim.params import ParamError
-    from sim.routing.floor_plan import FloorPlanError, load_walkable
 
-    path = (Path(base or ".") / cfg["file"]).resolve()
-    try:
-        areas = load_walkable(path, cfg.get("layer"))
-    except FloorPlanError as e:
-        fail(f"{where}.file", str(e))
     for k, a in enumerate(areas):
         if a["holes"]:
             fail(f"{where}.file", f"{path}: area {k} has a hole; an obstacle is solid (draw the hole's inside as "
@@ -87,7 +100,6 @@ def apply_obstacle_file(effects: list, fail, base=None) -> None:
     except ParamError as e:
         fail(e.key, f"{path}: {e.message}")
     cfg["polygons"] = list(cfg.get("polygons", [])) + extra
-    cfg["file"] = str(path)
     effects[at] = dataclasses.replace(ob, params=cfg)
 
 
@@ -96,33 +108,20 @@ def apply_obstacle_walls(effects: list, fail, base=None) -> None:
     ``wall_thickness`` thick around its walkable area's outline and holes (``sim.routing.effect.with_walls``, as
     routing's ``walkable_file`` gives them) join the effect's ``polygons``, in place on ``effects``; problems go to
     ``fail(key, message)``."""
-    at = _find(effects, "obstacles")
-    if at is None:
+    got = _obstacles_file(effects, "walls_file", "walls_layer", fail, base)
+    if got is None:
         return
-    ob = effects[at]
-    cfg = dict(ob.params)
-    where = f"effects[{ob.index}]"
-    if cfg.get("walls_layer") is not None and cfg.get("walls_file") is None:
-        fail(f"{where}.walls_layer", "only with `walls_file` (a DXF drawing's layer)")
-    if cfg.get("walls_file") is None:
-        return
-    from pathlib import Path
-
+    at, ob, cfg, where, path, areas = got
     from sim.params import ParamError
     from sim.routing.effect import PARAMS as ROUTING_PARAMS
     from sim.routing.effect import with_walls
-    from sim.routing.floor_plan import FloorPlanError, load_walkable
 
-    path = (Path(base or ".") / cfg["walls_file"]).resolve()
     try:
-        walkable = ROUTING_PARAMS["walkable"].check(f"{where}.walls_file", load_walkable(path, cfg.get("walls_layer")))
-    except FloorPlanError as e:
-        fail(f"{where}.walls_file", str(e))
+        walkable = ROUTING_PARAMS["walkable"].check(f"{where}.walls_file", areas)
     except ParamError as e:
         fail(e.key, f"{path}: {e.message}")
     cfg = with_walls({"walkable": walkable, "wall_thickness": cfg["wall_thickness"],
                       "wall_height": cfg["wall_height"]}, cfg)
-    cfg["walls_file"] = str(path)
     effects[at] = dataclasses.replace(ob, params=cfg)
 
 

@@ -325,6 +325,18 @@ def test_far_from_the_origin(gl_ctx):
     assert (a == b).all() and a.std() > 0
 
 
+def _row_of_copies(rep, k: int) -> np.ndarray:
+    """Instance rows of ``k`` copies of ``rep`` side by side, at different times and the same time (frame
+    coordinates 0, 3.5, 7.25, 3.5, 3.5, 11 past the clip's offset)."""
+    rows = np.zeros((k, 16), np.float32)
+    rows[:, [0, 5, 10]] = 0.25
+    rows[:, 3] = np.linspace(-0.9, 0.9, k)
+    rows[:, 7] = -0.4
+    rows[:, 11] = -4.0
+    rows[:, 12] = rep.clip_offset[0] + np.resize(np.array([0.0, 3.5, 7.25, 3.5, 3.5, 11.0]), k)
+    return rows
+
+
 def test_skinned_copies_with_morph_targets_match_the_hardware_path(gl_ctx):
     """A skinned character with morph targets (the pose pass morphs, then skins: targets.glsl, skinning.glsl),
     copies at different times and the same time, every copy routed to compute: the frame is the hardware
@@ -336,12 +348,7 @@ def test_skinned_copies_with_morph_targets_match_the_hardware_path(gl_ctx):
     rep = build_rep(tiny_morphed(), fps=30)
     assert rep.targets is not None
     k = 6
-    rows = np.zeros((k, 16), np.float32)
-    rows[:, [0, 5, 10]] = 0.25
-    rows[:, 3] = np.linspace(-0.9, 0.9, k)
-    rows[:, 7] = -0.4
-    rows[:, 11] = -4.0
-    rows[:, 12] = rep.clip_offset[0] + np.array([0.0, 3.5, 7.25, 3.5, 3.5, 11.0])  # frame coordinates
+    rows = _row_of_copies(rep, k)
     dl = _drawlist(rep, rows)
     with Renderer(SIZE, ctx=gl_ctx, debug=True) as r:
         r.upload(rep)
@@ -368,12 +375,7 @@ def test_posed_vertices_read_in_place_give_the_gathered_image(gl_ctx, monkeypatc
 
     rep = build_rep(tiny_morphed(), fps=30)
     k = 6
-    rows = np.zeros((k, 16), np.float32)
-    rows[:, [0, 5, 10]] = 0.25
-    rows[:, 3] = np.linspace(-0.9, 0.9, k)
-    rows[:, 7] = -0.4
-    rows[:, 11] = -4.0
-    rows[:, 12] = rep.clip_offset[0] + np.array([0.0, 3.5, 7.25, 3.5, 3.5, 11.0])
+    rows = _row_of_copies(rep, k)
     dl = _drawlist(rep, rows)
     images, used = {}, []
     orig = rf.Raster._in_place
