@@ -14,7 +14,10 @@ the frame's entered and left counts).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit, prange
 
 from sim.params import Param, ParamError
 from sim.replay.track import HEADING_MIN_SPEED, Track
@@ -30,6 +33,7 @@ class Replay:
         self.tracks = tracks
         self.track = np.asarray(track, np.int32)
         self.person = np.asarray(person, np.int64)
+        self.cursor = np.full((self.person.shape[0], 3), -1, np.int64)  # rows found last frame (Track.kinematics)
         self.frame_dt = float(frame_dt)
         self.entered = 0  # this frame's counts (take_frame_counts)
         self.left = 0
@@ -47,7 +51,9 @@ class Replay:
         person = np.full(src.shape[0], -1, np.int64)
         track[ok] = self.track[src[ok]]
         person[ok] = self.person[src[ok]]
-        self.track, self.person = track, person
+        cursor = np.full((src.shape[0], 3), -1, np.int64)
+        cursor[ok] = self.cursor[src[ok]]
+        self.track, self.person, self.cursor = track, person, cursor
 
     def take_frame_counts(self) -> dict:
         out = {"entered": self.entered, "left": self.left}
@@ -100,20 +106,36 @@ class Replay:
             idx = np.flatnonzero(self.track == k)
             if not idx.size:
                 continue
-            xy, v = t.kinematics(self.person[idx], f)
-            st.position[idx, 0] = xy[:, 0]
-            st.position[idx, 2] = xy[:, 1]
-            st.velocity[idx, 0] = v[:, 0]
-            st.velocity[idx, 1] = 0.0
-            st.velocity[idx, 2] = v[:, 1]
-            speed = np.hypot(v[:, 0], v[:, 1])
-            moving = speed > HEADING_MIN_SPEED
-            st.heading[idx[moving]] = np.arctan2(v[moving, 0], v[moving, 1])
-            natural = _natural_speed(speeds, st.character[idx], st.clip[idx])
-            hd = st.heading[idx]  # the clip advances by the walk along the heading (a step back: backwards)
-            speed = v[:, 0] * np.sin(hd) + v[:, 1] * np.cos(hd)
-            rate = np.where(natural > 0, speed / np.where(natural > 0, natural, 1.0), 1.0)
-            st.anim_rate[idx] = rate.astype(np.float32)
+            whole = idx.shape[0] == st.n  # one track holds every agent: its rows in place
+            cur = self.cursor if whole else self.cursor[idx]
+            rows = t.kinematic_rows(self.person if whole else self.person[idx], f, cur)
+            if not whole:
+                self.cursor[idx] = cur
+            _place_kernel(idx, rows, np.ascontiguousarray(speeds, np.float64), st.character, st.clip,
+                          float(HEADING_MIN_SPEED), st.position, st.velocity, st.heading, st.anim_rate)
+
+
+@njit(cache=True, parallel=True)
+def _place_kernel(idx, rows, speeds, character, clip, min_speed, position, velocity, heading,
+                  anim_rate):  # pragma: no cover - compiled
+    """Agents ``idx`` to their recorded floor positions and velocities; the heading follows the velocity above
+    ``min_speed`` (kept below it: no spin standing); the clip advances by the walk along the heading over its
+    natural speed (``speeds`` (C, M), by the agent's character and clip; a step back plays it backwards; 1
+    without a natural speed). ``rows``: (k, 4) x, y, vx, vy."""
+    C, M = speeds.shape
+    for a in prange(idx.shape[0]):
+        i = idx[a]
+        vx, vy = rows[a, 2], rows[a, 3]
+        position[i, 0] = rows[a, 0]
+        position[i, 2] = rows[a, 1]
+        velocity[i, 0] = vx
+        velocity[i, 1] = 0.0
+        velocity[i, 2] = vy
+        if math.sqrt(vx * vx + vy * vy) > min_speed:
+            heading[i] = math.atan2(vx, vy)
+        h, c = character[i], clip[i]
+        n = speeds[h, c] if 0 <= h < C and 0 <= c < M else 0.0
+        anim_rate[i] = (vx * math.sin(heading[i]) + vy * math.cos(heading[i])) / n if n > 0 else 1.0
 
 
 def _clip_speeds(world) -> np.ndarray:
@@ -124,13 +146,6 @@ def _clip_speeds(world) -> np.ndarray:
     if not isinstance(table, ClipTable) or table.n_characters != len(world.characters):
         table = ClipTable(world.characters)
     return table.speed
-
-
-def _natural_speed(speeds: np.ndarray, character, clip) -> np.ndarray:
-    ch = np.asarray(character, np.int64)
-    cl = np.asarray(clip, np.int64)
-    ok = (ch >= 0) & (ch < speeds.shape[0]) & (cl >= 0) & (cl < speeds.shape[1])
-    return np.where(ok, speeds[np.where(ok, ch, 0), np.where(ok, cl, 0)], 0.0)
 
 
 def install(world, cfg: dict) -> None:

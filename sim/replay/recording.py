@@ -81,20 +81,20 @@ class Recording:
     @property
     def first(self) -> np.ndarray:
         """(P,) float64 first recorded frame of each person."""
-        return self.frames[self.start[:-1]]
+        return self._first
 
     @property
     def last(self) -> np.ndarray:
         """(P,) float64 last recorded frame of each person."""
-        return self.frames[self.start[1:] - 1]
+        return self._last
 
     @property
     def first_frame(self) -> float:
-        return float(self.frames.min()) if self.rows else 0.0
+        return self._first_frame
 
     @property
     def last_frame(self) -> float:
-        return float(self.frames.max()) if self.rows else 0.0
+        return self._last_frame
 
     def alive(self, frame: float) -> np.ndarray:
         """(P,) bool: persons recorded at ``frame`` (between their first and last recorded frames, inclusive)."""
@@ -117,6 +117,10 @@ class Recording:
         return self.xy[k0] * (1.0 - a) + self.xy[k1] * a
 
     def __post_init__(self):
+        self._first = np.asarray(self.frames[self.start[:-1]], np.float64)
+        self._last = np.asarray(self.frames[self.start[1:] - 1], np.float64)
+        self._first_frame = float(self._first.min()) if self._first.size else 0.0
+        self._last_frame = float(self._last.max()) if self._last.size else 0.0
         self._f0 = self.first_frame
         self._span = (self.last_frame - self._f0) + 2.0
         if self.keys is None:  # person p's rows sorted by frame, people back to back: one increasing key

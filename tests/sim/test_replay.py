@@ -343,3 +343,31 @@ def test_a_recording_is_parsed_once_then_memory_mapped_from_the_cache(tmp_path, 
     assert cache.load(entries[0]) is None
     np.testing.assert_array_equal(load(file).xy, first.xy)
     assert cache.load(entries[0]) is not None
+
+
+def test_kinematics_with_cursors_are_the_searched_ones_frame_after_frame_and_back():
+    """The replay's per-frame kernel keeps each person's rows from the frame before (sim.replay.track); forwards,
+    backwards and from nothing it gives what a search from scratch (Recording.at) gives."""
+    from sim.replay.track import SMOOTHING_S, Track
+
+    rng = np.random.default_rng(4)
+    ids, frames, xy = [], [], []
+    for p in range(40):  # people with gaps in their frames and different spans
+        f = np.sort(rng.choice(np.arange(200), size=rng.integers(2, 60), replace=False))
+        ids += [p] * f.shape[0]
+        frames += f.tolist()
+        xy += rng.normal(size=(f.shape[0], 2)).tolist()
+    rec = from_columns(ids, frames, xy, 25.0, "r.txt")
+    track = Track(recording=rec, choices=np.array([[0, 0, 1.0, 1.0, 1.0]]))
+    persons = np.arange(rec.persons)
+    cur = np.full((rec.persons, 3), -1, np.int64)
+    w = SMOOTHING_S * rec.frame_rate
+    for f in list(np.arange(-5.0, 210.0, 0.37)) + [150.0, 3.2, 99.9]:  # forwards, then back
+        got_xy, got_v = track.kinematics(persons, f, cur)
+        np.testing.assert_allclose(got_xy, rec.at(persons, f), rtol=0, atol=1e-12)
+        lo, hi = rec.first, rec.last
+        fa, fb = np.clip(f - w, lo, hi), np.clip(f + w, lo, hi)
+        span = (fb - fa) / rec.frame_rate
+        want_v = np.where(span[:, None] > 0, (rec.at(persons, fb) - rec.at(persons, fa))
+                          / np.where(span > 0, span, 1.0)[:, None], 0.0)
+        np.testing.assert_allclose(got_v, want_v, rtol=0, atol=1e-9)

@@ -1,0 +1,121 @@
+"""Benchmark: the replay step of a large recorded crowd (issue 47, item 2; ``sim.replay``).
+
+    python scripts/bench_replay.py [--people 1000 10000 100000 1000000] [--frames 30] [--md scripts/bench_replay.md]
+
+A synthetic recording per size: N people on a square grid 2 m apart, each walking a straight line at 1-1.4 m/s in
+its own direction for the whole 60 s, recorded at 1 fps (60 rows each, as Pathfinder exports; 60 M rows at a
+million), built as columns (``sim.replay.from_columns``: no text file, no PedPy). Each size runs in its own
+process: the recording, its placement's agents (the people at the first frame), the effect ``replay`` alone in a
+world stepped at 30 fps without drawing. Printed per size: the rows, the median and slowest replay step over
+``--frames`` frames after 3 warm-up frames, and the process's peak RSS (``ru_maxrss``) with the recording in
+memory. The issue's targets at a million: the step at most 20 ms, peak memory at most 500 MB above a 1,000-person
+run.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+#: seconds recorded, recorded frames per second, scene frames per second
+SECONDS, RATE, FPS = 60, 1.0, 30.0
+
+
+def recording(n: int):
+    """The synthetic recording of ``n`` people (module docstring)."""
+    from sim.replay import from_columns
+
+    side = int(np.ceil(np.sqrt(n)))
+    rng = np.random.default_rng(7)
+    i = np.arange(n)
+    x0, y0 = 2.0 * (i % side), 2.0 * (i // side)
+    ang = rng.uniform(-np.pi, np.pi, n)
+    speed = rng.uniform(1.0, 1.4, n)
+    t = np.arange(int(SECONDS * RATE) + 1) / RATE
+    ids = np.repeat(i, t.shape[0])
+    frames = np.tile(np.arange(t.shape[0], dtype=np.float64), n)
+    tt = np.tile(t, n)
+    xy = np.stack([np.repeat(x0, t.shape[0]) + np.repeat(np.cos(ang) * speed, t.shape[0]) * tt,
+                   np.repeat(y0, t.shape[0]) + np.repeat(np.sin(ang) * speed, t.shape[0]) * tt], axis=1)
+    return from_columns(ids, frames, xy, RATE, source=f"synthetic-{n}")
+
+
+def run_one(n: int, frames: int) -> dict:
+    """One size, in this process: ``{"rows", "median_ms", "max_ms", "peak_mb", "build_s"}``."""
+    import resource
+
+    import sim.replay.effect as effect
+    from sim.replay.track import Track
+    from sim.world import World
+
+    t0 = time.perf_counter()
+    rec = recording(n)
+    track = Track(recording=rec, choices=np.array([[0, 0, 1.0, 1.0, 1.1]]), rng=np.random.default_rng(1))
+    persons = np.flatnonzero(rec.alive(rec.first_frame))
+    state = track.agents(persons, rec.first_frame)
+    state.tracks = [(0, state.n, track, persons)]
+    world = World(state=state, characters=[])
+    effect.install(world, {"dt": 1.0 / FPS})
+    build = time.perf_counter() - t0
+    times = []
+    for k in range(3 + frames):
+        t = {}
+        world.step(1.0 / FPS, 1, t)
+        if k >= 3:
+            times.append(t["replay"])
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return {"people": n, "rows": rec.rows, "median_ms": 1e3 * float(np.median(times)),
+            "max_ms": 1e3 * float(np.max(times)), "peak_mb": peak, "build_s": build, "agents": world.state.n}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--people", type=int, nargs="+", default=[1000, 10000, 100000, 1000000])
+    ap.add_argument("--frames", type=int, default=30, help="timed frames per size (after 3 warm-up frames)")
+    ap.add_argument("--md", type=Path, help="write the table here (atomically)")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: one size in this process
+    a = ap.parse_args(argv)
+    if a.frames < 1 or any(n < 1 for n in a.people):
+        print("bench_replay.py: --frames and every --people must be >= 1", file=sys.stderr)
+        return 2
+    if a.one:
+        print(json.dumps(run_one(a.one, a.frames)))
+        return 0
+    rows = []
+    for n in a.people:
+        p = subprocess.run([sys.executable, __file__, "--one", str(n), "--frames", str(a.frames)],
+                           capture_output=True, text=True)
+        if p.returncode:
+            print(f"bench_replay.py: {n:,} people failed: {p.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+            return 1
+        r = json.loads(p.stdout.strip().splitlines()[-1])
+        rows.append(r)
+        print(f"{n:,} people ({r['rows']:,} rows): replay step median {r['median_ms']:.1f} ms, slowest "
+              f"{r['max_ms']:.1f} ms; peak RSS {r['peak_mb']:.0f} MB; built in {r['build_s']:.1f} s")
+    if a.md:
+        from sim.atomic_io import write_atomic
+
+        base = next((r["peak_mb"] for r in rows if r["people"] == 1000), None)
+        lines = ["# Replay step of a large recorded crowd (issue 47, item 2)", "",
+                 f"Command: `scripts/bench_replay.py --people {' '.join(map(str, a.people))} --frames {a.frames} "
+                 f"--md {a.md}`. Synthetic recordings, {SECONDS} s at {RATE:g} fps, everyone recorded throughout, "
+                 f"replayed at {FPS:g} fps with no drawing (module docstring). Targets at a million: step <= 20 ms, "
+                 "peak memory <= 500 MB above 1,000 people.", "",
+                 "| people | rows | replay step median ms | slowest ms | peak RSS MB | above 1,000 people MB |",
+                 "| ---: | ---: | ---: | ---: | ---: | ---: |"]
+        above = ["" if base is None else f"{r['peak_mb'] - base:.0f}" for r in rows]
+        lines += [f"| {r['people']:,} | {r['rows']:,} | {r['median_ms']:.1f} | {r['max_ms']:.1f} | {r['peak_mb']:.0f} | "
+                  f"{d} |" for r, d in zip(rows, above)]
+        write_atomic(a.md, "\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
