@@ -33,7 +33,7 @@ from lod.raster_route import ASIDE_FACTOR, DEFAULT_THRESHOLD, MAX_THRESHOLD, tri
 from render.shaders import load_source, with_defines
 
 #: texture units of the tables (0..7: the renderer's joints, palette, morph and target tables, shadow map;
-#: 8, 9: the pose cache's posed vertices, render/poses/cache.py)
+#: 8: the pose cache's posed vertices, render/poses/cache.py POSED_UNIT)
 UNITS = {"u_rs_tris": 20, "u_rs_mesh": 21, "u_rs_posed": 22, "u_rs_inst": 23, "u_rs_jobs": 24, "u_screen": 25}
 #: side (pixels) of the tiles the id pass marks: the shading pass draws the marked tiles only (a crowd
 #: covers a small share of the screen: 100 copies of a 60 K-triangle character fill 3 % of 1280 x 720, where
