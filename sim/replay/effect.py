@@ -45,15 +45,11 @@ class Replay:
             self.started[k][self.person[self.track == k]] = True
 
     def remap_agents(self, src, state=None) -> None:
-        src = np.asarray(src, np.int64)
-        ok = src >= 0
-        track = np.full(src.shape[0], -1, np.int32)
-        person = np.full(src.shape[0], -1, np.int64)
-        track[ok] = self.track[src[ok]]
-        person[ok] = self.person[src[ok]]
-        cursor = np.full((src.shape[0], 3), -1, np.int64)
-        cursor[ok] = self.cursor[src[ok]]
-        self.track, self.person, self.cursor = track, person, cursor
+        from sim.population import remap_rows
+
+        self.track = remap_rows(self.track, src, -1)  # entered agents: no track yet (step fills its own)
+        self.person = remap_rows(self.person, src, -1)
+        self.cursor = remap_rows(self.cursor, src, -1)
 
     def take_frame_counts(self) -> dict:
         out = {"entered": self.entered, "left": self.left}
