@@ -62,9 +62,15 @@ def main(argv=None) -> int:
     missing = [n for n in args.scenes if not (ROOT / "scenes" / f"{n}.toml").is_file()]
     if missing:
         ap.error(f"no scene {missing[0]!r} in {ROOT / 'scenes'}")
+    from crowd.errors import user_errors
+
     for name in args.scenes:
         t = time.perf_counter()
-        p = picture(name, size, max(0, args.frames), args.lod, Path(args.out))
+        try:
+            p = picture(name, size, max(0, args.frames), args.lod, Path(args.out))
+        except user_errors() as e:  # a scene the code refuses (a replay without its data): one sentence, exit 2
+            print(f"world_pictures.py: {str(e).splitlines()[0]}", file=sys.stderr)
+            return 2
         print(f"{p}: {size[0]}x{size[1]}, {time.perf_counter() - t:.1f} s")
     return 0
 
