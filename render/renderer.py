@@ -110,6 +110,7 @@ _DRAW_ATTRS = (*_INSTANCE_ATTRS, "i_tint")  # + the colour words (render/tint.py
 PLUGIN_KINDS: dict[str, str] = {
     "clusters": "render.clusters.draw",
     "points": "render.points.draw",
+    "far": "render.far.draw",  # the far tier (lod.far): one pre-filtered splat per far agent
     "world": "render.world.draw",  # ground, obstacle solids, props (lod.props)
 }
 

@@ -25,7 +25,7 @@ from pathlib import Path
 #: folder holding the GLSL files, one subfolder per render family
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 #: the family folders, in the order of ``render/__init__.py``
-SHADER_FAMILIES = ("core", "poses", "points", "raster", "clusters", "world")
+SHADER_FAMILIES = ("core", "poses", "points", "raster", "clusters", "world", "far")
 #: file-name suffix of each stage, in moderngl's keyword names
 STAGE_SUFFIX = {"vertex_shader": ".vert", "fragment_shader": ".frag", "geometry_shader": ".geom"}
 #: fragment stage used when a program has no fragment file of its own

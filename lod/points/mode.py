@@ -43,6 +43,7 @@ import numpy as np
 
 from lod.drawlist import DrawList
 from lod.full.mode import NoLodSelector
+from lod.far.build import build_far_split, merge
 from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points import config as C
 from lod.points.coarse import add_coarse
@@ -315,9 +316,12 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
             r = build_points_rep(ch, n, p, cache, progress, clips=c)
         reps.append(r)
     plan = build_instancing(instancing, reps, list(names), p, cache, progress, variation=variation)
+    # the far tier (lod.far): footprints measured on the full-detail reps; not beside instancing groups
+    far = build_far_split(characters, names, fps, clips, float(p["far_pixels"])) if plan is None else None
     sel = PointsSelector(reps, static_reps=static_reps, splat_size=int(p["splat_size"]), instancing=plan,
-                         splat_blend=float(p["splat_blend"]))
-    return reps + (plan.reps if plan is not None else []), sel
+                         splat_blend=float(p["splat_blend"]), far=far)
+    return reps + (plan.reps if plan is not None else []) + (far.uploads if far is not None else []), sel
+
 
 
 # ---------------------------------------------------------------------------- selector
@@ -351,7 +355,7 @@ class PointsSelector:
     """
 
     def __init__(self, reps, static_reps=(), splat_size: int = 2, instancing=None, pose_rate="key",
-                 splat_blend: float | None = None):
+                 splat_blend: float | None = None, far=None):
         if not 1 <= int(splat_size) <= 3:
             raise ValueError(f"[lod] splat_size: expected 1, 2 or 3 pixels, got {splat_size}")
         self.reps = list(reps)
@@ -367,6 +371,8 @@ class PointsSelector:
         if instancing is not None:
             for r in instancing.reps:
                 self._by_key[r.key] = r
+        #: the far tier's split (``lod.far.select.FarSplit``) or None
+        self.far = far
 
     def select(self, state, camera, size, statics=()) -> DrawList:
         """DrawList of :class:`PointsBatch` (plus static batches); stats hold
@@ -374,7 +380,7 @@ class PointsSelector:
         w, h = int(size[0]), int(size[1])
         planes = camera.frustum_planes(w / max(1, h))
         vs = viewport_scale(h, camera.fov_y)
-        supers, represented = [], 0
+        supers, represented, far = [], 0, None
         if self.instancing is not None and state.n:
             origin = np.asarray(camera.position, np.float64)
             draws, flat = self.instancing.select(state, origin, planes, vs, self.splat_size)
@@ -387,6 +393,9 @@ class PointsSelector:
                 dl.stats["super_nodes"] = int(sum(b.n_instances for b in supers))
             else:
                 dl = self._base.select(state, camera, size, statics)
+        elif self.far is not None and self.far.active:  # far agents first (lod.far), the rest as usual
+            far = self.far.split(state, camera, size, vs, planes)  # (near agents, far batches, far culled)
+            dl = self._base.select(state, camera, size, statics, agents=far[0])
         else:
             dl = self._base.select(state, camera, size, statics)
         out = []
@@ -424,5 +433,7 @@ class PointsSelector:
         if self.splat_blend is not None:
             dl.options["splat_blend"] = self.splat_blend
         dl.stats["triangles"] = int(tris) + sum(b.triangles for b in out if not isinstance(b, PointsBatch))
-        dl.stats["batches"] = len(out)
+        if far is not None:  # one splat per far agent (lod.far)
+            merge(dl, state.n, far[0], far[1], remap=False)
+        dl.stats["batches"] = len(dl.batches)
         return dl

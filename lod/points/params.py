@@ -37,6 +37,10 @@ PARAMS: dict = {
     "renderer": Param("str", "compute", choices=RENDERERS,
                       doc="point splat path: compute-shader splats (the points nearest the surface blended by "
                           "projected area, splat_blend) or the GL_POINTS reference (the nearest point per pixel)"),
+    "far_pixels": Param("float", 0.0, min=0.0, max=8.0,
+                        doc="the far tier (lod.far): an agent whose whole bounding sphere projects to at most this "
+                            "many pixels across is drawn as one pre-filtered splat of its measured footprint, "
+                            "without a traversal; 0 = off (scenes without instancing groups)"),
     "occlusion": Param("bool", False, doc="occlusion culling of hierarchy nodes against a depth pyramid of the "
                                           "likely occluders (render.points.occlusion; not in Wand & Strasser)"),
     "animation": Param("str", "auto", choices=ANIMATION_PATHS,

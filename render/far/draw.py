@@ -1,0 +1,178 @@
+"""Drawer of the far tier (kind ``"far"``, ``lod.far``; issue 45): every far agent is one splat of its pre-filtered
+footprint, placed straight from its instance row.
+
+Per representation (:meth:`Drawer.upload`): its footprint tables (``lod.far.footprint.FarTable``, one per clip)
+packed as vec4s, lit by the renderer's light: per view cell the ambient and headlight terms and the covered
+area, then the direct term at every light azimuth of the table's grid, interpolated at the light's elevation
+(a heading turns the light about +Y, never changes its elevation). They are packed again when the light
+changes. Layout per clip: ``centre`` (the bounding sphere's, model space), then ``VE x VA`` cells of
+``1 + LA`` vec4s (``shaders/far/far_splat.glsl``).
+
+Per frame (:meth:`Drawer.draw`), after the opaque kinds and the point splats (:attr:`Drawer.order`):
+
+1. ``far_splat``: one thread per far agent adds its colour x coverage into its pixel's integer accumulators
+   (order-free) and keeps the nearest depth;
+2. ``far_resolve``: one full-screen triangle; a reached pixel takes the agents' mean colour with their joint
+   coverage as alpha (independent agents: ``1 - prod(1 - alpha)``), blended over the frame at their nearest
+   depth under the depth test (no depth write), and resets its accumulators.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from lod.far import footprint as fp
+from render.context import release_all, track
+from render.shaders import load_source, program_sources
+
+#: threads per work group of the splat pass (must match far_splat.glsl)
+GROUP = 64
+#: largest work-group count per dispatch dimension (GL guarantees 65535)
+MAX_GROUPS_X = 65535
+#: uint32 accumulators per pixel (depth, r, g, b, alpha, -log(1 - alpha))
+ACC_WORDS = 6
+#: vec4s per view cell and per clip (far_splat.glsl CELL, CLIP_VEC4)
+CELL = 1 + fp.LIGHT_AZIMUTHS
+CLIP_VEC4 = 1 + fp.VIEW_ELEVATIONS * fp.VIEW_AZIMUTHS * CELL
+
+
+def lit_tables(tables, light) -> np.ndarray:
+    """(clips * CLIP_VEC4, 4) float32: the far tables of one representation lit by ``light``
+    (``render.world.light.Light``), in the splat shader's layout (see the module docstring)."""
+    d = np.asarray(light.direction, np.float64)
+    el = math.degrees(math.asin(max(-1.0, min(1.0, d[1] / max(np.linalg.norm(d), 1e-30)))))
+    fe = (el + 90.0) / 180.0 * (fp.LIGHT_ELEVATIONS - 1)
+    e0 = min(int(math.floor(fe)), fp.LIGHT_ELEVATIONS - 2)
+    te = fe - e0
+    color = np.asarray(light.color, np.float64)
+    out = np.zeros((len(tables), CLIP_VEC4, 4), np.float32)
+    for k, t in enumerate(tables):
+        out[k, 0, :3] = t.centre
+        cells = out[k, 1:].reshape(fp.VIEW_ELEVATIONS, fp.VIEW_AZIMUTHS, CELL, 4)
+        cells[:, :, 0, :3] = float(light.ambient) * t.ambient + 0.35 * t.head
+        cells[:, :, 0, 3] = t.area
+        direct = (1.0 - te) * t.direct[:, :, e0] + te * t.direct[:, :, e0 + 1]  # (VE, VA, LA, 3)
+        cells[:, :, 1:, :3] = 0.55 * color * direct
+    out = out.reshape(-1, 4)
+    return np.where(np.isfinite(out), out, 0.0).astype(np.float32)
+
+
+class Drawer:
+    """Plug-in drawer of ``lod.far.rep.FarRep`` (see the module docstring).
+
+    last_counts : dict, the far agents handed over ("far") in the last frame
+    """
+
+    #: after the point splats (10): the far splats blend over every opaque surface and depth-test against it
+    order = 12
+    #: no blob shadow under a far agent (its blob would cover a fraction of a pixel, render.world.blobs)
+    blob_shadows = False
+
+    def __init__(self, renderer):
+        self.r = renderer
+        self.ctx = renderer.ctx
+        if int(getattr(self.ctx, "version_code", 0)) < 430:
+            raise RuntimeError(f"the far tier needs OpenGL 4.3 (compute shaders and storage buffers); this "
+                               f"context offers {self.ctx.version_code // 100}.{self.ctx.version_code % 100 // 10}")
+        self._objects: list = []
+        self._reps: dict = {}  # key -> list of FarTable
+        self._base: dict = {}  # key -> first vec4 of its tables
+        self._table = None
+        self._table_light = None  # the light the table was lit with
+        self._bufs: dict = {}
+        w, h = renderer.size
+        acc = np.zeros((w * h, ACC_WORDS), np.uint32)
+        acc[:, 0] = 0xFFFFFFFF
+        self._acc = self._track(self.ctx.buffer(acc.tobytes()), "far.accumulators")
+        self._splat = self._track(self.ctx.compute_shader(load_source("far_splat.glsl")), "far.splat")
+        self._resolve = self._track(self.ctx.program(**program_sources("far_resolve")), "far.resolve")
+        self._vao = self._track(self.ctx.vertex_array(self._resolve, []), "far.resolve_vao")
+        self.last_counts = {"far": 0}
+
+    def _track(self, obj, label: str):
+        return track(self._objects, obj, label)
+
+    def _buffer(self, name, data: np.ndarray):
+        raw = memoryview(np.ascontiguousarray(data)).cast("B")
+        b = self._bufs.get(name)
+        if b is None or b.size < len(raw):
+            if b is not None:
+                b.release()
+                self._objects.remove(b)
+            size = 1 << max(8, int(np.ceil(np.log2(max(len(raw), 1)))))
+            b = self._track(self.ctx.buffer(reserve=size, dynamic=True), f"far.{name}")
+            self._bufs[name] = b
+        if len(raw):
+            b.write(raw)
+        return b
+
+    def upload(self, rep) -> None:
+        """Keep a FarRep's tables (packed and lit at the next draw); replaces a previous upload."""
+        self._reps[rep.key] = list(rep.tables)
+        self._table_light = None
+
+    def _tables(self):
+        light = self.r.lighting.light
+        if self._table is None or self._table_light != light:
+            parts, base = [], 0
+            for key, tables in self._reps.items():
+                self._base[key] = base
+                parts.append(lit_tables(tables, light))
+                base += parts[-1].shape[0]
+            data = np.concatenate(parts) if parts else np.zeros((1, 4), np.float32)
+            if self._table is not None:
+                self._table.release()
+                self._objects.remove(self._table)
+            self._table = self._track(self.ctx.buffer(data.tobytes()), "far.tables")
+            self._table_light = light
+        return self._table
+
+    def draw(self, batches, drawlist, view_proj) -> None:
+        """Splat the far agents of this frame's ``lod.far.select.FarBatch`` es and blend them in."""
+        batches = [b for b in batches if b.rep in self._reps and b.n_instances]
+        self.last_counts = {"far": int(sum(b.n_instances for b in batches))}
+        if not batches:
+            return
+        ctx = self.ctx
+        w, h = self.r.size
+        table = self._tables()
+        light = np.asarray(self.r.lighting.light.direction, np.float64)
+        cs = self._splat
+        cs["u_view_proj"].write(np.ascontiguousarray(np.asarray(view_proj, np.float64).T, np.float32).tobytes())
+        cs["u_size"].value = (int(w), int(h))
+        cs["u_light_az"].value = float(math.atan2(light[0], light[2]))
+        proj = np.asarray(drawlist.proj, np.float64)
+        cs["u_pixels"].value = (float(proj[0, 0] * w * 0.5), float(proj[1, 1] * h * 0.5))
+        table.bind_to_storage_buffer(2)
+        self._acc.bind_to_storage_buffer(3)
+        for i, b in enumerate(batches):
+            rows = self._buffer(f"rows{i}", np.asarray(b.instance_data, np.float32).reshape(-1, 4))
+            words = self._buffer(f"words{i}", np.asarray(b.words, np.uint32).reshape(-1))
+            rows.bind_to_storage_buffer(0)
+            words.bind_to_storage_buffer(1)
+            cs["u_count"].value = int(b.n_instances)
+            cs["u_base"].value = int(self._base[b.rep])
+            groups = -(-b.n_instances // GROUP)
+            gx = min(groups, MAX_GROUPS_X)
+            cs.run(gx, -(-groups // gx), 1)
+        ctx.memory_barrier()
+        self._resolve["u_size"].value = (int(w), int(h))
+        fbo = self.r.fbo
+        fbo.depth_mask = False
+        fbo.use()  # moderngl applies a framebuffer's write masks when it is bound
+        ctx.enable(ctx.BLEND)
+        ctx.blend_func = (ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA, ctx.ZERO, ctx.ONE)
+        try:
+            self._vao.render(mode=ctx.TRIANGLES, vertices=3)
+        finally:
+            ctx.disable(ctx.BLEND)
+            fbo.depth_mask = True
+            fbo.use()
+        ctx.memory_barrier()
+
+    def release(self) -> None:
+        """Release every GL object (reverse creation order; safe twice)."""
+        release_all(self._objects)
+        self._table = None
+        self._bufs.clear()

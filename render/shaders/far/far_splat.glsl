@@ -1,0 +1,88 @@
+#version 430
+// The far tier's splat (render/far/draw.py; issue 45): one thread per far agent. The agent's bounding-sphere
+// centre is projected to its pixel; its footprint table (lod/far/footprint.py, sliced at the frame's light
+// elevation by the drawer) gives, bilinearly in the view direction (azimuth relative to its heading,
+// elevation) and linearly in the light's azimuth relative to its heading, the covered area (m^2 at scale 1)
+// and the mean lit colour of what it shows. Its coverage of the pixel is alpha = min(1, area in pixels);
+// the pixel's accumulators add colour x alpha, alpha, -log(1 - alpha) (integers: order-free) and keep the
+// nearest depth (atomicMin of the window depth's bits: positive floats order as their bits).
+layout(local_size_x = 64) in;
+
+#define VA 16
+#define VE 9
+#define LA 16
+#define CELL (1 + LA)
+#define CLIP_VEC4 (1 + VE * VA * CELL)
+#define SCALE 4096.0
+#define MAX_ALPHA 0.999
+
+layout(std430, binding = 0) readonly buffer Rows { vec4 rows[]; };    // camera-relative xyz, scale
+layout(std430, binding = 1) readonly buffer Words { uint words[]; };  // heading (1/65536 turns) | clip << 16
+layout(std430, binding = 2) readonly buffer Table { vec4 table[]; };
+layout(std430, binding = 3) buffer Accum { uint acc[]; };             // per pixel: depth, r, g, b, alpha, -log(1-a)
+
+uniform mat4 u_view_proj;
+uniform ivec2 u_size;
+uniform uint u_count;
+uniform uint u_base;        // first vec4 of this representation's tables
+uniform float u_light_az;   // azimuth of the light (world, radians, atan(x, z))
+uniform vec2 u_pixels;      // (P00 w / 2, P11 h / 2): pixels per metre at clip w = 1
+
+const float TAU = 6.283185307179586;
+
+vec4 lookup(uint cb, int e, int a, int l0, int l1, float tl) {
+    uint cell = cb + 1u + uint(e * VA + a) * uint(CELL);
+    vec4 t0 = table[cell];
+    vec3 d = mix(table[cell + 1u + uint(l0)].rgb, table[cell + 1u + uint(l1)].rgb, tl);
+    return vec4(t0.rgb + d, t0.a);
+}
+
+void main() {
+    uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    if (i >= u_count) return;
+    vec4 row = rows[i];
+    uint word = words[i];
+    float h = float(word & 0xFFFFu) * (TAU / 65536.0);
+    uint cb = u_base + (word >> 16) * uint(CLIP_VEC4);
+    float s = row.w;
+    vec3 c = table[cb].xyz;
+    float ch = cos(h), sh = sin(h);
+    vec3 p = row.xyz + vec3(ch * c.x + sh * c.z, c.y, -sh * c.x + ch * c.z) * s;
+    vec4 clip = u_view_proj * vec4(p, 1.0);
+    if (!(clip.w > 0.0)) return;
+    vec3 ndc = clip.xyz / clip.w;
+    if (any(greaterThan(abs(ndc), vec3(1.0)))) return;
+    ivec2 px = ivec2(floor((ndc.xy * 0.5 + 0.5) * vec2(u_size)));
+    if (any(lessThan(px, ivec2(0))) || any(greaterThanEqual(px, u_size))) return;
+    // the view direction (agent -> camera) and the light in the agent's frame: azimuths less its heading
+    vec3 v = -p;
+    float lv = length(v);
+    v = lv > 0.0 ? v / lv : vec3(0.0, 1.0, 0.0);
+    float el = degrees(asin(clamp(v.y, -1.0, 1.0)));
+    float fe = clamp((el + 90.0) / 180.0 * float(VE - 1), 0.0, float(VE - 1));
+    int e0 = min(int(floor(fe)), VE - 2);
+    float te = fe - float(e0);
+    float az = atan(v.x, v.z) - h;
+    float fa = fract(az / TAU) * float(VA);
+    int a0 = int(floor(fa)) % VA;
+    float ta = fa - floor(fa);
+    int a1 = (a0 + 1) % VA;
+    float fl = fract((u_light_az - h) / TAU) * float(LA);
+    int l0 = int(floor(fl)) % LA;
+    float tl = fl - floor(fl);
+    int l1 = (l0 + 1) % LA;
+    vec4 r = mix(mix(lookup(cb, e0, a0, l0, l1, tl), lookup(cb, e0, a1, l0, l1, tl), ta),
+                 mix(lookup(cb, e0 + 1, a0, l0, l1, tl), lookup(cb, e0 + 1, a1, l0, l1, tl), ta), te);
+    float area = r.a * s * s * u_pixels.x * u_pixels.y / (clip.w * clip.w);
+    float alpha = min(area, 1.0);
+    uint wa = uint(alpha * SCALE + 0.5);
+    if (wa == 0u) return;  // covers nothing visible: no depth either (the resolve resets by alpha)
+    uint k = uint(px.y * u_size.x + px.x) * 6u;
+    atomicMin(acc[k], floatBitsToUint(ndc.z * 0.5 + 0.5));
+    vec3 col = clamp(r.rgb, 0.0, 16.0) * float(wa);
+    atomicAdd(acc[k + 1u], uint(col.r + 0.5));
+    atomicAdd(acc[k + 2u], uint(col.g + 0.5));
+    atomicAdd(acc[k + 3u], uint(col.b + 0.5));
+    atomicAdd(acc[k + 4u], wa);
+    atomicAdd(acc[k + 5u], uint(-log(1.0 - min(alpha, MAX_ALPHA)) * SCALE + 0.5));
+}

@@ -1,0 +1,231 @@
+"""The far tier's splat (render/far/draw.py, lod/far): a far agent's pixel carries the covered area and mean lit
+colour of the character drawn at full detail (issue 45: within 2/255 and 5 %), and the tier's selection
+draws every agent in exactly one tier."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from lod.far.rep import build_far_rep
+from lod.far.select import FAR, FarSplit
+from lod.full.mode import NoLodSelector
+from lod.full.reps import build_skinned_rep
+from lod.points.traverse import viewport_scale
+from lod.view import Camera
+from render.renderer import Renderer
+from sim.procedural import humanoid
+from sim.state import CrowdState
+
+HEADING = 0.7
+LIGHT = np.array([0.35, 0.85, 0.4]) / np.linalg.norm([0.35, 0.85, 0.4])  # the renderer's default light
+
+
+@pytest.fixture(scope="module")
+def walker(gl_ctx):
+    rep = build_skinned_rep(humanoid(1500, 5))
+    far = build_far_rep(rep, "w", clips=[0])
+    return SimpleNamespace(rep=rep, far=far, gl=gl_ctx)
+
+
+def _view(el_deg, az_deg):
+    """Unit direction from the agent to the camera, world, for a view (el, az) in the agent's frame."""
+    el, az = np.radians(el_deg), np.radians(az_deg) + HEADING  # world azimuth = local + heading
+    return np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+
+
+def _state(n=1, times=(0.0,)):
+    st = CrowdState.empty(n)
+    st.heading[:] = HEADING
+    st.scale[:] = 1.0
+    st.anim_time[:] = times
+    return st
+
+
+def _reference(w, el, az, size=200, frames=12):
+    """Covered area (m^2) and mean colour of the character at full detail seen from (el, az) in its frame,
+    over ``frames`` times of the walk, near-orthographic (fov 2 degrees), black background."""
+    dist, fov = 120.0, 2.0
+    centre = w.far.tables[0].centre
+    target = np.array([0.0, centre[1], 0.0])
+    cam = Camera.look_at(target + dist * _view(el, az), target, fov_y=fov, near=1.0, far=500.0)
+    sel = NoLodSelector([w.rep])
+    dur = float(w.rep.clip_duration[0])
+    r = Renderer((size, size), ctx=w.gl)
+    area, colour = [], []
+    try:
+        r.upload(w.rep)
+        for k in range(frames):
+            r.draw(sel.select(_state(times=(dur * k / frames,)), cam, (size, size)), background=(0, 0, 0))
+            img = r.read_pixels().astype(np.float64) / 255.0
+            cov = img.max(axis=2) > 0
+            pix = 2.0 * dist * np.tan(np.radians(fov) / 2) / size
+            area.append(cov.sum() * pix * pix)
+            colour.append(img[cov].sum(axis=0))
+    finally:
+        r.release()
+    a = float(np.mean(area))
+    return a, np.sum(colour, axis=0) / (np.sum(area) / (pix * pix))
+
+
+@pytest.mark.parametrize("el,az", [(10.0, 0.0), (35.0, 50.0), (60.0, 200.0)])
+def test_footprint_matches_full_detail(walker, el, az):
+    area, colour = _reference(walker, el, az)
+    t = walker.far.tables[0]
+    # the table at that view, bilinearly (the shader's lookup), under the light turned into the agent's frame
+    c, s = np.cos(HEADING), np.sin(HEADING)
+    l_loc = np.array([c * LIGHT[0] - s * LIGHT[2], LIGHT[1], s * LIGHT[0] + c * LIGHT[2]])
+    lit = t.lit(l_loc)
+    fe = (el + 90.0) / 180.0 * (lit.shape[0] - 1)
+    fa = (az % 360.0) / 360.0 * lit.shape[1]
+    e0, a0 = int(fe), int(fa) % lit.shape[1]
+    te, ta = fe - e0, fa - int(fa)
+    a1 = (a0 + 1) % lit.shape[1]
+
+    def bil(x):
+        return ((1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a1]) + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a1]))
+
+    assert bil(t.area) == pytest.approx(area, rel=0.05)
+    assert np.abs(bil(lit) - colour).max() <= 2.0 / 255.0, (bil(lit) * 255, colour * 255)
+
+
+def test_far_splat_pixel_is_coverage_times_colour(walker):
+    """One far agent: its pixel is alpha x colour over black, alpha the covered area in pixels."""
+    size = (160, 120)
+    el, az = 25.0, 30.0
+    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
+    st = _state()
+    split = FarSplit([walker.far], far_pixels=3.0)
+    planes = cam.frustum_planes(size[0] / size[1])
+    near, batches, culled = split.split(st, cam, size, viewport_scale(size[1], cam.fov_y), planes)
+    assert near.size == 0 and culled == 0 and len(batches) == 1 and batches[0].n_instances == 1
+    r = Renderer(size, ctx=walker.gl)
+    try:
+        r.upload(walker.far)
+        dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
+        dl.batches = batches
+        r.draw(dl, background=(0, 0, 0))
+        img = r.read_pixels().astype(np.float64) / 255.0
+    finally:
+        r.release()
+    lit_px = np.argwhere(img.max(axis=2) > 0)
+    assert lit_px.shape[0] == 1  # one splat, one pixel
+    got = img[tuple(lit_px[0])]
+    t = walker.far.tables[0]
+    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
+    px_per_m = size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)
+    assert 0.05 < t.area.mean() * px_per_m ** 2 < 1.0  # a fraction of a pixel: alpha < 1
+    # the shader's own lookup against the CPU's at the same view: alpha x colour within 2/255
+    c, s = np.cos(HEADING), np.sin(HEADING)
+    lit = t.lit(np.array([c * LIGHT[0] - s * LIGHT[2], LIGHT[1], s * LIGHT[0] + c * LIGHT[2]]))
+    fe, fa = (el + 90.0) / 180.0 * 8, az / 360.0 * 16
+    e0, a0 = int(fe), int(fa)
+    te, ta = fe - e0, fa - a0
+    bil = lambda x: ((1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a0 + 1])  # noqa: E731
+                     + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a0 + 1]))
+    alpha = bil(t.area) * px_per_m ** 2
+    assert np.abs(got - alpha * bil(lit)).max() <= 2.0 / 255.0, (got * 255, alpha * bil(lit) * 255)
+
+
+def test_every_agent_in_exactly_one_tier(walker):
+    """Agents walking away from the camera cross the far threshold: each frame every visible agent is in the
+    far batches or goes on to the mode's own selection, never both, never neither."""
+    n = 400
+    rng = np.random.default_rng(3)
+    st = _state(n, rng.uniform(0, 1, n))
+    st.position[:, 0] = rng.uniform(-30, 30, n)
+    st.position[:, 2] = rng.uniform(-800, -50, n)
+    cam = Camera.look_at((0.0, 2.0, 10.0), (0.0, 0.0, -100.0), fov_y=40.0, near=0.5, far=3000.0)
+    size = (320, 240)
+    vs = viewport_scale(size[1], cam.fov_y)
+    split = FarSplit([walker.far], far_pixels=2.0)
+    planes = cam.frustum_planes(size[0] / size[1])
+    base = NoLodSelector([walker.rep])
+    seen_far = set()
+    for step in range(6):
+        st.position[:, 2] -= 60.0 * step
+        near, batches, culled = split.split(st, cam, size, vs, planes)
+        far_ids = np.concatenate([b.instance_ids for b in batches]) if batches else np.zeros(0, np.int32)
+        drawn_near = base.select(st, cam, size, agents=near).batches
+        near_ids = np.concatenate([b.instance_ids for b in drawn_near]) if drawn_near else np.zeros(0, np.int32)
+        everyone = base.select(st, cam, size).batches  # what a single tier would draw (culling only)
+        visible = np.concatenate([b.instance_ids for b in everyone]) if everyone else np.zeros(0, np.int32)
+        assert np.intersect1d(far_ids, near_ids).size == 0
+        assert np.array_equal(np.sort(np.concatenate([far_ids, near_ids])), np.sort(visible))
+        assert np.isfinite(batches[0].instance_data).all() if batches else True
+        seen_far.update(far_ids.tolist())
+    assert len(seen_far) > n // 2  # most crossed into the far tier
+
+
+def test_mode_points_draws_far_agents_in_the_far_tier(gl_ctx, tmp_path):
+    """``[lod] far_pixels`` in mode points: the far agents are one FarBatch (no traversal, no point jobs), the
+    near ones points as before, and every agent is counted once."""
+    from lod.far.select import FarBatch
+    from lod.points import mode as pm
+    from lod.points import rep as pm_rep
+    from lod.points.rep import PointsBatch
+
+    c = humanoid(1500, 5)
+    cache = pm_rep.HierarchyCache(tmp_path)
+    n = 300
+    rng = np.random.default_rng(4)
+    st = _state(n, rng.uniform(0.0, 1.0, n))
+    st.position[:, 0] = rng.uniform(-60.0, 60.0, n)
+    st.position[:, 2] = rng.uniform(-900.0, -20.0, n)
+    cam = Camera.look_at((0.0, 6.0, 0.0), (0.0, 0.0, -190.0), fov_y=40.0, near=0.5, far=2000.0)
+    size = (320, 240)
+    for far_px in (0.0, 2.0):
+        reps, sel = pm.build([c], ["w"], [30], {"splat_size": 2, "keyframes": 4, "far_pixels": far_px},
+                             cache=cache, progress=False)
+        dl = sel.select(st, cam, size)
+        fars = [b for b in dl.batches if isinstance(b, FarBatch)]
+        pts = [b for b in dl.batches if isinstance(b, PointsBatch) or b.rep.startswith("points")]
+        ids = np.concatenate([b.instance_ids for b in dl.batches])
+        assert np.unique(ids).size == ids.size == dl.stats["instances"]
+        if far_px == 0.0:
+            assert not fars and "far" not in dl.stats
+            continue
+        assert len(fars) == 1 and 0 < fars[0].n_instances == dl.stats["far"] < n and pts
+        assert any(r.kind == "far" for r in reps)
+        r = Renderer(size, ctx=gl_ctx)
+        try:
+            for rep in reps:
+                r.upload(rep)
+            r.draw(dl, background=(0, 0, 0))
+            img = r.read_pixels()
+            assert r.uploaded_drawer("far").last_counts["far"] == fars[0].n_instances
+        finally:
+            r.release()
+        assert np.isfinite(img).all() and img.max() > 0
+
+
+def test_far_splat_hides_behind_nearer_surfaces(walker):
+    """The resolve writes the far agents' depth and the fixed-function test keeps them behind a nearer
+    character drawn at full detail: the frame equals the one without the far agent there."""
+    size = (160, 120)
+    eye = np.array([0.0, 1.0, 40.0])
+    cam = Camera.look_at(eye, (0.0, 1.0, -1500.0), fov_y=30.0, near=0.5, far=5000.0)
+    far_st = _state()
+    far_st.position[0] = (0.0, 0.1, -1500.0)
+    near_st = _state()
+    near_st.heading[:] = 0.0
+    split = FarSplit([walker.far], far_pixels=3.0)
+    planes = cam.frustum_planes(size[0] / size[1])
+    _, batches, _ = split.split(far_st, cam, size, viewport_scale(size[1], cam.fov_y), planes)
+    assert len(batches) == 1
+    sel = NoLodSelector([walker.rep])
+    imgs = []
+    r = Renderer(size, ctx=walker.gl)
+    try:
+        r.upload(walker.rep)
+        r.upload(walker.far)
+        for with_near in (False, True):
+            for with_far in (False, True):
+                dl = sel.select(near_st if with_near else CrowdState.empty(0), cam, size)
+                if with_far:
+                    dl.batches = list(dl.batches) + batches
+                r.draw(dl, background=(0, 0, 0))
+                imgs.append(r.read_pixels().copy())
+    finally:
+        r.release()
+    assert not np.array_equal(imgs[0], imgs[1])  # alone, the far agent shows
+    assert np.array_equal(imgs[2], imgs[3])  # behind the near one, it does not
