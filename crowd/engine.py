@@ -269,6 +269,8 @@ class Engine:
 
         if hasattr(selector, "switch_frames"):  # mode auto: the keyframe blend fades its plan switches
             selector.switch_frames = 0
+        if getattr(selector, "far", None) is not None:  # the blend re-packs every agent as its keyframe lists
+            selector.far = None  # drew it: a far splat's row is not an instance row (lod.far; not blended yet)
         common = dict(self.scene.lod_common)
         mode = common.get("keyframe_extrapolation", KEYFRAME_EXTRAPOLATION_DEFAULT)
         return KeyframedSelector(selector, int(n), mode, geomorph=bool(common.get("keyframe_geomorph", True)))

@@ -27,9 +27,11 @@ Representation families (each package's docstring lists its modules):
 - ``lod.points``: Wand & Straßer point-sample hierarchies and hierarchical instantiation, mode ``points``.
 - ``lod.temporal``: Friedrich, Polthier & Schmies: keyframed view-dependent selection, bisection hierarchies,
   terrain LOD.
+- ``lod.far``: the far tier (``[lod] far_pixels`` of modes points and auto): an agent within a pixel or two is one
+  pre-filtered splat of its measured footprint, taken before the mode's own selection.
 - ``lod.auto``: mode ``auto``, the cheapest representation per instance under an error bound or a frame budget.
 
 Dependencies run one way: ``full`` and ``simplify`` use the core only; ``clusters`` uses them; ``chains`` uses
-``clusters`` (poses, cache key, geomorph tables); ``points`` uses ``full``; ``temporal`` uses ``full`` and
-``clusters``; ``auto`` uses every family. No two modules import each other.
+``clusters`` (poses, cache key, geomorph tables); ``points`` uses ``full`` and ``far``; ``far`` uses ``full`` and
+``points.deform``; ``temporal`` uses ``full`` and ``clusters``; ``auto`` uses every family. No two modules import each other.
 """

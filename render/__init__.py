@@ -4,7 +4,7 @@ The core modules at the top, in data-flow order (representations and DrawList in
 
 - ``render.context``: the OpenGL context (headless EGL by default).
 - ``render.shaders``: GLSL sources by name, in one folder per family under ``render/shaders/`` (``core``,
-  ``poses``, ``points``, ``raster``, ``clusters``, ``world``); ``prog_name``, the program of a representation kind.
+  ``poses``, ``points``, ``raster``, ``clusters``, ``world``, ``far``); ``prog_name``, the program of a representation kind.
 - ``render.vertex_format``: the vertex attributes of the triangle representations, packed.
 - ``render.tint``: per-instance colour words (an agent's colour variation, the debug colour of its batch) that
   every draw path applies through ``shaders/core/tint.glsl``, so LOD modes agree on colours.
@@ -25,4 +25,5 @@ The families, each a package whose ``__init__`` lists its modules in data-flow o
   hardware path.
 - ``render.clusters``: the drawer of ``lod.clusters`` cuts (VDR-AM) and the geomorph tables.
 - ``render.world``: the ground, obstacle solids and props; the light, blob shadows and the shadow map.
+- ``render.far``: the drawer of the far tier (``lod.far``): one pre-filtered splat per far agent.
 """

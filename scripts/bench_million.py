@@ -53,15 +53,97 @@ def _fail(msg: str) -> None:
     raise SystemExit(2)
 
 
+#: mode variants: ``<mode>-<variant>`` runs the mode with these ``[lod]`` keys over the scene's own
+VARIANTS = {"root": {"coarse": False},  # points drawn from whole roots at least (no coarser prefixes)
+            "far": {"far_pixels": 2.0},  # the far tier on (lod.far)
+            "nofar": {"far_pixels": 0.0}}  # the far tier off: the before of issue 45
+
+
 def _scene(scene_path: str, mode: str):
     from crowd.scene import load_scene
 
     scene = load_scene(scene_path)
-    base = mode.removesuffix("-root")
+    base, _, variant = mode.partition("-")
     params = dict(scene.lod_params) if scene.lod_mode == base else {}
-    if mode.endswith("-root"):  # points drawn from whole roots at least (no coarser prefixes): the before
-        params["coarse"] = False
+    params.update(VARIANTS.get(variant, {}))
     return replace(scene, lod_mode=base, lod_params=tuple(params.items()))
+
+
+def _mode_ok(mode: str, modes) -> bool:
+    base, _, variant = mode.partition("-")
+    return base in modes and (not variant or variant in VARIANTS)
+
+
+def image_error(scene_path: str, modes, frame: int = 8, crop=(448, 288, 384, 216), k: int = 4) -> dict:
+    """PSNR (dB) of each mode's frame ``frame`` against full detail drawn with K x K samples per pixel and
+    box-filtered (``crowd/reference.py``), over the pixel window ``crop`` (x, y from the top left, width,
+    height): a million agents at full detail are 5 G triangles, so the reference draws only the agents whose
+    position projects within 16 pixels of the window (at K x the pixels, through ``tile_projection``). Also the
+    aliased full-detail frame (one sample per pixel) of the same window, and each image's mean colour there."""
+    import numpy as np
+
+    from crowd.engine import Engine
+    from crowd.reference import box_filter, reference_scene, tile_projection
+
+    x0, y0, cw, ch = (int(v) for v in crop)
+    out = {}
+
+    def window(img):
+        return img[y0:y0 + ch, x0:x0 + cw]
+
+    full = reference_scene(_scene(scene_path, "none"))
+    with Engine(full, quiet=True) as eng:
+        for _ in range(frame + 1):
+            eng.step()
+        cam = eng.camera_at(eng.world.time)
+        W, H = full.render.size
+        bg = full.render.background
+        for kk in (k, 1):
+            dl = eng.select(cam, (kk * W, kk * H))
+            vp = np.asarray(dl.proj, np.float64) @ np.asarray(dl.view, np.float64)
+            keep = []
+            for b in dl.batches:
+                d = np.asarray(b.instance_data, np.float64)
+                if not b.rep.startswith("none:") or int(np.asarray(b.instance_ids)[0]) < 0:
+                    keep.append(b)  # the ground, scenery, statics: whole
+                    continue
+                c = d[:, [3, 7, 11]] @ vp[:3, :3].T + vp[:3, 3]
+                wc = d[:, [3, 7, 11]] @ vp[3, :3] + vp[3, 3]
+                px = (c[:, 0] / wc * 0.5 + 0.5) * W
+                py = (1.0 - (c[:, 1] / wc * 0.5 + 0.5)) * H
+                m = (wc > 0) & (px > x0 - 16) & (px < x0 + cw + 16) & (py > y0 - 16) & (py < y0 + ch + 16)
+                if m.any():
+                    keep.append(replace(b, instance_ids=b.instance_ids[m], instance_data=b.instance_data[m],
+                                        triangles=int(b.triangles * m.sum() / max(1, m.size))))
+            r = eng.open_renderer(size=(kk * cw, kk * ch))
+            r.pose_sharing = False
+            tile = replace(dl, batches=keep, poses=None, size=(kk * cw, kk * ch),
+                           proj=tile_projection(dl.proj, (W, H), (x0, y0), (cw, ch)).astype(np.float32))
+            r.draw(tile, bg)
+            img = box_filter(r.read_pixels(), kk)
+            if kk == k:
+                ref = img
+                out["agents in the window"] = int(sum(b.n_instances for b in keep if b.n_instances
+                                                      and int(np.asarray(b.instance_ids)[0]) >= 0))
+            else:
+                out["none (aliased)"] = img
+    for m in modes:
+        with Engine(_scene(scene_path, m), quiet=True) as eng:
+            r = eng._open_renderer()
+            for _ in range(frame + 1):
+                eng.step()
+            dl = eng.select(eng.camera_at(eng.world.time), full.render.size)
+            r.draw(dl, full.render.background)
+            out[m] = window(r.read_pixels())
+
+    def psnr(a):
+        e = np.mean((a.astype(np.float64) - ref.astype(np.float64)) ** 2)
+        return float("inf") if e == 0 else float(10.0 * np.log10(255.0 ** 2 / e))
+
+    n = out.pop("agents in the window")
+    return {"crop": [x0, y0, cw, ch], "k": k, "frame": frame, "agents": n,
+            "reference_mean": ref.reshape(-1, 3).mean(axis=0).tolist(),
+            "rows": [(name, psnr(img), img.reshape(-1, 3).mean(axis=0).tolist()) for name, img in out.items()]}
 
 
 def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
@@ -200,7 +282,7 @@ def busiest(n: int = 6) -> list[str]:
 
 def _child(a, what: str) -> dict:
     cmd = [sys.executable, __file__, "--scene", a.scene, "--frames", str(a.frames), "--warmup", str(a.warmup),
-           "--one", what]
+           "--one", what, "--modes", *a.modes]
     p = subprocess.run(cmd, capture_output=True, text=True, env=os.environ | {"PYTHONPATH": str(ROOT)})
     if p.returncode:
         last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit code {p.returncode}"
@@ -218,6 +300,7 @@ def main(argv=None) -> int:
     ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one mode (or "selection"), print JSON
     ap.add_argument("--no-kernels", action="store_true", help="skip the serial/parallel kernel comparison")
     ap.add_argument("--no-selection", action="store_true", help="skip the flat/per-group selection comparison")
+    ap.add_argument("--no-image", action="store_true", help="skip the image error against the 4 x 4 reference")
     a = ap.parse_args(argv)
     if a.frames < 1 or a.warmup < 0:
         _fail(f"--frames: expected >= 1 and --warmup >= 0, got {a.frames} and {a.warmup}")
@@ -225,17 +308,25 @@ def main(argv=None) -> int:
         _fail(f"--scene: {a.scene}: no such file")
     from lod.modes import MODES
 
-    bad = [m for m in a.modes if m not in MODES and m != "points-root"]
+    bad = [m for m in a.modes if not _mode_ok(m, MODES)]
     if bad:
-        _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}, points-root")
+        _fail(f"--modes: unknown mode {bad[0]!r}; accepted: {', '.join(sorted(MODES))}, each optionally with "
+              f"-{', -'.join(VARIANTS)}")
     import crowd  # noqa: F401  (the app's OpenMP wait policy, as crowd run has it, for the kernels here too)
 
     if a.one:
-        print(json.dumps(selection(a.scene) if a.one == "selection" else run_one(a.scene, a.one, a.frames, a.warmup)))
+        if a.one == "selection":
+            res = selection(a.scene)
+        elif a.one == "image":
+            res = image_error(a.scene, a.modes)
+        else:
+            res = run_one(a.scene, a.one, a.frames, a.warmup)
+        print(json.dumps(res))
         return 0
     load0, others = os.getloadavg(), busiest()
     results = [_child(a, m) for m in a.modes]
     sel = None if a.no_selection else _child(a, "selection")
+    img = None if a.no_image else _child(a, "image")
     kern = [] if a.no_kernels else kernels()
     load1 = os.getloadavg()
     lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | cpu ms | points/agent | triangles | "
@@ -264,8 +355,20 @@ def main(argv=None) -> int:
             klines.append(f"| numba threads | {s} | {p} | |")
         else:
             klines.append(f"| {name} | {1e3 * s:.0f} | {1e3 * p:.0f} | {s / p:.2f} |")
+    ilines = []
+    if img is not None:
+        x0, y0, cw, ch = img["crop"]
+        ilines = [f"Image error of frame {img['frame']} in the window x {x0}..{x0 + cw}, y {y0}..{y0 + ch} (from the "
+                  f"top left; {img['agents']:,} agents drawn there at full detail) against full detail with "
+                  f"{img['k']} x {img['k']} samples per pixel, box-filtered (crowd/reference.py), whose mean colour "
+                  "there is " + ", ".join(f"{v:.1f}" for v in img["reference_mean"]) + ":", "",
+                  "| image | PSNR dB | mean colour (R, G, B) |", "| --- | ---: | --- |"]
+        for name, db, mean in img["rows"]:
+            ilines.append(f"| {name} | {db:.2f} | " + ", ".join(f"{v:.1f}" for v in mean) + " |")
     print(head)
     print("\n".join(lines))
+    if ilines:
+        print("\n".join(ilines))
     if slines:
         print("\n".join(slines))
     if kern:
@@ -281,7 +384,7 @@ def main(argv=None) -> int:
           f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, Python "
           f"{platform.python_version()}, {gl}.", "",
           f"Command: `{' '.join(['.venv/bin/python', 'scripts/bench_million.py'] + (argv or sys.argv[1:]))}`", "",
-          head, "", *lines, "", *((slines + [""]) if slines else []), *((klines + [""]) if kern else []),
+          head, "", *lines, "", *((ilines + [""]) if ilines else []), *((slines + [""]) if slines else []), *((klines + [""]) if kern else []),
           "Busiest processes at the start (the machine is shared): " + ", ".join(others) + ".", "",
           "Stages are the engine's telemetry (`frames.csv`) per frame: simulate (boids + animation), select (LOD "
           "selection: culling, packing, traversal, auto's pricing), upload + draw + finish (the renderer). "

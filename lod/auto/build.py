@@ -6,6 +6,7 @@ from __future__ import annotations
 from lod.auto import candidates as ac
 from lod.auto.mode import PARAMS, AutoSelector, parse_candidates
 from lod.chains import mode as tm
+from lod.far.build import build_far_split
 
 
 def build(characters, names, fps, params, static_reps=(), progress=None, cache: bool = True, model=None,
@@ -71,12 +72,16 @@ def build(characters, names, fps, params, static_reps=(), progress=None, cache: 
                                         instancing=psel.instancing))
     if "points" in names_c and characters:
         delegates["points"] = psel
+    far = None  # the far tier (lod.far) before the choice; not beside instancing groups (their super nodes)
+    if not getattr(instancing, "groups", None):
+        far = build_far_split(characters, names, fps, clips,
+                              float(params.get("far_pixels", PARAMS["far_pixels"].default)))
     sel = AutoSelector(reps, static_reps=static_reps, poe=poe, budget_ms=budget, model=model, candidates=extra,
-                       delegates=delegates,
+                       delegates=delegates, far=far,
                        adapt=bool(params.get("adapt", PARAMS["adapt"].default)),
                        explore=bool(params.get("explore", PARAMS["explore"].default)),
                        switch_frames=int(params.get("switch_frames", PARAMS["switch_frames"].default)))
-    return sel.candidate_reps, sel
+    return sel.candidate_reps + (far.uploads if far is not None else []), sel
 
 
 def memory_estimate(characters, params: dict) -> int:

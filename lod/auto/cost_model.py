@@ -70,8 +70,9 @@ DEFAULTS = {
 #: count that stays 0 keeps its prior. ``raster_triangles``: triangles rasterised in compute (they leave the
 #: ``triangles`` feature, which then counts the raster pipeline's only); ``poses`` and ``posed_vertices``:
 #: distinct poses skinned and vertices skinned into the pose buffer; ``placed_points``: points placed per
-#: pose; ``props``: triangles of props and obstacle solids (``crowd.world``)
-EXTRA_FEATURES = ("raster_triangles", "poses", "posed_vertices", "placed_points", "props")
+#: pose; ``props``: triangles of props and obstacle solids (``crowd.world``); ``far``: agents drawn as one
+#: far splat each (``lod.far``; they leave the ``points`` and ``instances`` features)
+EXTRA_FEATURES = ("raster_triangles", "poses", "posed_vertices", "placed_points", "props", "far")
 #: their priors (seconds per unit; guesses for llvmpipe at 1280x720, held with a wide uncertainty)
 EXTRA_DEFAULTS = {
     "raster_triangles": 1.0 / 30.0e6,
@@ -79,6 +80,7 @@ EXTRA_DEFAULTS = {
     "posed_vertices": 1.0 / 50.0e6,
     "placed_points": 1.0 / 50.0e6,
     "props": 1.0 / 8.0e6,
+    "far": 6.0e-8,  # the far splat and its share of the resolve (scenes/million.toml: ~60 ms for 1 M agents)
 }
 #: every feature the online fit prices, in its column order (a later version may append names: the fit's
 #: state is rebuilt per run, so appending is no format break)
@@ -104,7 +106,7 @@ def machine_key(renderer: str = "") -> str:
 
 def features(drawlist, extended: bool = False) -> np.ndarray:
     """(9,) float64 counts of a DrawList in :data:`FEATURES` order, or with
-    ``extended`` (14,) in :data:`ONLINE_FEATURES` order.
+    ``extended`` (15,) in :data:`ONLINE_FEATURES` order.
 
     Triangles and points are summed over the batches (``stats`` when the
     selector recorded them), batches count non-empty batches, instances the
@@ -118,12 +120,14 @@ def features(drawlist, extended: bool = False) -> np.ndarray:
     is 1.0 when a batch carries a cluster cut (``offsets``,
     :class:`lod.clusters.mode.ClusterDrawBatch`), else 0. The extended
     counts (:data:`EXTRA_FEATURES`) come from ``stats`` (0 when absent or not
-    a finite number >= 0); ``raster_triangles`` are taken out of ``triangles``.
+    a finite number >= 0); ``raster_triangles`` are taken out of ``triangles``, ``far`` agents (one splat
+    each, ``lod.far``) out of ``points`` and ``instances``.
     """
     bs = [b for b in drawlist.batches if b.n_instances]
     st = getattr(drawlist, "stats", {}) or {}
     tri = st.get("triangles", sum(int(b.triangles) for b in bs))
-    pts = st.get("points", sum(int(b.points) for b in bs))
+    far = _count(st.get("far"))
+    pts = max(0.0, float(st.get("points", sum(int(b.points) for b in bs))) - far)
     px = area = 0.0
     if pts:
         w, h = (int(v) for v in drawlist.size)
@@ -131,7 +135,7 @@ def features(drawlist, extended: bool = False) -> np.ndarray:
         px = float(w * h)
         area = px * s * s
     pinst = float(sum(b.n_instances for b in bs if getattr(b, "point_jobs", None) is not None))
-    inst = float(sum(b.n_instances for b in bs)) - pinst
+    inst = max(0.0, float(sum(b.n_instances for b in bs)) - pinst - far)
     cframe = 1.0 if any(getattr(b, "offsets", None) is not None for b in bs) else 0.0
     base = [float(tri), float(pts), float(len(bs)), inst, float(st.get("clusters", 0) or 0), px, area, pinst, cframe]
     if not extended:

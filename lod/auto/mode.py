@@ -139,8 +139,10 @@ from lod.chains import mode as tm
 from lod.clusters.config import CLUSTERS_LEAF_TRIANGLES
 from lod.clusters.cut import viewport_scale
 from lod.drawlist import FADE_IN, FADE_OUT, DrawList
+from lod.far.build import merge, subset
 from lod.full.mode import NoLodSelector
 from lod.points.config import POINTS_MAX_POSES, POINTS_POSE_ERROR
+from lod.points.params import PARAMS as POINTS_PARAMS
 from sim.params import Param
 
 #: candidate representations mode "auto" can choose among (``[lod] candidates``)
@@ -185,6 +187,7 @@ PARAMS: dict = {
                             "character's largest rest extent (mode points' pose_error)"),
     "max_keyframes": Param("int", POINTS_MAX_POSES, min=2, max=4096,
                            doc="cap on the poses baked per clip (mode points' max_keyframes)"),
+    "far_pixels": POINTS_PARAMS["far_pixels"],
 }
 
 
@@ -230,7 +233,7 @@ class AutoSelector:
 
     def __init__(self, reps, static_reps=(), poe: float = 1.0, budget_ms: float = 0.0, model=None,
                  cull: bool = True, candidates=(), adapt: bool = False, explore: bool = True,
-                 switch_frames: int = SWITCH_FRAMES, delegates=None):
+                 switch_frames: int = SWITCH_FRAMES, delegates=None, far=None):
         if not (np.isfinite(poe) and float(poe) >= 0.0):
             raise ValueError(f"[lod] poe: expected a finite number >= 0, got {poe}")
         if not (np.isfinite(budget_ms) and float(budget_ms) >= 0.0):
@@ -268,6 +271,8 @@ class AutoSelector:
         #: seconds the last :meth:`select` took (what :meth:`observe` subtracts to get the rendering time)
         self.last_select_seconds = 0.0
         self._frames = 0
+        #: the far tier's split (``lod.far.select.FarSplit``, ``[lod] far_pixels``) or None
+        self.far = far
 
     @property
     def switch_frames(self) -> int:
@@ -437,6 +442,26 @@ class AutoSelector:
         return groups
 
     def select(self, state, camera, size, statics=()) -> DrawList:
+        """The frame's DrawList: the far tier's agents first (``lod.far``, ``[lod] far_pixels``: one splat each,
+        a rule before the choice, not one of its candidates), then the rest (:meth:`_select_rest`)."""
+        if self.far is None or not self.far.active or not state.n:
+            return self._select_rest(state, camera, size, statics)
+        t0 = time.perf_counter()
+        w, h = max(1, int(size[0])), max(1, int(size[1]))
+        near, far_batches, _ = self.far.split(state, camera, size, viewport_scale(h, camera.fov_y),
+                                              camera.frustum_planes(w / h))
+        split_s = time.perf_counter() - t0
+        dl = self._select_rest(state if near is None else subset(state, near), camera, size, statics)
+        merge(dl, state.n, near, far_batches, remap=True)
+        a = dl.stats.get("auto")
+        if isinstance(a, dict):
+            a.setdefault("representations", {})["far"] = dl.stats["far"]
+        if self._last is not None and self._last.get("dl") is dl:  # the fit's row counts the far splats
+            self._last["x"] = cost_model.features(dl, extended=True)
+        self.last_select_seconds += split_s
+        return dl
+
+    def _select_rest(self, state, camera, size, statics=()) -> DrawList:
         """The frame's DrawList (see :meth:`lod.full.mode.NoLodSelector.select`):
         every instance inside the frustum in exactly one batch of the
         candidate it was given; batches sorted by (rep, part, level);

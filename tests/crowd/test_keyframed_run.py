@@ -125,3 +125,16 @@ def test_keyframed_clusters_run_geomorphs_changed_cuts(tmp_path):
         assert all(int(float(x["instances"])) == 4 for x in rows)
     assert counts["true"][0] > 0 and counts["true"][0] == counts["true"][1]
     assert counts["false"][0] == 0 and counts["false"][1] > 0
+
+
+@pytest.mark.parametrize("mode", ["points", "auto"])
+def test_keyframed_selection_turns_the_far_tier_off(tmp_path, mode):
+    """A keyframed selection blends instance rows between its keyframe lists; a far splat's row is not one
+    (lod/far): with keyframe_every > 1 the far tier is off, and every frame draws."""
+    s = load_scene(_scene(tmp_path, mode=mode, extra="keyframe_every = 2\nfar_pixels = 8.0", frames=3))
+    with Engine(s, quiet=True) as eng:
+        assert eng.selector.inner.far is None
+        eng.run(frames=3, out_dir=tmp_path / "out")
+    s1 = load_scene(_scene(tmp_path, mode=mode, extra="far_pixels = 8.0", frames=3))
+    with Engine(s1, quiet=True) as eng:
+        assert eng.selector.far is not None

@@ -47,7 +47,8 @@ def lean(scene):
         if "levels" in q:
             q["levels"] = [_cap_level(dict(lv)) for lv in q["levels"]]
         places.append(dataclasses.replace(p, params=q))
-    params = tuple(dict(scene.lod_params if scene.lod_mode == "auto" else (), keyframes=2).items())
+    # the far tier (lod.far) off: it takes agents before either path is asked (tests/render/test_far_render.py)
+    params = tuple(dict(scene.lod_params if scene.lod_mode == "auto" else (), keyframes=2, far_pixels=0.0).items())
     s = dataclasses.replace(scene, characters=chars, placements=tuple(places), lod_mode="auto", lod_params=params)
     return s.with_overrides(size=SIZE)
 
