@@ -32,6 +32,6 @@ Representation families (each package's docstring lists its modules):
 - ``lod.auto``: mode ``auto``, the cheapest representation per instance under an error bound or a frame budget.
 
 Dependencies run one way: ``full`` and ``simplify`` use the core only; ``clusters`` uses them; ``chains`` uses
-``clusters`` (poses, cache key, geomorph tables); ``points`` uses ``full`` and ``far``; ``far`` uses ``full`` and
-``points.deform``; ``temporal`` uses ``full`` and ``clusters``; ``auto`` uses every family. No two modules import each other.
+``clusters`` (poses, cache key, geomorph tables); ``points`` uses ``full`` and ``far``; ``far`` uses ``full``;
+``temporal`` uses ``full`` and ``clusters``; ``auto`` uses every family. No two modules import each other.
 """

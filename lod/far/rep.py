@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lod.far.footprint import POSES, FarTable, measure
-from lod.points.deform import SkinnedFrames
+from lod.full.frames import SkinnedFrames
 
 
 def _blend_normals(rep, rows: np.ndarray) -> np.ndarray:

@@ -50,6 +50,7 @@ import numpy as np
 
 from sim.atomic_io import atomic_open
 from lod.points import config as C
+from lod.full import frames as full_frames
 from lod.points import deform
 from lod.points.coarse import add_coarse
 from lod.points.octree import PointHierarchy, build_hierarchy
@@ -195,8 +196,8 @@ def posed_prefix_radii(frames, h: PointHierarchy, counts: np.ndarray, rows=None)
     verts, local = np.unique(tri.reshape(-1), return_inverse=True)
     local = local.reshape(-1, 3)
     out = np.zeros(counts.shape[0])
-    step = max(1, min(deform.FRAME_CHUNK, 2_000_000 // max(1, n * n)))  # (f, n, n) distances at most 16 MB
-    for r in deform.row_chunks(frames, rows, step):
+    step = max(1, min(full_frames.FRAME_CHUNK, 2_000_000 // max(1, n * n)))  # (f, n, n) distances at most 16 MB
+    for r in full_frames.row_chunks(frames, rows, step):
         q = (frames.positions(r, verts)[:, local] * w).sum(2)  # (f, n, 3)
         d = np.sqrt(((q[:, :, None, :] - q[:, None, :, :]) ** 2).sum(-1))  # (f, n, n)
         for k, m in enumerate(counts.tolist()):
@@ -213,7 +214,7 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
 
     Parameters
     ----------
-    frames : ``lod.points.deform.SkinnedFrames`` or ``KeyframedFrames`` (rest pose, triangles, every frame)
+    frames : ``lod.full.frames.SkinnedFrames`` or ``KeyframedFrames`` (rest pose, triangles, every frame)
     colors (V, 4), normals (V, 3) : the rest pose's vertex attributes
     joints (V, 4), weights (V, 4), n_joints : the skin (skinned frames; the node boxes' joint frames)
     clips : None (one group of every frame) or per clip its frame rows: the stretch, node boxes and coarse
@@ -260,7 +261,7 @@ def build_follow(frames, colors, normals, *, joints=None, weights=None, n_joints
     cspacing = np.zeros((Cn, h.coarse_count.shape[1] if has_coarse else 0))
     if skinned:
         ok = np.ones(n_joints, bool)  # joints invertible at every frame (a usable box frame)
-        for a, b in deform.chunks(frames.n_frames, 256):
+        for a, b in full_frames.chunks(frames.n_frames, 256):
             ok &= frames.joint_inverses(np.arange(a, b))[1]
         ref = deform.reference_joints(ptr, vert, np.asarray(joints, np.int64), np.asarray(weights, np.float64),
                                       n_joints)

@@ -120,7 +120,7 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
     """The :class:`lod.points.follow.FollowRep` of a skinned or keyframed character (hierarchy cached in
     ``cache``, a ``lod.points.rep.HierarchyCache``)."""
     from lod.full.reps import build_keyframed_rep, build_rep
-    from lod.points import deform
+    from lod.full import frames as full_frames
     from lod.points.follow import FollowRep, build_follow, cached_follow
     from lod.points.rep import HierarchyCache
 
@@ -135,7 +135,7 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
             raise ValueError(f"points mode: character {name!r}: its keyframes change triangles between segments; "
                              "only the baked path (animation = \"baked\") can draw it")
         vbase, V, tris = shared
-        frames = deform.KeyframedFrames(kf.positions0, kf.positions1, vbase, V, tris)
+        frames = full_frames.KeyframedFrames(kf.positions0, kf.positions1, vbase, V, tris)
         sl = slice(int(vbase[0]), int(vbase[0]) + V)
         cols, nrms = np.asarray(kf.colors0[sl], np.float64), np.asarray(kf.normals0[sl], np.float64)
         arrays = (kf.positions0, kf.positions1, kf.colors0, kf.normals0, tris, vbase)
@@ -145,7 +145,7 @@ def build_follow_rep(character, name: str, params: dict, fps: float = 30.0, cach
     base = build_rep(character, fps=float(fps), key=key)
     if getattr(base, "kind", None) != "skinned":
         raise TypeError(f"points mode: expected a skinned or keyframed character, got {type(character).__name__}")
-    frames = deform.SkinnedFrames.of(base)
+    frames = full_frames.SkinnedFrames.of(base)
     t = base.targets
     arrays = (base.positions, base.normals, base.colors, base.joints, base.weights, base.indices, base.joint_table) + \
         ((t.first, t.count, t.column, t.dpos, t.weights) if t is not None else ())

@@ -10,7 +10,7 @@ import pytest
 from crowd.image_metrics import psnr
 from lod.full.mode import NoLodSelector
 from lod.full.reps import build_rep
-from lod.points import deform
+from lod.full import frames as full_frames
 from lod.points import mode as pm
 from lod.points.rep import HierarchyCache
 from lod.view import Camera
@@ -90,7 +90,7 @@ def test_gpu_poses_and_places_what_the_cpu_does(gl_ctx, walker, cache):
     assert counts["poses"] == 1 and counts["placed_points"] == n and counts["posed_vertices"] == m
     lo, scale = pose_box(rep)
     t = rep.tree
-    fr = deform.SkinnedFrames.of(rep.base)
+    fr = full_frames.SkinnedFrames.of(rep.base)
     f = float(b.pose[0])
     assert f == int(f)  # pose sharing at the baked rows ("key"): an exact row
     P = fr.positions(np.array([int(f)]))[0]

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from lod.full.reps import build_rep
+from lod.full import frames as full_frames
 from lod.points import deform, follow
 from lod.points import mode as pm
 from lod.points.follow_select import quantise_frames, quantise_u
@@ -40,9 +41,9 @@ def test_pose_kernel_matches_reference_with_morph_targets():
     from tiny_characters import tiny_morphed
 
     base = build_rep(tiny_morphed(), fps=30, key="m")
-    fr = deform.SkinnedFrames.of(base)
+    fr = full_frames.SkinnedFrames.of(base)
     rows = np.array([0, 3, fr.n_frames - 1])
-    np.testing.assert_allclose(fr.positions(rows), deform.pose_positions_numpy(fr, rows), atol=1e-12)
+    np.testing.assert_allclose(fr.positions(rows), full_frames.pose_positions_numpy(fr, rows), atol=1e-12)
     assert fr.morphs and np.abs(fr.positions(rows) - fr.positions(rows, weight_rows=np.zeros(3, int))).max() > 1e-3
 
 
@@ -50,7 +51,7 @@ def test_coverage_and_box_kernels_match_references():
     rng = np.random.default_rng(1)
     ch = humanoid(600, 1)
     base = build_rep(ch, fps=30, key="h")
-    fr = deform.SkinnedFrames.of(base)
+    fr = full_frames.SkinnedFrames.of(base)
     tree = follow.build_follow(fr, base.colors, base.normals, joints=base.joints, weights=base.weights,
                                n_joints=base.joint_table.shape[1])
     h = tree.octree
@@ -99,7 +100,7 @@ def test_small_kernels_match_their_references():
     rng = np.random.default_rng(5)
     ch = humanoid(600, 2)
     base = build_rep(ch, fps=30, key="h")
-    fr = deform.SkinnedFrames.of(base)
+    fr = full_frames.SkinnedFrames.of(base)
     P = fr.positions(np.arange(0, fr.n_frames, 7))
     np.testing.assert_allclose(deform.frame_grams(P, fr.indices), deform.grams(P, fr.indices), rtol=1e-12, atol=1e-15)
     want = np.maximum(0.5 * np.sqrt(np.maximum(deform.grams(fr.positions(np.arange(fr.n_frames)), fr.indices)[..., 3],
@@ -192,7 +193,7 @@ def _placed(rep, f: float):
     h = t.octree
     idx = np.asarray(h.indices, np.int64)
     if rep.skinned:
-        fr = deform.SkinnedFrames.of(rep.base)
+        fr = full_frames.SkinnedFrames.of(rep.base)
         F = fr.n_frames
         f0 = int(np.clip(np.floor(f), 0, F - 1))
         f1, a = min(f0 + 1, F - 1), float(f) - f0
@@ -376,7 +377,7 @@ def stretching_joint(stretch: float = 2.5):
 
 def _follow_rep(ch, max_poses: int):
     base = build_rep(ch, fps=30, key="points:s")
-    fr = deform.SkinnedFrames.of(base)
+    fr = full_frames.SkinnedFrames.of(base)
     tree = follow.build_follow(fr, base.colors, base.normals, joints=base.joints, weights=base.weights,
                                n_joints=base.joint_table.shape[1], max_poses=max_poses)
     return follow.FollowRep("points:s", base, tree)
