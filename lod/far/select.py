@@ -79,9 +79,10 @@ def classify(pos, origin, heading, scale, character, clip, radius, centre, plane
     """
     out = np.empty(pos.shape[0], np.uint8)
     if pos.shape[0]:
+        # the state's own dtypes (float32 scale, int32 character, int16 clip): no per-frame copies of them
         _classify_kernel(np.ascontiguousarray(pos, np.float64), np.asarray(origin, np.float64),
-                         np.ascontiguousarray(heading, np.float64), np.ascontiguousarray(scale, np.float64),
-                         np.ascontiguousarray(character, np.int64), np.ascontiguousarray(clip, np.int64),
+                         np.ascontiguousarray(heading), np.ascontiguousarray(scale),
+                         np.ascontiguousarray(character), np.ascontiguousarray(clip),
                          np.ascontiguousarray(radius, np.float64), np.ascontiguousarray(centre, np.float64),
                          np.ascontiguousarray(planes, np.float64), np.asarray(fwd, np.float64), float(limit), out)
     return out
@@ -134,8 +135,8 @@ def far_rows(idx, pos, origin, heading, scale, clip) -> tuple[np.ndarray, np.nda
     words = np.empty(k, np.uint32)
     if k:
         _rows_kernel(np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(pos, np.float64),
-                     np.asarray(origin, np.float64), np.ascontiguousarray(heading, np.float64),
-                     np.ascontiguousarray(scale, np.float64), np.ascontiguousarray(clip, np.int64), rows, words)
+                     np.asarray(origin, np.float64), np.ascontiguousarray(heading), np.ascontiguousarray(scale),
+                     np.ascontiguousarray(clip), rows, words)
     return rows, words
 
 
@@ -178,8 +179,7 @@ class FarSplit:
         if not self.active or not n:
             return None, [], 0
         origin = np.asarray(camera.position, np.float64)
-        char = np.asarray(state.character, np.int64)
-        clip = np.asarray(state.clip, np.int64)
+        char, clip = state.character, state.clip
         cls = classify(state.position, origin, state.heading, state.scale, char, clip, self.radius, self.centre,
                        planes, np.asarray(camera.forward, np.float64), self.far_pixels / float(vscale))
         near = np.flatnonzero(cls == NEAR)
@@ -189,7 +189,7 @@ class FarSplit:
         culled = int(np.count_nonzero(cls == CULLED))
         batches = []
         if far.size:
-            fc = char[far] if len(self.reps) > 1 else None
+            fc = np.asarray(char[far], np.int64) if len(self.reps) > 1 else None
             present = [0] if fc is None else np.flatnonzero(np.bincount(fc, minlength=len(self.reps))).tolist()
             for c in present:
                 idx = far if fc is None else far[fc == c]
