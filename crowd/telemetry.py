@@ -38,9 +38,10 @@ import numpy as np
 #: wall-clock stages of a frame, in order
 STAGES = ("simulate", "select", "upload", "draw", "finish", "png")
 #: per-frame counts taken from the DrawList stats
-#: (``pose_passes``: poses evaluated by the renderer, render.renderer.Renderer.pose_evaluations)
+#: (``pose_passes``: poses evaluated by the renderer, render.renderer.Renderer.pose_evaluations; ``far``: agents
+#: drawn as one far splat each, lod.far, also counted in ``points``)
 COUNTS = ("instances", "culled", "triangles", "points", "batches", "props", "raster_triangles", "pose_passes", "agents",
-          "entered", "exited", "left")
+          "entered", "exited", "left", "far")
 #: percentiles reported in summary.json
 PERCENTILES = (50, 95, 99)
 

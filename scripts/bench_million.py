@@ -183,7 +183,7 @@ def selection(scene_path: str, repeats: int = 3) -> dict:
 
     from crowd.engine import Engine
 
-    scene = _scene(scene_path, "auto")
+    scene = _scene(scene_path, "auto-nofar")  # the far tier off: both paths select every agent
     with Engine(scene, quiet=True) as eng:
         eng.step()
         sel = eng.selector
