@@ -19,14 +19,19 @@ a subprocess of its own (so its peak memory is its own); ``points-root`` is mode
 - memory: the peak resident size of the process (``ru_maxrss``) and the memory guard's estimate
   (``crowd.memory.estimate_scene``);
 
-then, in one process, mode auto's selection of the same frame by the flat path (``lod/auto/flat.py``)
+then the growth table: the first mode on the scene at 10 K, 100 K, 300 K and 1 M agents at the same density
+with the view scaled with sqrt(N) (``--growth``, each in its own process); the image error of a window of one
+frame against full detail drawn with 4 x 4 samples per pixel and box-filtered, for every mode and the aliased
+full-detail frame (``--no-image`` skips it: the reference draws ~0.5 M agents at full detail, minutes); then,
+in one process, mode auto's selection of the same frame by the flat path (``lod/auto/flat.py``)
 and by the per-group path it replaced (``AutoSelector.flat = False``), interleaved (a ratio measured in
 one run survives the load); and the serial/parallel comparison of two per-agent kernels. The load
 average before and after, and the busiest other processes at the start, are printed: the machine is
 shared, absolute figures compare only within a run.
 
 Run:  .venv/bin/python scripts/bench_million.py [--scene scenes/million.toml] [--modes points auto]
-      [--frames 10] [--warmup 3] [--md scripts/bench_million.md] [--no-kernels] [--no-selection]
+      [--frames 10] [--warmup 3] [--md scripts/bench_million.md] [--no-kernels] [--no-selection] [--no-image]
+      [--growth 10000 100000 300000 1000000]
 """
 from __future__ import annotations
 
@@ -67,6 +72,25 @@ def _scene(scene_path: str, mode: str):
     params = dict(scene.lod_params) if scene.lod_mode == base else {}
     params.update(VARIANTS.get(variant, {}))
     return replace(scene, lod_mode=base, lod_params=tuple(params.items()))
+
+
+def scaled_scene(scene, n: int):
+    """The million scene at ``n`` agents and the same density: the grid's rows and columns, its origin, the
+    boids' bounds and the camera's position and target (and far plane) scaled by sqrt(n / its agents), so the
+    view frames the crowd as it does at a million (issue 45's growth table)."""
+    import math
+
+    p0 = scene.placements[0]
+    rows, cols = int(p0.params["rows"]), int(p0.params["cols"])
+    f = math.sqrt(float(n) / float(rows * cols))
+    side = max(1, int(round(math.sqrt(n))))
+    q = dict(p0.params, rows=side, cols=side, origin=[v * f for v in p0.params["origin"]])
+    effects = tuple(replace(e, params=dict(e.params, bounds=[v * f for v in e.params["bounds"]]))
+                    if "bounds" in e.params else e for e in scene.effects)
+    cam = replace(scene.camera, position=tuple(v * f for v in scene.camera.position),
+                  target=tuple(v * f for v in scene.camera.target), far=max(scene.camera.far * f, 100.0))
+    return replace(scene, placements=(replace(p0, params=q),) + tuple(scene.placements[1:]), effects=effects,
+                   camera=cam)
 
 
 def _mode_ok(mode: str, modes) -> bool:
@@ -146,14 +170,17 @@ def image_error(scene_path: str, modes, frame: int = 8, crop=(448, 288, 384, 216
             "rows": [(name, psnr(img), img.reshape(-1, 3).mean(axis=0).tolist()) for name, img in out.items()]}
 
 
-def run_one(scene_path: str, mode: str, frames: int, warmup: int) -> dict:
-    """One mode in this process: load, run, read the telemetry back."""
+def run_one(scene_path: str, mode: str, frames: int, warmup: int, agents: int = 0) -> dict:
+    """One mode in this process (``agents`` > 0: the scene scaled to that many, :func:`scaled_scene`): load,
+    run, read the telemetry back."""
     import csv
 
     from crowd.engine import Engine
     from crowd.memory import estimate_scene
 
     scene = _scene(scene_path, mode)
+    if agents > 0:
+        scene = scaled_scene(scene, agents)
     est = estimate_scene(scene)
     t0 = time.perf_counter()
     with Engine(scene, quiet=True) as eng:
@@ -301,7 +328,12 @@ def main(argv=None) -> int:
     ap.add_argument("--no-kernels", action="store_true", help="skip the serial/parallel kernel comparison")
     ap.add_argument("--no-selection", action="store_true", help="skip the flat/per-group selection comparison")
     ap.add_argument("--no-image", action="store_true", help="skip the image error against the 4 x 4 reference")
+    ap.add_argument("--growth", type=int, nargs="*", default=[10_000, 100_000, 300_000, 1_000_000],
+                    help="agent counts of the growth table (the scene at the same density, the view scaled with "
+                         "sqrt(N)), in the first of --modes; none: skip it")
     a = ap.parse_args(argv)
+    if any(n < 1 for n in a.growth):
+        _fail(f"--growth: expected agent counts >= 1, got {' '.join(map(str, a.growth))}")
     if a.frames < 1 or a.warmup < 0:
         _fail(f"--frames: expected >= 1 and --warmup >= 0, got {a.frames} and {a.warmup}")
     if not Path(a.scene).is_file():
@@ -319,6 +351,8 @@ def main(argv=None) -> int:
             res = selection(a.scene)
         elif a.one == "image":
             res = image_error(a.scene, a.modes)
+        elif a.one.startswith("growth:"):
+            res = run_one(a.scene, a.modes[0], a.frames, a.warmup, agents=int(a.one.split(":", 1)[1]))
         else:
             res = run_one(a.scene, a.one, a.frames, a.warmup)
         print(json.dumps(res))
@@ -327,6 +361,7 @@ def main(argv=None) -> int:
     results = [_child(a, m) for m in a.modes]
     sel = None if a.no_selection else _child(a, "selection")
     img = None if a.no_image else _child(a, "image")
+    growth = [_child(a, f"growth:{n}") for n in a.growth]
     kern = [] if a.no_kernels else kernels()
     load1 = os.getloadavg()
     lines = [f"| mode | load s | {' | '.join(s + ' ms' for s in STAGES)} | fps | cpu ms | points/agent | triangles | "
@@ -365,8 +400,21 @@ def main(argv=None) -> int:
                   "| image | PSNR dB | mean colour (R, G, B) |", "| --- | ---: | --- |"]
         for name, db, mean in img["rows"]:
             ilines.append(f"| {name} | {db:.2f} | " + ", ".join(f"{v:.1f}" for v in mean) + " |")
+    glines = []
+    if growth:
+        t0 = growth[0]["median_s"]["total"]
+        glines = [f"Growth at constant density (mode {a.modes[0]}, the view scaled with sqrt(N); medians of "
+                  f"{a.frames} frames after {a.warmup}):", "",
+                  f"| agents | {' | '.join(s + ' ms' for s in STAGES)} | x {growth[0]['agents']:,} |",
+                  "| ---: | " + " | ".join("---:" for _ in STAGES) + " | ---: |"]
+        for r in growth:
+            med = r["median_s"]
+            glines.append(f"| {r['agents']:,} | " + " | ".join(f"{1e3 * med[s]:.0f}" for s in STAGES)
+                          + f" | {med['total'] / t0:.2f} |")
     print(head)
     print("\n".join(lines))
+    if glines:
+        print("\n".join(glines))
     if ilines:
         print("\n".join(ilines))
     if slines:
@@ -384,7 +432,7 @@ def main(argv=None) -> int:
           f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, Python "
           f"{platform.python_version()}, {gl}.", "",
           f"Command: `{' '.join(['.venv/bin/python', 'scripts/bench_million.py'] + (argv or sys.argv[1:]))}`", "",
-          head, "", *lines, "", *((ilines + [""]) if ilines else []), *((slines + [""]) if slines else []), *((klines + [""]) if kern else []),
+          head, "", *lines, "", *((glines + [""]) if glines else []), *((ilines + [""]) if ilines else []), *((slines + [""]) if slines else []), *((klines + [""]) if kern else []),
           "Busiest processes at the start (the machine is shared): " + ", ".join(others) + ".", "",
           "Stages are the engine's telemetry (`frames.csv`) per frame: simulate (boids + animation), select (LOD "
           "selection: culling, packing, traversal, auto's pricing), upload + draw + finish (the renderer). "
