@@ -6,6 +6,7 @@ Modules in data-flow order:
 - ``lod.far.footprint``: what the splat carries, measured from the character at build: covered area and mean
   lit colour by view and light direction (Wand & Straßer 2002 §3.2's stop at a pixel, §3.5's prefiltering, for
   the whole agent at once).
+- ``lod.far.cache``: measured footprints on disk, content-addressed, written atomically.
 - ``lod.far.rep``: ``FarRep`` (kind ``"far"``), one footprint per clip, measured in the full-detail
   representation's poses.
 """

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lod.far.cache import measured
 from lod.far.footprint import POSES, FarTable, measure
 from lod.full.frames import SkinnedFrames
 
@@ -89,10 +90,11 @@ def empty_table() -> FarTable:
     return measure([])
 
 
-def build_far_rep(full_rep, name: str, clips=None, count: int = POSES) -> FarRep:
+def build_far_rep(full_rep, name: str, clips=None, count: int = POSES, cache: bool = True) -> FarRep:
     """The far rep of a character from its full-detail rep; ``clips``: None (all) or the clip indices a scene
-    plays (the others get an empty table)."""
+    plays (the others get an empty table); ``cache``: read and write measured tables in ``lod.far.cache``."""
     n = n_clips(full_rep)
     played = set(range(n)) if clips is None else {int(c) for c in clips}
-    tables = [measure(clip_surfaces(full_rep, c, count)) if c in played else empty_table() for c in range(n)]
+    tables = [measured(clip_surfaces(full_rep, c, count), cache) if c in played else empty_table()
+              for c in range(n)]
     return FarRep(f"far:{name}", tables)

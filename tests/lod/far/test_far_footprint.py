@@ -132,3 +132,27 @@ def test_far_rep_of_a_skinned_humanoid():
     assert t.area[4, 0] > t.area[8, 0] > 0 and 0.05 < t.area[4, 0] / height ** 2 < 0.5
     assert 0 < far.radius()[0] <= float(rep.clip_sphere[0, 3]) + 1e-6
     assert not far.tables[1].area.any()  # a clip the scene does not play: empty
+
+
+def test_cache_reads_back_and_rebuilds_a_corrupt_entry(tmp_path, monkeypatch):
+    from lod.far import cache
+
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path))
+    surf = [_cube({4: (0.2, 0.6, 0.9)})]
+    first = cache.measured(surf)
+    files = list((tmp_path / "far").glob("*.npz"))
+    assert len(files) == 1 and files[0].stem == cache.key(surf)
+    calls, real = [], fp.measure
+    monkeypatch.setattr(cache.fp, "measure", lambda s: calls.append(1) or real(s))
+    again = cache.measured(surf)
+    assert not calls  # read back, not measured
+    for f in ("area", "ambient", "head", "direct", "centre"):
+        assert np.array_equal(getattr(again, f), getattr(first, f))
+    assert again.radius == first.radius
+    for bad in (b"not a zip", b""):
+        files[0].write_bytes(bad)
+        rebuilt = cache.measured(surf)
+        assert calls and np.array_equal(rebuilt.area, first.area)
+        assert cache.load(files[0]) is not None  # replaced by a good entry
+    other = [_cube({4: (0.9, 0.6, 0.2)})]
+    assert cache.key(other) != cache.key(surf)
