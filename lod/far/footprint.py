@@ -29,9 +29,10 @@ not count), so they are measured by drawing the character:
 
 Departures: normals of skinned poses are the rest normals through each vertex's blended matrix
 (morph-target normal deltas are left out); the shadow map's visibility is taken as 1 (a far agent in
-a building's shadow keeps its sunlit colour); colour variation words (``lod.variation``) are not in the
-table (the renderer applies an agent's word to the mean colour: exact for palette words, approximate
-for hue shifts of a multi-coloured varied part).
+a building's shadow keeps its sunlit colour); colour variation words (``lod.variation``) are not applied: a far
+agent shows its character's unvaried mean colour (the shipped scenes that vary colours, grid and stadium, draw
+through instancing groups, where the far tier is off); a far agent casts no blob shadow (the full-detail frame
+darkens the ground under it: scripts/bench_million.md's window reads ~4 levels brighter than the reference).
 """
 from __future__ import annotations
 
