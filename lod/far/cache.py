@@ -16,7 +16,7 @@ from sim.atomic_io import write_atomic
 
 #: environment variable naming the cache folder (shared with the other caches)
 CACHE_ENV = "CROWD_CACHE_DIR"
-FIELDS = ("area", "ambient", "head", "direct", "radius", "centre")
+FIELDS = ("area", "ambient", "head", "direct", "radius", "centre", "ground", "floor", "extent")
 
 
 def cache_dir() -> Path:
@@ -25,11 +25,13 @@ def cache_dir() -> Path:
     return (Path(d).expanduser() if d else Path.home() / ".cache" / "crowd") / "far"
 
 
-def key(surfaces) -> str:
-    """SHA-256 hex of the measurement's format and grids and every array of ``surfaces`` (shape, dtype, bytes)."""
+def key(surfaces, rest=None) -> str:
+    """SHA-256 hex of the measurement's format and grids, every array of ``surfaces`` and the rest pose (shape,
+    dtype, bytes)."""
     h = hashlib.sha256(repr((fp.FOOTPRINT_FORMAT, fp.VIEW_AZIMUTHS, fp.VIEW_ELEVATIONS, fp.LIGHT_AZIMUTHS,
-                             fp.LIGHT_ELEVATIONS, fp.RESOLUTION, len(surfaces))).encode())
-    for s in surfaces:
+                             fp.LIGHT_ELEVATIONS, fp.RESOLUTION, fp.RINGS, fp.RING_EXTENT, fp.RING_POINTS,
+                             len(surfaces))).encode())
+    for s in list(surfaces) + ([(rest,)] if rest is not None else []):
         for a in s:
             a = np.ascontiguousarray(a)
             h.update(repr((a.shape, a.dtype.str)).encode())
@@ -40,7 +42,7 @@ def key(surfaces) -> str:
 def _shapes() -> dict:
     ve, va, le, la = fp.VIEW_ELEVATIONS, fp.VIEW_AZIMUTHS, fp.LIGHT_ELEVATIONS, fp.LIGHT_AZIMUTHS
     return {"area": (ve, va), "ambient": (ve, va, 3), "head": (ve, va, 3), "direct": (ve, va, le, la, 3),
-            "radius": (), "centre": (3,)}
+            "radius": (), "centre": (3,), "ground": (ve, va, fp.RINGS), "floor": (3,), "extent": (3,)}
 
 
 def load(path: Path) -> fp.FarTable | None:
@@ -53,7 +55,7 @@ def load(path: Path) -> fp.FarTable | None:
     if any(arrays[k].shape != s for k, s in _shapes().items()) or not all(np.isfinite(a).all() for a in arrays.values()):
         return None
     return fp.FarTable(arrays["area"], arrays["ambient"], arrays["head"], arrays["direct"], float(arrays["radius"]),
-                       arrays["centre"])
+                       arrays["centre"], arrays["ground"], arrays["floor"], arrays["extent"])
 
 
 def save(path: Path, table: fp.FarTable) -> None:
@@ -62,14 +64,15 @@ def save(path: Path, table: fp.FarTable) -> None:
     write_atomic(path, buf.getvalue())
 
 
-def measured(surfaces, use_cache: bool = True) -> fp.FarTable:
-    """The far table of ``surfaces`` (``lod.far.footprint.measure``), from the cache when it holds it."""
+def measured(surfaces, use_cache: bool = True, rest=None) -> fp.FarTable:
+    """The far table of ``surfaces`` with the rest pose ``rest`` (``lod.far.footprint.measure``), from the cache
+    when it holds it."""
     if not use_cache or not surfaces:
-        return fp.measure(surfaces)
-    path = cache_dir() / f"{key(surfaces)}.npz"
+        return fp.measure(surfaces, rest=rest)
+    path = cache_dir() / f"{key(surfaces, rest)}.npz"
     table = load(path)
     if table is None:
-        table = fp.measure(surfaces)
+        table = fp.measure(surfaces, rest=rest)
         try:
             save(path, table)
         except OSError:  # a read-only cache folder: measured every time, still right

@@ -20,19 +20,20 @@ not count), so they are measured by drawing the character:
   sphere, keeping per pixel the nearest triangle's interpolated base colour and normal (the surface
   the renderer lights, ``render/shaders/world/light.glsl``).
 * Figures per view: ``area`` (m^2 at scale 1, covered pixels times their area; the mean over the poses),
-  ``ambient`` (mean base colour over the covered pixels of all poses: what the ambient term multiplies), ``head`` (mean of base x |n . d|, the
-  renderer's headlight term) and ``direct`` (mean of base x |n . l| for each light direction l of a
+  ``ambient`` (mean base colour over the covered pixels of all poses: what the ambient term multiplies),
+  ``head`` (mean of base x |n . d|, the renderer's headlight term) and ``direct`` (mean of base x |n . l| for each light direction l of a
   grid of :data:`LIGHT_AZIMUTHS` x :data:`LIGHT_ELEVATIONS` directions in the character's frame: the
   scene's light, fixed in the world, turns in the agent's frame with its heading). The renderer's lit
   colour is ``base (ambient + 0.35 |n . head| + 0.55 light |n . l|)``, so the mean lit colour of the
-  view is ``a ambient + 0.35 head + 0.55 light direct(l)`` without another draw.
+  view is ``a ambient + 0.35 head + 0.55 light direct(l)`` without another draw. And ``ground``: the share of
+  each of :data:`RINGS` floor rings about the rest pose's floor point that the body leaves in view (points on
+  the ring tested against the z-buffer): the renderer weighs a blob shadow's opacity with it.
 
 Departures: normals of skinned poses are the rest normals through each vertex's blended matrix
 (morph-target normal deltas are left out); the shadow map's visibility is taken as 1 (a far agent in
 a building's shadow keeps its sunlit colour); colour variation words (``lod.variation``) are not applied: a far
 agent shows its character's unvaried mean colour (the shipped scenes that vary colours, grid and stadium, draw
-through instancing groups, where the far tier is off); a far agent casts no blob shadow (the full-detail frame
-darkens the ground under it: scripts/bench_million.md's window reads ~4 levels brighter than the reference).
+through instancing groups, where the far tier is off).
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ import numpy as np
 from numba import njit, prange
 
 #: version of the measurement (part of a cache key)
-FOOTPRINT_FORMAT = 1
+FOOTPRINT_FORMAT = 2  # 2: the floor rings' visibility (ground shadows)
 #: view grid: azimuths over a full turn (the first faces the character's front, +Z) and elevations from
 #: -90 to +90 degrees (both poles included)
 VIEW_AZIMUTHS = 16
@@ -55,6 +56,12 @@ POSES = 6
 #: pixels across the bounding sphere of a pose in the orthographic drawing (a humanoid covers ~15 % of
 #: them: ~600 pixels per view, the area within ~1 %)
 RESOLUTION = 64
+#: rings of the floor around the agent whose visibility past the agent's own body is measured (the share of a
+#: ground shadow under it that the viewer sees), out to RING_EXTENT x the rest pose's height, and the points
+#: tested on each ring
+RINGS = 8
+RING_EXTENT = 0.5
+RING_POINTS = 48
 
 
 def grid_directions(azimuths: int, elevations: int) -> np.ndarray:
@@ -121,8 +128,10 @@ def _raster_one(P, idx, basis, centre, half, res, zbuf, tri, b1, b2):  # pragma:
 
 
 @njit(cache=True, parallel=True)
-def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambient, head, direct):  # pragma: no cover
-    """Figures of every view (see the module docstring), added into the output rows of the view."""
+def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambient, head, direct, floor, rings,
+                  ground):  # pragma: no cover - compiled
+    """Figures of every view (see the module docstring), added into the output rows of the view; ``ground``
+    (views, rings): the share of each floor ring (radius ``rings[k]`` about ``floor``) no triangle hides."""
     V = bases.shape[0]
     L = lights.shape[0]
     pix_area = (2.0 * half / res) ** 2
@@ -160,6 +169,24 @@ def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambien
                 s_head[k] += base * hd
                 for li in range(L):
                     s_dir[li, k] += base * abs(nx * lights[li, 0] + ny * lights[li, 1] + nz * lights[li, 2])
+        pix = 2.0 * half / res
+        for k in range(rings.shape[0]):
+            seen = 0
+            for q in range(RING_POINTS):
+                ang = 2.0 * np.pi * (q + 0.5) / RING_POINTS
+                q0 = floor[0] + rings[k] * np.sin(ang) - centre[0]
+                q1 = floor[1] - centre[1]
+                q2 = floor[2] + rings[k] * np.cos(ang) - centre[2]
+                px = int(np.floor(((bases[v, 0, 0] * q0 + bases[v, 0, 1] * q1 + bases[v, 0, 2] * q2) + half) / pix))
+                py = int(np.floor(((bases[v, 1, 0] * q0 + bases[v, 1, 1] * q1 + bases[v, 1, 2] * q2) + half) / pix))
+                if px < 0 or py < 0 or px >= res or py >= res:
+                    seen += 1
+                    continue
+                j = py * res + px
+                z = bases[v, 2, 0] * q0 + bases[v, 2, 1] * q1 + bases[v, 2, 2] * q2
+                if tri[j] < 0 or zbuf[j] <= z:
+                    seen += 1
+            ground[v, k] += seen / RING_POINTS
         area[v] += n * pix_area  # sums over covered area: the table divides by the total at the end
         for k in range(3):
             ambient[v, k] += s_amb[k] * pix_area
@@ -191,6 +218,10 @@ class FarTable:
     direct : (VE, VA, LE, LA, 3) float64, mean base x |n . l| for each light direction of the light grid
     radius : float, the bounding-sphere radius (m at scale 1) of the clip's poses about ``centre``
     centre : (3,) float64, model-space centre of that sphere
+    ground : (VE, VA, RINGS) float64, the share of each floor ring about ``floor`` (radii ``ring_radii``) that
+        the agent's body leaves visible from each view (the part of a ground shadow under it the viewer sees)
+    floor : (3,) float64, the rest pose's floor point (centre x, lowest y, centre z)
+    extent : (3,) float64, the rest pose's extent (x, y, z)
     """
 
     area: np.ndarray
@@ -199,6 +230,14 @@ class FarTable:
     direct: np.ndarray
     radius: float
     centre: np.ndarray
+    ground: np.ndarray = None
+    floor: np.ndarray = None
+    extent: np.ndarray = None
+
+    def ring_radii(self) -> np.ndarray:
+        """(RINGS,) radii (m at scale 1) of the floor rings of :attr:`ground`."""
+        h = float(self.extent[1]) if self.extent is not None else 0.0
+        return (np.arange(RINGS) + 0.5) / RINGS * RING_EXTENT * h
 
     def lit(self, light_dir, light_color=(1.0, 1.0, 1.0), ambient: float = 0.3) -> np.ndarray:
         """(VE, VA, 3) mean lit colour of each view under one light fixed in the character's frame (the
@@ -219,11 +258,13 @@ class FarTable:
         return self.ambient * float(ambient) + 0.35 * self.head + 0.55 * np.asarray(light_color, np.float64) * d
 
 
-def measure(poses, *, res: int = RESOLUTION) -> FarTable:
+def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
     """The far table of a list of poses.
 
     poses : sequence of (positions (V, 3), normals (V, 3), base colours (V, 3 or 4; alpha ignored),
         indices (T, 3)) in model space
+    rest : (V, 3) rest-pose positions (the floor point and extent a ground shadow is placed by, as the
+        renderer's blob shadows are: ``render/world/shadows.py``), or None: the first pose's
     A pose without a finite, non-degenerate extent contributes nothing; with no usable pose the table is
     all zero (the agent covers nothing) and the radius 0.
     """
@@ -232,6 +273,9 @@ def measure(poses, *, res: int = RESOLUTION) -> FarTable:
     bases = np.ascontiguousarray(np.stack([_basis(d) for d in views]))
     V, L = views.shape[0], lights.shape[0]
     area, amb, head, direct = np.zeros(V), np.zeros((V, 3)), np.zeros((V, 3)), np.zeros((V, L, 3))
+    ground = np.zeros((V, RINGS))
+    floor, extent = _floor(rest if rest is not None else (poses[0][0] if len(poses) else None))
+    rings = (np.arange(RINGS) + 0.5) / RINGS * RING_EXTENT * extent[1]
     used = 0
     los, his = [], []
     for P, N, C, idx in poses:
@@ -251,18 +295,31 @@ def measure(poses, *, res: int = RESOLUTION) -> FarTable:
         if not half > 0.0:
             continue
         half *= 1.0 + 1.0 / res  # no vertex exactly on the view's border
-        _views_kernel(P, N, C, idx, bases, centre, half, int(res), lights, area, amb, head, direct)
+        _views_kernel(P, N, C, idx, bases, centre, half, int(res), lights, area, amb, head, direct, floor, rings,
+                      ground)
         used += 1
         los.append(lo)
         his.append(hi)
     shape = (VIEW_ELEVATIONS, VIEW_AZIMUTHS)
     if not used:
         return FarTable(np.zeros(shape), np.zeros(shape + (3,)), np.zeros(shape + (3,)),
-                        np.zeros(shape + (LIGHT_ELEVATIONS, LIGHT_AZIMUTHS, 3)), 0.0, np.zeros(3))
+                        np.zeros(shape + (LIGHT_ELEVATIONS, LIGHT_AZIMUTHS, 3)), 0.0, np.zeros(3),
+                        np.ones(shape + (RINGS,)), floor, extent)
     lo, hi = np.min(los, axis=0), np.max(his, axis=0)
     centre = 0.5 * (lo + hi)
     radius = float(0.5 * np.linalg.norm(hi - lo))
     w = np.where(area > 0.0, 1.0 / np.maximum(area, 1e-300), 0.0)  # colours: means over all poses' covered area
     return FarTable((area / used).reshape(shape), (amb * w[:, None]).reshape(shape + (3,)),
                     (head * w[:, None]).reshape(shape + (3,)),
-                    (direct * w[:, None, None]).reshape(shape + (LIGHT_ELEVATIONS, LIGHT_AZIMUTHS, 3)), radius, centre)
+                    (direct * w[:, None, None]).reshape(shape + (LIGHT_ELEVATIONS, LIGHT_AZIMUTHS, 3)), radius, centre,
+                    (ground / used).reshape(shape + (RINGS,)), floor, extent)
+
+
+def _floor(rest) -> tuple[np.ndarray, np.ndarray]:
+    """(floor point (centre x, lowest y, centre z), extent (x, y, z)) of rest-pose positions (zeros without)."""
+    p = None if rest is None else np.asarray(rest, np.float64).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)] if p is not None else None
+    if p is None or p.shape[0] == 0:
+        return np.zeros(3), np.zeros(3)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    return np.array([(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2]), hi - lo

@@ -31,6 +31,13 @@ def _blend_normals(rep, rows: np.ndarray) -> np.ndarray:
     return out
 
 
+def rest_positions(rep):
+    """The rest-pose positions the renderer places a blob shadow by (``render.world.shadows.footprint``'s
+    first: ``positions``, else ``positions0``)."""
+    p = getattr(rep, "positions", None)
+    return p if p is not None else getattr(rep, "positions0", None)
+
+
 def clip_surfaces(rep, clip: int, count: int = POSES) -> list:
     """``count`` poses spread evenly over clip ``clip`` of a full-detail rep, as ``measure`` takes them:
     [(positions, normals, colours, indices)]. A clip with fewer frames (or keyframes) gives each once."""
@@ -95,6 +102,7 @@ def build_far_rep(full_rep, name: str, clips=None, count: int = POSES, cache: bo
     plays (the others get an empty table); ``cache``: read and write measured tables in ``lod.far.cache``."""
     n = n_clips(full_rep)
     played = set(range(n)) if clips is None else {int(c) for c in clips}
-    tables = [measured(clip_surfaces(full_rep, c, count), cache) if c in played else empty_table()
+    rest = rest_positions(full_rep)
+    tables = [measured(clip_surfaces(full_rep, c, count), cache, rest) if c in played else empty_table()
               for c in range(n)]
     return FarRep(f"far:{name}", tables)

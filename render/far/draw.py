@@ -11,10 +11,11 @@ changes. Layout per clip: ``centre`` (the bounding sphere's, model space), then 
 Per frame (:meth:`Drawer.draw`), after the opaque kinds and the point splats (:attr:`Drawer.order`):
 
 1. ``far_splat``: one thread per far agent adds its colour x coverage into its pixel's integer accumulators
-   (order-free) and keeps the nearest depth;
+   (order-free), and the visible part of its blob shadow when the renderer draws blobs, and keeps the nearest
+   depth;
 2. ``far_resolve``: one full-screen triangle; a reached pixel takes the agents' mean colour with their joint
-   coverage as alpha (independent agents: ``1 - prod(1 - alpha)``), blended over the frame at their nearest
-   depth under the depth test (no depth write), and resets its accumulators.
+   coverage (independent agents: ``1 - prod(1 - alpha)``) over the frame darkened by their joint shadow,
+   blended at their nearest depth under the depth test (no depth write), and resets its accumulators.
 """
 from __future__ import annotations
 
@@ -30,16 +31,38 @@ from render.shaders import load_source, program_sources
 GROUP = 64
 #: largest work-group count per dispatch dimension (GL guarantees 65535)
 MAX_GROUPS_X = 65535
-#: uint32 accumulators per pixel (depth, r, g, b, alpha, -log(1 - alpha))
-ACC_WORDS = 6
+#: uint32 accumulators per pixel (depth, r, g, b, alpha, -log(1 - alpha), -log(1 - shadow))
+ACC_WORDS = 7
+#: radial samples of a blob shadow's opacity in :func:`ground_shadow`
+BLOB_SAMPLES = 64
 #: vec4s per view cell and per clip (far_splat.glsl CELL, CLIP_VEC4)
 CELL = 1 + fp.LIGHT_AZIMUTHS
 CLIP_VEC4 = 1 + fp.VIEW_ELEVATIONS * fp.VIEW_AZIMUTHS * CELL
 
 
-def lit_tables(tables, light) -> np.ndarray:
+def ground_shadow(t) -> np.ndarray:
+    """(VE, VA) the blob shadow under an agent of far table ``t`` (``render.world.shadows``: its radius from the
+    rest pose's extent, its opacity profile) that the body leaves in view from each view direction: the integral
+    of opacity x the floor ring's visible share (``FarTable.ground``, interpolated between the rings) over the
+    disc, m^2 at scale 1 (seen from straight above; the splat foreshortens it by the view's elevation)."""
+    from render.world.shadows import blob_opacity, blob_radius
+
+    if t.ground is None or t.extent is None or not float(t.extent[1]) > 0.0:
+        return np.zeros(t.area.shape)
+    rb = blob_radius(t.extent)
+    rho = (np.arange(BLOB_SAMPLES) + 0.5) / BLOB_SAMPLES  # over the blob's radius
+    rings = t.ring_radii()
+    g = t.ground.reshape(-1, rings.shape[0])
+    vis = np.stack([np.interp(rho * rb, rings, row) for row in g])  # (views, samples)
+    ring_area = 2.0 * np.pi * rho * rb * (rb / BLOB_SAMPLES)
+    return (vis * (blob_opacity(rho) * ring_area)[None, :]).sum(axis=1).reshape(t.area.shape)
+
+
+def lit_tables(tables, light, blobs: bool = False) -> np.ndarray:
     """(clips * CLIP_VEC4, 4) float32: the far tables of one representation lit by ``light``
-    (``render.world.light.Light``), in the splat shader's layout (see the module docstring)."""
+    (``render.world.light.Light``), in the splat shader's layout (see the module docstring); ``blobs``: the
+    renderer draws blob shadows, so each view cell carries the part of one under the agent that shows
+    (:func:`ground_shadow`, in the alpha of its first direct vec4)."""
     d = np.asarray(light.direction, np.float64)
     el = math.degrees(math.asin(max(-1.0, min(1.0, d[1] / max(np.linalg.norm(d), 1e-30)))))
     fe = (el + 90.0) / 180.0 * (fp.LIGHT_ELEVATIONS - 1)
@@ -54,6 +77,8 @@ def lit_tables(tables, light) -> np.ndarray:
         cells[:, :, 0, 3] = t.area
         direct = (1.0 - te) * t.direct[:, :, e0] + te * t.direct[:, :, e0 + 1]  # (VE, VA, LA, 3)
         cells[:, :, 1:, :3] = 0.55 * color * direct
+        if blobs:
+            cells[:, :, 1, 3] = ground_shadow(t)
     out = out.reshape(-1, 4)
     return np.where(np.isfinite(out), out, 0.0).astype(np.float32)
 
@@ -79,7 +104,7 @@ class Drawer:
         self._reps: dict = {}  # key -> list of FarTable
         self._base: dict = {}  # key -> first vec4 of its tables
         self._table = None
-        self._table_light = None  # the light the table was lit with
+        self._table_light = None  # the light (and blob mode) the table was lit with
         self._bufs: dict = {}
         w, h = renderer.size
         acc = np.zeros((w * h, ACC_WORDS), np.uint32)
@@ -113,19 +138,19 @@ class Drawer:
         self._table_light = None
 
     def _tables(self):
-        light = self.r.lighting.light
-        if self._table is None or self._table_light != light:
+        lit = (self.r.lighting.light, self.r.lighting.mode == "blob")
+        if self._table is None or self._table_light != lit:
             parts, base = [], 0
             for key, tables in self._reps.items():
                 self._base[key] = base
-                parts.append(lit_tables(tables, light))
+                parts.append(lit_tables(tables, *lit))
                 base += parts[-1].shape[0]
             data = np.concatenate(parts) if parts else np.zeros((1, 4), np.float32)
             if self._table is not None:
                 self._table.release()
                 self._objects.remove(self._table)
             self._table = self._track(self.ctx.buffer(data.tobytes()), "far.tables")
-            self._table_light = light
+            self._table_light = lit
         return self._table
 
     def draw(self, batches, drawlist, view_proj) -> None:
@@ -162,7 +187,7 @@ class Drawer:
         fbo.depth_mask = False
         fbo.use()  # moderngl applies a framebuffer's write masks when it is bound
         ctx.enable(ctx.BLEND)
-        ctx.blend_func = (ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA, ctx.ZERO, ctx.ONE)
+        ctx.blend_func = (ctx.ONE, ctx.ONE_MINUS_SRC_ALPHA, ctx.ZERO, ctx.ONE)  # premultiplied (far_resolve)
         try:
             self._vao.render(mode=ctx.TRIANGLES, vertices=3)
         finally:

@@ -89,13 +89,27 @@ def footprint(rep) -> tuple | None:
                 return None
             lo, hi = p.min(axis=0), p.max(axis=0)
             c = np.array([(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2])
-            blob = BLOB_RADIUS_FACTOR * float((hi[0] - lo[0]) + (hi[2] - lo[2]))
-            height = float(hi[1] - lo[1])
-            if height > 1e-6:
-                blob = min(max(blob, BLOB_HEIGHT_RANGE[0] * height), BLOB_HEIGHT_RANGE[1] * height)
             reach = float(np.sqrt(((p - c) ** 2).sum(axis=1)).max())
-            return float(c[0]), float(c[1]), float(c[2]), max(blob, 1e-3), max(reach, 1e-3)
+            return float(c[0]), float(c[1]), float(c[2]), blob_radius(hi - lo), max(reach, 1e-3)
     return None
+
+
+def blob_radius(extent) -> float:
+    """The blob shadow's radius of a rest pose of ``extent`` (x, y, z): :data:`BLOB_RADIUS_FACTOR` x (x + z),
+    clamped to :data:`BLOB_HEIGHT_RANGE` x its height, at least 1 mm."""
+    ex, ey, ez = (float(v) for v in extent)
+    blob = BLOB_RADIUS_FACTOR * (ex + ez)
+    if ey > 1e-6:
+        blob = min(max(blob, BLOB_HEIGHT_RANGE[0] * ey), BLOB_HEIGHT_RANGE[1] * ey)
+    return max(blob, 1e-3)
+
+
+def blob_opacity(rho) -> np.ndarray:
+    """Opacity of a blob shadow at ``rho`` (distance from its centre over its radius): ``blob.frag``'s
+    :data:`BLOB_OPACITY` x (1 - smoothstep(:data:`BLOB_INNER`, 1, rho)), 0 from the rim on."""
+    r = np.asarray(rho, np.float64)
+    t = np.clip((r - BLOB_INNER) / (1.0 - BLOB_INNER), 0.0, 1.0)
+    return BLOB_OPACITY * (1.0 - t * t * (3.0 - 2.0 * t))
 
 
 def blob_instances(batches, footprints: dict) -> np.ndarray:

@@ -229,3 +229,62 @@ def test_far_splat_hides_behind_nearer_surfaces(walker):
         r.release()
     assert not np.array_equal(imgs[0], imgs[1])  # alone, the far agent shows
     assert np.array_equal(imgs[2], imgs[3])  # behind the near one, it does not
+
+
+def test_ground_shadow_is_the_visible_blob_opacity():
+    from render.far.draw import ground_shadow
+    from render.world.shadows import blob_opacity, blob_radius
+    from lod.far.footprint import FarTable, RINGS
+
+    shape = (9, 16)
+    t = FarTable(np.ones(shape), np.zeros(shape + (3,)), np.zeros(shape + (3,)), np.zeros(shape + (9, 16, 3)), 1.0,
+                 np.zeros(3), np.ones(shape + (RINGS,)), np.zeros(3), np.array([0.55, 1.8, 0.3]))
+    rb = blob_radius(t.extent)
+    rho = np.linspace(0, 1, 100001)
+    disc = np.trapezoid(blob_opacity(rho) * 2 * np.pi * rho, rho) * rb * rb
+    assert np.allclose(ground_shadow(t), disc, rtol=0.01)
+    t.ground[:] = 0.0
+    assert not ground_shadow(t).any()
+    t.ground[:] = 0.5
+    assert np.allclose(ground_shadow(t), 0.5 * disc, rtol=0.01)
+
+
+def test_far_splat_darkens_the_ground_by_its_visible_blob(walker):
+    """With blob shadows on, a far agent over a white frame: alpha x colour + (1 - alpha)(1 - shadow), the
+    shadow its visible blob opacity foreshortened and in pixels (within 2/255)."""
+    from render.far.draw import ground_shadow
+
+    size = (160, 120)
+    el, az = 25.0, 30.0
+    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
+    split = FarSplit([walker.far], far_pixels=3.0)
+    _, batches, _ = split.split(_state(), cam, size, viewport_scale(size[1], cam.fov_y),
+                                cam.frustum_planes(size[0] / size[1]))
+    imgs = {}
+    for mode in ("none", "blob"):
+        r = Renderer(size, ctx=walker.gl)
+        try:
+            r.lighting.mode = mode
+            r.upload(walker.far)
+            dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
+            dl.batches = batches
+            r.draw(dl, background=(1, 1, 1))
+            imgs[mode] = r.read_pixels().astype(np.float64) / 255.0
+        finally:
+            r.release()
+    px = np.argwhere(imgs["none"].min(axis=2) < 1.0)
+    assert px.shape[0] == 1
+    t = walker.far.tables[0]
+    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
+    px_m2 = (size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)) ** 2
+    fe, fa = (el + 90.0) / 180.0 * 8, az / 360.0 * 16
+    e0, a0 = int(fe), int(fa)
+    te, ta = fe - e0, fa - a0
+    bil = lambda x: ((1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a0 + 1])  # noqa: E731
+                     + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a0 + 1]))
+    alpha = bil(t.area) * px_m2
+    shade = bil(ground_shadow(t)) * np.sin(np.radians(el)) * px_m2
+    assert 0.01 < shade < 0.5
+    none, blob = imgs["none"][tuple(px[0])], imgs["blob"][tuple(px[0])]
+    assert np.all(blob < none)  # the blob darkens what the agent leaves uncovered
+    assert np.allclose(blob, none - (1 - alpha) * shade, atol=2.0 / 255.0), (blob * 255, (none - (1 - alpha) * shade) * 255)

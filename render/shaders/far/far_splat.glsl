@@ -5,7 +5,9 @@
 // elevation) and linearly in the light's azimuth relative to its heading, the covered area (m^2 at scale 1)
 // and the mean lit colour of what it shows. Its coverage of the pixel is alpha = min(1, area in pixels);
 // the pixel's accumulators add colour x alpha, alpha, -log(1 - alpha) (integers: order-free) and keep the
-// nearest depth (atomicMin of the window depth's bits: positive floats order as their bits).
+// nearest depth (atomicMin of the window depth's bits: positive floats order as their bits). The visible part
+// of the agent's blob shadow (m^2 of full opacity seen from above, the alpha of the cell's first direct vec4;
+// 0 without blob shadows) foreshortened by the view's elevation and in pixels adds -log(1 - shadow).
 layout(local_size_x = 64) in;
 
 #define VA 16
@@ -19,7 +21,7 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Rows { vec4 rows[]; };    // camera-relative xyz, scale
 layout(std430, binding = 1) readonly buffer Words { uint words[]; };  // heading (1/65536 turns) | clip << 16
 layout(std430, binding = 2) readonly buffer Table { vec4 table[]; };
-layout(std430, binding = 3) buffer Accum { uint acc[]; };             // per pixel: depth, r, g, b, alpha, -log(1-a)
+layout(std430, binding = 3) buffer Accum { uint acc[]; };  // per pixel: depth, r, g, b, alpha, -log(1-a), -log(1-s)
 
 uniform mat4 u_view_proj;
 uniform ivec2 u_size;
@@ -35,6 +37,10 @@ vec4 lookup(uint cb, int e, int a, int l0, int l1, float tl) {
     vec4 t0 = table[cell];
     vec3 d = mix(table[cell + 1u + uint(l0)].rgb, table[cell + 1u + uint(l1)].rgb, tl);
     return vec4(t0.rgb + d, t0.a);
+}
+
+float ground(uint cb, int e, int a) {
+    return table[cb + 1u + uint(e * VA + a) * uint(CELL) + 1u].a;
 }
 
 void main() {
@@ -73,11 +79,15 @@ void main() {
     int l1 = (l0 + 1) % LA;
     vec4 r = mix(mix(lookup(cb, e0, a0, l0, l1, tl), lookup(cb, e0, a1, l0, l1, tl), ta),
                  mix(lookup(cb, e0 + 1, a0, l0, l1, tl), lookup(cb, e0 + 1, a1, l0, l1, tl), ta), te);
-    float area = r.a * s * s * u_pixels.x * u_pixels.y / (clip.w * clip.w);
-    float alpha = min(area, 1.0);
+    float px_m2 = s * s * u_pixels.x * u_pixels.y / (clip.w * clip.w);  // pixels per m^2 of the agent
+    float alpha = min(r.a * px_m2, 1.0);
+    float g = mix(mix(ground(cb, e0, a0), ground(cb, e0, a1), ta), mix(ground(cb, e0 + 1, a0), ground(cb, e0 + 1, a1), ta),
+                  te);
+    float shade = min(g * abs(v.y) * px_m2, MAX_ALPHA);
     uint wa = uint(alpha * SCALE + 0.5);
-    if (wa == 0u) return;  // covers nothing visible: no depth either (the resolve resets by alpha)
-    uint k = uint(px.y * u_size.x + px.x) * 6u;
+    uint ws = uint(-log(1.0 - shade) * SCALE + 0.5);
+    if (wa == 0u && ws == 0u) return;  // nothing visible: no depth either (the resolve resets what it reads)
+    uint k = uint(px.y * u_size.x + px.x) * 7u;
     atomicMin(acc[k], floatBitsToUint(ndc.z * 0.5 + 0.5));
     vec3 col = clamp(r.rgb, 0.0, 16.0) * float(wa);
     atomicAdd(acc[k + 1u], uint(col.r + 0.5));
@@ -85,4 +95,5 @@ void main() {
     atomicAdd(acc[k + 3u], uint(col.b + 0.5));
     atomicAdd(acc[k + 4u], wa);
     atomicAdd(acc[k + 5u], uint(-log(1.0 - min(alpha, MAX_ALPHA)) * SCALE + 0.5));
+    atomicAdd(acc[k + 6u], ws);
 }

@@ -143,7 +143,7 @@ def test_cache_reads_back_and_rebuilds_a_corrupt_entry(tmp_path, monkeypatch):
     files = list((tmp_path / "far").glob("*.npz"))
     assert len(files) == 1 and files[0].stem == cache.key(surf)
     calls, real = [], fp.measure
-    monkeypatch.setattr(cache.fp, "measure", lambda s: calls.append(1) or real(s))
+    monkeypatch.setattr(cache.fp, "measure", lambda s, **kw: calls.append(1) or real(s, **kw))
     again = cache.measured(surf)
     assert not calls  # read back, not measured
     for f in ("area", "ambient", "head", "direct", "centre"):
@@ -156,3 +156,22 @@ def test_cache_reads_back_and_rebuilds_a_corrupt_entry(tmp_path, monkeypatch):
         assert cache.load(files[0]) is not None  # replaced by a good entry
     other = [_cube({4: (0.9, 0.6, 0.2)})]
     assert cache.key(other) != cache.key(surf)
+
+
+def test_ground_rings_are_hidden_where_the_body_stands():
+    """A pole 0.2 m wide and 2 m tall on the floor: from above it hides only the floor under it (the innermost
+    ring); seen from the side at 22.5 degrees it hides the part of each ring behind it, asin(0.1 / r) / pi."""
+    P, N, C, idx = _cube()
+    pole = P * np.array([0.2, 2.0, 0.2]) + np.array([0.0, 1.0, 0.0])  # floor at y = 0
+    t = fp.measure([(pole, N, C, idx)], rest=pole)
+    r = t.ring_radii()
+    assert np.allclose(t.floor, (0.0, 0.0, 0.0)) and np.allclose(t.extent, (0.2, 2.0, 0.2))
+    assert np.allclose(r, (np.arange(fp.RINGS) + 0.5) / fp.RINGS * fp.RING_EXTENT * 2.0)
+    top = t.ground[-1, 0]
+    assert top[0] == 0.0 and np.all(top[r > 0.1 * np.sqrt(2) + 0.03] == 1.0)
+    side = t.ground[5, 0]  # elevation 22.5 degrees, from the front
+    want = 1.0 - np.arcsin(np.minimum(0.1 / r, 1.0)) / np.pi
+    assert np.allclose(side[r > 0.2], want[r > 0.2], atol=0.05), (side, want)
+    # a table without a rest pose places the rings by the first pose; an empty one sees every ring
+    assert np.allclose(fp.measure([(pole, N, C, idx)]).ground, t.ground)
+    assert np.all(fp.measure([]).ground == 1.0)
