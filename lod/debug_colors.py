@@ -16,6 +16,7 @@ REPRESENTATION_COLORS = {
     "triangles": (0.20, 0.55, 0.95),
     "points": (0.95, 0.35, 0.20),
     "clusters": (0.25, 0.85, 0.35),
+    "far": (0.80, 0.30, 0.90),  # the far tier (lod.far): one splat per agent
 }
 #: RGB per LOD level, finest first (a perceptual ramp); deeper levels reuse the last
 LEVEL_COLORS = (

@@ -177,6 +177,8 @@ class Drawer:
             rows.bind_to_storage_buffer(0)
             words.bind_to_storage_buffer(1)
             cs["u_count"].value = int(b.n_instances)
+            tint = getattr(b, "tint", None)  # colour by representation or level (lod.debug_colors)
+            cs["u_tint"].value = tuple(float(v) for v in tint[:4]) if tint is not None else (0.0, 0.0, 0.0, 0.0)
             cs["u_base"].value = int(self._base[b.rep])
             groups = -(-b.n_instances // GROUP)
             gx = min(groups, MAX_GROUPS_X)

@@ -288,3 +288,31 @@ def test_far_splat_darkens_the_ground_by_its_visible_blob(walker):
     none, blob = imgs["none"][tuple(px[0])], imgs["blob"][tuple(px[0])]
     assert np.all(blob < none)  # the blob darkens what the agent leaves uncovered
     assert np.allclose(blob, none - (1 - alpha) * shade, atol=2.0 / 255.0), (blob * 255, (none - (1 - alpha) * shade) * 255)
+
+
+def test_far_splats_take_the_debug_colour_of_their_batch(walker):
+    """Colour by representation (lod.debug_colors): the far batch's tint is mixed into its splats' colour."""
+    from lod.debug_colors import REPRESENTATION_COLORS, TINT_WEIGHT, apply_tints
+
+    size = (160, 120)
+    cam = Camera.look_at(1500.0 * _view(25.0, 30.0), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
+    _, batches, _ = FarSplit([walker.far], far_pixels=3.0).split(
+        _state(), cam, size, viewport_scale(size[1], cam.fov_y), cam.frustum_planes(size[0] / size[1]))
+    out = {}
+    r = Renderer(size, ctx=walker.gl)
+    try:
+        r.upload(walker.far)
+        for by in ("none", "representation"):
+            dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
+            dl.batches = list(batches)
+            apply_tints(dl, by)
+            r.draw(dl, background=(0, 0, 0))
+            out[by] = r.read_pixels().astype(np.float64) / 255.0
+    finally:
+        r.release()
+    p = tuple(np.argwhere(out["none"].max(axis=2) > 0)[0])
+    plain, tinted = out["none"][p], out["representation"][p]
+    rgb = np.asarray(REPRESENTATION_COLORS["far"])
+    # over black, plain = a c and tinted = a mix(c, rgb, w) for the same coverage a: their difference is a w rgb
+    rest = tinted - (1 - TINT_WEIGHT) * plain
+    assert rest.min() > 0 and np.allclose(rest / rest.sum(), rgb / rgb.sum(), atol=0.05)

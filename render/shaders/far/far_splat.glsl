@@ -29,6 +29,7 @@ uniform uint u_count;
 uniform uint u_base;        // first vec4 of this representation's tables
 uniform float u_light_az;   // azimuth of the light (world, radians, atan(x, z))
 uniform vec2 u_pixels;      // (P00 w / 2, P11 h / 2): pixels per metre at clip w = 1
+uniform vec4 u_tint;        // the batch's debug colour (rgb, weight; lod/debug_colors.py), mixed into the splat's
 
 const float TAU = 6.283185307179586;
 
@@ -89,7 +90,7 @@ void main() {
     if (wa == 0u && ws == 0u) return;  // nothing visible: no depth either (the resolve resets what it reads)
     uint k = uint(px.y * u_size.x + px.x) * 7u;
     atomicMin(acc[k], floatBitsToUint(ndc.z * 0.5 + 0.5));
-    vec3 col = clamp(r.rgb, 0.0, 16.0) * float(wa);
+    vec3 col = mix(clamp(r.rgb, 0.0, 16.0), u_tint.rgb, u_tint.a) * float(wa);
     atomicAdd(acc[k + 1u], uint(col.r + 0.5));
     atomicAdd(acc[k + 2u], uint(col.g + 0.5));
     atomicAdd(acc[k + 3u], uint(col.b + 0.5));
