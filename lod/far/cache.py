@@ -16,7 +16,7 @@ from sim.atomic_io import write_atomic
 
 #: environment variable naming the cache folder (shared with the other caches)
 CACHE_ENV = "CROWD_CACHE_DIR"
-FIELDS = ("area", "ambient", "head", "direct", "radius", "centre", "ground", "floor", "extent")
+FIELDS = ("area", "ambient", "head", "direct", "radius", "centre", "ground", "floor", "extent", "varied", "varied_base")
 
 
 def cache_dir() -> Path:
@@ -42,7 +42,8 @@ def key(surfaces, rest=None) -> str:
 def _shapes() -> dict:
     ve, va, le, la = fp.VIEW_ELEVATIONS, fp.VIEW_AZIMUTHS, fp.LIGHT_ELEVATIONS, fp.LIGHT_AZIMUTHS
     return {"area": (ve, va), "ambient": (ve, va, 3), "head": (ve, va, 3), "direct": (ve, va, le, la, 3),
-            "radius": (), "centre": (3,), "ground": (ve, va, fp.RINGS), "floor": (3,), "extent": (3,)}
+            "radius": (), "centre": (3,), "ground": (ve, va, fp.RINGS), "floor": (3,), "extent": (3,),
+            "varied": (ve, va, 2 + le * la), "varied_base": (ve, va, 3)}
 
 
 def load(path: Path) -> fp.FarTable | None:
@@ -55,7 +56,8 @@ def load(path: Path) -> fp.FarTable | None:
     if any(arrays[k].shape != s for k, s in _shapes().items()) or not all(np.isfinite(a).all() for a in arrays.values()):
         return None
     return fp.FarTable(arrays["area"], arrays["ambient"], arrays["head"], arrays["direct"], float(arrays["radius"]),
-                       arrays["centre"], arrays["ground"], arrays["floor"], arrays["extent"])
+                       arrays["centre"], arrays["ground"], arrays["floor"], arrays["extent"], arrays["varied"],
+                       arrays["varied_base"])
 
 
 def save(path: Path, table: fp.FarTable) -> None:

@@ -27,13 +27,16 @@ not count), so they are measured by drawing the character:
   colour is ``base (ambient + 0.35 |n . head| + 0.55 light |n . l|)``, so the mean lit colour of the
   view is ``a ambient + 0.35 head + 0.55 light direct(l)`` without another draw. And ``ground``: the share of
   each of :data:`RINGS` floor rings about the rest pose's floor point that the body leaves in view (points on
-  the ring tested against the z-buffer): the renderer weighs a blob shadow's opacity with it.
+  the ring tested against the z-buffer): the renderer weighs a blob shadow's opacity with it. And the varied
+  part's share, its lighting sums (mask x |n . d|, mask x |n . l|) and its mean base colour, from which the
+  renderer turns an agent's variation word into a change of the mean colour.
 
 Departures: normals of skinned poses are the rest normals through each vertex's blended matrix
 (morph-target normal deltas are left out); the shadow map's visibility is taken as 1 (a far agent in
-a building's shadow keeps its sunlit colour); colour variation words (``lod.variation``) are not applied: a far
-agent shows its character's unvaried mean colour (the shipped scenes that vary colours, grid and stadium, draw
-through instancing groups, where the far tier is off).
+a building's shadow keeps its sunlit colour); an agent's colour variation (``lod.variation``, which changes the
+base colour of the vertices its mask marks) changes the varied part's *mean* base colour, lit with that part's
+own lighting sums (``varied``, ``varied_base``): exact where the varied part has one colour (a palette word, or
+a uniformly coloured garment), an approximation of the mean of varied colours where it has several.
 """
 from __future__ import annotations
 
@@ -43,7 +46,7 @@ import numpy as np
 from numba import njit, prange
 
 #: version of the measurement (part of a cache key)
-FOOTPRINT_FORMAT = 2  # 2: the floor rings' visibility (ground shadows)
+FOOTPRINT_FORMAT = 3  # 2: the floor rings' visibility (ground shadows); 3: the varied part
 #: view grid: azimuths over a full turn (the first faces the character's front, +Z) and elevations from
 #: -90 to +90 degrees (both poles included)
 VIEW_AZIMUTHS = 16
@@ -129,9 +132,11 @@ def _raster_one(P, idx, basis, centre, half, res, zbuf, tri, b1, b2):  # pragma:
 
 @njit(cache=True, parallel=True)
 def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambient, head, direct, floor, rings,
-                  ground):  # pragma: no cover - compiled
+                  ground, varied, varied_base):  # pragma: no cover - compiled
     """Figures of every view (see the module docstring), added into the output rows of the view; ``ground``
-    (views, rings): the share of each floor ring (radius ``rings[k]`` about ``floor``) no triangle hides."""
+    (views, rings): the share of each floor ring (radius ``rings[k]`` about ``floor``) no triangle hides;
+    ``varied`` (views, 2 + lights): the varied part's sums of mask, mask x |n . d| and mask x |n . l|;
+    ``varied_base`` (views, 3): its sum of mask x base colour."""
     V = bases.shape[0]
     L = lights.shape[0]
     pix_area = (2.0 * half / res) ** 2
@@ -145,6 +150,8 @@ def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambien
         s_amb = np.zeros(3)
         s_head = np.zeros(3)
         s_dir = np.zeros((L, 3))
+        s_var = np.zeros(2 + L)
+        s_vbase = np.zeros(3)
         for j in range(res * res):
             t = tri[j]
             if t < 0:
@@ -163,10 +170,16 @@ def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambien
             else:  # the shader's fallback for a zero normal
                 nx, ny, nz = 0.0, 1.0, 0.0
             hd = abs(nx * bases[v, 2, 0] + ny * bases[v, 2, 1] + nz * bases[v, 2, 2])
+            m = min(max(w0 * C[a, 3] + w1 * C[b, 3] + w2 * C[c, 3], 0.0), 1.0)  # the variation mask
+            s_var[0] += m
+            s_var[1] += m * hd
+            for li in range(L):
+                s_var[2 + li] += m * abs(nx * lights[li, 0] + ny * lights[li, 1] + nz * lights[li, 2])
             for k in range(3):
                 base = w0 * C[a, k] + w1 * C[b, k] + w2 * C[c, k]
                 s_amb[k] += base
                 s_head[k] += base * hd
+                s_vbase[k] += m * base
                 for li in range(L):
                     s_dir[li, k] += base * abs(nx * lights[li, 0] + ny * lights[li, 1] + nz * lights[li, 2])
         pix = 2.0 * half / res
@@ -191,8 +204,11 @@ def _views_kernel(P, Nrm, C, idx, bases, centre, half, res, lights, area, ambien
         for k in range(3):
             ambient[v, k] += s_amb[k] * pix_area
             head[v, k] += s_head[k] * pix_area
+            varied_base[v, k] += s_vbase[k] * pix_area
             for li in range(L):
                 direct[v, li, k] += s_dir[li, k] * pix_area
+        for q in range(2 + L):
+            varied[v, q] += s_var[q] * pix_area
 
 
 def gbuffer(P, idx, d, centre, half: float, res: int = RESOLUTION) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -222,6 +238,9 @@ class FarTable:
         the agent's body leaves visible from each view (the part of a ground shadow under it the viewer sees)
     floor : (3,) float64, the rest pose's floor point (centre x, lowest y, centre z)
     extent : (3,) float64, the rest pose's extent (x, y, z)
+    varied : (VE, VA, 2 + LE x LA) float64, the varied part (vertex alpha, ``lod.variation``'s mask) per unit of
+        covered area: its share, its mean mask x |n . d|, its mean mask x |n . l| for each light direction
+    varied_base : (VE, VA, 3) float64, the varied part's mean base colour
     """
 
     area: np.ndarray
@@ -233,6 +252,8 @@ class FarTable:
     ground: np.ndarray = None
     floor: np.ndarray = None
     extent: np.ndarray = None
+    varied: np.ndarray = None
+    varied_base: np.ndarray = None
 
     def ring_radii(self) -> np.ndarray:
         """(RINGS,) radii (m at scale 1) of the floor rings of :attr:`ground`."""
@@ -261,8 +282,8 @@ class FarTable:
 def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
     """The far table of a list of poses.
 
-    poses : sequence of (positions (V, 3), normals (V, 3), base colours (V, 3 or 4; alpha ignored),
-        indices (T, 3)) in model space
+    poses : sequence of (positions (V, 3), normals (V, 3), base colours (V, 3 or 4; alpha: the variation mask,
+        0 without), indices (T, 3)) in model space
     rest : (V, 3) rest-pose positions (the floor point and extent a ground shadow is placed by, as the
         renderer's blob shadows are: ``render/world/shadows.py``), or None: the first pose's
     A pose without a finite, non-degenerate extent contributes nothing; with no usable pose the table is
@@ -274,6 +295,7 @@ def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
     V, L = views.shape[0], lights.shape[0]
     area, amb, head, direct = np.zeros(V), np.zeros((V, 3)), np.zeros((V, 3)), np.zeros((V, L, 3))
     ground = np.zeros((V, RINGS))
+    varied, vbase = np.zeros((V, 2 + L)), np.zeros((V, 3))
     floor, extent = _floor(rest if rest is not None else (poses[0][0] if len(poses) else None))
     rings = (np.arange(RINGS) + 0.5) / RINGS * RING_EXTENT * extent[1]
     used = 0
@@ -281,7 +303,8 @@ def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
     for P, N, C, idx in poses:
         P = np.ascontiguousarray(P, np.float64)
         N = np.ascontiguousarray(N, np.float64)
-        C = np.ascontiguousarray(np.asarray(C, np.float64)[:, :3])
+        C = np.asarray(C, np.float64)
+        C = np.ascontiguousarray(C[:, :4] if C.shape[1] >= 4 else np.concatenate([C[:, :3], np.zeros((C.shape[0], 1))], 1))
         idx = np.ascontiguousarray(idx, np.int64).reshape(-1, 3)
         if idx.shape[0] == 0 or not (np.isfinite(P).all() and np.isfinite(N).all() and np.isfinite(C).all()):
             continue
@@ -296,7 +319,7 @@ def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
             continue
         half *= 1.0 + 1.0 / res  # no vertex exactly on the view's border
         _views_kernel(P, N, C, idx, bases, centre, half, int(res), lights, area, amb, head, direct, floor, rings,
-                      ground)
+                      ground, varied, vbase)
         used += 1
         los.append(lo)
         his.append(hi)
@@ -304,7 +327,7 @@ def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
     if not used:
         return FarTable(np.zeros(shape), np.zeros(shape + (3,)), np.zeros(shape + (3,)),
                         np.zeros(shape + (LIGHT_ELEVATIONS, LIGHT_AZIMUTHS, 3)), 0.0, np.zeros(3),
-                        np.ones(shape + (RINGS,)), floor, extent)
+                        np.ones(shape + (RINGS,)), floor, extent, np.zeros(shape + (2 + L,)), np.zeros(shape + (3,)))
     lo, hi = np.min(los, axis=0), np.max(his, axis=0)
     centre = 0.5 * (lo + hi)
     radius = float(0.5 * np.linalg.norm(hi - lo))
@@ -312,7 +335,8 @@ def measure(poses, *, res: int = RESOLUTION, rest=None) -> FarTable:
     return FarTable((area / used).reshape(shape), (amb * w[:, None]).reshape(shape + (3,)),
                     (head * w[:, None]).reshape(shape + (3,)),
                     (direct * w[:, None, None]).reshape(shape + (LIGHT_ELEVATIONS, LIGHT_AZIMUTHS, 3)), radius, centre,
-                    (ground / used).reshape(shape + (RINGS,)), floor, extent)
+                    (ground / used).reshape(shape + (RINGS,)), floor, extent, (varied * w[:, None]).reshape(shape + (2 + L,)),
+                    (vbase / np.maximum(varied[:, :1], 1e-300) * (varied[:, :1] > 0)).reshape(shape + (3,)))
 
 
 def _floor(rest) -> tuple[np.ndarray, np.ndarray]:

@@ -4,9 +4,10 @@ footprint, placed straight from its instance row.
 Per representation (:meth:`Drawer.upload`): its footprint tables (``lod.far.footprint.FarTable``, one per clip)
 packed as vec4s, lit by the renderer's light: per view cell the ambient and headlight terms and the covered
 area, then the direct term at every light azimuth of the table's grid, interpolated at the light's elevation
-(a heading turns the light about +Y, never changes its elevation). They are packed again when the light
-changes. Layout per clip: ``centre`` (the bounding sphere's, model space), then ``VE x VA`` cells of
-``1 + LA`` vec4s (``shaders/far/far_splat.glsl``).
+(a heading turns the light about +Y, never changes its elevation), then the varied part (its mean base colour
+and lighting terms: an agent's variation word changes that colour, and the shader lights the change). They are
+packed again when the light changes. Layout per clip: ``centre`` (the bounding sphere's, model space), then
+``VE x VA`` cells of :data:`CELL` vec4s (``shaders/far/far_splat.glsl``).
 
 Per frame (:meth:`Drawer.draw`), after the opaque kinds and the point splats (:attr:`Drawer.order`):
 
@@ -26,6 +27,7 @@ import numpy as np
 from lod.far import footprint as fp
 from render.context import release_all, track
 from render.shaders import load_source, program_sources
+from render.tint import instance_words, takes_variation
 
 #: threads per work group of the splat pass (must match far_splat.glsl)
 GROUP = 64
@@ -35,8 +37,10 @@ MAX_GROUPS_X = 65535
 ACC_WORDS = 7
 #: radial samples of a blob shadow's opacity in :func:`ground_shadow`
 BLOB_SAMPLES = 64
-#: vec4s per view cell and per clip (far_splat.glsl CELL, CLIP_VEC4)
-CELL = 1 + fp.LIGHT_AZIMUTHS
+#: vec4s per view cell and per clip (far_splat.glsl CELL, CLIP_VEC4): the lit colour and area, the direct term per
+#: light azimuth, the varied part's base colour and light-free terms, its direct terms four to a vec4
+VARIED_VEC4 = fp.LIGHT_AZIMUTHS // 4
+CELL = 1 + fp.LIGHT_AZIMUTHS + 1 + VARIED_VEC4
 CLIP_VEC4 = 1 + fp.VIEW_ELEVATIONS * fp.VIEW_AZIMUTHS * CELL
 
 
@@ -76,9 +80,17 @@ def lit_tables(tables, light, blobs: bool = False) -> np.ndarray:
         cells[:, :, 0, :3] = float(light.ambient) * t.ambient + 0.35 * t.head
         cells[:, :, 0, 3] = t.area
         direct = (1.0 - te) * t.direct[:, :, e0] + te * t.direct[:, :, e0 + 1]  # (VE, VA, LA, 3)
-        cells[:, :, 1:, :3] = 0.55 * color * direct
+        la = fp.LIGHT_AZIMUTHS
+        cells[:, :, 1:1 + la, :3] = 0.55 * color * direct
         if blobs:
             cells[:, :, 1, 3] = ground_shadow(t)
+        if t.varied is not None:  # the varied part (far_splat.glsl varied()): lit by the shader after the word
+            v = t.varied
+            cells[:, :, 1 + la, :3] = t.varied_base
+            cells[:, :, 1 + la, 3] = float(light.ambient) * v[..., 0] + 0.35 * v[..., 1]
+            vd = v[..., 2:].reshape(v.shape[:2] + (fp.LIGHT_ELEVATIONS, la))
+            vdir = 0.55 * ((1.0 - te) * vd[:, :, e0] + te * vd[:, :, e0 + 1])  # (VE, VA, LA)
+            cells[:, :, 2 + la:, :] = vdir.reshape(vdir.shape[:2] + (VARIED_VEC4, 4))
     out = out.reshape(-1, 4)
     return np.where(np.isfinite(out), out, 0.0).astype(np.float32)
 
@@ -167,6 +179,7 @@ class Drawer:
         cs["u_view_proj"].write(np.ascontiguousarray(np.asarray(view_proj, np.float64).T, np.float32).tobytes())
         cs["u_size"].value = (int(w), int(h))
         cs["u_light_az"].value = float(math.atan2(light[0], light[2]))
+        cs["u_light_color"].value = tuple(float(c) for c in self.r.lighting.light.color)
         proj = np.asarray(drawlist.proj, np.float64)
         cs["u_pixels"].value = (float(proj[0, 0] * w * 0.5), float(proj[1, 1] * h * 0.5))
         table.bind_to_storage_buffer(2)
@@ -174,6 +187,14 @@ class Drawer:
         for i, b in enumerate(batches):
             rows = self._buffer(f"rows{i}", np.asarray(b.instance_data, np.float32).reshape(-1, 4))
             words = self._buffer(f"words{i}", np.asarray(b.words, np.uint32).reshape(-1))
+            table_words = getattr(self.r, "tint_table", None)  # the agents' colour variation (lod.variation)
+            varied = table_words is not None and takes_variation(b.rep)
+            cs["u_varied"].value = int(varied)
+            if varied:
+                self._buffer(f"tints{i}", instance_words(table_words, b.instance_ids)[:, 0].copy()) \
+                    .bind_to_storage_buffer(4)
+            else:
+                self._buffer("no_tints", np.zeros(1, np.uint32)).bind_to_storage_buffer(4)
             rows.bind_to_storage_buffer(0)
             words.bind_to_storage_buffer(1)
             cs["u_count"].value = int(b.n_instances)

@@ -51,6 +51,7 @@ def _reference(w, el, az, size=200, frames=12):
     sel = NoLodSelector([w.rep])
     dur = float(w.rep.clip_duration[0])
     r = Renderer((size, size), ctx=w.gl)
+    r.tint_table = getattr(w, "tint", None)  # the agent's colour-variation word, if any
     area, colour = [], []
     try:
         r.upload(w.rep)
@@ -316,3 +317,43 @@ def test_far_splats_take_the_debug_colour_of_their_batch(walker):
     # over black, plain = a c and tinted = a mix(c, rgb, w) for the same coverage a: their difference is a w rgb
     rest = tinted - (1 - TINT_WEIGHT) * plain
     assert rest.min() > 0 and np.allclose(rest / rest.sum(), rgb / rgb.sum(), atol=0.05)
+
+
+@pytest.mark.parametrize("kind", ["palette", "hsv"])
+def test_far_splat_carries_the_agents_colour_variation(walker, kind):
+    """An agent with a colour-variation word (lod.variation): its far pixel is its coverage times the mean lit
+    colour of the character drawn at full detail with that word (within 2/255; a palette word makes the varied
+    part one colour, where the far table is exact; the hue shift of a mostly one-coloured garment, close)."""
+    from lod.variation import MODE_PALETTE, pack_hsv, pack_rgba8
+
+    word = (pack_rgba8([[0.9, 0.2, 0.1]], mode=MODE_PALETTE) if kind == "palette" else pack_hsv([0.3], [1.0], [1.0]))
+    table = np.asarray(word, np.uint32).reshape(1)
+    el, az = 25.0, 30.0
+    # the full-detail reference: mean lit colour and covered area, near-orthographic, the word applied
+    ref = _reference(SimpleNamespace(rep=walker.rep, far=walker.far, gl=walker.gl, tint=table), el, az)
+    plain = _reference(walker, el, az)
+    assert np.abs(ref[1] - plain[1]).max() > 3 / 255  # the word changes the mean colour
+    size = (160, 120)
+    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
+    _, batches, _ = FarSplit([walker.far], far_pixels=3.0).split(
+        _state(), cam, size, viewport_scale(size[1], cam.fov_y), cam.frustum_planes(size[0] / size[1]))
+    r = Renderer(size, ctx=walker.gl)
+    try:
+        r.tint_table = table
+        r.upload(walker.far)
+        dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
+        dl.batches = batches
+        r.draw(dl, background=(0, 0, 0))
+        img = r.read_pixels().astype(np.float64) / 255.0
+    finally:
+        r.release()
+    got = img[tuple(np.argwhere(img.max(axis=2) > 0)[0])]
+    t = walker.far.tables[0]
+    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
+    px_m2 = (size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)) ** 2
+    fe, fa = (el + 90.0) / 180.0 * 8, az / 360.0 * 16
+    e0, a0 = int(fe), int(fa)
+    te, ta = fe - e0, fa - a0
+    alpha = ((1 - te) * ((1 - ta) * t.area[e0, a0] + ta * t.area[e0, a0 + 1])
+             + te * ((1 - ta) * t.area[e0 + 1, a0] + ta * t.area[e0 + 1, a0 + 1])) * px_m2
+    assert np.abs(got - alpha * ref[1]).max() <= 2.0 / 255.0, (got * 255, alpha * ref[1] * 255)

@@ -10,10 +10,13 @@
 // 0 without blob shadows) foreshortened by the view's elevation and in pixels adds -log(1 - shadow).
 layout(local_size_x = 64) in;
 
+#include "tint.glsl"
+
 #define VA 16
 #define VE 9
 #define LA 16
-#define CELL (1 + LA)
+#define VARIED_VEC4 (LA / 4)
+#define CELL (1 + LA + 1 + VARIED_VEC4)
 #define CLIP_VEC4 (1 + VE * VA * CELL)
 #define SCALE 4096.0
 #define MAX_ALPHA 0.999
@@ -21,6 +24,7 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Rows { vec4 rows[]; };    // camera-relative xyz, scale
 layout(std430, binding = 1) readonly buffer Words { uint words[]; };  // heading (1/65536 turns) | clip << 16
 layout(std430, binding = 2) readonly buffer Table { vec4 table[]; };
+layout(std430, binding = 4) readonly buffer Tints { uint tints[]; };  // the agents' variation words (u_varied)
 layout(std430, binding = 3) buffer Accum { uint acc[]; };  // per pixel: depth, r, g, b, alpha, -log(1-a), -log(1-s)
 
 uniform mat4 u_view_proj;
@@ -29,6 +33,8 @@ uniform uint u_count;
 uniform uint u_base;        // first vec4 of this representation's tables
 uniform float u_light_az;   // azimuth of the light (world, radians, atan(x, z))
 uniform vec2 u_pixels;      // (P00 w / 2, P11 h / 2): pixels per metre at clip w = 1
+uniform vec3 u_light_color;
+uniform int u_varied;       // 1: tints[] holds each agent's colour-variation word (lod/variation.py)
 uniform vec4 u_tint;        // the batch's debug colour (rgb, weight; lod/debug_colors.py), mixed into the splat's
 
 const float TAU = 6.283185307179586;
@@ -38,6 +44,18 @@ vec4 lookup(uint cb, int e, int a, int l0, int l1, float tl) {
     vec4 t0 = table[cell];
     vec3 d = mix(table[cell + 1u + uint(l0)].rgb, table[cell + 1u + uint(l1)].rgb, tl);
     return vec4(t0.rgb + d, t0.a);
+}
+
+// the change an agent's variation word makes to a cell's mean lit colour: the varied part's mean base colour
+// varied by the word, less itself, times that part's lighting (ambient and headlight, and the direct term at
+// the light's azimuth)
+vec3 varied(uint cb, int e, int a, int l0, int l1, float tl, uint word) {
+    uint cell = cb + 1u + uint(e * VA + a) * uint(CELL) + 1u + uint(LA);
+    vec4 vb = table[cell];
+    vec3 changed = tint_color(vec4(vb.rgb, 1.0), uvec2(word, 0u)).rgb - clamp(vb.rgb, 0.0, 1.0);
+    float d0 = table[cell + 1u + uint(l0 / 4)][l0 % 4];
+    float d1 = table[cell + 1u + uint(l1 / 4)][l1 % 4];
+    return changed * (vec3(vb.a) + u_light_color * mix(d0, d1, tl));
 }
 
 float ground(uint cb, int e, int a) {
@@ -80,6 +98,11 @@ void main() {
     int l1 = (l0 + 1) % LA;
     vec4 r = mix(mix(lookup(cb, e0, a0, l0, l1, tl), lookup(cb, e0, a1, l0, l1, tl), ta),
                  mix(lookup(cb, e0 + 1, a0, l0, l1, tl), lookup(cb, e0 + 1, a1, l0, l1, tl), ta), te);
+    uint vw = u_varied != 0 ? tints[i] : 0u;
+    if ((vw >> 24) != 0u) {
+        r.rgb += mix(mix(varied(cb, e0, a0, l0, l1, tl, vw), varied(cb, e0, a1, l0, l1, tl, vw), ta),
+                     mix(varied(cb, e0 + 1, a0, l0, l1, tl, vw), varied(cb, e0 + 1, a1, l0, l1, tl, vw), ta), te);
+    }
     float px_m2 = s * s * u_pixels.x * u_pixels.y / (clip.w * clip.w);  // pixels per m^2 of the agent
     float alpha = min(r.a * px_m2, 1.0);
     float g = mix(mix(ground(cb, e0, a0), ground(cb, e0, a1), ta), mix(ground(cb, e0 + 1, a0), ground(cb, e0 + 1, a1), ta),
