@@ -8,6 +8,8 @@
 // nearest depth (atomicMin of the window depth's bits: positive floats order as their bits). The visible part
 // of the agent's blob shadow (m^2 of full opacity seen from above, the alpha of the cell's first direct vec4;
 // 0 without blob shadows) foreshortened by the view's elevation and in pixels adds -log(1 - shadow).
+// Compiled variants (render/far/draw.py): BLOBS when the renderer draws blob shadows, VARIED when the batch's
+// agents carry colour-variation words (the code of either costs llvmpipe ~15 ms a million agents, taken or not).
 layout(local_size_x = 64) in;
 
 #include "tint.glsl"
@@ -24,7 +26,9 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Rows { vec4 rows[]; };    // camera-relative xyz, scale
 layout(std430, binding = 1) readonly buffer Words { uint words[]; };  // heading (1/65536 turns) | clip << 16
 layout(std430, binding = 2) readonly buffer Table { vec4 table[]; };
-layout(std430, binding = 4) readonly buffer Tints { uint tints[]; };  // the agents' variation words (u_varied)
+#ifdef VARIED
+layout(std430, binding = 4) readonly buffer Tints { uint tints[]; };  // the agents' variation words (lod/variation.py)
+#endif
 layout(std430, binding = 3) buffer Accum { uint acc[]; };  // per pixel: depth, r, g, b, alpha, -log(1-a), -log(1-s)
 
 uniform mat4 u_view_proj;
@@ -34,7 +38,6 @@ uniform uint u_base;        // first vec4 of this representation's tables
 uniform float u_light_az;   // azimuth of the light (world, radians, atan(x, z))
 uniform vec2 u_pixels;      // (P00 w / 2, P11 h / 2): pixels per metre at clip w = 1
 uniform vec3 u_light_color;
-uniform int u_varied;       // 1: tints[] holds each agent's colour-variation word (lod/variation.py)
 uniform vec4 u_tint;        // the batch's debug colour (rgb, weight; lod/debug_colors.py), mixed into the splat's
 
 const float TAU = 6.283185307179586;
@@ -49,14 +52,18 @@ vec4 lookup(uint cb, int e, int a, int l0, int l1, float tl) {
 // the change an agent's variation word makes to a cell's mean lit colour: the varied part's mean base colour
 // varied by the word, less itself, times that part's lighting (ambient and headlight, and the direct term at
 // the light's azimuth)
-vec3 varied(uint cb, int e, int a, int l0, int l1, float tl, uint word) {
-    uint cell = cb + 1u + uint(e * VA + a) * uint(CELL) + 1u + uint(LA);
-    vec4 vb = table[cell];
-    vec3 changed = tint_color(vec4(vb.rgb, 1.0), uvec2(word, 0u)).rgb - clamp(vb.rgb, 0.0, 1.0);
-    float d0 = table[cell + 1u + uint(l0 / 4)][l0 % 4];
-    float d1 = table[cell + 1u + uint(l1 / 4)][l1 % 4];
-    return changed * (vec3(vb.a) + u_light_color * mix(d0, d1, tl));
+#ifdef VARIED
+// the varied part of a view cell: (its mean base colour, its ambient and headlight terms), and its direct term
+// at the light's azimuth (mixed between the two grid azimuths around it)
+vec4 varied_base(uint cb, int e, int a) {
+    return table[cb + 1u + uint(e * VA + a) * uint(CELL) + 1u + uint(LA)];
 }
+
+float varied_direct(uint cb, int e, int a, int l0, int l1, float tl) {
+    uint cell = cb + 1u + uint(e * VA + a) * uint(CELL) + 2u + uint(LA);
+    return mix(table[cell + uint(l0 / 4)][l0 % 4], table[cell + uint(l1 / 4)][l1 % 4], tl);
+}
+#endif
 
 float ground(uint cb, int e, int a) {
     return table[cb + 1u + uint(e * VA + a) * uint(CELL) + 1u].a;
@@ -98,18 +105,31 @@ void main() {
     int l1 = (l0 + 1) % LA;
     vec4 r = mix(mix(lookup(cb, e0, a0, l0, l1, tl), lookup(cb, e0, a1, l0, l1, tl), ta),
                  mix(lookup(cb, e0 + 1, a0, l0, l1, tl), lookup(cb, e0 + 1, a1, l0, l1, tl), ta), te);
-    uint vw = u_varied != 0 ? tints[i] : 0u;
+#ifdef VARIED
+    // the change the agent's variation word makes: the varied part's mean base colour of the nearest view cell
+    // varied by the word, less itself, lit with that part's own terms (one variation, three loads per agent: the
+    // correction is a share of the colour, the cell's neighbours differ from it by little)
+    uint vw = tints[i];
     if ((vw >> 24) != 0u) {
-        r.rgb += mix(mix(varied(cb, e0, a0, l0, l1, tl, vw), varied(cb, e0, a1, l0, l1, tl, vw), ta),
-                     mix(varied(cb, e0 + 1, a0, l0, l1, tl, vw), varied(cb, e0 + 1, a1, l0, l1, tl, vw), ta), te);
+        int en = min(int(fe + 0.5), VE - 1);
+        int an = (a0 + int(ta + 0.5)) % VA;
+        vec4 vb = varied_base(cb, en, an);
+        float vd = varied_direct(cb, en, an, l0, l1, tl);
+        vec3 changed = tint_color(vec4(vb.rgb, 1.0), uvec2(vw, 0u)).rgb - clamp(vb.rgb, 0.0, 1.0);
+        r.rgb += changed * (vec3(vb.a) + u_light_color * vd);
     }
+#endif
     float px_m2 = s * s * u_pixels.x * u_pixels.y / (clip.w * clip.w);  // pixels per m^2 of the agent
     float alpha = min(r.a * px_m2, 1.0);
-    float g = mix(mix(ground(cb, e0, a0), ground(cb, e0, a1), ta), mix(ground(cb, e0 + 1, a0), ground(cb, e0 + 1, a1), ta),
-                  te);
-    float shade = min(g * abs(v.y) * px_m2, MAX_ALPHA);
     uint wa = uint(alpha * SCALE + 0.5);
+#ifdef BLOBS
+    // the visible blob of the nearest view cell (a share of the pixel's darkening; one load)
+    float g = ground(cb, min(int(fe + 0.5), VE - 1), (a0 + int(ta + 0.5)) % VA);
+    float shade = min(g * abs(v.y) * px_m2, MAX_ALPHA);
     uint ws = uint(-log(1.0 - shade) * SCALE + 0.5);
+#else
+    uint ws = 0u;
+#endif
     if (wa == 0u && ws == 0u) return;  // nothing visible: no depth either (the resolve resets what it reads)
     uint k = uint(px.y * u_size.x + px.x) * 7u;
     atomicMin(acc[k], floatBitsToUint(ndc.z * 0.5 + 0.5));
@@ -119,5 +139,5 @@ void main() {
     atomicAdd(acc[k + 3u], uint(col.b + 0.5));
     atomicAdd(acc[k + 4u], wa);
     atomicAdd(acc[k + 5u], uint(-log(1.0 - min(alpha, MAX_ALPHA)) * SCALE + 0.5));
-    atomicAdd(acc[k + 6u], ws);
+    if (ws != 0u) atomicAdd(acc[k + 6u], ws);
 }
