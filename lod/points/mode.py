@@ -42,8 +42,8 @@ from __future__ import annotations
 import numpy as np
 
 from lod.drawlist import DrawList
-from lod.full.mode import NoLodSelector
 from lod.far.build import build_far_split, merge
+from lod.full.mode import NoLodSelector
 from lod.full.reps import KeyframedRep, build_keyframed_rep
 from lod.points import config as C
 from lod.points.coarse import add_coarse

@@ -106,7 +106,7 @@ class Drawer:
 
     #: after the point splats (10): the far splats blend over every opaque surface and depth-test against it
     order = 12
-    #: no blob shadow under a far agent (its blob would cover a fraction of a pixel, render.world.blobs)
+    #: the blob pass skips far agents: the far splat carries the visible part of each one's blob itself
     blob_shadows = False
 
     def __init__(self, renderer):
