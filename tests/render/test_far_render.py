@@ -41,6 +41,15 @@ def _state(n=1, times=(0.0,)):
     return st
 
 
+def _crowd(n, seed, half_width, z_range):
+    """``n`` walkers at random phases, x within +-half_width, z within z_range (m)."""
+    rng = np.random.default_rng(seed)
+    st = _state(n, rng.uniform(0.0, 1.0, n))
+    st.position[:, 0] = rng.uniform(-half_width, half_width, n)
+    st.position[:, 2] = rng.uniform(*z_range, n)
+    return st
+
+
 def _reference(w, el, az, size=200, frames=12):
     """Covered area (m^2) and mean colour of the character at full detail seen from (el, az) in its frame,
     over ``frames`` times of the walk, near-orthographic (fov 2 degrees), black background."""
@@ -68,73 +77,77 @@ def _reference(w, el, az, size=200, frames=12):
     return a, np.sum(colour, axis=0) / (np.sum(area) / (pix * pix))
 
 
+def _bil(x, el, az):
+    """``x`` (VE, VA, ...) of a far table at the view (el, az) in degrees, bilinearly (the splat's lookup)."""
+    fe = (el + 90.0) / 180.0 * (x.shape[0] - 1)
+    fa = (az % 360.0) / 360.0 * x.shape[1]
+    e0, a0 = min(int(fe), x.shape[0] - 2), int(fa) % x.shape[1]
+    te, ta = fe - e0, fa - int(fa)
+    a1 = (a0 + 1) % x.shape[1]
+    return (1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a1]) + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a1])
+
+
+def _lit_at_heading(t):
+    """(VE, VA, 3) a far table lit by the renderer's default light turned into the agent's frame."""
+    c, s = np.cos(HEADING), np.sin(HEADING)
+    return t.lit(np.array([c * LIGHT[0] - s * LIGHT[2], LIGHT[1], s * LIGHT[0] + c * LIGHT[2]]))
+
+
+def _one_far_agent(w, el=25.0, az=30.0, background=(0, 0, 0), blobs=False, words=None, color_by=None):
+    """One agent 1,500 m away seen from (el, az) in its frame, drawn by the far tier alone at 160 x 120:
+    (image (h, w, 3) in [0, 1], its one lit pixel's value, its pixels per m^2 of the agent)."""
+    from lod.debug_colors import apply_tints
+
+    size = (160, 120)
+    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
+    near, batches, culled = FarSplit([w.far], far_pixels=3.0).split(
+        _state(), cam, size, viewport_scale(size[1], cam.fov_y), cam.frustum_planes(size[0] / size[1]))
+    assert near.size == 0 and culled == 0 and len(batches) == 1 and batches[0].n_instances == 1
+    r = Renderer(size, ctx=w.gl)
+    try:
+        r.lighting.mode = "blob" if blobs else "none"
+        r.tint_table = words
+        r.upload(w.far)
+        dl = NoLodSelector([w.rep]).select(CrowdState.empty(0), cam, size)
+        dl.batches = list(batches)
+        if color_by is not None:
+            apply_tints(dl, color_by)
+        r.draw(dl, background=background)
+        img = r.read_pixels().astype(np.float64) / 255.0
+    finally:
+        r.release()
+    changed = np.argwhere(np.abs(img - np.asarray(background, float)).max(axis=2) > 0)
+    assert changed.shape[0] == 1  # one splat, one pixel
+    t = w.far.tables[0]
+    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
+    px_m2 = (size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)) ** 2
+    return img, img[tuple(changed[0])], px_m2
+
+
 @pytest.mark.parametrize("el,az", [(10.0, 0.0), (35.0, 50.0), (60.0, 200.0)])
 def test_footprint_matches_full_detail(walker, el, az):
     area, colour = _reference(walker, el, az)
     t = walker.far.tables[0]
-    # the table at that view, bilinearly (the shader's lookup), under the light turned into the agent's frame
-    c, s = np.cos(HEADING), np.sin(HEADING)
-    l_loc = np.array([c * LIGHT[0] - s * LIGHT[2], LIGHT[1], s * LIGHT[0] + c * LIGHT[2]])
-    lit = t.lit(l_loc)
-    fe = (el + 90.0) / 180.0 * (lit.shape[0] - 1)
-    fa = (az % 360.0) / 360.0 * lit.shape[1]
-    e0, a0 = int(fe), int(fa) % lit.shape[1]
-    te, ta = fe - e0, fa - int(fa)
-    a1 = (a0 + 1) % lit.shape[1]
-
-    def bil(x):
-        return ((1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a1]) + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a1]))
-
-    assert bil(t.area) == pytest.approx(area, rel=0.05)
-    assert np.abs(bil(lit) - colour).max() <= 2.0 / 255.0, (bil(lit) * 255, colour * 255)
+    assert _bil(t.area, el, az) == pytest.approx(area, rel=0.05)
+    lit = _bil(_lit_at_heading(t), el, az)
+    assert np.abs(lit - colour).max() <= 2.0 / 255.0, (lit * 255, colour * 255)
 
 
 def test_far_splat_pixel_is_coverage_times_colour(walker):
     """One far agent: its pixel is alpha x colour over black, alpha the covered area in pixels."""
-    size = (160, 120)
-    el, az = 25.0, 30.0
-    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
-    st = _state()
-    split = FarSplit([walker.far], far_pixels=3.0)
-    planes = cam.frustum_planes(size[0] / size[1])
-    near, batches, culled = split.split(st, cam, size, viewport_scale(size[1], cam.fov_y), planes)
-    assert near.size == 0 and culled == 0 and len(batches) == 1 and batches[0].n_instances == 1
-    r = Renderer(size, ctx=walker.gl)
-    try:
-        r.upload(walker.far)
-        dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
-        dl.batches = batches
-        r.draw(dl, background=(0, 0, 0))
-        img = r.read_pixels().astype(np.float64) / 255.0
-    finally:
-        r.release()
-    lit_px = np.argwhere(img.max(axis=2) > 0)
-    assert lit_px.shape[0] == 1  # one splat, one pixel
-    got = img[tuple(lit_px[0])]
+    _, got, px_m2 = _one_far_agent(walker)
     t = walker.far.tables[0]
-    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
-    px_per_m = size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)
-    assert 0.05 < t.area.mean() * px_per_m ** 2 < 1.0  # a fraction of a pixel: alpha < 1
-    # the shader's own lookup against the CPU's at the same view: alpha x colour within 2/255
-    c, s = np.cos(HEADING), np.sin(HEADING)
-    lit = t.lit(np.array([c * LIGHT[0] - s * LIGHT[2], LIGHT[1], s * LIGHT[0] + c * LIGHT[2]]))
-    fe, fa = (el + 90.0) / 180.0 * 8, az / 360.0 * 16
-    e0, a0 = int(fe), int(fa)
-    te, ta = fe - e0, fa - a0
-    bil = lambda x: ((1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a0 + 1])  # noqa: E731
-                     + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a0 + 1]))
-    alpha = bil(t.area) * px_per_m ** 2
-    assert np.abs(got - alpha * bil(lit)).max() <= 2.0 / 255.0, (got * 255, alpha * bil(lit) * 255)
+    alpha = _bil(t.area, 25.0, 30.0) * px_m2
+    assert 0.05 < alpha < 1.0  # a fraction of a pixel
+    want = alpha * _bil(_lit_at_heading(t), 25.0, 30.0)  # the shader's lookup against the CPU's at the same view
+    assert np.abs(got - want).max() <= 2.0 / 255.0, (got * 255, want * 255)
 
 
 def test_every_agent_in_exactly_one_tier(walker):
     """Agents walking away from the camera cross the far threshold: each frame every visible agent is in the
     far batches or goes on to the mode's own selection, never both, never neither."""
     n = 400
-    rng = np.random.default_rng(3)
-    st = _state(n, rng.uniform(0, 1, n))
-    st.position[:, 0] = rng.uniform(-30, 30, n)
-    st.position[:, 2] = rng.uniform(-800, -50, n)
+    st = _crowd(n, 3, 30.0, (-800.0, -50.0))
     cam = Camera.look_at((0.0, 2.0, 10.0), (0.0, 0.0, -100.0), fov_y=40.0, near=0.5, far=3000.0)
     size = (320, 240)
     vs = viewport_scale(size[1], cam.fov_y)
@@ -168,10 +181,7 @@ def test_mode_points_draws_far_agents_in_the_far_tier(gl_ctx, tmp_path):
     c = humanoid(1500, 5)
     cache = pm_rep.HierarchyCache(tmp_path)
     n = 300
-    rng = np.random.default_rng(4)
-    st = _state(n, rng.uniform(0.0, 1.0, n))
-    st.position[:, 0] = rng.uniform(-60.0, 60.0, n)
-    st.position[:, 2] = rng.uniform(-900.0, -20.0, n)
+    st = _crowd(n, 4, 60.0, (-900.0, -20.0))
     cam = Camera.look_at((0.0, 6.0, 0.0), (0.0, 0.0, -190.0), fov_y=40.0, near=0.5, far=2000.0)
     size = (320, 240)
     for far_px in (0.0, 2.0):
@@ -255,64 +265,22 @@ def test_far_splat_darkens_the_ground_by_its_visible_blob(walker):
     shadow its visible blob opacity foreshortened and in pixels (within 2/255)."""
     from render.far.draw import ground_shadow
 
-    size = (160, 120)
-    el, az = 25.0, 30.0
-    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
-    split = FarSplit([walker.far], far_pixels=3.0)
-    _, batches, _ = split.split(_state(), cam, size, viewport_scale(size[1], cam.fov_y),
-                                cam.frustum_planes(size[0] / size[1]))
-    imgs = {}
-    for mode in ("none", "blob"):
-        r = Renderer(size, ctx=walker.gl)
-        try:
-            r.lighting.mode = mode
-            r.upload(walker.far)
-            dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
-            dl.batches = batches
-            r.draw(dl, background=(1, 1, 1))
-            imgs[mode] = r.read_pixels().astype(np.float64) / 255.0
-        finally:
-            r.release()
-    px = np.argwhere(imgs["none"].min(axis=2) < 1.0)
-    assert px.shape[0] == 1
+    _, none, px_m2 = _one_far_agent(walker, background=(1, 1, 1))
+    _, blob, _ = _one_far_agent(walker, background=(1, 1, 1), blobs=True)
     t = walker.far.tables[0]
-    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
-    px_m2 = (size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)) ** 2
-    fe, fa = (el + 90.0) / 180.0 * 8, az / 360.0 * 16
-    e0, a0 = int(fe), int(fa)
-    te, ta = fe - e0, fa - a0
-    bil = lambda x: ((1 - te) * ((1 - ta) * x[e0, a0] + ta * x[e0, a0 + 1])  # noqa: E731
-                     + te * ((1 - ta) * x[e0 + 1, a0] + ta * x[e0 + 1, a0 + 1]))
-    alpha = bil(t.area) * px_m2
-    shade = bil(ground_shadow(t)) * np.sin(np.radians(el)) * px_m2
+    alpha = _bil(t.area, 25.0, 30.0) * px_m2
+    shade = _bil(ground_shadow(t), 25.0, 30.0) * np.sin(np.radians(25.0)) * px_m2
     assert 0.01 < shade < 0.5
-    none, blob = imgs["none"][tuple(px[0])], imgs["blob"][tuple(px[0])]
     assert np.all(blob < none)  # the blob darkens what the agent leaves uncovered
     assert np.allclose(blob, none - (1 - alpha) * shade, atol=2.0 / 255.0), (blob * 255, (none - (1 - alpha) * shade) * 255)
 
 
 def test_far_splats_take_the_debug_colour_of_their_batch(walker):
     """Colour by representation (lod.debug_colors): the far batch's tint is mixed into its splats' colour."""
-    from lod.debug_colors import REPRESENTATION_COLORS, TINT_WEIGHT, apply_tints
+    from lod.debug_colors import REPRESENTATION_COLORS, TINT_WEIGHT
 
-    size = (160, 120)
-    cam = Camera.look_at(1500.0 * _view(25.0, 30.0), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
-    _, batches, _ = FarSplit([walker.far], far_pixels=3.0).split(
-        _state(), cam, size, viewport_scale(size[1], cam.fov_y), cam.frustum_planes(size[0] / size[1]))
-    out = {}
-    r = Renderer(size, ctx=walker.gl)
-    try:
-        r.upload(walker.far)
-        for by in ("none", "representation"):
-            dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
-            dl.batches = list(batches)
-            apply_tints(dl, by)
-            r.draw(dl, background=(0, 0, 0))
-            out[by] = r.read_pixels().astype(np.float64) / 255.0
-    finally:
-        r.release()
-    p = tuple(np.argwhere(out["none"].max(axis=2) > 0)[0])
-    plain, tinted = out["none"][p], out["representation"][p]
+    _, plain, _ = _one_far_agent(walker, color_by="none")
+    _, tinted, _ = _one_far_agent(walker, color_by="representation")
     rgb = np.asarray(REPRESENTATION_COLORS["far"])
     # over black, plain = a c and tinted = a mix(c, rgb, w) for the same coverage a: their difference is a w rgb
     rest = tinted - (1 - TINT_WEIGHT) * plain
@@ -333,27 +301,6 @@ def test_far_splat_carries_the_agents_colour_variation(walker, kind):
     ref = _reference(SimpleNamespace(rep=walker.rep, far=walker.far, gl=walker.gl, tint=table), el, az)
     plain = _reference(walker, el, az)
     assert np.abs(ref[1] - plain[1]).max() > 3 / 255  # the word changes the mean colour
-    size = (160, 120)
-    cam = Camera.look_at(1500.0 * _view(el, az), (0.0, 0.9, 0.0), fov_y=8.0, near=1.0, far=5000.0)
-    _, batches, _ = FarSplit([walker.far], far_pixels=3.0).split(
-        _state(), cam, size, viewport_scale(size[1], cam.fov_y), cam.frustum_planes(size[0] / size[1]))
-    r = Renderer(size, ctx=walker.gl)
-    try:
-        r.tint_table = table
-        r.upload(walker.far)
-        dl = NoLodSelector([walker.rep]).select(CrowdState.empty(0), cam, size)
-        dl.batches = batches
-        r.draw(dl, background=(0, 0, 0))
-        img = r.read_pixels().astype(np.float64) / 255.0
-    finally:
-        r.release()
-    got = img[tuple(np.argwhere(img.max(axis=2) > 0)[0])]
-    t = walker.far.tables[0]
-    dist = np.linalg.norm(1500.0 * _view(el, az) - (t.centre * [0, 1, 0]))
-    px_m2 = (size[1] / (2.0 * np.tan(np.radians(cam.fov_y) / 2) * dist)) ** 2
-    fe, fa = (el + 90.0) / 180.0 * 8, az / 360.0 * 16
-    e0, a0 = int(fe), int(fa)
-    te, ta = fe - e0, fa - a0
-    alpha = ((1 - te) * ((1 - ta) * t.area[e0, a0] + ta * t.area[e0, a0 + 1])
-             + te * ((1 - ta) * t.area[e0 + 1, a0] + ta * t.area[e0 + 1, a0 + 1])) * px_m2
+    _, got, px_m2 = _one_far_agent(walker, el, az, words=table)
+    alpha = _bil(walker.far.tables[0].area, el, az) * px_m2
     assert np.abs(got - alpha * ref[1]).max() <= 2.0 / 255.0, (got * 255, alpha * ref[1] * 255)
