@@ -18,7 +18,8 @@ Modules in data-flow order:
   frame-time budget.
 - ``lod.auto.control``: which frame plan is drawn (hysteresis, bounded exploration, faded switches).
 - ``lod.auto.delegate``: held pure plans drawn by the single mode's own selector.
-- ``lod.auto.mode``: ``AutoSelector`` and the mode's ``[lod]`` keys.
+- ``lod.auto.params``: the mode's ``[lod]`` keys and candidates.
+- ``lod.auto.mode``: ``AutoSelector``.
 - ``lod.auto.build``: the mode as ``lod.modes`` names it: its build and memory estimate (imports the selector's
   module; nothing imports it back).
 """

@@ -1,10 +1,11 @@
 """Mode "auto" as ``lod.modes`` names it (the registry's module of the mode): its ``[lod]`` keys
-(:data:`lod.auto.mode.PARAMS`), its build (the candidates' representations and an
+(:data:`lod.auto.params.PARAMS`), its build (the candidates' representations and an
 :class:`lod.auto.mode.AutoSelector`) and its memory estimate. The selector's module does not import this one."""
 from __future__ import annotations
 
 from lod.auto import candidates as ac
-from lod.auto.mode import PARAMS, AutoSelector, parse_candidates
+from lod.auto.mode import AutoSelector
+from lod.auto.params import PARAMS, parse_candidates
 from lod.chains import mode as tm
 from lod.far.build import build_far_split
 

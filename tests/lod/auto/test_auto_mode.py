@@ -13,6 +13,7 @@ from lod.auto import candidates as ac
 from lod.auto import budget as am_budget
 from lod.auto import build as ab
 from lod.auto import mode as am
+from lod.auto import params as ap
 from lod import modes
 from lod.auto import cost_model
 from lod.full import mode as nolod
@@ -94,11 +95,11 @@ def test_registered_with_params():
     p = modes.mode_params("auto")
     assert p["poe"].default == 1.0 and p["budget_ms"].default == 0.0 and "levels" in p
     assert p["candidates"].default == "triangles,clusters,points"
-    assert am.parse_candidates("points, clusters") == ("triangles", "clusters", "points")
-    assert am.parse_candidates("triangles") == ("triangles",)
+    assert ap.parse_candidates("points, clusters") == ("triangles", "clusters", "points")
+    assert ap.parse_candidates("triangles") == ("triangles",)
     for bad in ("", "meshlets", "points,,x"):
         with pytest.raises(ValueError, match="candidates"):
-            am.parse_candidates(bad)
+            ap.parse_candidates(bad)
 
 
 def test_leaf_triangles_reaches_the_cluster_candidate(built, char):
@@ -384,7 +385,7 @@ def test_observe_fits_the_cost_model_when_adapting(built):
             assert p == pytest.approx(3 * first, rel=0.05) and sel.prior is MODEL and sel.fit.frames == 25
         else:
             assert sel.model is MODEL and p == pytest.approx(first) and sel.fit is None
-    assert am.PARAMS["adapt"].default is True
+    assert ap.PARAMS["adapt"].default is True
 
 
 def test_controller_holds_when_cost_jumps_across_the_band():
