@@ -3,18 +3,24 @@
     python scripts/bench_replay.py [--people 1000 10000 100000 1000000] [--frames 30] [--md scripts/bench_replay.md]
 
 A synthetic recording per size: N people on a square grid 2 m apart, each walking a straight line at 1-1.4 m/s in
-its own direction for the whole 60 s, recorded at 1 fps (60 rows each, as Pathfinder exports; 60 M rows at a
-million), built as columns (``sim.replay.from_columns``: no text file, no PedPy). Each size runs in its own
-process: the recording, its placement's agents (the people at the first frame), the effect ``replay`` alone in a
-world stepped at 30 fps without drawing. Printed per size: the rows, the median and slowest replay step over
-``--frames`` frames after 3 warm-up frames, and the process's peak RSS (``ru_maxrss``) with the recording in
-memory. The issue's targets at a million: the step at most 20 ms, peak memory at most 500 MB above a 1,000-person
-run.
+its own direction for the whole 60 s, recorded at 1 fps (61 rows each, as Pathfinder exports; 61 M rows at a
+million), built as columns (``sim.replay.from_columns``: no text file, no PedPy) and stored in the replay cache
+(``sim.replay.cache``, in a temporary ``CROWD_CACHE_DIR``) by one process, as a scene's first run stores the file it
+parsed. A second process replays it as a later run does: the entry opened (``sim.replay.recording.cached``: the
+person-major columns memory-mapped, the frame-major rows streamed), its placement's agents (the people at the
+first frame), the effect ``replay`` alone in a world stepped at 30 fps without drawing. Printed per size: the rows,
+the median and slowest replay step over ``--frames`` frames after 3 warm-up frames, and the replaying process's
+peak RSS (``ru_maxrss``). The issue's targets at a million: the step at most 20 ms, peak memory at most 500 MB above
+a 1,000-person run. ``--in-memory`` replays the recording built in the same process instead (no cache: the
+recording's rows all in memory, the before of issue 47's item 2).
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
+import os
+import shutil
 import subprocess
 import sys
 import time
@@ -47,16 +53,36 @@ def recording(n: int):
     return from_columns(ids, frames, xy, RATE, source=f"synthetic-{n}")
 
 
-def run_one(n: int, frames: int) -> dict:
+def entry_key(n: int) -> str:
+    """The cache key the synthetic recording of ``n`` people is stored under."""
+    return hashlib.sha256(f"bench_replay {n} {SECONDS} {RATE}".encode()).hexdigest()
+
+
+def store(n: int) -> dict:
+    """Build the recording of ``n`` people and store its cache entry (this process's memory is not measured)."""
+    from sim.replay import cache
+
+    t0 = time.perf_counter()
+    rec = recording(n)
+    cache.save(entry_key(n), rec)
+    if not (cache.cache_dir() / entry_key(n)).is_dir():
+        raise RuntimeError(f"could not store the recording in {cache.cache_dir()}")
+    return {"store_s": time.perf_counter() - t0}
+
+
+def run_one(n: int, frames: int, in_memory: bool) -> dict:
     """One size, in this process: ``{"rows", "median_ms", "max_ms", "peak_mb", "build_s"}``."""
     import resource
 
     import sim.replay.effect as effect
+    from sim.replay.recording import cached
     from sim.replay.track import Track
     from sim.world import World
 
     t0 = time.perf_counter()
-    rec = recording(n)
+    rec = recording(n) if in_memory else cached(entry_key(n), f"synthetic-{n}", "txt")
+    if rec is None:
+        raise RuntimeError("the stored recording is not in the cache")
     track = Track(recording=rec, choices=np.array([[0, 0, 1.0, 1.0, 1.1]]), rng=np.random.default_rng(1))
     persons = np.flatnonzero(rec.alive(rec.first_frame))
     state = track.agents(persons, rec.first_frame)
@@ -80,25 +106,44 @@ def main(argv=None) -> int:
     ap.add_argument("--people", type=int, nargs="+", default=[1000, 10000, 100000, 1000000])
     ap.add_argument("--frames", type=int, default=30, help="timed frames per size (after 3 warm-up frames)")
     ap.add_argument("--md", type=Path, help="write the table here (atomically)")
+    ap.add_argument("--in-memory", action="store_true", help="replay the recording built in memory (no cache)")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: one size in this process
+    ap.add_argument("--store", type=int, help=argparse.SUPPRESS)  # internal: store one size's cache entry
     a = ap.parse_args(argv)
     if a.frames < 1 or any(n < 1 for n in a.people):
         print("bench_replay.py: --frames and every --people must be >= 1", file=sys.stderr)
         return 2
+    if a.store:
+        print(json.dumps(store(a.store)))
+        return 0
     if a.one:
-        print(json.dumps(run_one(a.one, a.frames)))
+        print(json.dumps(run_one(a.one, a.frames, a.in_memory)))
         return 0
     rows = []
-    for n in a.people:
-        p = subprocess.run([sys.executable, __file__, "--one", str(n), "--frames", str(a.frames)],
-                           capture_output=True, text=True)
+    tmp = Path(os.environ.get("TMPDIR") or "/tmp") / f"bench_replay-{os.getpid()}"
+    env = dict(os.environ, CROWD_CACHE_DIR=str(tmp))
+
+    def child(*args) -> dict | None:
+        p = subprocess.run([sys.executable, __file__, *args], capture_output=True, text=True, env=env)
         if p.returncode:
-            print(f"bench_replay.py: {n:,} people failed: {p.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
-            return 1
-        r = json.loads(p.stdout.strip().splitlines()[-1])
-        rows.append(r)
-        print(f"{n:,} people ({r['rows']:,} rows): replay step median {r['median_ms']:.1f} ms, slowest "
-              f"{r['max_ms']:.1f} ms; peak RSS {r['peak_mb']:.0f} MB; built in {r['build_s']:.1f} s")
+            print(f"bench_replay.py: {' '.join(args)} failed: {p.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+            return None
+        return json.loads(p.stdout.strip().splitlines()[-1])
+
+    try:
+        for n in a.people:
+            s = {} if a.in_memory else child("--store", str(n))
+            r = None if s is None else child("--one", str(n), "--frames", str(a.frames),
+                                             *(["--in-memory"] if a.in_memory else []))
+            if r is None:
+                return 1
+            shutil.rmtree(tmp, ignore_errors=True)  # (each size's entry on its own: the disk holds one)
+            rows.append(dict(r, **s))
+            print(f"{n:,} people ({r['rows']:,} rows): replay step median {r['median_ms']:.1f} ms, slowest "
+                  f"{r['max_ms']:.1f} ms; peak RSS {r['peak_mb']:.0f} MB; opened in {r['build_s']:.1f} s"
+                  + (f" (stored in {s['store_s']:.1f} s)" if s else ""))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
     if a.md:
         from sim.atomic_io import write_atomic
 

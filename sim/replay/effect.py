@@ -33,7 +33,6 @@ class Replay:
         self.tracks = tracks
         self.track = np.asarray(track, np.int32)
         self.person = np.asarray(person, np.int64)
-        self.cursor = np.full((self.person.shape[0], 3), -1, np.int64)  # rows found last frame (Track.kinematics)
         self.frame_dt = float(frame_dt)
         self.entered = 0  # this frame's counts (take_frame_counts)
         self.left = 0
@@ -43,13 +42,21 @@ class Replay:
         self.started = [np.zeros(t.recording.persons, bool) for t in tracks]
         for k, t in enumerate(tracks):
             self.started[k][self.person[self.track == k]] = True
+        # per track, its persons by first and by last recorded frame and how many of each the clock has passed:
+        # a frame in which nobody's recording begins or ends costs no pass over the agents
+        self._by_first = [np.argsort(t.recording.first, kind="stable") for t in tracks]
+        self._first_sorted = [t.recording.first[o] for t, o in zip(tracks, self._by_first)]
+        self._last_sorted = [np.sort(t.recording.last) for t in tracks]
+        self._passed_first = [0] * len(tracks)
+        self._passed_last = [0] * len(tracks)
+        self._rows = None  # per track, its agents' rows (None: find them again; the population changed)
 
     def remap_agents(self, src, state=None) -> None:
         from sim.population import remap_rows
 
         self.track = remap_rows(self.track, src, -1)  # entered agents: no track yet (step fills its own)
         self.person = remap_rows(self.person, src, -1)
-        self.cursor = remap_rows(self.cursor, src, -1)
+        self._rows = None
 
     def take_frame_counts(self) -> dict:
         out = {"entered": self.entered, "left": self.left}
@@ -67,25 +74,34 @@ class Replay:
 
         tau = world.time + h - self.frame_dt
         frames = [t.frame_at(tau) for t in self.tracks]
-        keep = np.ones(world.state.n, bool)
+        keep = None
         new, new_track, new_person = [], [], []
         for k, (t, f) in enumerate(zip(self.tracks, frames)):
-            alive = t.recording.alive(f)
-            mine = self.track == k
-            keep[mine] = alive[self.person[mine]]
-            enter = np.flatnonzero(alive & ~self.started[k])
+            began, ended = self._passed(k, f)
+            if ended:  # someone's recording ended: who leaves (Recording.alive), one pass over the agents
+                alive = t.recording.alive(f)
+                mine = self.track == k
+                keep = np.ones(world.state.n, bool) if keep is None else keep
+                keep[mine] = alive[self.person[mine]]
+            if not began:
+                continue
+            cand = self._by_first[k][self._passed_first[k] - began:self._passed_first[k]]
+            cand = cand[~self.started[k][cand]]
+            enter = np.sort(cand[t.recording.alive(f)[cand]]) if cand.size else cand
+            self.started[k][cand] = True  # (one whose recording began and ended between two frames never enters)
             if enter.size:
                 self.started[k][enter] = True
                 new.append(t.agents(enter, f))
                 new_track.append(np.full(enter.size, k, np.int32))
                 new_person.append(enter)
-        left = int((~keep).sum())
+        left = 0 if keep is None else int((~keep).sum())
         entered = sum(s.n for s in new)
         if left or entered:
             from sim.placement import concat_states
 
             added = concat_states(new) if new else CrowdState.empty(0)
             apply(world, None if not left else np.flatnonzero(keep), added)  # remaps track/person (-1 for new)
+            self._rows = None
             if entered:
                 self.track[-entered:] = np.concatenate(new_track)
                 self.person[-entered:] = np.concatenate(new_person)
@@ -95,20 +111,31 @@ class Replay:
             self.total_entered += entered
         self._move(world, frames)
 
+    def _passed(self, k: int, f: float) -> tuple:
+        """``(began, ended)``: how many of track ``k``'s persons' recordings began (first frame at or before
+        ``f``) and ended (last frame before ``f``) since the last call (``Recording.alive``'s tolerance)."""
+        from sim.replay.recording import FRAME_EPS
+
+        a = int(np.searchsorted(self._first_sorted[k], f + FRAME_EPS, side="right"))
+        b = int(np.searchsorted(self._last_sorted[k], f - FRAME_EPS, side="left"))
+        began, ended = max(a - self._passed_first[k], 0), max(b - self._passed_last[k], 0)
+        self._passed_first[k] = max(a, self._passed_first[k])
+        self._passed_last[k] = max(b, self._passed_last[k])
+        return began, ended
+
     def _move(self, world, frames: list) -> None:
         st = world.state
-        speeds = _clip_speeds(world)
+        speeds = np.ascontiguousarray(_clip_speeds(world), np.float64)
+        if self._rows is None:
+            self._rows = [np.flatnonzero(self.track == k) for k in range(len(self.tracks))]
         for k, (t, f) in enumerate(zip(self.tracks, frames)):
-            idx = np.flatnonzero(self.track == k)
+            idx = self._rows[k]
             if not idx.size:
                 continue
-            whole = idx.shape[0] == st.n  # one track holds every agent: its rows in place
-            cur = self.cursor if whole else self.cursor[idx]
-            rows = t.kinematic_rows(self.person if whole else self.person[idx], f, cur)
-            if not whole:
-                self.cursor[idx] = cur
-            _place_kernel(idx, rows, np.ascontiguousarray(speeds, np.float64), st.character, st.clip,
-                          float(HEADING_MIN_SPEED), st.position, st.velocity, st.heading, st.anim_rate)
+            whole = idx.shape[0] == st.n  # one track holds every agent: its persons in place
+            rows = t.kinematic_rows(self.person if whole else self.person[idx], f)
+            _place_kernel(idx, rows, speeds, st.character, st.clip, float(HEADING_MIN_SPEED), st.position,
+                          st.velocity, st.heading, st.anim_rate)
 
 
 @njit(cache=True, parallel=True)
@@ -127,11 +154,15 @@ def _place_kernel(idx, rows, speeds, character, clip, min_speed, position, veloc
         velocity[i, 0] = vx
         velocity[i, 1] = 0.0
         velocity[i, 2] = vy
-        if math.sqrt(vx * vx + vy * vy) > min_speed:
+        speed = math.sqrt(vx * vx + vy * vy)
+        if speed > min_speed:  # facing the walk: its speed is all along the heading
             heading[i] = math.atan2(vx, vy)
+            along = speed
+        else:
+            along = vx * math.sin(heading[i]) + vy * math.cos(heading[i])
         h, c = character[i], clip[i]
         n = speeds[h, c] if 0 <= h < C and 0 <= c < M else 0.0
-        anim_rate[i] = (vx * math.sin(heading[i]) + vy * math.cos(heading[i])) / n if n > 0 else 1.0
+        anim_rate[i] = along / n if n > 0 else 1.0
 
 
 def _clip_speeds(world) -> np.ndarray:

@@ -28,8 +28,8 @@ Units: PedPy reads the text format's unit from its header (``x/m``, ``x/cm``) an
 names it for a text file whose header does not (and must agree with a header that does). The other formats are
 in metres; ``unit = "cm"`` scales one that is not.
 
-A recording is parsed once: its columns are cached by content and memory-mapped on later runs
-(:mod:`sim.replay.cache`).
+A recording is parsed once: its columns are cached by content and memory-mapped on later runs, its frame-major form
+streamed from the cache's files (:mod:`sim.replay.cache`, :mod:`sim.replay.frames`).
 
 Bad input raises :class:`sim.params.ParamError` with one sentence naming the file: an unreadable or truncated
 file, a format PedPy cannot read, NaN or infinite coordinates, duplicate (id, frame) rows, no rows at all.
@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.params import ParamError
+from sim.replay.frames import FrameTable
 
 #: formats and their loaders (pedpy function names); "pathfinder" picks CSV or JSON by the file's suffix
 FORMATS = ("txt", "jupedsim", "vadere", "pathfinder", "crowdit", "viswalk")
@@ -69,6 +70,12 @@ class Recording:
     xy: np.ndarray
     #: (R,) float64 search keys of :meth:`at` (made from the other columns when not given: a cached entry has them)
     keys: np.ndarray | None = None
+    #: (P, 6) float64 per person: first and last recorded frame, first position (x, y), last position (x, y)
+    #: (made from the rows when not given: a cached entry has them, so opening one reads no row)
+    ends: np.ndarray | None = None
+    #: the frame-major form the replay streams (``sim.replay.frames``): a cached entry's files, else built from
+    #: the rows on first use (:meth:`frame_table`)
+    table: FrameTable | None = None
 
     @property
     def persons(self) -> int:
@@ -87,6 +94,22 @@ class Recording:
     def last(self) -> np.ndarray:
         """(P,) float64 last recorded frame of each person."""
         return self._last
+
+    @property
+    def first_xy(self) -> np.ndarray:
+        """(P, 2) float64 first recorded position of each person."""
+        return self._first_xy
+
+    @property
+    def last_xy(self) -> np.ndarray:
+        """(P, 2) float64 last recorded position of each person."""
+        return self._last_xy
+
+    def frame_table(self) -> FrameTable:
+        """The frame-major form (``sim.replay.frames``; built from the rows the first time when not cached)."""
+        if self.table is None:
+            self.table = FrameTable.from_rows(self.start, self.frames, self.xy)
+        return self.table
 
     @property
     def first_frame(self) -> float:
@@ -117,8 +140,14 @@ class Recording:
         return self.xy[k0] * (1.0 - a) + self.xy[k1] * a
 
     def __post_init__(self):
-        self._first = np.asarray(self.frames[self.start[:-1]], np.float64)
-        self._last = np.asarray(self.frames[self.start[1:] - 1], np.float64)
+        if self.ends is None:
+            lo, hi = self.start[:-1], self.start[1:] - 1
+            self.ends = np.column_stack([self.frames[lo], self.frames[hi], self.xy[lo], self.xy[hi]]
+                                        ).astype(np.float64).reshape(-1, 6)
+        self._first = np.ascontiguousarray(self.ends[:, 0], np.float64)
+        self._last = np.ascontiguousarray(self.ends[:, 1], np.float64)
+        self._first_xy = np.ascontiguousarray(self.ends[:, 2:4], np.float64)
+        self._last_xy = np.ascontiguousarray(self.ends[:, 4:6], np.float64)
         self._first_frame = float(self._first.min()) if self._first.size else 0.0
         self._last_frame = float(self._last.max()) if self._last.size else 0.0
         self._f0 = self.first_frame
@@ -204,15 +233,27 @@ def load(path, format: str | None = None, unit: str | None = None, frame_rate: f
         k = cache.key(path, fmt, unit, frame_rate)
     except OSError as e:
         raise ParamError("file", f"{path.name}: cannot read ({e.strerror or e})") from None
-    hit = cache.load(k)
-    if hit is not None:  # read before: the columns memory-mapped, no parse
-        cols, meta = hit
-        return Recording(source=str(path), format=fmt, frame_rate=float(meta["frame_rate"]), ids=cols["ids"],
-                         start=cols["start"], frames=cols["frames"], xy=cols["xy"], keys=cols["keys"])
+    hit = cached(k, path, fmt)
+    if hit is not None:  # read before: the columns memory-mapped, the frame-major rows streamed, no parse
+        return hit
     rec = _read(path, fmt, unit, frame_rate)
-    cache.save(k, {"ids": rec.ids, "start": rec.start, "frames": rec.frames, "xy": rec.xy, "keys": rec.keys},
-               {"frame_rate": rec.frame_rate, "format": fmt, "source": path.name, "rows": rec.rows})
+    cache.save(k, rec)
     return rec
+
+
+def cached(k: str, source, fmt: str) -> Recording | None:
+    """The recording of cache entry ``k`` (``sim.replay.cache``; ``source`` names its file, ``fmt`` its format):
+    its person-major columns memory-mapped and its frame-major table left in its files, so opening it reads no row;
+    None when there is no whole entry."""
+    from sim.replay import cache
+
+    hit = cache.load(k)
+    if hit is None:
+        return None
+    cols, meta, table = hit
+    return Recording(source=str(source), format=fmt, frame_rate=float(meta["frame_rate"]), ids=cols["ids"],
+                     start=cols["start"], frames=cols["frames"], xy=cols["xy"], keys=cols["keys"],
+                     ends=cols["ends"], table=table)
 
 
 def _read(path: Path, fmt: str, unit, frame_rate) -> Recording:

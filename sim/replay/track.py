@@ -24,8 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
 
+from sim.replay.frames import Stream
 from sim.replay.recording import Recording
 from sim.state import CrowdState
 
@@ -55,6 +55,7 @@ class Track:
             raise ValueError("Track.choices: expected at least one row, every weight > 0")
         self.choices = c
         self._p = c[:, 2] / c[:, 2].sum()
+        self._stream = None  # the recording's frame-major stream (kinematic_rows), opened on first use
 
     @property
     def played(self) -> list:
@@ -66,32 +67,26 @@ class Track:
         rec = self.recording
         return rec.first_frame + float(tau) * rec.frame_rate
 
-    def kinematics(self, persons: np.ndarray, frame: float, cursors: np.ndarray | None = None) -> tuple:
+    def kinematics(self, persons: np.ndarray, frame: float) -> tuple:
         """``(xy (k, 2), velocity (k, 2))`` of ``persons`` at ``frame``, floor plane, metres and m/s
         (:meth:`kinematic_rows`)."""
-        out = self.kinematic_rows(persons, frame, cursors)
+        out = self.kinematic_rows(persons, frame)
         return out[:, :2], out[:, 2:]
 
-    def kinematic_rows(self, persons: np.ndarray, frame: float, cursors: np.ndarray | None = None) -> np.ndarray:
-        """(k, 4) float64 rows (x, y, vx, vy) of ``persons`` at ``frame``: position and velocity, floor plane.
-
-        ``cursors`` (k, 3) int64: each person's rows at ``frame`` - w, ``frame`` and ``frame`` + w from an
-        earlier call (moved forward in place: a frame later than the last costs a step or two, not a search;
-        -1: none yet). None: searched from each person's first row."""
+    def kinematic_rows(self, persons: np.ndarray, frame: float) -> np.ndarray:
+        """(k, 4) float64 rows (x, y, vx, vy) of ``persons`` at ``frame``: position and velocity, floor plane
+        (module docstring), from the recording's frame-major stream (``sim.replay.frames``): a frame later than
+        the last asked reads only the recorded frames passed since; an earlier one reads from the start again."""
         rec = self.recording
-        p = np.ascontiguousarray(persons, np.int64)
-        cur = np.full((p.shape[0], 3), -1, np.int64) if cursors is None else cursors
-        out = np.empty((p.shape[0], 4), np.float64)
-        if p.shape[0]:
-            _kinematics_kernel(p, np.asarray(rec.start), np.asarray(rec.frames), np.asarray(rec.xy), cur,
-                               float(frame), SMOOTHING_S * rec.frame_rate, float(rec.frame_rate), out)
-        return out
+        if self._stream is None:
+            self._stream = Stream(rec.frame_table(), rec.first, rec.last, rec.first_xy)
+        return self._stream.rows(persons, frame, SMOOTHING_S * rec.frame_rate, rec.frame_rate)
 
     def overall_heading(self, persons: np.ndarray) -> np.ndarray:
         """(k,) yaw from each person's first to last recorded position (0 when they never moved)."""
         rec = self.recording
         p = np.asarray(persons, np.int64)
-        d = rec.xy[rec.start[p + 1] - 1] - rec.xy[rec.start[p]]
+        d = rec.last_xy[p] - rec.first_xy[p]
         moved = np.hypot(d[:, 0], d[:, 1]) > 1e-6
         return np.where(moved, np.arctan2(d[:, 0], d[:, 1]), 0.0)
 
@@ -120,43 +115,6 @@ class Track:
             span = np.where(row[:, 4] > 0, row[:, 4], 1.0)
             st.anim_time[:] = rng.uniform(0.0, 1.0, n) * span
         return st
-
-
-@njit(cache=True, inline="always")
-def _seek(frames, xy, lo, hi, c, q):
-    """``(row, x, y)``: the person's position at frame ``q`` (within its rows ``lo .. hi``), linear between the
-    last row at or before ``q`` and the next, found from row ``c`` onwards (from ``lo`` when ``c`` is none or lies
-    after ``q``). The arithmetic of :meth:`Recording.at`."""
-    if c < lo or c > hi or frames[c] > q:
-        c = lo
-    while c < hi and frames[c + 1] <= q:
-        c += 1
-    c1 = c + 1 if c < hi else hi
-    df = frames[c1] - frames[c]
-    a = (q - frames[c]) / df if df > 0 else 0.0
-    return c, xy[c, 0] * (1.0 - a) + xy[c1, 0] * a, xy[c, 1] * (1.0 - a) + xy[c1, 1] * a
-
-
-@njit(cache=True, parallel=True)
-def _kinematics_kernel(persons, start, frames, xy, cur, frame, w, rate, out):  # pragma: no cover - compiled
-    """Per person: position at ``frame`` and the velocity over ``frame`` -+ ``w`` (clamped to the person's rows),
-    ``out`` rows (x, y, vx, vy); ``cur`` the three rows found, kept for the next frame (:meth:`Track.kinematics`)."""
-    for a in prange(persons.shape[0]):
-        p = persons[a]
-        lo = start[p]
-        hi = start[p + 1] - 1
-        f_lo, f_hi = frames[lo], frames[hi]
-        q = min(max(frame, f_lo), f_hi)
-        qa = min(max(frame - w, f_lo), f_hi)
-        qb = min(max(frame + w, f_lo), f_hi)
-        c, x, y = _seek(frames, xy, lo, hi, cur[a, 1], q)
-        ca, xa, ya = _seek(frames, xy, lo, hi, cur[a, 0], qa)
-        cb, xb, yb = _seek(frames, xy, lo, hi, cur[a, 2], qb)
-        cur[a, 0], cur[a, 1], cur[a, 2] = ca, c, cb
-        span = (qb - qa) / rate
-        out[a, 0], out[a, 1] = x, y
-        out[a, 2] = (xb - xa) / span if span > 0 else 0.0
-        out[a, 3] = (yb - ya) / span if span > 0 else 0.0
 
 
 __all__ = ["HEADING_MIN_SPEED", "SMOOTHING_S", "Track"]

@@ -345,9 +345,9 @@ def test_a_recording_is_parsed_once_then_memory_mapped_from_the_cache(tmp_path, 
     assert cache.load(entries[0]) is not None
 
 
-def test_kinematics_with_cursors_are_the_searched_ones_frame_after_frame_and_back():
-    """The replay's per-frame kernel keeps each person's rows from the frame before (sim.replay.track); forwards,
-    backwards and from nothing it gives what a search from scratch (Recording.at) gives."""
+def test_streamed_kinematics_are_the_searched_ones_frame_after_frame_and_back():
+    """The replay streams the recording frame-major (sim.replay.frames: each person's segment from the frame
+    before); forwards, backwards and from nothing it gives what a search from scratch (Recording.at) gives."""
     from sim.replay.track import SMOOTHING_S, Track
 
     rng = np.random.default_rng(4)
@@ -360,10 +360,9 @@ def test_kinematics_with_cursors_are_the_searched_ones_frame_after_frame_and_bac
     rec = from_columns(ids, frames, xy, 25.0, "r.txt")
     track = Track(recording=rec, choices=np.array([[0, 0, 1.0, 1.0, 1.0]]))
     persons = np.arange(rec.persons)
-    cur = np.full((rec.persons, 3), -1, np.int64)
     w = SMOOTHING_S * rec.frame_rate
     for f in list(np.arange(-5.0, 210.0, 0.37)) + [150.0, 3.2, 99.9]:  # forwards, then back
-        got_xy, got_v = track.kinematics(persons, f, cur)
+        got_xy, got_v = track.kinematics(persons, f)
         np.testing.assert_allclose(got_xy, rec.at(persons, f), rtol=0, atol=1e-12)
         lo, hi = rec.first, rec.last
         fa, fb = np.clip(f - w, lo, hi), np.clip(f + w, lo, hi)
