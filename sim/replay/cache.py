@@ -26,7 +26,7 @@ from sim.replay.frames import FrameTable
 
 CACHE_ENV = "CROWD_CACHE_DIR"
 #: bump when what an entry holds changes
-FORMAT = 2
+FORMAT = 3
 #: the person-major columns of an entry (the frame-major files: ``sim.replay.frames.FILES``)
 COLUMNS = ("ids", "start", "frames", "xy", "keys", "ends")
 #: bytes read at a time while hashing a file
@@ -60,7 +60,7 @@ def load(k: str):
         return None
     rows, persons = cols["frames"].shape[0], cols["ids"].shape[0]
     if (cols["xy"].shape != (rows, 2) or cols["keys"].shape != (rows,) or cols["start"].shape != (persons + 1,)
-            or cols["ends"].shape != (persons, 6) or not isinstance(meta, dict) or "frame_rate" not in meta):
+            or cols["ends"].shape != (6, persons) or not isinstance(meta, dict) or "frame_rate" not in meta):
         return None
     table = FrameTable.open(folder)
     if table is None or table.rows != rows:

@@ -19,7 +19,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from sim.angles import atan2_fast
 from sim.params import Param, ParamError
+from sim.replay.frames import kinematics
 from sim.replay.track import HEADING_MIN_SPEED, Track
 
 #: the effect takes no scene-file keys (the placements carry the recordings)
@@ -132,31 +134,33 @@ class Replay:
             idx = self._rows[k]
             if not idx.size:
                 continue
-            whole = idx.shape[0] == st.n  # one track holds every agent: its persons in place
-            rows = t.kinematic_rows(self.person if whole else self.person[idx], f)
-            _place_kernel(idx, rows, speeds, st.character, st.clip, float(HEADING_MIN_SPEED), st.position,
-                          st.velocity, st.heading, st.anim_rate)
+            w = t.smoothing_frames()
+            arrays = t.stream().seek(f, w)
+            _place_kernel(idx, self.person, *arrays, float(f), float(w), float(t.recording.frame_rate), speeds,
+                          st.character, st.clip, float(HEADING_MIN_SPEED), st.position, st.velocity, st.heading,
+                          st.anim_rate)
 
 
 @njit(cache=True, parallel=True)
-def _place_kernel(idx, rows, speeds, character, clip, min_speed, position, velocity, heading,
-                  anim_rate):  # pragma: no cover - compiled
-    """Agents ``idx`` to their recorded floor positions and velocities; the heading follows the velocity above
-    ``min_speed`` (kept below it: no spin standing); the clip advances by the walk along the heading over its
-    natural speed (``speeds`` (C, M), by the agent's character and clip; a step back plays it backwards; 1
-    without a natural speed). ``rows``: (k, 4) x, y, vx, vy."""
+def _place_kernel(idx, person, first, last, first_xy, sa, s, sb, frame, w, rate, speeds, character, clip,
+                  min_speed, position, velocity, heading, anim_rate):  # pragma: no cover - compiled
+    """Agents ``idx`` (persons ``person[idx]``) to their recorded floor positions and velocities at ``frame``
+    (``sim.replay.frames.kinematics`` of the stream's arrays, read as they are placed); the heading follows the
+    velocity above ``min_speed`` (kept below it: no spin standing); the clip advances by the walk along the
+    heading over its natural speed (``speeds`` (C, M), by the agent's character and clip; a step back plays it
+    backwards; 1 without a natural speed)."""
     C, M = speeds.shape
     for a in prange(idx.shape[0]):
         i = idx[a]
-        vx, vy = rows[a, 2], rows[a, 3]
-        position[i, 0] = rows[a, 0]
-        position[i, 2] = rows[a, 1]
+        x, y, vx, vy = kinematics(person[i], first, last, first_xy, sa, s, sb, frame, w, rate)
+        position[i, 0] = x
+        position[i, 2] = y
         velocity[i, 0] = vx
         velocity[i, 1] = 0.0
         velocity[i, 2] = vy
         speed = math.sqrt(vx * vx + vy * vy)
         if speed > min_speed:  # facing the walk: its speed is all along the heading
-            heading[i] = math.atan2(vx, vy)
+            heading[i] = atan2_fast(vx, vy)
             along = speed
         else:
             along = vx * math.sin(heading[i]) + vy * math.cos(heading[i])

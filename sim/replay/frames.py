@@ -19,7 +19,10 @@ the replay needs (``t - w``, ``t``, ``t + w``: the position and the smoothed vel
 A table lives in memory (built from a recording's person-major columns, :meth:`FrameTable.from_rows`) or in the
 replay cache's ``.npy`` files (:meth:`FrameTable.open`), whose slices are read with plain file reads, never
 memory-mapped: the pages a long run reads stay in the page cache, not in the process, so replaying a recording of
-any length holds the per-person segments (48 bytes a person and cursor) and one slice at a time.
+any length holds the per-person segments (48 bytes a person and cursor) and the slices between the slowest and the
+fastest cursor (read once for the three, up to :data:`KEEP_BYTES`). The next slice is read ahead a share per frame
+over the frames before the leading cursor needs it, so no frame pays a whole slice's read (a million people at
+1 fps: 44 MB a slice, 1.5 MB a frame at 30 fps); the buffers of a dropped slice are read into again.
 """
 from __future__ import annotations
 
@@ -29,10 +32,19 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
+from sim.params import ParamError
+
 #: the table's files in a cache entry, by array name
 FILES = {"values": "f_values.npy", "offsets": "f_offsets.npy", "person": "f_person.npy", "seg": "f_seg.npy"}
 #: columns of ``seg``
 SEG_COLUMNS = 5
+#: bytes of a row of a slice (person int32, seg float64 x 5)
+ROW_BYTES = 4 + 8 * SEG_COLUMNS
+#: bytes of read slices a file-backed table keeps: those between the slowest and the fastest cursor (each slice
+#: read once for the three) and the next one, read ahead; a slice beyond it is read, used and dropped
+KEEP_BYTES = 128 << 20
+#: fewest rows read ahead at a time
+AHEAD_MIN_ROWS = 1 << 15
 
 
 class FrameTable:
@@ -47,6 +59,9 @@ class FrameTable:
         self.files = files
         if (person is None or seg is None) and not files:
             raise ValueError("FrameTable: give the person and seg arrays or their files")
+        self._kept: dict = {}  # slice -> (person, seg, buffers) read (a file-backed table; KEEP_BYTES)
+        self._ahead = None  # [slice, person buffer, seg buffer, rows read] of the slice being read ahead
+        self._spare = None  # the buffers of a dropped slice, read into again (no fresh pages to fault in)
 
     @property
     def slices(self) -> int:
@@ -83,12 +98,74 @@ class FrameTable:
         return cls(fs[first], np.append(first, rows).astype(np.int64), person, seg)
 
     def slice(self, j: int) -> tuple:
-        """``(person (n,) int32, seg (n, 5) float64)`` of slice ``j``; read from the files for an opened table."""
+        """``(person (n,) int32, seg (n, 5) float64)`` of slice ``j``; an opened table's from the slices it keeps,
+        the one read ahead (its rest read now) or its files (kept while :data:`KEEP_BYTES` allows)."""
         a, b = int(self.offsets[j]), int(self.offsets[j + 1])
         if self.person is not None:
             return self.person[a:b], self.seg[a:b]
-        return (_read(*self.files["person"], np.int32, a, b - a, 1),
-                _read(*self.files["seg"], np.float64, a, b - a, SEG_COLUMNS))
+        got = self._kept.get(j)
+        if got is None:
+            if self._ahead is not None and self._ahead[0] == j:
+                self.read_ahead(j, 1.0)
+                bufs = (self._ahead[1], self._ahead[2])
+                self._ahead = None
+            else:
+                bufs = self._buffers(b - a)
+                self._read_rows(j, 0, b - a, bufs)
+            got = (bufs[0][:b - a], bufs[1][:b - a], bufs)
+            if self._kept_bytes() + self._bytes(j) <= KEEP_BYTES:
+                self._kept[j] = got
+        return got[0], got[1]
+
+    def _bytes(self, j: int) -> int:
+        return int(self.offsets[j + 1] - self.offsets[j]) * ROW_BYTES
+
+    def _kept_bytes(self) -> int:
+        return sum(self._bytes(j) for j in self._kept) + (0 if self._ahead is None else self._bytes(self._ahead[0]))
+
+    def _buffers(self, n: int) -> tuple:
+        """A (person, seg) buffer pair of at least ``n`` rows: the spare one when it is large enough."""
+        if self._spare is not None and self._spare[0].shape[0] >= n:
+            got, self._spare = self._spare, None
+            return got
+        return np.empty(n, np.int32), np.empty((n, SEG_COLUMNS), np.float64)
+
+    def _read_rows(self, j: int, first: int, count: int, bufs: tuple) -> None:
+        """Rows ``first .. first + count`` of slice ``j`` read into the same rows of ``bufs``."""
+        a = int(self.offsets[j]) + first
+        try:
+            _read(*self.files["person"], a, bufs[0][first:first + count])
+            _read(*self.files["seg"], a, bufs[1][first:first + count])
+        except OSError as e:  # the entry changed under the run (checked whole when opened)
+            raise ParamError("file", f"the replay cache entry {Path(self.files['seg'][0]).parent} cannot be read "
+                                     f"({e}); delete it and run again") from None
+
+    def read_ahead(self, j: int, share: float) -> None:
+        """An opened table: read ``share`` (0 .. 1) of slice ``j``'s rows not read yet (at least
+        :data:`AHEAD_MIN_ROWS`), so a slice arrives over the frames before a cursor needs it, not in one frame;
+        nothing when ``j`` is kept, out of range, or would pass :data:`KEEP_BYTES`."""
+        if self.person is not None or not 0 <= j < self.slices or j in self._kept:
+            return
+        n = int(self.offsets[j + 1] - self.offsets[j])
+        if self._ahead is None or self._ahead[0] != j:
+            if self._ahead is not None:  # (a seek back left another slice half read: drop it)
+                self._ahead = None
+            if self._kept_bytes() + self._bytes(j) > KEEP_BYTES:
+                return
+            self._ahead = [j, *self._buffers(n), 0]
+        done = self._ahead[3]
+        count = n - done if share >= 1.0 else min(n - done, max(AHEAD_MIN_ROWS, int(np.ceil(share * n))))
+        if count > 0:
+            self._read_rows(j, done, count, (self._ahead[1], self._ahead[2]))
+            self._ahead[3] = done + count
+
+    def release(self, first: int) -> None:
+        """An opened table: drop the kept slices before ``first`` (no cursor needs them again); one's buffers are
+        kept for the next read."""
+        for j in [j for j in self._kept if j < first]:
+            bufs = self._kept.pop(j)[2]
+            if self._spare is None or self._spare[0].shape[0] < bufs[0].shape[0]:
+                self._spare = bufs
 
     def save(self, folder: Path) -> None:
         """Write the four arrays as ``.npy`` files into ``folder`` (an in-memory table; the cache's temporary
@@ -115,7 +192,7 @@ class FrameTable:
                 or not isinstance(p, np.memmap) or not isinstance(s, np.memmap)
                 or not p.flags.c_contiguous or not s.flags.c_contiguous):
             return None
-        if rows and (int(offsets[0]) != 0 or (np.diff(offsets) < 0).any()):
+        if rows and (int(offsets[0]) != 0 or (np.diff(offsets) < 0).any() or (np.diff(values) <= 0).any()):
             return None
         files = {"person": (str(folder / FILES["person"]), int(p.offset)),
                  "seg": (str(folder / FILES["seg"]), int(s.offset))}
@@ -123,17 +200,18 @@ class FrameTable:
         return cls(values, offsets, files=files)
 
 
-def _read(path: str, offset: int, dtype, first: int, count: int, cols: int) -> np.ndarray:
-    """Rows ``first .. first + count`` of a C-ordered ``.npy`` array of ``cols`` columns whose data starts at byte
-    ``offset``: one plain read (module docstring). OSError when the file is shorter than its header says."""
-    out = np.empty((count, cols) if cols > 1 else count, dtype)
-    if count:
-        with open(path, "rb", buffering=0) as f:
-            f.seek(offset + first * cols * out.itemsize)
-            got = f.readinto(memoryview(out).cast("B"))
-        if got != out.nbytes:
-            raise OSError(f"{os.path.basename(path)}: truncated (read {got} of {out.nbytes} bytes)")
-    return out
+def _read(path: str, offset: int, first: int, out: np.ndarray) -> None:
+    """Rows ``first ..`` of a C-ordered ``.npy`` array whose data starts at byte ``offset`` into ``out`` (as many
+    rows as it holds, of the same row length): one plain read (module docstring). OSError when the file is shorter
+    than its header says."""
+    if not out.shape[0]:
+        return
+    row = out.nbytes // out.shape[0]
+    with open(path, "rb", buffering=0) as f:
+        f.seek(offset + first * row)
+        got = f.readinto(memoryview(out).cast("B"))
+    if got != out.nbytes:
+        raise OSError(f"{os.path.basename(path)}: truncated (read {got} of {out.nbytes} bytes)")
 
 
 class Cursor:
@@ -142,7 +220,7 @@ class Cursor:
 
     def __init__(self, table: FrameTable, persons: int):
         self.table = table
-        self.state = np.zeros((persons, 6), np.float64)
+        self.state = np.full((persons, 6), 0.0)  # (written now: its pages are not faulted in mid-replay)
         self.applied = 0  # slices 0 .. applied - 1 are in state
 
     def seek(self, t: float) -> None:
@@ -164,30 +242,52 @@ class Stream:
     def __init__(self, table: FrameTable, first, last, first_xy):
         self.first = np.ascontiguousarray(first, np.float64)
         self.last = np.ascontiguousarray(last, np.float64)
-        self.first_xy = np.ascontiguousarray(first_xy, np.float64)
+        self.first_xy = np.asarray(first_xy, np.float64)  # (a view of the recording's ends: not copied)
         n = self.first.shape[0]
         self.cursors = [Cursor(table, n) for _ in range(3)]
+        self._lead = None  # the leading cursor's time at the last seek (how fast the stream moves)
+
+    def seek(self, frame: float, w: float) -> tuple:
+        """Move the cursors to ``frame - w``, ``frame``, ``frame + w`` and return what :func:`kinematics` reads:
+        ``(first, last, first_xy, state at frame - w, at frame, at frame + w)``."""
+        frame = float(frame)
+        for c, t in zip(self.cursors, (frame - w, frame, frame + w)):
+            c.seek(t)
+        self._read_ahead(frame + w)
+        return (self.first, self.last, self.first_xy) + tuple(c.state for c in self.cursors)
+
+    def _read_ahead(self, lead: float) -> None:
+        """Drop the slices every cursor has passed and read a share of the next one the leading cursor (at
+        ``lead``) will need: one over the frames left until it does, at the pace of the last seek."""
+        table = self.cursors[0].table
+        table.release(min(c.applied for c in self.cursors))
+        j = max(c.applied for c in self.cursors)
+        if j < table.slices:
+            step = lead - self._lead if self._lead is not None and lead > self._lead else 0.0
+            left = (table.values[j] - lead) / step if step > 0 else 1.0
+            table.read_ahead(j, 1.0 / max(left, 1.0))
+        self._lead = lead
 
     def rows(self, persons: np.ndarray, frame: float, w: float, rate: float) -> np.ndarray:
         """(k, 4) float64 (x, y, vx, vy) of ``persons`` at ``frame``: the position linear between the recorded
         frames around it and the velocity over ``frame`` -+ ``w`` frames, each clamped to the person's recorded
-        span (``rate``: recorded frames per second)."""
-        frame = float(frame)
-        for c, t in zip(self.cursors, (frame - w, frame, frame + w)):
-            c.seek(t)
+        span (``rate``: recorded frames per second; :func:`kinematics`)."""
+        arrays = self.seek(frame, w)
         p = np.ascontiguousarray(persons, np.int64)
         out = np.empty((p.shape[0], 4), np.float64)
         if p.shape[0]:
-            a, b, c = (cur.state for cur in self.cursors)
-            _rows_kernel(p, self.first, self.last, self.first_xy, a, b, c, frame, float(w), float(rate), out)
+            _rows_kernel(p, *arrays, float(frame), float(w), float(rate), out)
         return out
 
 
 @njit(cache=True, parallel=True)
 def _apply(person, seg, frame, state):  # pragma: no cover - compiled
-    """Slice rows into the persons' segments (:meth:`Cursor.seek`; a slice holds a person once)."""
+    """Slice rows into the persons' segments (:meth:`Cursor.seek`; a slice holds a person once; a row naming no
+    person of ``state``, from a damaged file, is skipped)."""
     for r in prange(person.shape[0]):
         p = person[r]
+        if p < 0 or p >= state.shape[0]:
+            continue
         state[p, 0] = frame
         state[p, 1] = seg[r, 0]
         state[p, 2] = seg[r, 1]
@@ -209,22 +309,29 @@ def _at(state, p, t, lo, hi, first_xy):
     return state[p, 1] * (1.0 - a) + state[p, 4] * a, state[p, 2] * (1.0 - a) + state[p, 5] * a
 
 
+@njit(cache=True, inline="always")
+def kinematics(p, first, last, first_xy, sa, s, sb, frame, w, rate):  # pragma: no cover - compiled
+    """``(x, y, vx, vy)`` of person ``p``: the position at ``frame`` (cursor ``s``) and the velocity between
+    ``frame`` - ``w`` (``sa``) and ``frame`` + ``w`` (``sb``), the span clamped to the person's frames; the arrays
+    are :meth:`Stream.seek`'s (for kernels that place agents as they read, ``sim.replay.effect``)."""
+    lo, hi = first[p], last[p]
+    x, y = _at(s, p, frame, lo, hi, first_xy)
+    xa, ya = _at(sa, p, frame - w, lo, hi, first_xy)
+    xb, yb = _at(sb, p, frame + w, lo, hi, first_xy)
+    qa = min(max(frame - w, lo), hi)
+    qb = min(max(frame + w, lo), hi)
+    span = (qb - qa) / rate
+    if span > 0:
+        return x, y, (xb - xa) / span, (yb - ya) / span
+    return x, y, 0.0, 0.0
+
+
 @njit(cache=True, parallel=True)
 def _rows_kernel(persons, first, last, first_xy, sa, s, sb, frame, w, rate, out):  # pragma: no cover - compiled
-    """Per person: the position at ``frame`` (cursor ``s``) and the velocity between ``frame`` - ``w`` (``sa``)
-    and ``frame`` + ``w`` (``sb``), the span clamped to the person's frames (:meth:`Stream.rows`)."""
+    """:func:`kinematics` of every person of ``persons`` into ``out`` rows (:meth:`Stream.rows`)."""
     for a in prange(persons.shape[0]):
-        p = persons[a]
-        lo, hi = first[p], last[p]
-        x, y = _at(s, p, frame, lo, hi, first_xy)
-        xa, ya = _at(sa, p, frame - w, lo, hi, first_xy)
-        xb, yb = _at(sb, p, frame + w, lo, hi, first_xy)
-        qa = min(max(frame - w, lo), hi)
-        qb = min(max(frame + w, lo), hi)
-        span = (qb - qa) / rate
-        out[a, 0], out[a, 1] = x, y
-        out[a, 2] = (xb - xa) / span if span > 0 else 0.0
-        out[a, 3] = (yb - ya) / span if span > 0 else 0.0
+        out[a, 0], out[a, 1], out[a, 2], out[a, 3] = kinematics(persons[a], first, last, first_xy, sa, s, sb,
+                                                                frame, w, rate)
 
 
-__all__ = ["Cursor", "FrameTable", "Stream"]
+__all__ = ["Cursor", "FrameTable", "Stream", "kinematics"]

@@ -70,8 +70,9 @@ class Recording:
     xy: np.ndarray
     #: (R,) float64 search keys of :meth:`at` (made from the other columns when not given: a cached entry has them)
     keys: np.ndarray | None = None
-    #: (P, 6) float64 per person: first and last recorded frame, first position (x, y), last position (x, y)
-    #: (made from the rows when not given: a cached entry has them, so opening one reads no row)
+    #: (6, P) float64 rows: each person's first and last recorded frame, first position (x, y), last position
+    #: (x, y) (made from the rows when not given: a cached entry has them, so opening one reads no row; the
+    #: properties below are views of it)
     ends: np.ndarray | None = None
     #: the frame-major form the replay streams (``sim.replay.frames``): a cached entry's files, else built from
     #: the rows on first use (:meth:`frame_table`)
@@ -142,12 +143,10 @@ class Recording:
     def __post_init__(self):
         if self.ends is None:
             lo, hi = self.start[:-1], self.start[1:] - 1
-            self.ends = np.column_stack([self.frames[lo], self.frames[hi], self.xy[lo], self.xy[hi]]
-                                        ).astype(np.float64).reshape(-1, 6)
-        self._first = np.ascontiguousarray(self.ends[:, 0], np.float64)
-        self._last = np.ascontiguousarray(self.ends[:, 1], np.float64)
-        self._first_xy = np.ascontiguousarray(self.ends[:, 2:4], np.float64)
-        self._last_xy = np.ascontiguousarray(self.ends[:, 4:6], np.float64)
+            self.ends = np.array([self.frames[lo], self.frames[hi], self.xy[lo, 0], self.xy[lo, 1], self.xy[hi, 0],
+                                  self.xy[hi, 1]], np.float64).reshape(6, -1)
+        e = np.asarray(self.ends, np.float64)  # (a cached entry's stays memory-mapped: views, no copy)
+        self._first, self._last, self._first_xy, self._last_xy = e[0], e[1], e[2:4].T, e[4:6].T
         self._first_frame = float(self._first.min()) if self._first.size else 0.0
         self._last_frame = float(self._last.max()) if self._last.size else 0.0
         self._f0 = self.first_frame

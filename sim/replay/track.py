@@ -78,9 +78,19 @@ class Track:
         (module docstring), from the recording's frame-major stream (``sim.replay.frames``): a frame later than
         the last asked reads only the recorded frames passed since; an earlier one reads from the start again."""
         rec = self.recording
+        return self.stream().rows(persons, frame, self.smoothing_frames(), rec.frame_rate)
+
+    def stream(self) -> Stream:
+        """The recording's frame-major stream (``sim.replay.frames``), opened on first use; the velocity's
+        half-window is ``SMOOTHING_S`` seconds (:meth:`smoothing_frames`)."""
         if self._stream is None:
+            rec = self.recording
             self._stream = Stream(rec.frame_table(), rec.first, rec.last, rec.first_xy)
-        return self._stream.rows(persons, frame, SMOOTHING_S * rec.frame_rate, rec.frame_rate)
+        return self._stream
+
+    def smoothing_frames(self) -> float:
+        """``SMOOTHING_S`` in recorded frames."""
+        return SMOOTHING_S * self.recording.frame_rate
 
     def overall_heading(self, persons: np.ndarray) -> np.ndarray:
         """(k,) yaw from each person's first to last recorded position (0 when they never moved)."""
@@ -101,8 +111,10 @@ class Track:
         st.position[:, 2] = xy[:, 1]
         st.velocity[:, 0] = v[:, 0]
         st.velocity[:, 2] = v[:, 1]
-        moving = np.hypot(v[:, 0], v[:, 1]) > HEADING_MIN_SPEED
-        st.heading[:] = np.where(moving, np.arctan2(v[:, 0], v[:, 1]), self.overall_heading(p))
+        still = np.hypot(v[:, 0], v[:, 1]) <= HEADING_MIN_SPEED
+        st.heading[:] = np.arctan2(v[:, 0], v[:, 1])
+        if still.any():
+            st.heading[still] = self.overall_heading(p[still])
         rng = self.rng if self.rng is not None else np.random.default_rng(0)
         row = self.choices[rng.choice(self.choices.shape[0], size=n, p=self._p) if self.choices.shape[0] > 1
                            else np.zeros(n, np.int64)]

@@ -39,11 +39,16 @@ def test_slices_hold_every_row_once_in_frame_then_person_order_with_the_next_row
     assert len(seen) == rec.rows
 
 
-def test_a_cached_entry_streams_what_the_recording_in_memory_gives(tmp_path, monkeypatch):
+@pytest.mark.parametrize("keep_bytes, ahead_rows", [(128 << 20, 1 << 15), (0, 1 << 15), (600, 1), (2000, 3)])
+def test_a_cached_entry_streams_what_the_recording_in_memory_gives(tmp_path, monkeypatch, keep_bytes, ahead_rows):
+    """Whatever the table keeps and reads ahead (everything; nothing; a slice or two, a row or three at a time)."""
+    import sim.replay.frames as frames
     from sim.replay import cache
     from sim.replay.recording import cached
 
     monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(frames, "KEEP_BYTES", keep_bytes)
+    monkeypatch.setattr(frames, "AHEAD_MIN_ROWS", ahead_rows)
     rec = gappy()
     cache.save("k1", rec)
     again = cached("k1", "gappy.txt", "txt")
@@ -55,7 +60,7 @@ def test_a_cached_entry_streams_what_the_recording_in_memory_gives(tmp_path, mon
     persons = np.arange(rec.persons)
     s1 = Stream(rec.frame_table(), rec.first, rec.last, rec.first_xy)
     s2 = Stream(again.table, again.first, again.last, again.first_xy)
-    for f in list(np.arange(-3.0, 125.0, 0.7)) + [60.0, -1.0, 130.0]:
+    for f in list(np.arange(-3.0, 125.0, 0.7)) + [60.0, -1.0, 130.0] + list(np.arange(20.0, 50.0, 0.3)):
         got = s2.rows(persons, f, 4.0, 10.0)
         np.testing.assert_array_equal(got, s1.rows(persons, f, 4.0, 10.0))
         assert np.isfinite(got).all()
@@ -82,3 +87,22 @@ def test_a_broken_frame_table_makes_the_entry_unreadable(tmp_path, monkeypatch, 
 def test_a_table_needs_its_rows():
     with pytest.raises(ValueError):
         FrameTable(np.zeros(1), np.array([0, 1]))
+
+
+def test_an_opened_table_holds_at_most_what_it_may_keep(tmp_path, monkeypatch):
+    """KEEP_BYTES bounds the slices kept and the one read ahead; passed slices are dropped."""
+    import sim.replay.frames as frames
+    from sim.replay import cache
+    from sim.replay.recording import cached
+
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(frames, "KEEP_BYTES", 3 * 30 * frames.ROW_BYTES)
+    monkeypatch.setattr(frames, "AHEAD_MIN_ROWS", 4)
+    cache.save("k3", gappy(people=30))
+    rec = cached("k3", "gappy.txt", "txt")
+    s = Stream(rec.table, rec.first, rec.last, rec.first_xy)
+    for f in np.arange(0.0, 120.0, 0.25):
+        s.rows(np.arange(rec.persons), f, 2.0, 10.0)
+        assert rec.table._kept_bytes() <= frames.KEEP_BYTES
+        lowest = min(c.applied for c in s.cursors)
+        assert all(j >= lowest for j in rec.table._kept)
