@@ -356,7 +356,7 @@ class Engine:
         if delegates is None or self.renderer is None:
             return 0
         statics = [(r.key, np.eye(4)) for r in self.statics]
-        lists = delegates.warm_lists(self.world.state, camera, size, statics, sel.candidates)
+        lists = delegates.warm_lists(self.drawn_state(), camera, size, statics, sel.candidates)
         for dl in lists:
             self.pose_sharing.assign(dl)
             self.renderer.draw(dl, self.scene.render.background)
@@ -426,12 +426,19 @@ class Engine:
         """Representation keys of the scenery (terrain), never tinted by colour-by."""
         return frozenset(r.key for r in self.statics) | self.scenery.keys
 
+    def drawn_state(self):
+        """The state as drawn: the world's, with replayed people's planted-feet offsets added to their positions
+        (``sim.replay.planting``; the world's state keeps the recorded positions that trajectories and measures
+        read)."""
+        plant = self.world.resources.get("replay_feet")
+        return self.world.state if plant is None else plant.drawn(self.world.state)
+
     def select(self, camera, size):
         """The DrawList of the current state seen by ``camera`` at ``size`` (the
         selection ``run`` makes each frame, statics included)."""
         static_draws = [(r.key, np.eye(4)) for r in self.statics]
         self.apply_live_settings()
-        dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+        dl = self.selector.select(self.drawn_state(), camera, size, statics=static_draws)
         self.pose_sharing.assign(dl)
         return self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
 
@@ -579,7 +586,7 @@ class Engine:
                 stages["simulate"] = (0.0, t1 - t_frame)
                 camera = self.camera_at(self.world.time)
                 camera, metrics = self.terrain_frame(camera, renderer)
-                dl = self.selector.select(self.world.state, camera, size, statics=static_draws)
+                dl = self.selector.select(self.drawn_state(), camera, size, statics=static_draws)
                 self.pose_sharing.assign(dl)  # pose slots of the skinned copies (lod.poses)
                 self.scenery.add(dl, camera, size, self.settings.poe, self.settings.lod_mode)
                 t2 = time.perf_counter()

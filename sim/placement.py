@@ -333,6 +333,9 @@ TRAJECTORIES_PARAMS = {
                   doc="unit of the recorded coordinates where the file does not say it; empty = the file's"),
     "frame_rate": Param("float", 0.0, min=0.0, max=1e4,
                         doc="recorded frames per second where the file does not say it (0 = the file's)"),
+    "feet": Param("str", "planted", choices=("planted", "recorded"),
+                  doc="planted: the stance foot stays where it landed, the body up to 20 cm off the recording "
+                      "(sim.replay.planting); recorded: the body exactly on the recording, the feet may slide"),
 }
 
 
@@ -348,7 +351,8 @@ def build_trajectories(cfg: dict, character_index: int, clip_index: int, rng, cl
         raise ParamError("file", "the recording was not loaded")
     table = cfg.get("choice_table") or [(character_index, clip_index, 1.0, 1.0, float(clip_duration or 0.0))]
     track = Track(recording=rec, choices=np.array(table, np.float64), scale=float(cfg.get("scale", 1.0)),
-                  scale_jitter=float(cfg.get("scale_jitter", 0.0)), phase=cfg.get("phase", "random"), rng=rng)
+                  scale_jitter=float(cfg.get("scale_jitter", 0.0)), phase=cfg.get("phase", "random"), rng=rng,
+                  feet=cfg.get("feet", "planted"))
     f0 = track.frame_at(0.0)
     persons = np.flatnonzero(rec.alive(f0))
     st = track.agents(persons, f0)

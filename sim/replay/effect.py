@@ -10,7 +10,9 @@ animation rate from its recording. It runs after every other step that moves age
 avoidance avoids them), their clips advance by their walk along their heading and their height follows the terrain.
 
 Resource ``world.resources["replay"]``: the :class:`Replay` (its tracks, which agent is which recorded person,
-the frame's entered and left counts).
+the frame's entered and left counts). A placement with ``feet = "planted"`` (the default) and a character with
+feet adds step ``replay_feet`` after ``animation`` and resource ``world.resources["replay_feet"]``
+(``sim.replay.planting``: the stance foot held where it landed, the drawn body at most 20 cm off the recording).
 """
 from __future__ import annotations
 
@@ -206,3 +208,19 @@ def install(world, cfg: dict) -> None:
     world.resources["replay"] = replay
     others = tuple(s.name for s in world.schedule.steps if s.name not in ("animation", "terrain_follow"))
     world.schedule.add_step("replay", replay.step, after=others, before=("animation", "terrain_follow"))
+    planted = np.array([t.feet == "planted" for t in tracks], bool)
+    if planted.any():
+        from sim.replay.planting import FeetTable, Planting
+
+        table = FeetTable(world.characters)
+        if table.any:
+            plant = Planting(table, n)
+            world.resources["replay_feet"] = plant
+
+            def plant_feet(world, h):
+                mine = replay.track >= 0
+                mine[mine] = planted[replay.track[mine]]
+                plant.step(world.state, mine, h)
+
+            world.schedule.add_step("replay_feet", plant_feet, after=("replay", "animation"),
+                                    before=("terrain_follow",))

@@ -83,7 +83,7 @@ def replay_drifts(engine, frames: int) -> np.ndarray:
     rec: dict = {}
     for _ in range(frames):
         engine.step()
-        st = w.state
+        st = engine.drawn_state()  # (planted feet: the drawn positions, sim.replay.planting)
         for a, i in enumerate(st.ids.tolist()):
             rec.setdefault(i, []).append((st.position[a].copy(), float(st.heading[a]), float(st.scale[a]),
                                           float(st.anim_time[a]), int(st.character[a]), int(st.clip[a])))

@@ -40,7 +40,8 @@ class Track:
     """One trajectories placement: ``recording``, its people drawn as the characters of ``choices``, a (k, 5)
     array of rows (character, clip, weight, character scale, clip duration): each person who enters draws a row by
     weight (``rng``); ``scale`` (times the character's) and ``scale_jitter`` as the other placements' keys;
-    ``phase`` "random" starts each entering person's clip at a random time, "zero" at 0."""
+    ``phase`` "random" starts each entering person's clip at a random time, "zero" at 0; ``feet`` "planted" or
+    "recorded" (the placement's key)."""
 
     recording: Recording
     choices: np.ndarray
@@ -48,6 +49,8 @@ class Track:
     scale_jitter: float = 0.0
     phase: str = "random"
     rng: np.random.Generator | None = None
+    #: "planted": the replay plants its people's stance feet (``sim.replay.planting``); "recorded": it does not
+    feet: str = "planted"
 
     def __post_init__(self):
         c = np.asarray(self.choices, np.float64).reshape(-1, 5)

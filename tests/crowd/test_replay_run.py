@@ -68,6 +68,7 @@ BOTTLENECK = REPO.parent / "shared" / "data" / "pedestrian" / "bottleneck" / "04
 @pytest.mark.parametrize("data", ["synthetic", "bottleneck"])
 @pytest.mark.parametrize("mode", ["none", "points", "clusters", "triangles", "auto"])
 def test_positions_drawn_are_the_recordings_in_every_lod_mode(tmp_path, mode, data):
+    """With ``feet = "recorded"`` the drawn positions are the recording's (planted feet: test_replay_feet)."""
     if data == "bottleneck":
         if not BOTTLENECK.is_file():
             pytest.skip(f"no shared pedestrian data at {BOTTLENECK}")
@@ -76,10 +77,10 @@ def test_positions_drawn_are_the_recordings_in_every_lod_mode(tmp_path, mode, da
         r0 = load(BOTTLENECK)
         rows = [(int(r0.ids[p]), int(f), x, y) for p, (f, (x, y)) in
                 zip(np.repeat(np.arange(r0.persons), np.diff(r0.start)), zip(r0.frames, r0.xy)) if f < 45]
-        eng = engine_of(tmp_path, BOTTLENECK)
+        eng = engine_of(tmp_path, BOTTLENECK, extra='feet = "recorded"\n')
     else:
         rows = three_people()
-        eng = engine_of(tmp_path, write_txt(tmp_path / "three.txt", rows))
+        eng = engine_of(tmp_path, write_txt(tmp_path / "three.txt", rows), extra='feet = "recorded"\n')
     eng.set_lod_mode(mode)
     rec = eng.world.resources["replay"].tracks[0].recording
     at = {(i, f): (x, y) for i, f, x, y in rows}
