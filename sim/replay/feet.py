@@ -53,9 +53,14 @@ def stance_drifts(skeleton, clip, position, heading, scale, anim_time) -> np.nda
     position : (N, 3) world positions; heading : (N,) yaw; scale : (N,) uniform scale; anim_time : (N,) seconds
     into ``clip``. Returns (S,) float64, one per stance of either foot that lies wholly inside the frames.
     """
+    return stances(skeleton, clip, position, heading, scale, anim_time)[:, 0]
+
+
+def stances(skeleton, clip, position, heading, scale, anim_time) -> np.ndarray:
+    """(S, 3) float64 rows (drift metres, first frame, frames) of every step of one person (:func:`stance_drifts`)."""
     feet = feet_joints(skeleton)
     if not feet or len(anim_time) < MIN_STANCE_FRAMES:
-        return np.zeros(0)
+        return np.zeros((0, 3))
     model = contact_points(skeleton, clip, anim_time, feet)  # (N, F, 3)
     lowest = contact_points(skeleton, clip, np.linspace(0.0, clip.duration, CLIP_SAMPLES), feet)[:, :, 1].min(0)
     h = np.asarray(heading, np.float64)[:, None]
@@ -72,21 +77,29 @@ def stance_drifts(skeleton, clip, position, heading, scale, anim_time) -> np.nda
         for a, b in zip(edges[::2], edges[1::2]):  # stance frames a .. b-1
             if a == 0 or b == len(down) or b - a < MIN_STANCE_FRAMES:
                 continue  # cut by the recording's ends, or too short to be a step
-            out.append(float(np.hypot(wx[b - 1, k] - wx[a, k], wz[b - 1, k] - wz[a, k])))
-    return np.asarray(out, np.float64)
+            out.append((float(np.hypot(wx[b - 1, k] - wx[a, k], wz[b - 1, k] - wz[a, k])), a, b - a))
+    return np.asarray(out, np.float64).reshape(-1, 3)
 
 
 def replay_drifts(engine, frames: int) -> np.ndarray:
     """Step the engine ``frames`` frames and return the drift of every step of every recorded person
     (:func:`stance_drifts` over each person's frames; people whose character has no such feet are left out)."""
+    return replay_steps(engine, frames)[:, 0]
+
+
+def replay_steps(engine, frames: int) -> np.ndarray:
+    """(S, 2) rows (drift metres, the person's mean recorded ground speed over the stance, m/s) of every step of
+    every recorded person over ``frames`` frames of ``engine`` (:func:`replay_drifts`)."""
     w = engine.world
     rec: dict = {}
     for _ in range(frames):
         engine.step()
         st = engine.drawn_state()  # (planted feet: the drawn positions, sim.replay.planting)
+        v = w.state.velocity
         for a, i in enumerate(st.ids.tolist()):
             rec.setdefault(i, []).append((st.position[a].copy(), float(st.heading[a]), float(st.scale[a]),
-                                          float(st.anim_time[a]), int(st.character[a]), int(st.clip[a])))
+                                          float(st.anim_time[a]), int(st.character[a]), int(st.clip[a]),
+                                          float(np.hypot(v[a, 0], v[a, 2]))))
     out = []
     for rows in rec.values():
         ch = w.characters[rows[0][4]]
@@ -94,7 +107,8 @@ def replay_drifts(engine, frames: int) -> np.ndarray:
         skeleton = getattr(ch, "skeleton", None)
         if skeleton is None or not clips:
             continue
-        out.append(stance_drifts(skeleton, clips[rows[0][5]], np.array([r[0] for r in rows]),
-                                 np.array([r[1] for r in rows]), np.array([r[2] for r in rows]),
-                                 np.array([r[3] for r in rows])))
-    return np.concatenate(out) if out else np.zeros(0)
+        s = stances(skeleton, clips[rows[0][5]], np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+                    np.array([r[2] for r in rows]), np.array([r[3] for r in rows]))
+        speed = np.array([r[6] for r in rows])
+        out.append(np.column_stack([s[:, 0], [speed[int(a):int(a + n)].mean() for _, a, n in s]]).reshape(-1, 2))
+    return np.concatenate(out) if out else np.zeros((0, 2))
