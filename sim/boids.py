@@ -64,6 +64,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from sim.angles import atan2_fast
 from sim.config import (
     BOIDS_ALIGN_TAU,
     BOIDS_CANDIDATE_FACTOR,
@@ -197,7 +198,7 @@ def _integrate(pos, vel, heading, i, vx, vz, dt, alpha):
         h = heading[i]
         if h > math.pi or h < -math.pi:
             h = _wrap(h)
-        heading[i] = _wrap_pi(h + alpha * _wrap_pi(math.atan2(vx, vz) - h))
+        heading[i] = _wrap_pi(h + alpha * _wrap_pi(atan2_fast(vx, vz) - h))
 
 
 @njit(cache=True)
