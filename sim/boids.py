@@ -250,24 +250,30 @@ def _steer_kernel(sxz, pos, vel, heading, ext, has_ext, order, cx, cz, start, gx
         seen = 0
         ix, iz = np.int64(cx[i]), np.int64(cz[i])
         done = False
-        for o in range(9):
+        # the 3 x 3 cells row by row (z outer, x inner); a dense grid's row of three cells is one range of the
+        # sorted agents, a hashed grid's cells are visited one by one
+        for o in range(9 if not dense else 3):
             if done:
                 break
-            jx, jz = ix + (o // 3 - 1), iz + (o % 3 - 1)
             if dense:
-                if jx < 0 or jz < 0 or jx >= gx or jz >= gz:
+                jz = iz + (o - 1)
+                if jz < 0 or jz >= gz:
                     continue
-                key = jz * gx + jx
+                row = jz * gx
+                m0 = start[row + max(ix - 1, 0)]
+                m1 = start[row + min(ix + 1, gx - 1) + 1]
             else:
+                jx, jz = ix + (o % 3 - 1), iz + (o // 3 - 1)
                 key = cell_key(jx, jz, np.int64(gx), dense, np.int64(mask))
                 dup = False
                 for q in range(o):  # a bucket reached from two cells is visited once
-                    if cell_key(ix + (q // 3 - 1), iz + (q % 3 - 1), np.int64(gx), dense, np.int64(mask)) == key:
+                    if cell_key(ix + (q % 3 - 1), iz + (q // 3 - 1), np.int64(gx), dense, np.int64(mask)) == key:
                         dup = True
                         break
                 if dup:
                     continue
-            for m in range(start[key], start[key + 1]):
+                m0, m1 = start[key], start[key + 1]
+            for m in range(m0, m1):
                 if m == k:
                     continue
                 seen += 1
@@ -395,7 +401,7 @@ def step_numpy(position, velocity, heading, P, max_neighbors, dt, ext=None):
     ii, jj, oo = [], [], []
     keys_seen = []
     agents = np.arange(n)
-    for oi, (a, b) in enumerate([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)]):
+    for oi, (b, a) in enumerate([(b, a) for b in (-1, 0, 1) for a in (-1, 0, 1)]):  # z outer, x inner
         jx, jz = cx + a, cz + b
         valid = np.ones(n, bool)
         if g.dense:
