@@ -33,6 +33,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from sim.angles import sincos_fast
 from sim.replay.feet import STANCE_HEIGHT, contact_points, feet_joints
 
 #: samples of a clip's contact points and down flags
@@ -90,6 +91,7 @@ class Planting:
         self.lock = np.full(n, -1, np.int8)
         self.anchor = np.zeros((n, 2), np.float64)
         self.offset = np.zeros((n, 2), np.float64)
+        self._drawn = None  # the drawn positions' buffer (drawn)
 
     def remap_agents(self, src, state=None) -> None:
         from sim.population import remap_rows
@@ -99,12 +101,14 @@ class Planting:
         self.offset = remap_rows(self.offset, src, 0.0)
 
     def drawn(self, state):
-        """A shallow copy of ``state`` whose positions are the drawn ones (recorded plus offset; the other arrays
-        shared)."""
+        """A shallow copy of ``state`` whose positions are the drawn ones (recorded plus offset, into a buffer
+        kept from frame to frame; the other arrays shared)."""
+        n = state.position.shape[0]
+        if self._drawn is None or self._drawn.shape[0] != n:
+            self._drawn = np.empty((n, 3), np.float64)
+        _drawn_kernel(state.position, self.offset, self._drawn)
         out = copy.copy(state)
-        out.position = state.position.copy()
-        out.position[:, 0] += self.offset[:, 0]
-        out.position[:, 2] += self.offset[:, 1]
+        out.position = self._drawn
         return out
 
     def step(self, state, recorded: np.ndarray, dt: float) -> None:
@@ -116,6 +120,15 @@ class Planting:
                       state.scale, t.contact, t.down, t.feet, t.duration, float(MAX_OFFSET), float(max(dt, 0.0)),
                       float(RETURN_SPEED), float(PHASE_RATE_MAX), state.position, self.lock, self.anchor,
                       self.offset)
+
+
+@njit(cache=True, parallel=True)
+def _drawn_kernel(position, offset, out):  # pragma: no cover - compiled
+    """``out`` = ``position`` plus the floor-plane ``offset`` (:meth:`Planting.drawn`)."""
+    for i in prange(position.shape[0]):
+        out[i, 0] = position[i, 0] + offset[i, 0]
+        out[i, 1] = position[i, 1]
+        out[i, 2] = position[i, 2] + offset[i, 1]
 
 
 @njit(cache=True, inline="always")
@@ -176,8 +189,9 @@ def _plant_kernel(recorded, character, clip, anim_time, anim_rate, heading, scal
             continue
         dur = duration[h, m]
         sc = float(scale[i])
-        c = math.cos(heading[i]) * sc
-        s = math.sin(heading[i]) * sc
+        s, c = sincos_fast(heading[i])
+        c *= sc
+        s *= sc
         rx, rz = position[i, 0], position[i, 2]
         ox, oz = offset[i, 0], offset[i, 1]
         f = lock[i]
