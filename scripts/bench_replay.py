@@ -76,10 +76,33 @@ def store(n: int) -> dict:
     return {"store_s": time.perf_counter() - t0}
 
 
-def run_one(n: int, frames: int, in_memory: bool) -> dict:
-    """One size, in this process: ``{"rows", "median_ms", "max_ms", "peak_mb", "build_s"}``."""
+def humanoid():
+    """The generated humanoid with its walk (the characters of a one-line scene: ``crowd.scene``)."""
+    import tempfile
+
+    from crowd.engine import Engine
+    from crowd.scene import load_scene
+
+    with tempfile.TemporaryDirectory() as td:
+        rows = Path(td) / "one.txt"
+        rows.write_text("# framerate: 25 fps\n# id frame x/m y/m z/m\n1\t0\t0\t0\t1.7\n1\t1\t0.05\t0\t1.7\n")
+        (Path(td) / "s.toml").write_text(
+            'name = "one"\ndt = 0.04\nframes = 1\neffects = ["animation"]\n[[characters]]\nname = "walker"\n'
+            'generator = "humanoid"\ntriangles = 600\n[[placement]]\nkind = "trajectories"\n'
+            f'character = "walker"\nclip = "walk"\nfile = "{rows}"\n[camera]\nposition = [0.0, 8.0, -6.0]\n'
+            'target = [0.0, 0.0, 2.0]\n[render]\nsize = [64, 48]\n')
+        eng = Engine(load_scene(Path(td) / "s.toml"), quiet=True)
+        ch = eng.world.characters
+        clip = list(ch[0].clips).index("walk")
+        return ch, clip, float(list(ch[0].clips.values())[clip].duration)
+
+
+def run_one(n: int, frames: int, in_memory: bool, feet: bool = False) -> dict:
+    """One size, in this process: ``{"rows", "median_ms", "max_ms", "peak_mb", "build_s"}`` (and with ``feet``
+    the step ``replay_feet``'s median: the people drawn as the generated humanoid, feet planted)."""
     import resource
 
+    import sim.animation
     import sim.replay.effect as effect
     from sim.replay.recording import cached
     from sim.replay.track import Track
@@ -89,22 +112,27 @@ def run_one(n: int, frames: int, in_memory: bool) -> dict:
     rec = recording(n) if in_memory else cached(entry_key(n), f"synthetic-{n}", "txt")
     if rec is None:
         raise RuntimeError("the stored recording is not in the cache")
-    track = Track(recording=rec, choices=np.array([[0, 0, 1.0, 1.0, 1.1]]), rng=np.random.default_rng(1))
+    characters, clip, duration = humanoid() if feet else ([], 0, 1.1)
+    track = Track(recording=rec, choices=np.array([[0, clip, 1.0, 1.0, duration]]), rng=np.random.default_rng(1))
     persons = np.flatnonzero(rec.alive(rec.first_frame))
     state = track.agents(persons, rec.first_frame)
     state.tracks = [(0, state.n, track, persons)]
-    world = World(state=state, characters=[])
+    world = World(state=state, characters=characters)
+    if feet:
+        sim.animation.install(world, {})
     effect.install(world, {"dt": 1.0 / FPS})
     build = time.perf_counter() - t0
-    times = []
+    times, plant = [], []
     for k in range(3 + frames):
         t = {}
         world.step(1.0 / FPS, 1, t)
         if k >= 3:
             times.append(t["replay"])
+            plant.append(t.get("replay_feet", 0.0))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return {"people": n, "rows": rec.rows, "median_ms": 1e3 * float(np.median(times)),
-            "max_ms": 1e3 * float(np.max(times)), "peak_mb": peak, "build_s": build, "agents": world.state.n}
+            "max_ms": 1e3 * float(np.max(times)), "peak_mb": peak, "build_s": build, "agents": world.state.n,
+            "feet_ms": 1e3 * float(np.median(plant))}
 
 
 def main(argv=None) -> int:
@@ -113,6 +141,8 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=30, help="timed frames per size (after 3 warm-up frames)")
     ap.add_argument("--md", type=Path, help="write the table here (atomically)")
     ap.add_argument("--in-memory", action="store_true", help="replay the recording built in memory (no cache)")
+    ap.add_argument("--feet", action="store_true", help="draw the people as the generated humanoid with planted "
+                    "feet: the step replay_feet (sim.replay.planting) timed beside the replay's")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: one size in this process
     ap.add_argument("--store", type=int, help=argparse.SUPPRESS)  # internal: store one size's cache entry
     a = ap.parse_args(argv)
@@ -123,7 +153,7 @@ def main(argv=None) -> int:
         print(json.dumps(store(a.store)))
         return 0
     if a.one:
-        print(json.dumps(run_one(a.one, a.frames, a.in_memory)))
+        print(json.dumps(run_one(a.one, a.frames, a.in_memory, a.feet)))
         return 0
     rows = []
     tmp = Path(os.environ.get("TMPDIR") or "/tmp") / f"bench_replay-{os.getpid()}"
@@ -140,13 +170,15 @@ def main(argv=None) -> int:
         for n in a.people:
             s = {} if a.in_memory else child("--store", str(n))
             r = None if s is None else child("--one", str(n), "--frames", str(a.frames),
-                                             *(["--in-memory"] if a.in_memory else []))
+                                             *(["--in-memory"] if a.in_memory else []),
+                                             *(["--feet"] if a.feet else []))
             if r is None:
                 return 1
             shutil.rmtree(tmp, ignore_errors=True)  # (each size's entry on its own: the disk holds one)
             rows.append(dict(r, **s))
             print(f"{n:,} people ({r['rows']:,} rows): replay step median {r['median_ms']:.1f} ms, slowest "
                   f"{r['max_ms']:.1f} ms; peak RSS {r['peak_mb']:.0f} MB; opened in {r['build_s']:.1f} s"
+                  + (f"; planted feet {r['feet_ms']:.1f} ms a step" if a.feet else "")
                   + (f" (stored in {s['store_s']:.1f} s)" if s else ""))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -156,14 +188,19 @@ def main(argv=None) -> int:
         base = next((r["peak_mb"] for r in rows if r["people"] == 1000), None)
         lines = ["# Replay step of a large recorded crowd (issue 47, item 2)", "",
                  f"Command: `scripts/bench_replay.py --people {' '.join(map(str, a.people))} --frames {a.frames} "
-                 f"--md {a.md}`. Synthetic recordings, {SECONDS} s at {RATE:g} fps, everyone recorded throughout, "
+                 f"{'--feet ' if a.feet else ''}--md {a.md}`. Synthetic recordings, {SECONDS} s at {RATE:g} fps, everyone recorded throughout, "
                  f"replayed at {FPS:g} fps with no drawing (module docstring). Targets at a million: step <= 20 ms, "
                  "peak memory <= 500 MB above 1,000 people.", "",
-                 "| people | rows | replay step median ms | slowest ms | peak RSS MB | above 1,000 people MB |",
-                 "| ---: | ---: | ---: | ---: | ---: | ---: |"]
+                 "| people | rows | replay step median ms | slowest ms | peak RSS MB | above 1,000 people MB |"
+                 + (" planted feet median ms |" if a.feet else ""),
+                 "| ---: | ---: | ---: | ---: | ---: | ---: |" + (" ---: |" if a.feet else "")]
         above = ["" if base is None else f"{r['peak_mb'] - base:.0f}" for r in rows]
         lines += [f"| {r['people']:,} | {r['rows']:,} | {r['median_ms']:.1f} | {r['max_ms']:.1f} | {r['peak_mb']:.0f} | "
-                  f"{d} |" for r, d in zip(rows, above)]
+                  f"{d} |" + (f" {r['feet_ms']:.1f} |" if a.feet else "") for r, d in zip(rows, above)]
+        if a.feet:
+            lines += ["", "With `--feet` the people are the generated humanoid walking (600 triangles) with feet planted "
+                      "(`sim/replay/planting.py`): the world also runs the effect `animation` and the step "
+                      "`replay_feet`, timed on its own in the last column (not part of the replay step)."]
         if not a.in_memory:
             lines += ["", BEFORE]
         write_atomic(a.md, "\n".join(lines) + "\n")

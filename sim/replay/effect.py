@@ -218,9 +218,7 @@ def install(world, cfg: dict) -> None:
             world.resources["replay_feet"] = plant
 
             def plant_feet(world, h):
-                mine = replay.track >= 0
-                mine[mine] = planted[replay.track[mine]]
-                plant.step(world.state, mine, h)
+                plant.step(world.state, replay.track, planted, h)
 
             world.schedule.add_step("replay_feet", plant_feet, after=("replay", "animation"),
                                     before=("terrain_follow",))

@@ -111,12 +111,12 @@ class Planting:
         out.position = self._drawn
         return out
 
-    def step(self, state, recorded: np.ndarray, dt: float) -> None:
-        """Plant the feet of the agents where ``recorded`` (n,) is true at their recorded positions
-        (``state.position``), setting their offsets and, while a foot is planted, their clips' phase (module
-        docstring)."""
+    def step(self, state, track: np.ndarray, planted: np.ndarray, dt: float) -> None:
+        """Plant the feet of the agents of tracks ``track`` (n,) int (-1: none) where ``planted`` (tracks,) bool
+        says so, at their recorded positions (``state.position``), setting their offsets and, while a foot is
+        planted, their clips' phase (module docstring)."""
         t = self.table
-        _plant_kernel(recorded, state.character, state.clip, state.anim_time, state.anim_rate, state.heading,
+        _plant_kernel(np.asarray(track, np.int32), np.asarray(planted, np.bool_), state.character, state.clip, state.anim_time, state.anim_rate, state.heading,
                       state.scale, t.contact, t.down, t.feet, t.duration, float(MAX_OFFSET), float(max(dt, 0.0)),
                       float(RETURN_SPEED), float(PHASE_RATE_MAX), state.position, self.lock, self.anchor,
                       self.offset)
@@ -172,13 +172,15 @@ def _stance_phase(contact, h, m, u0, du_max, f, K, pz):
 
 
 @njit(cache=True, parallel=True)
-def _plant_kernel(recorded, character, clip, anim_time, anim_rate, heading, scale, contact, down, feet, duration,
+def _plant_kernel(track, planted, character, clip, anim_time, anim_rate, heading, scale, contact, down, feet, duration,
                   max_off, dt, back_speed, rate_max, position, lock, anchor, offset):  # pragma: no cover - compiled
     """:meth:`Planting.step` (module docstring)."""
     C, M = feet.shape
     K = contact.shape[2]
+    T = planted.shape[0]
     for i in prange(position.shape[0]):
-        if not recorded[i]:
+        k = track[i]
+        if k < 0 or k >= T or not planted[k]:
             continue
         h, m = character[i], clip[i]
         nf = feet[h, m] if 0 <= h < C and 0 <= m < M else 0
@@ -235,9 +237,9 @@ def _plant_kernel(recorded, character, clip, anim_time, anim_rate, heading, scal
                 anchor[i, 1] = rz + oz + wz
             else:  # in the air: back towards the recording
                 d = math.sqrt(ox * ox + oz * oz)
-                k = max(d - back_speed * dt, 0.0) / d if d > 0 else 0.0
-                ox *= k
-                oz *= k
+                shrink = max(d - back_speed * dt, 0.0) / d if d > 0 else 0.0
+                ox *= shrink
+                oz *= shrink
         lock[i] = f
         offset[i, 0] = ox
         offset[i, 1] = oz
