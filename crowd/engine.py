@@ -599,7 +599,7 @@ class Engine:
                 r = renderer.draw(dl, bg)
                 measured = self.observe(dl, t2 - t1, r)
                 if explain is not None and isinstance(dl.stats.get("auto"), dict):
-                    text = explain.frame(f, dl.stats["auto"], measured - (t2 - t1))
+                    text = explain.frame(f, dl.stats["auto"], measured - (t2 - t1), dl.warm_up)
                     if callable(self.explain_lod):
                         self.explain_lod(text)
                 auto = dl.stats.get("auto")

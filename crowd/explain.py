@@ -26,13 +26,16 @@ _UNITS = (("frame", "ms/frame", 1e3), ("triangles", "ns/triangle", 1e9), ("point
           ("props", "ns/prop triangle", 1e9))
 
 
-def record(frame: int, auto: dict, measured_render_s: float | None) -> dict:
-    """The JSON record of one frame from its ``DrawList.stats["auto"]`` and the measured rendering seconds."""
+def record(frame: int, auto: dict, measured_render_s: float | None, warm_up: bool = False) -> dict:
+    """The JSON record of one frame from its ``DrawList.stats["auto"]`` and the measured rendering seconds;
+    ``warm_up``: the draw made GL objects (``lod.drawlist.DrawList.warm_up``), so the fit left the frame out."""
     keys = ("plan", "state", "incumbent", "fade_from", "fade_t", "threshold", "bound", "predicted_ms",
             "predicted_sd_ms", "plans_ms", "plans_sd_ms", "groups", "model", "select_ms")
     out = {"frame": int(frame)}
     out.update({k: auto.get(k) for k in keys if k in auto})
     out["measured_ms"] = None if measured_render_s is None else 1e3 * float(measured_render_s)
+    if warm_up:
+        out["warm_up"] = True
     return _finite(out)
 
 
@@ -63,6 +66,8 @@ def format_frame(rec: dict) -> str:
     head += f"  predicted {_ms(pred)} ± {_ms(sd)} ms, measured {_ms(meas)} ms"
     if pred and meas:
         head += f" ({100 * (meas - pred) / pred:+.0f} %)"
+    if rec.get("warm_up"):
+        head += " (warm-up: GL objects made, not fitted)"
     lines = [head]
     plans = rec.get("plans_ms") or {}
     sds = rec.get("plans_sd_ms") or {}
@@ -92,8 +97,8 @@ class ExplainWriter:
         self.path = path
         self._f = open(path, "w", encoding="utf-8")
 
-    def frame(self, frame: int, auto: dict, measured_render_s: float | None) -> str:
-        rec = record(frame, auto, measured_render_s)
+    def frame(self, frame: int, auto: dict, measured_render_s: float | None, warm_up: bool = False) -> str:
+        rec = record(frame, auto, measured_render_s, warm_up)
         self._f.write(json.dumps(rec, separators=(",", ":")) + "\n")
         return format_frame(rec)
 
@@ -121,7 +126,8 @@ def read(path) -> list:
 
 def summarize(records: list) -> dict:
     """A run's explanation in a few figures (the report's section on mode auto): share of frames per plan,
-    frames per chooser state, switches of the incumbent, median |predicted - measured| / measured, and the
+    frames per chooser state, switches of the incumbent, median |predicted - measured| / measured (warm-up
+    frames left out, as the fit leaves them out), and the
     last per-unit costs of the fit beside the calibration's."""
     if not records:
         return {}
@@ -132,7 +138,7 @@ def summarize(records: list) -> dict:
         states[r.get("state")] = states.get(r.get("state"), 0) + 1
     inc = [r.get("incumbent") for r in records]
     err = sorted(abs(r["measured_ms"] - r["predicted_ms"]) / r["measured_ms"] for r in records
-                 if r.get("measured_ms") and r.get("predicted_ms") is not None)
+                 if r.get("measured_ms") and r.get("predicted_ms") is not None and not r.get("warm_up"))
     model = next((r["model"] for r in reversed(records) if r.get("model")), None)
     return {"frames": n, "plans": {k: v / n for k, v in plans.items()}, "states": states,
             "switches": sum(1 for a, b in zip(inc, inc[1:]) if a != b),

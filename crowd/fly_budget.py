@@ -148,8 +148,8 @@ class FlyBudget:
             self.say(f"no plan of mode auto fits the {self.budget_ms:g} ms budget here: drawing the cheapest "
                      f"(0 raises the budget)")
         if (self.budget_ms <= 0.0 or self.switched or self.manual or self.auto() is not None
-                or not math.isfinite(seconds)):
-            return
+                or not math.isfinite(seconds) or (drawlist is not None and drawlist.warm_up)):
+            return  # (a warm-up frame's time carries a one-time cost: lod.drawlist.DrawList.warm_up)
         self._seen += 1
         if self._seen <= SKIP_FRAMES:
             return

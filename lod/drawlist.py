@@ -115,6 +115,16 @@ class DrawList:
         return sum(b.n_instances for b in self.batches)
 
     @property
+    def warm_up(self) -> bool:
+        """The draw made GL objects (``stats["gl_created"]``, set by the renderer: a program compiled on first use, a
+        buffer allocated or grown): its time carries a one-time cost, and what learns costs from frame times
+        (mode auto's fit, a frame budget) leaves it out (issue 50, item 3)."""
+        try:
+            return int(self.stats.get("gl_created", 0) or 0) > 0
+        except (TypeError, ValueError):
+            return False
+
+    @property
     def triangles(self) -> int:
         return sum(b.triangles for b in self.batches)
 

@@ -16,9 +16,21 @@ class ContextError(RuntimeError):
     """No usable OpenGL context could be created."""
 
 
+#: GL objects made through :func:`track` in this process so far (:func:`created`)
+_created = 0
+
+
+def created() -> int:
+    """How many GL objects :func:`track` has been given in this process: a draw that makes any (a program compiled
+    on first use, a buffer allocated or grown) carries a one-time cost (``DrawList.stats["gl_created"]``)."""
+    return _created
+
+
 def track(objects: list, obj, label: str):
     """Give GL object ``obj`` a debug label (best effort) and keep it in ``objects``, the owner's list of what
     it releases (objects without ``release()``, e.g. moderngl queries, are only labelled); returns ``obj``."""
+    global _created
+    _created += 1
     try:
         obj.label = label
     except Exception:  # pragma: no cover - labels are best effort

@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lod.drawlist import INSTANCE_FLOATS, fade_uniform
-from render.context import create_context, release_all, track
+from render.context import create_context, created, release_all, track
 from render.poses.palette import (PALETTE_MAX_TEXELS, PALETTE_WIDTH, Palette, PaletteCursor,  # noqa: F401 (re-exported)
                                   joint_texture, plan_chunks)
 from render.shaders import prog_name, program_sources
@@ -532,8 +532,12 @@ class Renderer:
         submission), ``finish`` (waiting in ``ctx.finish``), ``gpu`` (timer
         query, or None where the driver gives nothing usable), and
         ``samples_passed`` (int, fragments that passed the depth test).
+        ``drawlist.stats`` gains the counts of what was drawn, among them
+        ``gl_created``: the GL objects this draw made (programs compiled on
+        first use, buffers grown; ``DrawList.warm_up``).
         """
         ctx = self.ctx
+        made = created()  # GL objects made during this draw: one-time costs (stats["gl_created"])
         batches = [b for b in drawlist.batches if b.n_instances]
         self.pose_evaluations = 0
         plugin: dict = {}
@@ -638,6 +642,7 @@ class Renderer:
         }
         self.last_timings = timings
         drawlist.stats["pose_passes"] = int(self.pose_evaluations)
+        drawlist.stats["gl_created"] = created() - made
         if getattr(drawlist, "poses", None) is not None:  # what the pose cache skinned (the LOD side counted what
             # its copies read; the compute rasteriser's cluster copies also pose the full mesh): frames.csv and
             # auto's fit take the work done

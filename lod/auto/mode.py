@@ -82,7 +82,12 @@ Bayesian recursive least squares with forgetting) to every frame the engine
 reports through :meth:`AutoSelector.observe` (the counts drawn and the
 rendering time), so that a wrong, stale or missing calibration is corrected
 within a few dozen frames; options and plans are priced with its posterior
-mean. Without ``adapt`` the calibration prices everything.
+mean. Without ``adapt`` the calibration prices everything. A frame whose
+draw made GL objects (a program compiled on its first use, a buffer grown:
+:attr:`lod.drawlist.DrawList.warm_up`) carries a one-time cost and is left
+out of the fit, the plans' measurements and the budget (issue 50, item 3:
+the first frame of an explored point plan drew in 2.4 s where its next
+frames took 0.2 s).
 
 Far groups (issue 7; Wand & Straßer §3.6): before the per-instance
 choice, each candidate may draw whole groups of instances
@@ -205,6 +210,8 @@ class AutoSelector:
         self.controller = BudgetController(self.budget_ms * 1e-3, self.poe) if self.budget_ms > 0 else None
         self._measured = None
         self._uses_measured = False
+        #: frames left out of the fit as warm-ups (:meth:`observe`)
+        self.warm_frames = 0
         self.explore = bool(explore)
         #: seconds the last :meth:`select` took (what :meth:`observe` subtracts to get the rendering time)
         self.last_select_seconds = 0.0
@@ -274,12 +281,20 @@ class AutoSelector:
         drawlist : the DrawList drawn (default: the last one selected); its
             counts are the fit's row. A list other than the selector's own
             (a keyframed selection's blend) feeds the fit, not the plans.
+            A draw that made GL objects (:attr:`lod.drawlist.DrawList.warm_up`:
+            a program's first use, a buffer grown) is a warm-up frame: its
+            time carries a one-time cost, so it feeds neither the fit, nor a
+            plan's measurements, nor the budget (``warm_frames`` counts them).
         """
+        last, self._last = self._last, None
+        if drawlist is not None and drawlist.warm_up:
+            self.warm_frames += 1
+            self.route.observe(drawlist.stats)  # a share of what was drawn, not a time
+            return
         self._measured = float(seconds)
         self._uses_measured = True
         sel_s = self.last_select_seconds if select_seconds is None else float(select_seconds)
         render = float(seconds) - (sel_s if np.isfinite(sel_s) and sel_s > 0 else 0.0)
-        last, self._last = self._last, None
         if not (self.fit is not None and np.isfinite(render) and render > 0):
             return
         own = last is not None and (drawlist is None or drawlist is last["dl"])

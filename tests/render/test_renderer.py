@@ -250,3 +250,33 @@ def test_empty_static_mesh_uploads_and_draws_nothing(gl_ctx):
         dl = NoLodSelector([empty]).select(st, Camera.look_at((0, 0, 5), (0, 0, 0)), (32, 32))
         t = r.draw(dl, background=BG)
         assert t["samples_passed"] == 0 and not _foreground(r.read_pixels()).any()
+
+
+def test_a_draw_that_makes_gl_objects_is_a_warm_up(gl_ctx, rep):
+    """``DrawList.stats["gl_created"]`` counts the GL objects a draw made (issue 50, item 3): the first draw
+    compiles its programs, the same draw again makes none, and a draw whose instances outgrow the instance buffer
+    allocates a larger one; ``DrawList.warm_up`` says so (what mode auto's fit and the fly-through's budget leave
+    out)."""
+    from render.renderer import INITIAL_INSTANCES
+
+    cam = Camera.look_at((1.0, 2.0, 7.0), (0.0, 1.5, 0.0), fov_y=50)
+    r = Renderer((W, H), ctx=gl_ctx)
+    try:
+        r.upload(rep)
+        sel = NoLodSelector([rep])
+        first = sel.select(_one(), cam, (W, H))
+        r.draw(first, background=BG)
+        again = sel.select(_one(), cam, (W, H))
+        r.draw(again, background=BG)
+        assert first.stats["gl_created"] > 0 and first.warm_up
+        assert again.stats["gl_created"] == 0 and not again.warm_up
+        n = INITIAL_INSTANCES + 1
+        st = CrowdState.empty(n)
+        st.position[:, 0] = np.linspace(-3.0, 3.0, n)
+        st.anim_time[:] = 0.2
+        big = sel.select(st, cam, (W, H))
+        assert big.n_instances > INITIAL_INSTANCES
+        r.draw(big, background=BG)
+        assert big.warm_up
+    finally:
+        r.release()
