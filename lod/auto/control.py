@@ -13,9 +13,15 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   band; alternating noisy frames therefore do not make it flap, and a load that slows every plan alike
   cancels in the difference.
 - **Plans' counts.** A plan's predicted mean ``M_p`` is the pricing's total under the fit's current costs,
-  times the plan's measured bias: ``exp`` of the mean log residual of its last clean frames (at most
-  :data:`BIAS_FRAMES`, no older than :data:`BIAS_AGE`), shrunk by ``n / (n + BIAS_SHRINK)`` (what the
-  linear model misses for that plan). Its counts for the covariance are those of the last frame it was
+  times the plan's measured bias: ``exp`` of the mean log residual of the last clean frames that drew what
+  it draws now (at most :data:`BIAS_FRAMES`, no older than :data:`BIAS_AGE`), shrunk by
+  ``n / (n + BIAS_SHRINK)`` (what the linear model misses for that content).
+- **Bias by content** (issue 50, item 2). A measured frame updates the estimate of what it drew, not of a
+  name: a plan's content is the share of its priced seconds per candidate (:attr:`lod.auto.plans._Plan.
+  content`), and a clean frame counts for the bias of every plan whose content is within
+  :data:`CONTENT_TOLERANCE` of the drawn one's (total variation). A plan whose content changed (the mixed
+  plan that drew points alone and now draws mostly triangles, a pure plan whose options moved with the
+  bound) does not keep the old content's bias; two plans that draw alike share their frames. Its counts for the covariance are those of the last frame it was
   drawn, rescaled to ``M_p``; a plan never drawn has a relative uncertainty of :data:`UNMEASURED_SD` and a
   lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR` (:data:`UNMEASURED_FACTOR_NEUTRAL` without a
   calibration).
@@ -95,6 +101,11 @@ UNMEASURED_FACTOR_NEUTRAL = 3.0
 BIAS_FRAMES = 8
 BIAS_AGE = 90
 BIAS_SHRINK = 2.0
+#: a measured frame counts for a plan's bias when their contents (the shares of the priced seconds per
+#: candidate, :attr:`lod.auto.plans._Plan.content`) differ by at most this (total variation distance)
+CONTENT_TOLERANCE = 0.15
+#: clean frames kept for the biases, of every content
+OBS_FRAMES = 64
 #: under a budget: a measured plan's pessimistic cost is its corrected mean times this (predictions after warm-up
 #: are asked to be within 25 %), or what it last measured when more, no older than MEASURED_AGE frames
 PESSIMISM = 1.25
@@ -156,7 +167,8 @@ class PlanChooser:
         self._last_explore = -10 ** 9
         self._tried: dict = {}
         self._z: dict = {}  # plan -> counts row (fit units) of its last drawn frame
-        self._obs: dict = {}  # plan -> deque of (frame, row / seconds) of its clean frames
+        self._obs: deque = deque(maxlen=OBS_FRAMES)  # (frame, row / seconds, content, plan names) of clean frames
+        self._content: dict = {}  # plan -> its content at its last pricing (lod.auto.plans._Plan.content)
         self.last = {}  # plan -> (mean, sd of the difference to the incumbent, lower bound) of the last frame
         #: rendering seconds a frame budget leaves (None: no budget; module docstring, "Under a frame budget")
         self.budget: float | None = None
@@ -169,15 +181,20 @@ class PlanChooser:
         self._before = None  # the incumbent before this frame's decision
 
     # ------------------------------------------------------------------------------------------ measurements
-    def observed(self, plan: str, z, u, clean: bool) -> None:
-        """A drawn frame of ``plan``: its counts row ``z`` (fit units) and ``u`` = ``z`` over the measured seconds
-        (:attr:`lod.auto.online.OnlineCostModel.last_u`);
-        ``clean``: the frame drew that plan alone (no transition), so it measures the plan's bias."""
-        if plan is None:
+    def observed(self, plans, z, u, clean: bool, content=None) -> None:
+        """A drawn frame of ``plans`` (a name, or the names of the plans that drew the same list): its counts row
+        ``z`` (fit units) and ``u`` = ``z`` over the measured seconds (:attr:`lod.auto.online.OnlineCostModel.
+        last_u`); ``clean``: the frame drew that plan alone (no transition), so it measures the bias of what it
+        drew: of every plan whose content is within :data:`CONTENT_TOLERANCE` of ``content`` (the drawn plan's
+        :attr:`lod.auto.plans._Plan.content`; default: its content at its last pricing; None: of these names)."""
+        names = [plans] if isinstance(plans, str) else [p for p in plans if p is not None]
+        if not names:
             return
-        self._z[plan] = np.asarray(z, np.float64)
+        for p in names:
+            self._z[p] = np.asarray(z, np.float64)
         if clean:
-            self._obs.setdefault(plan, deque(maxlen=BIAS_FRAMES)).append((self.frames, np.asarray(u, np.float64)))
+            c = self._content.get(names[0]) if content is None else np.asarray(content, np.float64)
+            self._obs.append((self.frames, np.asarray(u, np.float64), c, tuple(names)))
 
     def measured(self, plans, seconds: float, clean: bool) -> None:
         """The rendering ``seconds`` of the last frame, which drew ``plans`` (their names; ``clean``: one plan
@@ -213,9 +230,21 @@ class PlanChooser:
         f, sec = self._measured.get(p, (None, 0.0))
         return f is not None and self.frames - f <= FRESH_FRAMES and max(mean, sec) * (1.0 + FRESH_MARGIN) <= limit
 
+    def content(self, plan: str):
+        """``plan``'s content at its last pricing (None: not priced with a content)."""
+        return self._content.get(plan)
+
     def bias(self, plan: str, fit) -> tuple[float, int]:
-        """(log factor, clean frames) of ``plan``'s measured / predicted under the current fit (shrunk)."""
-        obs = [u for f, u in self._obs.get(plan, ()) if self.frames - f <= BIAS_AGE]
+        """(log factor, clean frames) of ``plan``'s measured / predicted under the current fit (shrunk), over the
+        last :data:`BIAS_FRAMES` clean frames that drew what it draws now (bias by content, module docstring)."""
+        c = self._content.get(plan)
+        obs = []
+        for f, u, oc, names in reversed(self._obs):
+            if self.frames - f > BIAS_AGE or len(obs) >= BIAS_FRAMES:
+                break
+            if (plan in names if c is None or oc is None or oc.shape != c.shape
+                    else 0.5 * float(np.abs(c - oc).sum()) <= CONTENT_TOLERANCE):
+                obs.append(u)
         if not obs:
             return 0.0, 0
         r = [-math.log(max(fit.relative(u), 1e-12)) for u in obs]
@@ -244,7 +273,7 @@ class PlanChooser:
         return math.sqrt(s2)
 
     # ------------------------------------------------------------------------------------------ the decision
-    def choose(self, means: dict, fit, equal=None) -> Decision:
+    def choose(self, means: dict, fit, equal=None, content=None) -> Decision:
         """This frame's :class:`Decision`.
 
         Parameters
@@ -252,7 +281,10 @@ class PlanChooser:
         means : plan name -> predicted seconds under the fit's current costs (one entry per distinct plan)
         fit : the :class:`lod.auto.online.OnlineCostModel`
         equal : optional function (a, b) -> True when plans a and b draw the same this frame
+        content : optional plan name -> :attr:`lod.auto.plans._Plan.content` this frame (what its bias is kept by)
         """
+        if content:
+            self._content.update(content)
         self.frames += 1
         self._since = 1
         self._before = self.incumbent
@@ -410,8 +442,11 @@ class PlanChooser:
         return (self.incumbent is not None and self._transition is None and self._exploring is None
                 and self._pending[0] is None and 0 < self._since < REPRICE_FRAMES and not self._overrun)
 
-    def hold(self) -> Decision:
-        """The decision of a held frame (:meth:`can_hold`): the incumbent, counted as a frame."""
+    def hold(self, content=None) -> Decision:
+        """The decision of a held frame (:meth:`can_hold`): the incumbent, counted as a frame; ``content``: the
+        incumbent's content this frame when it was priced (:attr:`lod.auto.plans._Plan.content`)."""
+        if content is not None and self.incumbent is not None:
+            self._content[self.incumbent] = np.asarray(content, np.float64)
         self.frames += 1
         self._since += 1
         return Decision(self.incumbent, None, 0.0, "held", self.incumbent, None)

@@ -18,11 +18,12 @@ PLAN_CHUNK = 32768
 
 @njit(cache=True, parallel=True)
 def _plans_chunks(bmin, barg, opt, sk, pure, use, gof, cbase, chunk, ch, cost, exact,
-                  used):  # pragma: no cover - compiled
+                  used, split):  # pragma: no cover - compiled
     """:func:`lod.auto.plans._plans_kernel` over all instances, in chunks of ``chunk`` instances in
-    parallel: per chunk c the summed seconds ``cost[c]``, ``exact[c]`` and the option columns drawn
-    ``used[c]`` (group's first column ``cbase[g]`` + the instance's column); ``ch`` the chosen column
-    within the group. A row's ``opt`` is read only where ``sk`` (skipped: priced at the bound)."""
+    parallel: per chunk c the summed seconds ``cost[c]``, ``exact[c]``, the option columns drawn
+    ``used[c]`` (group's first column ``cbase[g]`` + the instance's column) and the seconds per block row
+    ``split[c]``; ``ch`` the chosen column within the group. A row's ``opt`` is read only where ``sk``
+    (skipped: priced at the bound)."""
     nb, N = bmin.shape
     n_pure = pure.shape[0]
     cols = used.shape[2]
@@ -30,6 +31,7 @@ def _plans_chunks(bmin, barg, opt, sk, pure, use, gof, cbase, chunk, ch, cost, e
         i0 = c * chunk
         i1 = min(N, i0 + chunk)
         acc = np.zeros(n_pure + 1)  # the chunk's sums and flags in locals, written back once
+        spl = np.zeros((n_pure + 1, nb))
         ex = np.ones(n_pure + 1, np.bool_)
         us = np.zeros((n_pure + 1, cols), np.bool_)
         for i in range(i0, i1):
@@ -45,12 +47,15 @@ def _plans_chunks(bmin, barg, opt, sk, pure, use, gof, cbase, chunk, ch, cost, e
                     if np.isfinite(o):
                         col = barg[x, i]
                         acc[q] += o
+                        spl[q, x] += o
                         if s:
                             ex[q] = False
                     else:
                         acc[q] += b0
+                        spl[q, 0] += b0
                 else:
                     acc[q] += b0
+                    spl[q, 0] += b0
                 ch[q, i] = col
                 us[q, cb + col] = True
             best = np.inf
@@ -63,6 +68,7 @@ def _plans_chunks(bmin, barg, opt, sk, pure, use, gof, cbase, chunk, ch, cost, e
             bw = bmin[w, i]
             ch[n_pure, i] = col
             acc[n_pure] += bw
+            spl[n_pure, w] += bw
             us[n_pure, cb + col] = True
             for j in range(nb):
                 if use[j] and sk[j, i] and opt[j, i] < bw:
@@ -70,6 +76,8 @@ def _plans_chunks(bmin, barg, opt, sk, pure, use, gof, cbase, chunk, ch, cost, e
         for q in range(n_pure + 1):
             cost[c, q] = acc[q]
             exact[c, q] = ex[q]
+            for j in range(nb):
+                split[c, q, j] = spl[q, j]
             for k in range(cols):
                 used[c, q, k] = us[q, k]
 
@@ -127,8 +135,9 @@ def price(candidates, fg, coefficients, fc: dict, fixed=(0.0, frozenset()), orde
     cost = np.empty((C, n_plans))
     ex = np.empty((C, n_plans), np.bool_)
     used = np.zeros((C, n_plans, int(cbase[-1])), np.bool_)
+    split = np.zeros((C, n_plans, len(order)))
     _plans_chunks(bmin, barg, opt, sk, np.array([row[n] for n in names], np.int64),
-                  np.array([cand.name in use for cand in order]), gof, cbase, PLAN_CHUNK, ch, cost, ex, used)
+                  np.array([cand.name in use for cand in order]), gof, cbase, PLAN_CHUNK, ch, cost, ex, used, split)
     opts_used = used.any(axis=0)
     totals = float(c["frame"]) + float(fixed[0]) + cost.sum(axis=0) + c["batches"] * opts_used.sum(axis=1)
     # the candidate row of every option column
@@ -142,7 +151,8 @@ def price(candidates, fg, coefficients, fc: dict, fixed=(0.0, frozenset()), orde
              for q in range(n_plans)]
     cuts = fl["gstart"][1:-1]
     choices = [np.split(ch[q], cuts) for q in range(n_plans)]
-    return _finish_plans(names, choices, totals, ex.all(axis=0), drawn, fc)
+    return _finish_plans(names, choices, totals, ex.all(axis=0), drawn, fc,
+                         split.sum(axis=0)[:, [row[n] for n in names]], fixed)
 
 
 __all__ = ["PLAN_CHUNK", "price"]

@@ -307,9 +307,8 @@ class AutoSelector:
             x = last["x"]
         else:
             return
-        if self.fit.update(x, render) is not None and own:
-            for n in last["plans"]:  # the row as the fit took it (load-free)
-                self.chooser.observed(n, self.fit.last_z, self.fit.last_u, last["clean"])
+        if self.fit.update(x, render) is not None and own:  # the row as the fit took it (load-free)
+            self.chooser.observed(last["plans"], self.fit.last_z, self.fit.last_u, last["clean"], last.get("content"))
         self.model = self.fit.cost_model(self.route.share)
 
     def _options(self, frame, g, bound):
@@ -491,10 +490,10 @@ class AutoSelector:
         groups = self._groups(frame, dl, bound, out)
         plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
         if held is not None:
-            dec = self.chooser.hold()
             if not plans[held].exact:
                 groups = self._exact(frame, groups, bound)
                 plans = self._plans(frame, groups, bound, (fixed_s, fixed_used))
+            dec = self.chooser.hold(plans[held].content)
             self._means = {held: (plans[held].seconds, 0.0)}
         else:
             dec, plans, groups = self._decide(frame, plans, groups, bound, (fixed_s, fixed_used))
@@ -522,7 +521,7 @@ class AutoSelector:
         dl.stats["batches"] = len(out)
         dl.stats["levels"] = [int(x) for x in levels]
         x = cost_model.features(dl, extended=True)  # once: the prediction is linear in these counts
-        self._last = {"x": x, "dl": dl, "clean": old is None,
+        self._last = {"x": x, "dl": dl, "clean": old is None, "content": plans[dec.plan].content,
                       "plans": [n for n in plans if plans[n].measured_as(n) == plan_name]}
         predicted, sd = self._predicted(x, plan_name, old is None)
         a = {"levels": [int(v) for v in levels], "representations": per_cand, "options": tel.counts,
@@ -603,7 +602,8 @@ class AutoSelector:
             return Decision(best, state="fixed", incumbent=best), plans, groups
         canon = {n: p.measured_as(n) for n, p in plans.items()}
         dec = self.chooser.choose({n: p.seconds for n, p in plans.items()}, self.fit,
-                                  equal=lambda u, v: canon[u] == canon[v])
+                                  equal=lambda u, v: canon[u] == canon[v],
+                                  content={n: p.content for n, p in plans.items() if p.content is not None})
         self._means = {n: (m, sd) for n, (m, sd, _) in self.chooser.last.items()}
         if any(not plans[n].exact for n in (dec.plan, dec.fade_from) if n is not None):
             groups = self._exact(frame, groups, bound)

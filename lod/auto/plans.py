@@ -21,6 +21,10 @@ class _Plan:
     seconds: float
     exact: bool
     alias: str | None = None
+    #: what the plan draws, as the share of its priced seconds per candidate (the selector's candidate order;
+    #: instances and per-frame passes; None when it prices nothing): the content its measured bias is kept by
+    #: (:mod:`lod.auto.control`, "Bias by content")
+    content: np.ndarray | None = None
 
     def measured_as(self, name: str) -> str:
         """The name the plan's measurements are kept under."""
@@ -64,28 +68,33 @@ def block_min(cost, error, bound: float, fallback: bool = False, cols: int | Non
 
 
 @njit(cache=True)
-def _plans_kernel(bmin, barg, opt, sk, pure, use, ch, cost, exact, used):  # pragma: no cover - compiled
+def _plans_kernel(bmin, barg, opt, sk, pure, use, ch, cost, exact, used, split):  # pragma: no cover - compiled
     """One group's plans in one pass (:meth:`AutoSelector._plans`): rows 0..P-1 of the outputs are the
     pure plans of the blocks ``pure`` (0: the triangle chain; a pure plan draws its block wherever its
     optimistic price is finite, the chain elsewhere), row P the mixed plan over the blocks ``use``.
     Outputs: ch (P+1, k) chosen columns, cost (P+1,) summed seconds, exact (P+1,) no instance priced
-    at a lower bound that could matter, used (P+1, columns) the option columns drawn."""
+    at a lower bound that could matter, used (P+1, columns) the option columns drawn, split (P+1, blocks)
+    the summed seconds per block (what each plan draws, :attr:`_Plan.content`)."""
     nb, k = bmin.shape
     n_pure = pure.shape[0]
     for q in range(n_pure + 1):
         cost[q] = 0.0
         exact[q] = True
+        for j in range(nb):
+            split[q, j] = 0.0
     for i in range(k):
         for q in range(n_pure):
             x = pure[q]
             if x > 0 and np.isfinite(opt[x, i]):
                 ch[q, i] = barg[x, i]
                 cost[q] += opt[x, i]
+                split[q, x] += opt[x, i]
                 if sk[x, i]:
                     exact[q] = False
             else:
                 ch[q, i] = barg[0, i]
                 cost[q] += bmin[0, i]
+                split[q, 0] += bmin[0, i]
             used[q, ch[q, i]] = True
         best = np.inf
         w = 0
@@ -95,6 +104,7 @@ def _plans_kernel(bmin, barg, opt, sk, pure, use, ch, cost, exact, used):  # pra
                 w = j
         ch[n_pure, i] = barg[w, i]
         cost[n_pure] += bmin[w, i]
+        split[n_pure, w] += bmin[w, i]
         used[n_pure, barg[w, i]] = True
         for j in range(nb):
             if use[j] and sk[j, i] and opt[j, i] < bmin[w, i]:
@@ -148,13 +158,31 @@ def _use_mixed(candidates, groups, fc: dict, fixed_names) -> set:
     return use
 
 
-def _finish_plans(names, choices, totals, exact, used, fc) -> dict:
+def _content(split_q, names, used_q, fc, fixed) -> np.ndarray | None:
+    """:attr:`_Plan.content` of one plan: its instances' seconds per candidate (``split_q``, ``names`` order)
+    plus the per-frame passes it uses and the whole-group draws (``fixed``: seconds, candidate names), as
+    shares."""
+    s = np.asarray(split_q, np.float64).copy()
+    for j, n in enumerate(names):
+        if n in used_q:
+            s[j] += fc.get(n, 0.0)
+    wholes = [j for j, n in enumerate(names) if n in fixed[1]]
+    if wholes and fixed[0] > 0.0:
+        s[wholes] += float(fixed[0]) / len(wholes)
+    s = np.where(np.isfinite(s) & (s > 0.0), s, 0.0)
+    t = float(s.sum())
+    return s / t if t > 0.0 else None
+
+
+def _finish_plans(names, choices, totals, exact, used, fc, split=None, fixed=(0.0, frozenset())) -> dict:
     """name -> :class:`_Plan`, and the aliases: a plan whose choices equal an earlier plan's is that plan
     (its measurements are shared): a pure plan that draws what an earlier pure one draws (e.g. every agent
-    in super nodes: all plans draw the same), and the mixed plan equal to a pure one."""
+    in super nodes: all plans draw the same), and the mixed plan equal to a pure one. ``split``: (plans,
+    candidates in ``names`` order) the instances' seconds per candidate (:attr:`_Plan.content`)."""
     plans = {}
     for q, name in enumerate(names + ["mixed"]):
-        plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]), bool(exact[q]))
+        plans[name] = _Plan(choices[q], float(totals[q]) + sum(fc.get(n, 0.0) for n in used[q]), bool(exact[q]),
+                            content=None if split is None else _content(split[q], names, used[q], fc, fixed))
 
     def same(x, y):
         return all(np.array_equal(a_, b_) for a_, b_ in zip(x.choices, y.choices))
@@ -186,6 +214,7 @@ def price_plans_loop(candidates, groups, coefficients, fc: dict, fixed=(0.0, fro
     exact = np.ones(n_plans, bool)
     used = [set(fixed[1]) for _ in range(n_plans)]
     choices = [[] for _ in range(n_plans)]
+    split = np.zeros((n_plans, len(names)))
     for g, opts, ncols in groups:
         col = {x.cand.name: j for j, x in enumerate(opts)}  # blocks in column order, triangles first
         bmin = np.stack([x.bmin for x in opts])
@@ -200,8 +229,11 @@ def price_plans_loop(candidates, groups, coefficients, fc: dict, fixed=(0.0, fro
         cost = np.empty(n_plans)
         ex = np.empty(n_plans, np.bool_)
         opts_used = np.zeros((n_plans, ncols), np.bool_)
+        sp = np.zeros((n_plans, len(opts)))
         _plans_kernel(bmin, barg, opt, sk, pure, np.array([x.cand.name in use for x in opts]), ch, cost, ex,
-                      opts_used)
+                      opts_used, sp)
+        for j, x in enumerate(opts):
+            split[:, names.index(x.cand.name)] += sp[:, j]
         totals += cost
         exact &= ex
         for q in range(n_plans):
@@ -211,7 +243,7 @@ def price_plans_loop(candidates, groups, coefficients, fc: dict, fixed=(0.0, fro
             totals += c["batches"] * k
             for q in np.flatnonzero(k).tolist():
                 used[q].add(x.cand.name)
-    return _finish_plans(names, choices, totals, exact, used, fc)
+    return _finish_plans(names, choices, totals, exact, used, fc, split, fixed)
 
 
 def price_plans(candidates, groups, coefficients, fc: dict, fixed=(0.0, frozenset()), order=None) -> dict:
@@ -273,7 +305,9 @@ def price_plans(candidates, groups, coefficients, fc: dict, fixed=(0.0, frozense
     cost = np.empty(n_plans)
     ex = np.empty(n_plans, np.bool_)
     opts_used = np.zeros((n_plans, int(cbase[-1])), np.bool_)
-    _plans_kernel(bmin, barg, opt, sk, pure, np.array([cand.name in use for cand in order]), ch, cost, ex, opts_used)
+    sp = np.zeros((n_plans, nb))
+    _plans_kernel(bmin, barg, opt, sk, pure, np.array([cand.name in use for cand in order]), ch, cost, ex, opts_used,
+                  sp)
     totals = float(c["frame"]) + float(fixed[0]) + cost + c["batches"] * opts_used.sum(axis=1)
     onehot = np.zeros((int(cbase[-1]), nb), np.bool_)
     onehot[np.arange(int(cbase[-1])), col_cand] = True
@@ -281,7 +315,7 @@ def price_plans(candidates, groups, coefficients, fc: dict, fixed=(0.0, frozense
     used = [set(fixed[1]) | {order[r].name for r in np.flatnonzero(drawn[q]).tolist()} for q in range(n_plans)]
     local = ch - np.repeat(cbase[:-1], ks)[None, :]
     choices = [np.split(local[q], ibase[1:-1]) for q in range(n_plans)]
-    return _finish_plans(names, choices, totals, ex, used, fc)
+    return _finish_plans(names, choices, totals, ex, used, fc, sp[:, [row[n] for n in names]], fixed)
 
 
 def _use_mixed_rows(candidates, row: dict, bmin: np.ndarray, fc: dict, fixed_names) -> set:

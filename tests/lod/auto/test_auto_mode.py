@@ -721,6 +721,14 @@ def _compare_plans(monkeypatch):
                 np.testing.assert_array_equal(cx, cy)
             assert x.seconds == pytest.approx(y.seconds, rel=1e-12, abs=1e-15)
             assert (x.exact, x.alias) == (y.exact, y.alias), n
+            assert (x.content is None) == (y.content is None), n  # what the plan draws (its bias's key)
+            if x.content is not None:
+                np.testing.assert_allclose(x.content, y.content, rtol=1e-9, atol=1e-12)
+                assert x.content.sum() == pytest.approx(1.0) and (x.content >= 0.0).all()
+                names = [c.name for c in self.candidates]
+                if n in names[1:]:  # a pure plan draws its own candidate and the chain, nothing else
+                    other = [j for j, c in enumerate(names) if c not in (n, names[0])]
+                    assert (x.content[other] == 0.0).all(), (n, x.content)
         seen.append((len(groups), {n: (a[n].alias or n) for n in a}))
         return a
 
@@ -757,8 +765,8 @@ class Scripted(am.PlanChooser):
         super().__init__(switch_frames=3)
         self.script = list(script)
 
-    def choose(self, means, fit, equal=None):
-        super().choose(means, fit, equal)
+    def choose(self, means, fit, equal=None, content=None):
+        super().choose(means, fit, equal, content)
         return self.script.pop(0)
 
     def can_hold(self):

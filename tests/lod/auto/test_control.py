@@ -1,6 +1,8 @@
 """lod/auto/control.py: the plan decision of mode auto on synthetic frames (plans as fixed count vectors, the
 machine as a known cost model with noise): no switching on alternating noisy measurements, a better plan found
 by bounded exploration and kept, exploration within its budget and never on one frame, faded switches."""
+import math
+
 import numpy as np
 import pytest
 
@@ -121,6 +123,40 @@ def test_plans_that_draw_the_same_are_one_plan():
         d = ch.choose({"points": 0.010, "mixed": 0.010, "triangles": 0.030}, fit,
                       equal=lambda a, b: {a, b} == {"points", "mixed"} or a == b)
         assert d.fade_from is None and d.plan in ("points", "mixed") and d.state == "steady"
+
+
+def test_a_plan_whose_content_changes_does_not_keep_the_old_content_s_bias():
+    """Issue 50, item 2 (bias by content): the mixed plan draws what the point plan draws (content: all of its
+    seconds on points) and six clean frames of it measure 2x what the fit predicts (a bias the linear model
+    misses). Both names carry that bias. Then the mixed plan's content changes (mostly triangles): its bias is
+    gone, until frames of its new content are measured; the point plan keeps it; a third name drawing the
+    measured content gets it without ever being drawn. Keyed by names (no content given, as before), the mixed
+    plan kept the points' bias after its content changed: the check the content rule passes."""
+    fit = OnlineCostModel(cm.CostModel(key="calibrated"))
+    pts, tri, mostly_tri = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), np.array([0.85, 0.0, 0.15])
+    means = {"points": 0.010, "mixed": 0.010, "triangles": 0.030}
+    z = fit.row(PLANS["points"])
+    u = z / (2.0 * fit.predict(PLANS["points"])[0])  # measured: twice the prediction
+    by_content = ctl.PlanChooser(switch_frames=0, explore=False)
+    by_name = ctl.PlanChooser(switch_frames=0, explore=False)
+    for _ in range(6):
+        by_content.choose(means, fit, content={"points": pts, "mixed": pts, "triangles": tri})
+        by_content.observed(["points", "mixed"], z, u, True)
+        by_name.choose(means, fit)
+        by_name.observed(["points", "mixed"], z, u, True)
+    expect = math.log(2.0) * 6 / (6 + ctl.BIAS_SHRINK)
+    for ch in (by_content, by_name):
+        assert ch.bias("points", fit) == pytest.approx((expect, 6))
+        assert ch.bias("mixed", fit) == pytest.approx((expect, 6))
+    by_content.choose(means, fit, content={"points": pts, "mixed": mostly_tri, "triangles": tri, "other": pts})
+    by_name.choose(means, fit)
+    assert by_content.bias("mixed", fit) == (0.0, 0)  # the new content was never measured
+    assert by_content.bias("points", fit) == pytest.approx((expect, 6))
+    assert by_content.bias("other", fit) == pytest.approx((expect, 6))  # what it draws was measured
+    assert by_name.bias("mixed", fit) == pytest.approx((expect, 6))  # the name kept the old content's bias
+    by_content.observed("mixed", z, z / fit.predict(PLANS["points"])[0], True)  # a frame of the new content
+    assert by_content.bias("mixed", fit) == pytest.approx((0.0, 1), abs=1e-12)
+    assert by_content.bias("points", fit) == pytest.approx((expect, 6))
 
 
 # -- under a frame budget (issue 49) -----------------------------------------------------------------------------------
