@@ -15,23 +15,27 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
 - **Plans' counts.** A plan's predicted mean ``M_p`` is the pricing's total under the fit's current costs,
   times the plan's measured bias: ``exp`` of the mean log residual of the last clean frames that drew what
   it draws now (at most :data:`BIAS_FRAMES`, no older than :data:`BIAS_AGE`), shrunk by
-  ``n / (n + BIAS_SHRINK)`` (what the linear model misses for that content).
+  ``n / (n + BIAS_SHRINK)`` (what the linear model misses for that content). Its counts for the covariance
+  are those of the last frame it was drawn, rescaled to ``M_p``; a plan never drawn has a relative uncertainty of :data:`UNMEASURED_SD` and a
+  lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR` (:data:`UNMEASURED_FACTOR_NEUTRAL` without a
+  calibration).
 - **Bias by content** (issue 50, item 2). A measured frame updates the estimate of what it drew, not of a
   name: a plan's content is the share of its priced seconds per candidate (:attr:`lod.auto.plans._Plan.
   content`), and a clean frame counts for the bias of every plan whose content is within
   :data:`CONTENT_TOLERANCE` of the drawn one's (total variation). A plan whose content changed (the mixed
   plan that drew points alone and now draws mostly triangles, a pure plan whose options moved with the
-  bound) does not keep the old content's bias; two plans that draw alike share their frames. Its counts for the covariance are those of the last frame it was
-  drawn, rescaled to ``M_p``; a plan never drawn has a relative uncertainty of :data:`UNMEASURED_SD` and a
-  lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR` (:data:`UNMEASURED_FACTOR_NEUTRAL` without a
-  calibration).
+  bound) does not keep the old content's bias; two plans that draw alike share their frames.
 - **Exploration.** When the incumbent is steady and a plan's lower confidence bound
-  ``M_p - EXPLORE_Z · sd`` undercuts the incumbent, measured on :data:`EXPLORE_AFTER` frames (the fit is unsure about a plan that could win, e.g. a
-  representation not drawn for a while, whose uncertainty the forgetting lets grow back), that plan is
-  drawn for :data:`EXPLORE_RUN` frames after its fade-in (at most :data:`EXPLORE_FADE` frames each way), and
-  kept only if the hysteresis rule then prefers it; else auto fades back. Bounds: exploring (fades included) takes at most
-  ``EXPLORE_FRACTION`` of the frames (plus an allowance of :data:`EXPLORE_ALLOWANCE` for the start), never
-  starts within :data:`EXPLORE_GAP` frames of the last one, and never retries a plan within
+  ``M_p - EXPLORE_Z · sd`` undercuts the incumbent, measured on :data:`EXPLORE_AFTER` frames (the fit is
+  unsure about a plan that could win, e.g. a representation not drawn for a while, whose uncertainty the forgetting lets grow back), that plan is
+  drawn for :data:`EXPLORE_RUN` measured frames (a frame whose draw carried a one-time cost, a warm-up, is
+  replaced by another, :meth:`PlanChooser.warm_frame`), and kept only if the hysteresis rule then prefers it;
+  else auto returns. An exploration is a cut to the plan and back (:data:`EXPLORE_FADE` = 0 frames of fade:
+  a fade draws the changed instances in both representations, one of the plaza's or the Foxes' dearest frames,
+  and every plan is within the error bound, so the cut changes the image by at most the bound; issue 50, item
+  3). Bounds: the frames drawing an explored plan (fades included) are at most ``EXPLORE_FRACTION`` of the
+  frames (plus an allowance of :data:`EXPLORE_ALLOWANCE` for the start: four explorations); an exploration
+  never starts within :data:`EXPLORE_GAP` frames of the last one, and never retries a plan within
   :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the decision rests on the posterior
   and a run of several frames is measured before anything is kept (the rule of run M in
   ``scripts/bench_auto.md``, which explored and switched on single noisy frames, is what this replaces).
@@ -78,12 +82,14 @@ PERSIST = 3
 SWITCH_FRAMES = 4
 #: lower confidence bound of exploration, in standard deviations
 EXPLORE_Z = 1.0
-#: clean frames an explored plan is measured on after its fade-in, and the longest fade to and from it
+#: clean frames an explored plan is measured on after its fade-in, and the longest fade to and from it (0: a cut)
 EXPLORE_RUN = 2
-EXPLORE_FADE = 2
+EXPLORE_FADE = 0
+#: warm-up frames (lod.drawlist.DrawList.warm_up) an exploration replaces by further frames of its plan, at most
+EXPLORE_WARM = 2
 #: share of frames exploration may take (fades included), and the allowance at the start
 EXPLORE_FRACTION = 0.1
-EXPLORE_ALLOWANCE = 24
+EXPLORE_ALLOWANCE = 8
 #: clean frames of the incumbent measured before anything is explored
 EXPLORE_AFTER = 2
 #: frames between two explorations, and before the same plan is tried again
@@ -163,7 +169,8 @@ class PlanChooser:
         self._pending = (None, 0)
         self._since = 0  # frames since the plans were last priced
         self._transition = None  # [from, to, r]
-        self._exploring = None  # [plan, clean frames left, incumbent to return to]
+        self._exploring = None  # [plan, frames left]
+        self._warm = 0  # warm-up frames the exploration running has replaced
         self._last_explore = -10 ** 9
         self._tried: dict = {}
         self._z: dict = {}  # plan -> counts row (fit units) of its last drawn frame
@@ -366,8 +373,7 @@ class PlanChooser:
                     self.incumbent = e
                     self.switches += 1
                     return Decision(e, None, 0.0, "switch", e, None)
-                self.explored += 1
-                return self._start(e, c, "return", thr)
+                return self._start(e, c, "return", thr)  # (counted as explored when it fades)
         # steady: the hysteresis rule
         cand = [p for p in others if gain(p, c) > threshold(p, c) and allowed(p)]
         if cand:
@@ -395,6 +401,7 @@ class PlanChooser:
                     self._tried[e] = self.frames
                     self.explorations += 1
                     self._exploring = [e, EXPLORE_RUN]
+                    self._warm = 0
                     self.explored += 1
                     return self._start(c, e, "explore", thr)
         return Decision(c, None, 0.0, "steady", c, thr)
@@ -433,8 +440,18 @@ class PlanChooser:
             if state == "explore":
                 self._exploring[1] -= 1
             return Decision(b, None, 0.0, state, self.incumbent, thr)
+        if state == "return":
+            self.explored += 1  # a fade back draws the explored plan too
         self._transition = [a, b, 1, "transition" if state == "switch" else state, n] if n > 1 else None
         return Decision(b, a, 1.0 / (n + 1), state, self.incumbent, thr)
+
+    def warm_frame(self) -> None:
+        """The last frame's draw carried a one-time cost (:attr:`lod.drawlist.DrawList.warm_up`), so it measured
+        nothing: an exploration running draws its plan for one more frame instead (at most :data:`EXPLORE_WARM`
+        times per exploration)."""
+        if self._exploring is not None and self._warm < EXPLORE_WARM:
+            self._exploring[1] += 1
+            self._warm += 1
 
     def can_hold(self) -> bool:
         """True when this frame may draw the incumbent without pricing the other plans: steady (no switch

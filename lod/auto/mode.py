@@ -290,6 +290,8 @@ class AutoSelector:
         if drawlist is not None and drawlist.warm_up:
             self.warm_frames += 1
             self.route.observe(drawlist.stats)  # a share of what was drawn, not a time
+            if self.chooser is not None and last is not None:
+                self.chooser.warm_frame()  # an exploration measures its plan on another frame
             return
         self._measured = float(seconds)
         self._uses_measured = True

@@ -34,8 +34,10 @@ PARAMS: dict = {
                                      "prior (lod.auto.online), and choose the frame plan with hysteresis "
                                      "(lod.auto.control); false prices with the stored calibration alone and "
                                      "draws the cheapest plan every frame"),
-    "explore": Param("bool", True, doc="try a frame plan the online fit is unsure about and that could win, for a "
-                                       "few frames, at most a tenth of the frames (with adapt)"),
+    "explore": Param("bool", True, doc="try a frame plan the online fit is unsure about and that could win: a cut "
+                                       "to it for 2 measured frames (a warm-up frame, whose draw compiled, "
+                                       "replaced by another) and back; at most a tenth of the frames after an "
+                                       "allowance of 8 at the start (with adapt)"),
     "switch_frames": Param("int", SWITCH_FRAMES, min=0, max=120,
                            doc="frames over which a change of frame plan fades the instances that change "
                                "representation (screen-door, as keyframe blends); 0 switches at once"),

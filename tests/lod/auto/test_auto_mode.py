@@ -923,8 +923,8 @@ def test_a_refused_bound_backs_off_before_it_is_tried_again():
 def test_warm_up_frames_are_kept_out_of_the_fit(built):
     """Issue 50, item 3: a frame whose draw made GL objects (``stats["gl_created"]``: a program compiled on its first
     use, a buffer grown) carries a one-time cost. A stream of frames with such compile spikes (the first frame of
-    every plan drawn, 30x the machine's cost) converges as the same stream without them: the same plan held over
-    the last frames, its prediction within 5 % of the frames. The test can fail: the same spikes reported without
+    every plan drawn, 30x the machine's cost) converges as the same stream without them: the same incumbent over
+    the last frames, the predictions of the frames that draw it within 5 %. The test can fail: the same spikes reported without
     the flag settle on another plan (points, 3x dearer than the calibration says: the spike of the first frame
     lands in the fit and the explorations' spikes make every other plan look dear)."""
     st = _crowd(200, 4, depth=200.0)
@@ -937,7 +937,7 @@ def test_warm_up_frames_are_kept_out_of_the_fit(built):
         sel = am.AutoSelector(built.tri_reps, poe=2.0, model=model, candidates=built.sel.candidates[1:],
                               adapt=True, switch_frames=0)
         seen, drawn, ratio = [], set(), []
-        for _ in range(40):
+        for _ in range(50):
             dl = sel.select(st, CAM, SIZE)
             a = dl.stats["auto"]
             seconds = true.predict(dl)
@@ -947,14 +947,17 @@ def test_warm_up_frames_are_kept_out_of_the_fit(built):
                 if flag:
                     dl.stats["gl_created"] = 3
             drawn.add(a["plan"])
-            seen.append(a["plan"])
+            seen.append(a["incumbent"])
+            if a["plan"] != a["incumbent"]:  # an exploration: its prediction is the explored plan's
+                ratio[-1] = None
             sel.observe(seconds, select_seconds=0.0, drawlist=dl)
-        return sel, seen, ratio
+        return sel, seen, ratio, drawn
 
-    clean, seen0, ratio0 = stream(False, False)
-    warm, seen1, ratio1 = stream(True, True)
-    assert warm.warm_frames == len(set(seen1)) >= 2 and clean.warm_frames == 0  # several spikes, all left out
+    clean, seen0, ratio0, _ = stream(False, False)
+    warm, seen1, ratio1, drawn1 = stream(True, True)
+    assert warm.warm_frames == len(drawn1) >= 2 and clean.warm_frames == 0  # several spikes, all left out
     assert set(seen0[-10:]) == set(seen1[-10:]) == {"triangles"}, (seen0, seen1)
-    assert ratio1[-10:] == pytest.approx([1.0] * 10, rel=0.05) and ratio0[-10:] == pytest.approx([1.0] * 10, rel=0.05)
-    _, seen2, ratio2 = stream(True, False)  # the same spikes, unflagged
+    for seen, ratio in ((seen0, ratio0), (seen1, ratio1)):
+        assert max(abs(r - 1.0) for r in ratio[-10:] if r is not None) <= 0.05, ratio
+    _, seen2, _, _ = stream(True, False)  # the same spikes, unflagged
     assert set(seen2[-10:]) != {"triangles"}, seen2

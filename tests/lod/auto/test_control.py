@@ -74,8 +74,8 @@ def test_a_better_plan_is_explored_and_kept():
     """The calibration prices points 1.6x too dear, and they really cost 0.6x (against triangles: the 2.5x of
     the loaded calibration in scripts/bench_auto.md runs K-M): the mixed and point plans look worse than
     triangles. Bounded exploration tries a plan with points, the fit learns their costs, the
-    chooser switches and stays; every change of plan is a faded transition of switch_frames frames (2 to and
-    from an exploration)."""
+    chooser switches and stays; every switch is a faded transition of switch_frames frames (an exploration
+    and its return are cuts)."""
     fit = OnlineCostModel(cm.CostModel(_true(pts_factor=1.6).coefficients, key="calibrated"))
     true = _true(pts_factor=0.6)
     ch = ctl.PlanChooser(switch_frames=3)
@@ -90,6 +90,42 @@ def test_a_better_plan_is_explored_and_kept():
         assert [ds[i + r].fade_from for r in range(n)] == [ds[i - 1].plan] * n
         assert [ds[i + r].t for r in range(n)] == pytest.approx([(r + 1) / (n + 1) for r in range(n)])
     assert ch.explorations >= 1 and ch.explored <= ctl.EXPLORE_FRACTION * 90 + ctl.EXPLORE_ALLOWANCE
+
+
+def test_an_exploration_is_a_cut_measured_on_frames_without_warm_ups():
+    """Issue 50, item 3: an exploration draws its plan alone (no fade drawing both plans), for EXPLORE_RUN frames
+    plus one for each of its frames whose draw carried a one-time cost (a warm-up: the fit did not take it), at
+    most EXPLORE_WARM more; the cut back draws the incumbent and is not counted as explored. The setting of
+    test_a_better_plan_is_explored_and_kept (points priced too dear: explored)."""
+    fit = OnlineCostModel(cm.CostModel(_true(pts_factor=1.6).coefficients, key="calibrated"))
+    true = _true(pts_factor=0.6)
+    ch = ctl.PlanChooser(switch_frames=3)
+    ds, warm = [], 0
+    for f in range(90):
+        means = {p: fit.predict(x)[0] for p, x in PLANS.items()}
+        d = ch.choose(means, fit)
+        ds.append(d)
+        if d.state == "explore" and ds[-2].state != "explore" and warm < 1:  # the first explored frame compiles
+            warm += 1
+            ch.warm_frame()
+            continue
+        x = PLANS[d.plan] if d.fade_from is None else PLANS[d.plan] + PLANS[d.fade_from]
+        fit.update(x, float(true.predict_counts(*x)))
+        if d.fade_from is None:
+            ch.observed(d.plan, fit.last_z, fit.last_u, True)
+    runs, cur = [], None
+    for i, d in enumerate(ds):
+        if d.state == "explore":
+            assert d.fade_from is None and d.plan != d.incumbent
+            if cur is None or i != cur[1] + 1:
+                cur = [i, i]
+                runs.append(cur)
+            cur[1] = i
+    assert ch.explorations == len(runs) >= 1 and warm == 1
+    assert runs[0][1] - runs[0][0] + 1 == ctl.EXPLORE_RUN + 1  # one more frame for the warm-up
+    assert all(b - a + 1 == ctl.EXPLORE_RUN for a, b in runs[1:])
+    assert ch.explored == sum(b - a + 1 for a, b in runs)  # the returns (cuts) not counted
+    assert all(d.fade_from is None for d in ds if d.state == "return")
 
 
 def test_exploration_is_bounded_and_waits_for_the_incumbent():
@@ -227,10 +263,12 @@ def test_a_budget_no_plan_can_meet_is_said_and_the_cheapest_is_drawn():
     assert out[-1][0].plan == cheapest
 
 
-def test_under_a_budget_a_change_fades_only_when_both_plans_fit_together():
+def test_under_a_budget_a_change_fades_only_when_both_plans_fit_together(monkeypatch):
     """A fade draws the changed instances in both plans. With a budget that every plan fits alone, even
     priced pessimistically as never drawn, but no two together, the explorations and their returns happen at
-    once, where without a budget the same run fades (the rule can fail)."""
+    once, where without a budget the same run fades (the rule can fail). Explorations are cuts by default
+    (EXPLORE_FADE = 0); faded ones, as a switch fades, are what the rule is checked on."""
+    monkeypatch.setattr(ctl, "EXPLORE_FADE", 2)
     def setting():
         true = _true(pts_factor=0.6)
         return OnlineCostModel(cm.CostModel(true.coefficients, key="calibrated")), true
