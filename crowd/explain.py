@@ -63,7 +63,10 @@ def format_frame(rec: dict) -> str:
         head += f", incumbent {rec['incumbent']}"
     head += "]"
     pred, sd, meas = rec.get("predicted_ms"), rec.get("predicted_sd_ms"), rec.get("measured_ms")
-    head += f"  predicted {_ms(pred)} ± {_ms(sd)} ms, measured {_ms(meas)} ms"
+    if pred is not None and sd is not None and sd > pred:  # the prior's scale alone: nothing measured yet
+        head += f"  predicted {_ms(pred)} ms (the prior's guess: no frame fitted yet), measured {_ms(meas)} ms"
+    else:
+        head += f"  predicted {_ms(pred)} ± {_ms(sd)} ms, measured {_ms(meas)} ms"
     if pred and meas:
         head += f" ({100 * (meas - pred) / pred:+.0f} %)"
     if rec.get("warm_up"):

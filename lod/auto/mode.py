@@ -121,7 +121,7 @@ chooser's state ("steady", "pending", "switch", "transition", "explore",
 the relative gain another plan needs, "plans_ms": every plan's prediction,
 "plans_sd_ms": the standard deviation of its difference to the incumbent,
 "select_ms": this selection's own time; with ``explain``: "groups" (per
-master group "rep/part", instances per "candidate:option") and "model" (the
+master group "character/part", instances per "candidate:option") and "model" (the
 fit's per-unit costs, their prior and standard deviation, the noise)}.
 """
 from __future__ import annotations
@@ -640,7 +640,7 @@ class AutoSelector:
                 label = o.labels[j] if j < len(o.labels) else str(j)
                 tel.add(c.name, label, int(cnt[j]))
                 if gc is not None:
-                    key = f"{g.batch.rep}/{int(g.batch.part)}"
+                    key = f"{g.batch.rep.split(':', 1)[-1]}/{int(g.batch.part)}"  # the character, not its rep
                     d = gc.setdefault(key, {})
                     d[f"{c.name}:{label}"] = d.get(f"{c.name}:{label}", 0) + int(cnt[j])
             if c is self.candidates[0]:

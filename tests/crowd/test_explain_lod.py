@@ -31,7 +31,10 @@ def test_explain_lod_prints_and_writes_every_frame(scene, tmp_path, monkeypatch)
     for r in recs:
         assert r["plan"] and r["state"] and r["predicted_ms"] > 0 and r["measured_ms"] > 0
         assert sum(sum(g.values()) for g in r["groups"].values()) == 4 or r["state"] == "delegated"
+        assert all(k.split("/")[0] == "walker" for k in r["groups"])  # the character, not the master rep's key
         assert r["model"]["coefficients"]["triangles"] > 0 and r["model"]["prior"]["triangles"] > 0
+    first = p.stdout.split("frame 1:")[0]  # the neutral prior's scale is free: no ± 100x the mean before a fit
+    assert "the prior's guess" in first and "±" not in first.split("predicted")[1].split("\n")[0]
     warm = [r["frame"] for r in recs if r.get("warm_up")]  # draws that made GL objects: not fitted (issue 50)
     assert 0 in warm and "warm-up" in p.stdout
     assert recs[-1]["model"]["frames"] == 5 - len([f for f in warm if f < 5])  # every other frame before the last
