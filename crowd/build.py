@@ -1,6 +1,7 @@
 """``crowd build``: build the LOD hierarchies of many characters ahead of time, on a dask cluster.
 
     crowd build ASSET... [--mode points|clusters|triangles|auto|all] [--cluster local|none|tcp://HOST:PORT]
+                [--no-calibrate]
 
 ASSET is
 
@@ -13,6 +14,13 @@ ASSET is
 - a glTF file (``.glb``/``.gltf``) or ``generator:NAME[:TRIANGLES[:SEED]]`` (as ``crowd info`` takes):
   that character at 30 fps with every mode's defaults (what a scene naming it with default ``fps`` and
   ``[lod]`` keys uses).
+
+Mode auto's costs (issue 50, item 3): a build that includes mode ``auto`` also measures this machine's per-unit
+frame costs when the cache holds no calibration of it (``crowd calibrate --quick``, a few seconds, in this process
+after the builds, so nothing else runs while it is timed) and stores them where a run reads them: the first
+plan of a later run is priced from this machine's measured costs, not another's defaults (without them the
+quickstart explored its point plan, five times dearer, for four frames). ``--no-calibrate`` skips it; a
+calibration that cannot be measured is one line on stderr, and runs start from the defaults as before.
 
 One task per (character, mode) runs the mode's own ``build`` (``lod.modes``: ``lod.points.mode``
 ``HierarchyCache``, ``lod.clusters.mode.cached_hierarchy``, ``lod.chains.chain.cached_chain``; ``auto`` the
@@ -231,10 +239,12 @@ class BuildResult:
     new_entries: list
     cluster: str
     seconds: float
+    #: what mode auto's calibration did (:func:`calibrate_if_missing`; None: nothing)
+    calibration: str | None = None
 
 
 def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None = "local",
-                 quiet: bool = False) -> BuildResult:
+                 quiet: bool = False, calibrate: bool = True) -> BuildResult:
     """Build the hierarchies of every character of ``assets`` in ``modes`` (module docstring).
 
     Parameters
@@ -243,6 +253,8 @@ def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None 
     modes : LOD modes (:func:`parse_modes`)
     cluster : ``"local"`` (embedded LocalCluster), ``"none"``/None (this process) or ``tcp://HOST:PORT``
     quiet : no progress bar
+    calibrate : with mode auto among the jobs, measure this machine's costs when none are stored
+        (:func:`calibrate_if_missing`)
 
     Raises
     ------
@@ -287,7 +299,32 @@ def build_assets(assets: list, modes: tuple = CACHED_MODES, cluster: str | None 
         more = ([f"{others} other failure{'s' if others > 1 else ''}"] if others else []) + \
             ([f"{ok} other build{'s are' if ok > 1 else ' is'} in the cache"] if ok else [])
         raise AssetError(bad[0]["error"] + (f" ({'; '.join(more)})" if more else ""))
-    return BuildResult(results, cache, sorted(_entries(cache) - before), description, time.time() - t0)
+    seconds = time.time() - t0
+    cal = calibrate_if_missing() if calibrate and any(j.mode == "auto" for j in jobs) else None
+    return BuildResult(results, cache, sorted(_entries(cache) - before), description, seconds, cal)
+
+
+def calibrate_if_missing() -> str | None:
+    """Measure and store this machine's cost model (``crowd calibrate --quick``) when the cache holds none of this
+    host (module docstring); a file that cannot be used (corrupt, another format) is replaced. Returns a line
+    saying what was done, None when a calibration is stored. A measurement that fails is one line on stderr."""
+    from lod.auto import cost_model
+
+    model, problem = cost_model.load_checked(key="")
+    if not model.is_default and problem is None:
+        return None
+    from crowd.calibrate import calibrate
+
+    t0 = time.time()
+    try:
+        _, path = calibrate(quick=True, save=True)
+    except Exception as e:  # the hierarchies are built; mode auto falls back to the defaults
+        print(f"crowd build: warning: mode auto's costs could not be measured ({type(e).__name__}: {e}); runs "
+              "start from the defaults (crowd calibrate measures them)", file=sys.stderr)
+        return None
+    why = f"; {cost_model.FILE_NAME} {problem}, replaced" if problem else ""
+    return (f"measured this machine's frame costs for mode auto in {time.time() - t0:.1f} s (crowd calibrate "
+            f"--quick{why}): {path}")
 
 
 def summary(res: BuildResult) -> str:
@@ -296,8 +333,11 @@ def summary(res: BuildResult) -> str:
              + (f" ({r['poses']})" if r.get("poses") else "") for r in res.results]
     lines.append(f"built {len(res.results)} hierarchy set(s) in {res.seconds:.1f} s on {res.cluster}; "
                  f"{len(res.new_entries)} new cache entr{'y' if len(res.new_entries) == 1 else 'ies'} in {res.cache}")
+    if res.calibration:
+        lines.append(res.calibration)
     return "\n".join(lines)
 
 
-__all__ = ["CACHED_MODES", "BuildJob", "BuildResult", "build_assets", "build_task", "cache_dir", "expand_assets",
+__all__ = ["CACHED_MODES", "BuildJob", "BuildResult", "build_assets", "build_task", "cache_dir", "calibrate_if_missing",
+           "expand_assets",
            "parse_modes", "pose_summary", "summary"]

@@ -9,6 +9,7 @@
                  [--quiet]
     crowd calibrate [--quick] [--size WxH] [--no-save]
     crowd build ASSET... [--mode points|clusters|triangles|auto|all] [--cluster local|none|tcp://HOST:PORT] [--quiet]
+                [--no-calibrate]
     crowd inspect ASSET [--png FILE] [--clip NAME] [--time S] [--pose K] [--poe P] [--camera X,Y,Z] [--size WxH]
                   [--clustering error-aware|octree]
 
@@ -153,6 +154,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "LocalCluster on loopback), tcp://HOST:PORT of a running scheduler (its workers write to this "
                    "machine's cache path: share it), or 'none' (this process)")
     b.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+    b.add_argument("--no-calibrate", action="store_true", help="with mode auto: do not measure this machine's "
+                   "frame costs when none are stored (crowd calibrate --quick, a few seconds after the builds)")
 
     c = sub.add_parser("calibrate", help="measure this machine's frame-cost model (about 2-3 minutes; "
                        "--quick for about half) and store it")
@@ -200,7 +203,8 @@ def cmd_inspect(args) -> int:
 def cmd_build(args) -> int:
     from crowd.build import build_assets, parse_modes, summary
 
-    res = build_assets(args.assets, parse_modes(args.mode), cluster=args.cluster, quiet=args.quiet)
+    res = build_assets(args.assets, parse_modes(args.mode), cluster=args.cluster, quiet=args.quiet,
+                       calibrate=not args.no_calibrate)
     if not args.quiet:
         print(summary(res))
     return 0

@@ -90,11 +90,12 @@ def test_build_on_the_cluster_then_the_run_finds_the_cache_warm(write_scene, tmp
         _forbid_builds(m)
         with pytest.raises(_Rebuilt):
             Engine(dataclasses.replace(scene, lod_mode="triangles", lod_params=()), quiet=True)
-    r = run_cli("build", p, "--mode", "all", "--cluster", dask_cluster)
+    r = run_cli("build", p, "--mode", "all", "--cluster", dask_cluster, "--no-calibrate")
     assert r.returncode == 0, r.stderr
     lines = r.stdout.strip().splitlines()
     assert len(lines) == 2 * len(CACHED_MODES) + 1 and "walker [clusters]" in r.stdout and "runner [auto]" in r.stdout
     assert f"on dask scheduler {dask_cluster}" in lines[-1] and str(cache) in lines[-1]
+    assert not (cache / "cost_model.json").exists()  # --no-calibrate
     built = _cache_entries(cache)
     npz = [n for n in built if n.endswith(".npz")]
     assert npz and not [n for n in built if n.endswith(".tmp")]  # atomic writes leave no temporary file
@@ -143,3 +144,31 @@ def test_build_prints_seconds_and_megabytes_per_character(tmp_path, monkeypatch,
     assert " MB (poses per clip: " in line and "% of the extent" in line and "MB per clip second" in line
     pct = float(line.split("pose error <= ")[1].split("%")[0])
     assert 0.0 < pct <= 2.0
+
+
+def test_a_build_with_mode_auto_measures_this_machine_s_costs_once(tmp_path, monkeypatch):
+    """Issue 50, item 3: ``crowd build`` with mode auto measures this machine's frame costs when the cache holds
+    none (crowd calibrate --quick) and stores them where a run reads them back (no longer the defaults); a second
+    build keeps them; a corrupt cost file is named in one line and replaced; other modes do not calibrate."""
+    from lod.auto import cost_model
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CROWD_CACHE_DIR", str(cache))
+    r = run_cli("build", "generator:humanoid:600", "--mode", "points", "--cluster", "none")
+    assert r.returncode == 0 and not (cache / cost_model.FILE_NAME).exists(), r.stderr
+    assert cost_model.load_any(warn=False).is_default
+    r = run_cli("build", "generator:humanoid:600", "--mode", "auto", "--cluster", "none")
+    assert r.returncode == 0, r.stderr
+    assert "measured this machine's frame costs for mode auto" in r.stdout and str(cache) in r.stdout
+    model = cost_model.load_any(warn=False)
+    assert not model.is_default and model.coefficients["triangles"] > 0 and model.samples > 0
+    stamp = (cache / cost_model.FILE_NAME).stat().st_mtime_ns
+    r = run_cli("build", "generator:humanoid:600", "--mode", "auto", "--cluster", "none")
+    assert r.returncode == 0 and "frame costs" not in r.stdout
+    assert (cache / cost_model.FILE_NAME).stat().st_mtime_ns == stamp  # kept
+    (cache / cost_model.FILE_NAME).write_text("{not json")
+    r = run_cli("build", "generator:humanoid:600", "--mode", "auto", "--cluster", "none")
+    assert r.returncode == 0, r.stderr
+    said = [ln for ln in r.stdout.splitlines() if "frame costs" in ln]
+    assert len(said) == 1 and "replaced" in said[0] and cost_model.FILE_NAME in said[0]
+    assert not cost_model.load_any(warn=False).is_default
