@@ -467,6 +467,13 @@ class PlanChooser:
         gain = 1.0 - float(np.median(se)) / float(np.median(sc))
         return gain > max(MIN_GAIN, MEASURED_GAIN_SD * spread)
 
+    def rename(self, old: str, new: str) -> None:
+        """The steady incumbent ``old`` draws what plan ``new`` draws: it goes by ``new`` from now on (nothing
+        happens during a transition, an exploration or a pending switch)."""
+        if (self.incumbent == old and self._transition is None and self._exploring is None
+                and self._pending[0] is None):
+            self.incumbent = new
+
     def warm_frame(self) -> None:
         """The last frame's draw carried a one-time cost (:attr:`lod.drawlist.DrawList.warm_up`), so it measured
         nothing: an exploration running draws its plan for one more frame instead (at most :data:`EXPLORE_WARM`

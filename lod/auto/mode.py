@@ -614,6 +614,10 @@ class AutoSelector:
                                   equal=lambda u, v: canon[u] == canon[v],
                                   content={n: p.content for n, p in plans.items() if p.content is not None})
         self._means = {n: (m, sd) for n, (m, sd, _) in self.chooser.last.items()}
+        if dec.state == "steady" and dec.plan == dec.incumbent and plans[dec.plan].alias is not None:
+            # the incumbent draws what a pure plan draws (the mixed plan that settled on one representation): it
+            # goes by that plan's name, so it is held and drawn by the single mode's selector (lod.auto.delegate)
+            self.chooser.rename(dec.plan, plans[dec.plan].alias)
         if any(not plans[n].exact for n in (dec.plan, dec.fade_from) if n is not None):
             groups = self._exact(frame, groups, bound)
             plans = self._plans(frame, groups, bound, fixed)

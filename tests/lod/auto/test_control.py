@@ -343,3 +343,17 @@ def test_a_pullback_goes_to_a_plan_priced_within_the_budget_now(monkeypatch):
     out = _run_budget(ch, fit, true, 3, budget, slow=lambda f, d: 6.0 if d.plan == "points" else 1.0)
     d = next(d for d, _ in out if d.state == "pullback")
     assert d.plan == "mixed"
+
+
+def test_a_steady_incumbent_drawing_a_pure_plan_goes_by_its_name():
+    """The mixed plan that settled on one representation draws what the pure plan draws: renamed, it can be held
+    and delegated to the single mode's selector (lod.auto.mode); never during an exploration."""
+    fit = OnlineCostModel(cm.CostModel(key="calibrated"))
+    ch = ctl.PlanChooser(switch_frames=0)
+    d = ch.choose({"mixed": 0.010, "triangles": 0.011, "points": 0.030}, fit)
+    assert d.incumbent == "mixed"
+    ch.rename("mixed", "triangles")
+    assert ch.incumbent == "triangles"
+    ch._exploring = ["points", 1]
+    ch.rename("triangles", "mixed")
+    assert ch.incumbent == "triangles"
