@@ -163,7 +163,8 @@ def main(argv=None) -> int:
             "(`scripts/bench_auto.py` measures PSNR beside them); what this table shows is what auto's start "
             "costs: exploring and warm-up frames, and the plan it settles on.\n\n"
             "| scene | run | median ms | mean ms | median / best single mode | explored frames | switches "
-            "| warm-up frames | plans held |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n" + "\n".join(lines) + "\n")
+            "| warm-up frames | plans held |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n"
+            + "\n".join(lines) + "\n")
     print(text)
     if args.md is not None:
         from crowd.output import write_atomic

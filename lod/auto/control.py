@@ -16,9 +16,9 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   times the plan's measured bias: ``exp`` of the mean log residual of the last clean frames that drew what
   it draws now (at most :data:`BIAS_FRAMES`, no older than :data:`BIAS_AGE`), shrunk by
   ``n / (n + BIAS_SHRINK)`` (what the linear model misses for that content). Its counts for the covariance
-  are those of the last frame it was drawn, rescaled to ``M_p``; a plan never drawn has a relative uncertainty of :data:`UNMEASURED_SD` and a
-  lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR` (:data:`UNMEASURED_FACTOR_NEUTRAL` without a
-  calibration).
+  are those of the last frame it was drawn, rescaled to ``M_p``; a plan never drawn has a relative
+  uncertainty of :data:`UNMEASURED_SD` and a lower bound of ``M_p /`` :data:`UNMEASURED_FACTOR`
+  (:data:`UNMEASURED_FACTOR_NEUTRAL` without a calibration).
 - **Bias by content** (issue 50, item 2). A measured frame updates the estimate of what it drew, not of a
   name: a plan's content is the share of its priced seconds per candidate (:attr:`lod.auto.plans._Plan.
   content`), and a clean frame counts for the bias of every plan whose content is within
@@ -27,20 +27,21 @@ one pure plan per representation, :mod:`lod.auto.plans`) with the online cost mo
   bound) does not keep the old content's bias; two plans that draw alike share their frames.
 - **Exploration.** When the incumbent is steady and a plan's lower confidence bound
   ``M_p - EXPLORE_Z · sd`` undercuts the incumbent, measured on :data:`EXPLORE_AFTER` frames (the fit is
-  unsure about a plan that could win, e.g. a representation not drawn for a while, whose uncertainty the forgetting lets grow back), that plan is
-  drawn for :data:`EXPLORE_RUN` measured frames (a frame whose draw carried a one-time cost, a warm-up, is
-  replaced by another, :meth:`PlanChooser.warm_frame`), and kept only if the hysteresis rule then prefers it;
-  else auto returns; or if what its frames measured is faster than the incumbent's last clean frames beyond the
-  noise (:meth:`PlanChooser._measured_gain`: where the linear model cannot tell the two apart, the measurements
-  decide). An exploration is a cut to the plan and back (:data:`EXPLORE_FADE` = 0 frames of fade:
-  a fade draws the changed instances in both representations, one of the plaza's or the Foxes' dearest frames,
-  and every plan is within the error bound, so the cut changes the image by at most the bound; issue 50, item
-  3). Bounds: the frames drawing an explored plan (fades included) are at most ``EXPLORE_FRACTION`` of the
-  frames (plus an allowance of :data:`EXPLORE_ALLOWANCE` for the start: four explorations); an exploration
-  never starts within :data:`EXPLORE_GAP` frames of the last one, and never retries a plan within
-  :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the decision rests on the posterior
-  and a run of several frames is measured before anything is kept (the rule of run M in
-  ``scripts/bench_auto.md``, which explored and switched on single noisy frames, is what this replaces).
+  unsure about a plan that could win, e.g. a representation not drawn for a while, whose uncertainty the
+  forgetting lets grow back), that plan is drawn for :data:`EXPLORE_RUN` measured frames (a frame whose draw
+  carried a one-time cost, a warm-up, is replaced by another, :meth:`PlanChooser.warm_frame`). It is kept if
+  the hysteresis rule then prefers it, or if what its frames measured is faster than the incumbent's last
+  clean frames beyond the noise (:meth:`PlanChooser._measured_gain`: where the linear model cannot tell the
+  two apart, the measurements decide); else auto returns. An exploration is a cut to the plan and back
+  (:data:`EXPLORE_FADE` = 0 frames of fade: a fade draws the changed instances in both representations, one
+  of the plaza's or the Foxes' dearest frames, and every plan is within the error bound, so the cut changes
+  the image by at most the bound; issue 50, item 3). Bounds: the frames drawing an explored plan (fades
+  included) are at most ``EXPLORE_FRACTION`` of the frames (plus an allowance of :data:`EXPLORE_ALLOWANCE` for
+  the start: four explorations); an exploration never starts within :data:`EXPLORE_GAP` frames of the last
+  one, and never retries a plan within :data:`EXPLORE_COOLDOWN` frames. A single frame cannot trigger it: the
+  decision rests on the posterior and a run of several frames is measured before anything is kept (the rule
+  of run M in ``scripts/bench_auto.md``, which explored and switched on single noisy frames, is what this
+  replaces).
 - **Held frames.** While the incumbent is a steady pure plan (one representation), the plans are compared on
   every :data:`REPRICE_FRAMES`-th frame only; in between the incumbent is drawn without a decision, by the
   single mode's own selector once its list is verified to be the plan's (:mod:`lod.auto.delegate`): then auto's
@@ -89,7 +90,8 @@ EXPLORE_RUN = 2
 EXPLORE_FADE = 0
 #: warm-up frames (lod.drawlist.DrawList.warm_up) an exploration replaces by further frames of its plan, at most
 EXPLORE_WARM = 2
-#: an explored plan measured faster than the incumbent by this many relative noise standard deviations is kept
+#: an explored plan measured faster than the incumbent by this many robust standard deviations of the incumbent's
+#: frame-to-frame spread is kept (PlanChooser._measured_gain)
 MEASURED_GAIN_SD = 3.0
 #: share of frames exploration may take (fades included), and the allowance at the start
 EXPLORE_FRACTION = 0.1
@@ -455,9 +457,9 @@ class PlanChooser:
         """The explored plan ``e`` measured faster than the incumbent ``c`` beyond the noise: the median of its
         clean frames in this exploration more than :data:`MEASURED_GAIN_SD` robust standard deviations of the
         incumbent's own frame-to-frame spread (and at least :data:`MIN_GAIN`) below the median of the incumbent's
-        last clean frames (at least 3, within :data:`MEASURED_AGE` frames). The measurements decide where the linear model cannot tell two plans apart
-        (1,024 Foxes: triangles measured 73-77 ms against the point plan's 115-125, predicted 84 against 102, a
-        gain under the hysteresis's 22 %: auto went back to points)."""
+        last clean frames (at least 3, within :data:`MEASURED_AGE` frames). The measurements decide where the
+        linear model cannot tell two plans apart (1,024 Foxes: triangles measured 73-77 ms against the point
+        plan's 115-125, predicted 84 against 102, a gain under the hysteresis's 22 %: auto went back to points)."""
         se = [t for f, t in self._secs.get(e, ()) if self.frames - f <= EXPLORE_RUN + EXPLORE_WARM + 1]
         sc = [t for f, t in self._secs.get(c, ()) if self.frames - f <= MEASURED_AGE]
         if len(se) < EXPLORE_RUN or len(sc) < 3 or min(se + sc) <= 0.0:
