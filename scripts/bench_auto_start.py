@@ -65,6 +65,7 @@ def _fox_scene(n: int, size, folder: Path) -> Path | None:
 
 def run(scene_path: Path, mode: str, size, frames: int, out: Path, model=None) -> dict:
     """One run of ``scene_path`` in ``mode``; ``model``: auto's prior (a CostModel; None: the defaults)."""
+    import csv
     import dataclasses
 
     from crowd.engine import Engine
@@ -82,8 +83,6 @@ def run(scene_path: Path, mode: str, size, frames: int, out: Path, model=None) -
             eng.run(frames=frames, out_dir=out)
     finally:
         cost_model.load_any = saved
-    import csv
-
     with open(out / "frames.csv") as f:
         rows = list(csv.DictReader(f))
     total = [1e3 * float(r["total"]) for r in rows][SKIP:]

@@ -24,6 +24,7 @@ from numba import njit, prange
 from sim.angles import atan2_fast
 from sim.params import Param, ParamError
 from sim.replay.frames import kinematics
+from sim.replay.recording import FRAME_EPS
 from sim.replay.track import HEADING_MIN_SPEED, Track
 
 #: the effect takes no scene-file keys (the placements carry the recordings)
@@ -94,7 +95,6 @@ class Replay:
             enter = np.sort(cand[t.recording.alive(f)[cand]]) if cand.size else cand
             self.started[k][cand] = True  # (one whose recording began and ended between two frames never enters)
             if enter.size:
-                self.started[k][enter] = True
                 new.append(t.agents(enter, f))
                 new_track.append(np.full(enter.size, k, np.int32))
                 new_person.append(enter)
@@ -118,8 +118,6 @@ class Replay:
     def _passed(self, k: int, f: float) -> tuple:
         """``(began, ended)``: how many of track ``k``'s persons' recordings began (first frame at or before
         ``f``) and ended (last frame before ``f``) since the last call (``Recording.alive``'s tolerance)."""
-        from sim.replay.recording import FRAME_EPS
-
         a = int(np.searchsorted(self._first_sorted[k], f + FRAME_EPS, side="right"))
         b = int(np.searchsorted(self._last_sorted[k], f - FRAME_EPS, side="left"))
         began, ended = max(a - self._passed_first[k], 0), max(b - self._passed_last[k], 0)

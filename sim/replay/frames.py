@@ -148,8 +148,7 @@ class FrameTable:
             return
         n = int(self.offsets[j + 1] - self.offsets[j])
         if self._ahead is None or self._ahead[0] != j:
-            if self._ahead is not None:  # (a seek back left another slice half read: drop it)
-                self._ahead = None
+            self._ahead = None  # (a seek back may have left another slice half read: dropped)
             if self._kept_bytes() + self._bytes(j) > KEEP_BYTES:
                 return
             self._ahead = [j, *self._buffers(n), 0]

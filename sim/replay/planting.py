@@ -116,10 +116,10 @@ class Planting:
         says so, at their recorded positions (``state.position``), setting their offsets and, while a foot is
         planted, their clips' phase (module docstring)."""
         t = self.table
-        _plant_kernel(np.asarray(track, np.int32), np.asarray(planted, np.bool_), state.character, state.clip, state.anim_time, state.anim_rate, state.heading,
-                      state.scale, t.contact, t.down, t.feet, t.duration, float(MAX_OFFSET), float(max(dt, 0.0)),
-                      float(RETURN_SPEED), float(PHASE_RATE_MAX), state.position, self.lock, self.anchor,
-                      self.offset)
+        _plant_kernel(np.asarray(track, np.int32), np.asarray(planted, np.bool_), state.character, state.clip,
+                      state.anim_time, state.anim_rate, state.heading, state.scale, t.contact, t.down, t.feet,
+                      t.duration, float(MAX_OFFSET), float(max(dt, 0.0)), float(RETURN_SPEED), float(PHASE_RATE_MAX),
+                      state.position, self.lock, self.anchor, self.offset)
 
 
 @njit(cache=True, parallel=True)
@@ -172,8 +172,9 @@ def _stance_phase(contact, h, m, u0, du_max, f, K, pz):
 
 
 @njit(cache=True, parallel=True)
-def _plant_kernel(track, planted, character, clip, anim_time, anim_rate, heading, scale, contact, down, feet, duration,
-                  max_off, dt, back_speed, rate_max, position, lock, anchor, offset):  # pragma: no cover - compiled
+def _plant_kernel(track, planted, character, clip, anim_time, anim_rate, heading, scale, contact, down, feet,
+                  duration, max_off, dt, back_speed, rate_max, position, lock, anchor,
+                  offset):  # pragma: no cover - compiled
     """:meth:`Planting.step` (module docstring)."""
     C, M = feet.shape
     K = contact.shape[2]
